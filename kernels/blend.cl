@@ -1,0 +1,1 @@
+// blend kernel: see src/include/drivenshape/stages.h

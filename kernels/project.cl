@@ -1,0 +1,1 @@
+// projection kernel: see src/include/drivenshape/stages.h

@@ -1,0 +1,43 @@
+#pragma once
+
+#include <string>
+
+namespace drivenshape {
+
+/// Writes a file so that readers only ever see the old file or the whole new one.
+///
+/// The content goes to a temporary file in the destination folder (same file system),
+/// named `.<name>.tmp-<pid>-<n>`; commit() flushes it and renames it over the target.
+/// If the object is destroyed without commit() (an exception, a failed write) the
+/// temporary file is removed, so no partial output is ever left behind.
+///
+///     AtomicFile file("out/cloth.1001.exr");
+///     writeSomething(file.tempPath());   // any writer that takes a path
+///     file.commit();
+class AtomicFile {
+ public:
+  /// Throws Error(kOutput) naming the folder when it does not exist or is not writable.
+  explicit AtomicFile(std::string finalPath);
+  ~AtomicFile();
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+
+  const std::string& tempPath() const { return mTempPath; }
+  const std::string& finalPath() const { return mFinalPath; }
+  /// fsyncs and renames; throws Error(kOutput) on failure (and removes the temp file).
+  void commit();
+
+ private:
+  std::string mFinalPath;
+  std::string mTempPath;
+  bool mCommitted = false;
+};
+
+/// Writes `bytes` to `path` atomically (see AtomicFile).
+void writeFileAtomically(const std::string& path, const std::string& bytes);
+
+/// Throws Error(kOutput) naming the folder of `path` and the reason when a file cannot be
+/// created there. Call before long work so a bad -o fails in the first second.
+void checkOutputFolderWritable(const std::string& path);
+
+}  // namespace drivenshape

@@ -1,0 +1,61 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace drivenshape {
+
+/// V by 3 positions, one vertex per row, float32, row-major so that the memory is the
+/// interleaved x0 y0 z0 x1 y1 z1 ... layout that caches, kernels and EXR rows use.
+using Positions = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+/// A polygon mesh as read from OBJ: vertex order exactly as in the file.
+///
+///   faces:     faceStart[f] .. faceStart[f+1]-1 index into faceVertices (and faceUvs)
+///   triangles: fan triangulation of every face, (f, 0, i, i+1) for i in 1..n-2;
+///              triangleFace[t] is the face it came from
+///   groups:    faceGroup[f] indexes groupNames ("default" when the file names none)
+struct Mesh {
+  Positions positions;                 ///< V by 3
+  std::vector<Eigen::Vector2f> uvs;    ///< texture coordinates (may be empty)
+  std::vector<int> faceStart;          ///< F + 1 offsets
+  std::vector<int> faceVertices;       ///< vertex ids of all faces, concatenated
+  std::vector<int> faceUvs;            ///< uv ids parallel to faceVertices, or empty
+  std::vector<int> faceGroup;          ///< F group ids
+  std::vector<std::string> groupNames; ///< group id -> name from `g` (or `o`) lines
+  Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor> triangles;  ///< T by 3
+  std::vector<int> triangleFace;       ///< T face ids
+
+  int vertexCount() const { return static_cast<int>(positions.rows()); }
+  int faceCount() const { return static_cast<int>(faceGroup.size()); }
+  int triangleCount() const { return static_cast<int>(triangles.rows()); }
+  bool hasUvs() const { return !faceUvs.empty(); }
+  /// Rebuilds `triangles` and `triangleFace` from the faces (fan triangulation).
+  void triangulate();
+};
+
+/// Hash of what makes two meshes interchangeable for a cache: the vertex count and the face
+/// lists (not positions, not UVs). Written into EXR headers and databases.
+std::uint64_t topologyHash(const Mesh& mesh);
+/// Topology hash of a bare vertex count (for caches read without a mesh).
+std::uint64_t topologyHash(int vertexCount);
+
+/// Axis-aligned bounds of V by 3 positions; `diagonal` is the length of max - min.
+struct Bounds {
+  Eigen::Vector3f min = Eigen::Vector3f::Zero();
+  Eigen::Vector3f max = Eigen::Vector3f::Zero();
+  float diagonal() const { return (max - min).norm(); }
+};
+Bounds computeBounds(const float* xyz, int vertexCount);
+
+/// Reads a Wavefront OBJ: `v`, `vt`, `f` (any polygon size, v, v/vt, v//vn, v/vt/vn, negative
+/// indices), `g`/`o` groups; ignores normals, materials and smoothing. Throws Error(kInput)
+/// naming the file and line on malformed content or an out-of-range index.
+Mesh readObj(const std::string& path);
+
+/// Writes positions + faces (+ UVs, groups) as OBJ, atomically.
+void writeObj(const std::string& path, const Mesh& mesh);
+
+}  // namespace drivenshape

@@ -1,0 +1,114 @@
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <drivenshape/mesh.h>
+
+namespace drivenshape {
+
+/// A per-frame sequence of vertex positions, read frame by frame.
+/// Implementations: PC2 files and point-cache EXR sequences (see openPointCache).
+class PointCacheReader {
+ public:
+  virtual ~PointCacheReader() = default;
+  virtual int vertexCount() const = 0;
+  /// All frames the cache holds, ascending.
+  virtual std::vector<int> frames() const = 0;
+  virtual bool hasFrame(int frame) const = 0;
+  /// Reads one frame into `xyz` (vertexCount() * 3 floats, interleaved). Throws Error(kInput)
+  /// naming the file and frame if the frame is missing or unreadable.
+  virtual void readFrame(int frame, float* xyz) const = 0;
+  /// The file or pattern this reads, for messages.
+  virtual const std::string& path() const = 0;
+};
+
+/// Opens `spec`: a `.pc2` file, or an EXR sequence pattern (`out.####.exr`, `%04d`, `$F4`).
+/// For EXR sequences, `expectedTopology` (if nonzero) is checked against each file's header.
+/// Throws Error(kInput) if the file is missing or its header is invalid.
+std::unique_ptr<PointCacheReader> openPointCache(const std::string& spec,
+                                                 std::uint64_t expectedTopology = 0);
+
+/// Reads frames [frames] of a cache into one F by (3V) row-major block (frame-major).
+std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<int>& frames);
+
+// ---------------------------------------------------------------------------------------
+// PC2 (little-endian): 12-byte "POINTCACHE2\0", int32 version (1), int32 points,
+// float32 start frame, float32 sample rate, int32 samples, then samples * points * xyz float32.
+// Sample s holds frame start + s * rate. Frames that fall between samples are not readable.
+
+struct Pc2Header {
+  int points = 0;
+  float startFrame = 1.0f;
+  float sampleRate = 1.0f;
+  int samples = 0;
+};
+
+/// Opens a PC2 file (header validated, size checked against the header: a truncated file
+/// is refused with the byte counts in the message).
+std::unique_ptr<PointCacheReader> openPc2(const std::string& path);
+
+/// Writes frames (F by 3V floats, frame-major) as PC2 starting at `startFrame`, rate 1,
+/// atomically. Frames must be consecutive: the caller passes what it baked in order.
+void writePc2(const std::string& path, int vertexCount, float startFrame, int frameCount,
+              const float* xyz);
+
+// ---------------------------------------------------------------------------------------
+// Point-cache EXR: one file per frame. Vertex v is pixel (v mod W, v div W); H = ceil(V/W).
+//
+//   row 0:  v0      v1      ...  v(W-1)
+//   row 1:  vW      vW+1    ...
+//   ...     last row padded with A = 0, P = 0
+//
+// Channels P.X P.Y P.Z A (FLOAT), optional N.X N.Y N.Z. Header attributes (<= 31 bytes):
+//   dsVertexCount (int), dsFrame (int), dsTopologyHash (string, 16 hex digits),
+//   dsToolVersion (string), dsBoundsMin / dsBoundsMax (v3f), dsSettingsHash (string, optional),
+//   framesPerSecond (rational, standard).
+
+enum class ExrCompression { kZip, kNone, kZips, kPiz };
+/// Parses `zip|none|zips|piz`; throws Error(kUsage) naming the value otherwise.
+ExrCompression parseExrCompression(const std::string& text);
+const char* exrCompressionName(ExrCompression compression);
+
+struct ExrWriteOptions {
+  int width = 1024;
+  ExrCompression compression = ExrCompression::kZip;
+  int frame = 0;
+  std::uint64_t topologyHash = 0;
+  std::uint64_t settingsHash = 0;  ///< 0: attribute not written
+  double framesPerSecond = 24.0;
+};
+
+/// Writes one point-cache EXR frame atomically (temp file + rename). `normals` may be null.
+void writePointCacheExr(const std::string& path, int vertexCount, const float* xyz,
+                        const float* normals, const ExrWriteOptions& options);
+
+struct ExrPointCacheInfo {
+  int vertexCount = 0;
+  int frame = 0;
+  int width = 0;
+  std::uint64_t topologyHash = 0;
+  std::uint64_t settingsHash = 0;
+  std::string toolVersion;
+  double framesPerSecond = 0.0;
+  Bounds bounds;
+  bool hasNormals = false;
+  ExrCompression compression = ExrCompression::kZip;
+};
+
+/// Reads only the header. Throws Error(kInput) if the file is not a point-cache EXR.
+ExrPointCacheInfo readPointCacheExrInfo(const std::string& path);
+
+/// Reads positions into `xyz` (vertexCount * 3). If `expectedVertexCount` or
+/// `expectedTopology` is nonzero and differs from the header, throws Error(kInput) naming the
+/// file, both values and what to do. Missing P channels are an error too.
+ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>& xyz,
+                                    int expectedVertexCount = 0,
+                                    std::uint64_t expectedTopology = 0);
+
+/// True if the file exists and OpenEXR reports it complete (all scanlines present).
+bool isCompleteExr(const std::string& path);
+
+}  // namespace drivenshape

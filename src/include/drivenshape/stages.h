@@ -1,0 +1,58 @@
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace drivenshape {
+
+/// Flat, backend-neutral tables built once per bake from a database (the "far" side:
+/// precompute once, evaluate many frames). All float32, row-major:
+///
+///   projectionRows  (k-1) x 3Vp   row r = column r of M = A Z (see SimplexLeastSquares)
+///   center          3Vp           m, the mean driver shape
+///   driverShapes    k x 3Vp       database driver shapes P_i, interleaved xyz
+///   drivenShapes    k x 3Vd       database driven shapes D_i, interleaved xyz
+struct ShapeTables {
+  int driverVertexCount = 0;  ///< Vp
+  int drivenVertexCount = 0;  ///< Vd
+  int shapeCount = 0;         ///< k
+  std::vector<float> projectionRows;
+  std::vector<float> center;
+  std::vector<float> driverShapes;
+  std::vector<float> drivenShapes;
+};
+
+/// The per-frame stages of a bake, evaluated for a chunk of F frames per call (the "osd"
+/// side). Two implementations share this contract: the OpenCL kernels (makeClStages, in
+/// drivenshape/cl_stages.h) and the plain C++ host reference (makeHostStages), which is the
+/// oracle in tests. Frame blocks are frame-major:
+///
+///   frames   F x 3V   frame f, vertex v, axis a at [f * 3V + 3v + a]
+///   weights  F x k
+///
+/// upload() is called once, then project()/blend() many times. Not thread-safe.
+class StageBackend {
+ public:
+  virtual ~StageBackend() = default;
+  /// "host" or the OpenCL device name.
+  virtual std::string name() const = 0;
+  /// Makes the tables resident (device memory for OpenCL). Must precede the other calls.
+  virtual void upload(const ShapeTables& tables) = 0;
+
+  /// For each frame b (driver positions): projections[f] = M^T (b - m)   (k-1 values) and
+  /// norms[f] = { ||b - m||^2, ||b||^2 }.
+  ///   driverFrames  F x 3Vp;  projections  F x (k-1);  norms  F x 2
+  virtual void project(int frameCount, const float* driverFrames, float* projections,
+                       float* norms) = 0;
+
+  /// Blends the database shapes with per-frame weights:
+  ///   driven[f] = sum_i weights[f][i] D_i    (F x 3Vd)
+  ///   driver[f] = sum_i weights[f][i] P_i    (F x 3Vp; skipped when `driver` is null)
+  virtual void blend(int frameCount, const float* weights, float* driven, float* driver) = 0;
+};
+
+/// The host reference implementation (plain C++, no OpenCL).
+std::unique_ptr<StageBackend> makeHostStages();
+
+}  // namespace drivenshape

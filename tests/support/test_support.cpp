@@ -1,0 +1,112 @@
+#include "test_support.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <optional>
+
+namespace drivenshape::testing {
+namespace {
+
+struct ClState {
+  cl::Context context;
+  cl::Device device;
+  cl::CommandQueue queue;
+};
+
+std::optional<ClState>& clState() {
+  static std::optional<ClState> state;
+  return state;
+}
+
+std::string& clFailure() {
+  static std::string failure;
+  return failure;
+}
+
+}  // namespace
+
+std::uint32_t testSeed(std::uint32_t fallback) {
+  std::uint32_t seed = fallback;
+  if (const char* text = std::getenv("DS_SEED")) {
+    seed = static_cast<std::uint32_t>(std::strtoul(text, nullptr, 10));
+  }
+  static bool printed = false;
+  if (!printed) {
+    std::printf("[ seed     ] %u (override with DS_SEED=N)\n", seed);
+    printed = true;
+  }
+  return seed;
+}
+
+std::string dataDir() { return DS_TEST_DATA_DIR; }
+
+TempDir::TempDir() {
+  static std::atomic<int> counter{0};
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string name = info != nullptr
+                         ? std::string(info->test_suite_name()) + "." + info->name()
+                         : std::string("test");
+  for (char& ch : name) {
+    if (ch == '/') {
+      ch = '_';
+    }
+  }
+  mPath = std::string(DS_BINARY_DIR) + "/test-tmp/" + name + "-" + std::to_string(::getpid()) +
+          "-" + std::to_string(counter++);
+  std::filesystem::remove_all(mPath);
+  std::filesystem::create_directories(mPath);
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  std::filesystem::permissions(mPath, std::filesystem::perms::owner_all,
+                               std::filesystem::perm_options::add, ec);
+  std::filesystem::remove_all(mPath, ec);
+}
+
+void OpenClTest::SetUpTestSuite() {
+  if (clState() || !clFailure().empty()) {
+    return;
+  }
+  try {
+    std::vector<cl::Platform> platforms;
+    cl::Platform::get(&platforms);
+    const char* wanted = std::getenv("DS_TEST_DEVICE");
+    for (auto& platform : platforms) {
+      std::vector<cl::Device> devices;
+      platform.getDevices(CL_DEVICE_TYPE_ALL, &devices);
+      for (auto& device : devices) {
+        const std::string name = device.getInfo<CL_DEVICE_NAME>();
+        if (wanted != nullptr && name.find(wanted) == std::string::npos) {
+          continue;
+        }
+        cl::Context context(device);
+        cl::CommandQueue queue(context, device);
+        clState() = ClState{context, device, queue};
+        std::printf("[ device   ] %s / %s (%s)\n",
+                    platform.getInfo<CL_PLATFORM_NAME>().c_str(), name.c_str(),
+                    device.getInfo<CL_DEVICE_VERSION>().c_str());
+        return;
+      }
+    }
+    clFailure() = "no OpenCL device found (is pocl-opencl-icd installed?)";
+  } catch (const cl::Error& error) {
+    clFailure() = std::string("OpenCL error while looking for a device: ") + error.what() +
+                  " (" + std::to_string(error.err()) + ")";
+  }
+}
+
+void OpenClTest::SetUp() {
+  ASSERT_TRUE(clState().has_value()) << clFailure();
+}
+
+cl::Context& OpenClTest::context() { return clState()->context; }
+cl::Device& OpenClTest::device() { return clState()->device; }
+cl::CommandQueue& OpenClTest::queue() { return clState()->queue; }
+
+}  // namespace drivenshape::testing
