@@ -1,1 +1,60 @@
-// placeholder: implemented by the component owner
+#include "cl_program.h"
+
+#include <sstream>
+
+#include <drivenshape/cl_stages.h>
+#include <drivenshape/error.h>
+#include <drivenshape_kernels/shared_types_cl.h>
+
+namespace drivenshape::cl_util {
+
+void rethrowClError(const char* what, const cl::Error& error) {
+  DS_THROW(kDevice, "OpenCL failed while ", what, ": ", error.what(), " returned ",
+           clErrorName(error.err()),
+           error.err() == CL_OUT_OF_RESOURCES || error.err() == CL_MEM_OBJECT_ALLOCATION_FAILURE
+               ? "; try a smaller --chunk or another --device"
+               : "");
+}
+
+cl::Program buildProgram(const cl::Context& context, const cl::Device& device,
+                         const std::vector<KernelSource>& sources,
+                         const std::vector<std::string>& defines) {
+  std::ostringstream text;
+  std::string names;
+  for (const std::string& define : defines) {
+    const auto eq = define.find('=');
+    if (eq == std::string::npos) {
+      text << "#define " << define << "\n";
+    } else {
+      text << "#define " << define.substr(0, eq) << " " << define.substr(eq + 1) << "\n";
+    }
+  }
+  text << kernels::kSharedTypesSource << "\n";
+  for (const KernelSource& source : sources) {
+    text << "#line 1\n" << source.text << "\n";
+    names += names.empty() ? source.name : std::string(", ") + source.name;
+  }
+  const std::string program_text = text.str();
+  cl::Program program;
+  try {
+    program = cl::Program(context, program_text);
+  } catch (const cl::Error& error) {
+    rethrowClError("creating the program", error);
+  }
+  try {
+    program.build({device}, "-cl-std=CL1.2");
+  } catch (const cl::Error& error) {
+    std::string log;
+    try {
+      log = program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device);
+    } catch (const cl::Error&) {
+      log = "(no build log available)";
+    }
+    DS_THROW(kDevice, "OpenCL build of ", names, " failed on '",
+             device.getInfo<CL_DEVICE_NAME>(), "' (", clErrorName(error.err()),
+             "). Build log:\n", log);
+  }
+  return program;
+}
+
+}  // namespace drivenshape::cl_util

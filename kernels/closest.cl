@@ -1,0 +1,1 @@
+// closest-triangle kernel (correction stage)

@@ -1,0 +1,1 @@
+// local-frame transfer kernel (correction stage)
