@@ -1,1 +1,159 @@
-// placeholder
+#include "cli_args.h"
+
+#include <cctype>
+#include <cerrno>
+#include <cstdlib>
+#include <sstream>
+
+#include <drivenshape/error.h>
+
+namespace drivenshape::cli {
+
+ArgParser::ArgParser(std::string usage, std::string summary)
+    : mUsage(std::move(usage)), mSummary(std::move(summary)) {}
+
+ArgParser& ArgParser::option(const std::string& name, const std::string& valueName,
+                             const std::string& help, const std::string& defaultValue,
+                             bool required) {
+  mOrder.push_back(name);
+  mSpecs[name] = Spec{valueName, help, defaultValue, required};
+  return *this;
+}
+
+ArgParser& ArgParser::flag(const std::string& name, const std::string& help) {
+  mOrder.push_back(name);
+  mSpecs[name] = Spec{"", help, "", false};
+  return *this;
+}
+
+ArgParser& ArgParser::epilog(const std::string& text) {
+  mEpilog = text;
+  return *this;
+}
+
+ArgParser& ArgParser::positional(const std::string& names, int count) {
+  mPositionalNames = names;
+  mPositionalCount = count;
+  return *this;
+}
+
+bool ArgParser::parse(const std::vector<std::string>& args) {
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& word = args[i];
+    if (word == "-h" || word == "--help") {
+      return false;
+    }
+    if (word.size() > 1 && word[0] == '-' && !(word.size() > 1 && std::isdigit(word[1]))) {
+      std::string name = word;
+      std::string value;
+      bool inlineValue = false;
+      if (const auto eq = word.find('='); eq != std::string::npos) {
+        name = word.substr(0, eq);
+        value = word.substr(eq + 1);
+        inlineValue = true;
+      }
+      const auto spec = mSpecs.find(name);
+      if (spec == mSpecs.end()) {
+        DS_THROW(kUsage, "unknown option '", name, "' for `", mUsage, "`; see --help");
+      }
+      if (spec->second.valueName.empty()) {
+        if (inlineValue) {
+          DS_THROW(kUsage, "option '", name, "' takes no value");
+        }
+        mValues[name] = "1";
+        continue;
+      }
+      if (!inlineValue) {
+        if (i + 1 >= args.size()) {
+          DS_THROW(kUsage, "option '", name, "' needs a value (", spec->second.valueName, ")");
+        }
+        value = args[++i];
+      }
+      mValues[name] = value;
+      continue;
+    }
+    mPositionals.push_back(word);
+  }
+  if (static_cast<int>(mPositionals.size()) != mPositionalCount) {
+    if (mPositionalCount == 0) {
+      DS_THROW(kUsage, "unexpected argument '", mPositionals.front(), "' for `", mUsage,
+               "`; see --help");
+    }
+    DS_THROW(kUsage, "`", mUsage, "` takes ", mPositionalNames, "; see --help");
+  }
+  for (const auto& name : mOrder) {
+    const Spec& spec = mSpecs.at(name);
+    if (spec.required && mValues.count(name) == 0) {
+      DS_THROW(kUsage, "missing required option ", name, " ", spec.valueName, " for `", mUsage,
+               "`; see --help");
+    }
+  }
+  return true;
+}
+
+std::string ArgParser::help() const {
+  std::ostringstream out;
+  out << "usage: " << mUsage << "\n\n" << mSummary << "\n";
+  if (!mOrder.empty()) {
+    out << "\noptions:\n";
+  }
+  for (const auto& name : mOrder) {
+    const Spec& spec = mSpecs.at(name);
+    std::string left = "  " + name;
+    if (!spec.valueName.empty()) {
+      left += " " + spec.valueName;
+    }
+    out << left;
+    if (left.size() < 28) {
+      out << std::string(28 - left.size(), ' ');
+    } else {
+      out << "\n" << std::string(28, ' ');
+    }
+    out << spec.help;
+    if (spec.required) {
+      out << " (required)";
+    } else if (!spec.defaultValue.empty()) {
+      out << " [default: " << spec.defaultValue << "]";
+    }
+    out << "\n";
+  }
+  out << "  -h, --help                show this help\n";
+  if (!mEpilog.empty()) {
+    out << "\n" << mEpilog << "\n";
+  }
+  return out.str();
+}
+
+bool ArgParser::has(const std::string& name) const { return mValues.count(name) != 0; }
+
+std::string ArgParser::get(const std::string& name) const {
+  const auto it = mValues.find(name);
+  if (it != mValues.end()) {
+    return it->second;
+  }
+  return mSpecs.at(name).defaultValue;
+}
+
+int ArgParser::getInt(const std::string& name, int minimum) const {
+  const std::string text = get(name);
+  char* end = nullptr;
+  errno = 0;
+  const long value = std::strtol(text.c_str(), &end, 10);
+  if (text.empty() || *end != '\0' || errno != 0 || value < minimum || value > 1000000000L) {
+    DS_THROW(kUsage, "option ", name, " takes a whole number >= ", minimum, " (got '", text,
+             "')");
+  }
+  return static_cast<int>(value);
+}
+
+double ArgParser::getDouble(const std::string& name, double minimum) const {
+  const std::string text = get(name);
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || !(value >= minimum)) {
+    DS_THROW(kUsage, "option ", name, " takes a number >= ", minimum, " (got '", text, "')");
+  }
+  return value;
+}
+
+}  // namespace drivenshape::cli

@@ -1,1 +1,367 @@
-// placeholder
+#include "commands.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/bake.h>
+#include <drivenshape/database.h>
+#include <drivenshape/error.h>
+#include <drivenshape/evaluate.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/hash.h>
+#include <drivenshape/progress.h>
+
+#include "cli_args.h"
+#include "device_choice.h"
+
+namespace drivenshape::cli {
+namespace {
+
+bool endsWith(const std::string& text, const std::string& suffix) {
+  if (text.size() < suffix.size()) {
+    return false;
+  }
+  return std::equal(suffix.rbegin(), suffix.rend(), text.rbegin(),
+                    [](char a, char b) { return std::tolower(a) == std::tolower(b); });
+}
+
+std::string absolute(const std::string& path) {
+  std::error_code ec;
+  const auto full = std::filesystem::absolute(path, ec);
+  return ec ? path : full.lexically_normal().string();
+}
+
+/// out/cloth.####.exr -> out/cloth.report.json
+std::string defaultReportPath(const std::string& pattern) {
+  const std::filesystem::path path(pattern);
+  std::string stem = path.filename().string();
+  const auto token = stem.find_first_of("#%$");
+  stem = stem.substr(0, token);
+  while (!stem.empty() && (stem.back() == '.' || stem.back() == '_' || stem.back() == '-')) {
+    stem.pop_back();
+  }
+  if (stem.empty()) {
+    stem = "bake";
+  }
+  return (path.parent_path() / (stem + ".report.json")).string();
+}
+
+void printMesh(const char* role, const Mesh& mesh) {
+  std::cout << role << ": " << mesh.vertexCount() << " vertices, " << mesh.faceCount()
+            << " faces, " << mesh.triangleCount() << " triangles, " << mesh.uvs.size()
+            << " uvs, topology " << hashToHex(topologyHash(mesh)) << "\n";
+  std::cout << "  groups:";
+  for (const auto& name : mesh.groupNames) {
+    std::cout << " " << name;
+  }
+  std::cout << "\n";
+}
+
+void infoDatabase(const std::string& path) {
+  const Database db = loadDatabase(path);
+  std::cout << "database " << path << "\n"
+            << "  format version " << Database::kFormatVersion << ", written by drivenshape "
+            << db.toolVersion << " at " << db.created << "\n"
+            << "  content hash " << hashToHex(db.contentHash()) << "\n"
+            << "  " << db.shapeCount() << " shapes (asked for " << db.options.count << ")\n";
+  printMesh("  driver", db.driverMesh);
+  printMesh("  driven", db.drivenMesh);
+  std::cout << "  sources: driver " << db.driverSource << ", driven " << db.drivenSource << "\n"
+            << "  settings: candidate frames "
+            << (db.options.frames.empty() ? std::string("all")
+                                          : formatFrameRange(db.options.frames))
+            << ", added "
+            << (db.options.addFrames.empty() ? "none" : formatFrameRange(db.options.addFrames))
+            << ", removed "
+            << (db.options.removeFrames.empty() ? "none"
+                                                : formatFrameRange(db.options.removeFrames))
+            << ", duplicate tolerance " << db.options.duplicateTolerance << " of the diagonal\n"
+            << "  picks (order, source frame, reason, RMS distance to earlier picks):\n";
+  for (int i = 0; i < db.shapeCount(); ++i) {
+    std::cout << "    " << std::setw(3) << i << "  frame " << std::setw(6) << db.frames[i] << "  "
+              << std::setw(8) << pickReasonName(db.reasons[i]) << "  " << db.pickDistances[i]
+              << "\n";
+  }
+}
+
+void infoExr(const std::string& path) {
+  const ExrPointCacheInfo info = readPointCacheExrInfo(path);
+  std::cout << "point-cache EXR " << path << "\n"
+            << "  " << info.vertexCount << " vertices, frame " << info.frame << ", width "
+            << info.width << ", compression " << exrCompressionName(info.compression)
+            << (info.hasNormals ? ", normals" : "") << "\n"
+            << "  topology " << hashToHex(info.topologyHash) << ", settings "
+            << hashToHex(info.settingsHash) << ", written by drivenshape " << info.toolVersion
+            << ", " << info.framesPerSecond << " fps\n"
+            << "  bounds (" << info.bounds.min.transpose() << ") - (" << info.bounds.max.transpose()
+            << ")\n";
+}
+
+}  // namespace
+
+int runDevices(const std::vector<std::string>& args) {
+  ArgParser parser("drivenshape devices", "Lists the OpenCL platforms and devices with the "
+                                          "index that `--device` accepts.");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  listDevices(std::cout);
+  return 0;
+}
+
+int runInfo(const std::vector<std::string>& args) {
+  ArgParser parser("drivenshape info FILE",
+                   "Describes a database, a mesh (.obj), a PC2 cache, a point-cache EXR or an EXR "
+                   "sequence pattern (name.####.exr).");
+  parser.positional("one FILE", 1);
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const std::string path = parser.positionals().front();
+  if (hasFramePattern(path)) {
+    const auto cache = openPointCache(path);
+    const std::vector<int> frames = cache->frames();
+    std::cout << "EXR sequence " << path << ": " << frames.size() << " frames ("
+              << formatFrameRange(frames) << "), " << cache->vertexCount() << " vertices\n";
+    infoExr(expandFramePattern(path, frames.front()));
+  } else if (endsWith(path, ".obj")) {
+    const Mesh mesh = readObj(path);
+    std::cout << "mesh " << path << "\n";
+    printMesh("  ", mesh);
+  } else if (endsWith(path, ".pc2")) {
+    const auto cache = openPc2(path);
+    const std::vector<int> frames = cache->frames();
+    std::cout << "PC2 cache " << path << ": " << cache->vertexCount() << " points, "
+              << frames.size() << " frames ("
+              << (frames.empty() ? std::string("none") : formatFrameRange(frames)) << ")\n";
+  } else if (endsWith(path, ".exr")) {
+    infoExr(path);
+  } else if (isDatabaseFile(path)) {
+    infoDatabase(path);
+  } else if (!std::filesystem::exists(path)) {
+    DS_THROW(kInput, "'", path, "' does not exist");
+  } else {
+    DS_THROW(kInput, "'", path, "' is not a database, .obj, .pc2 or .exr file");
+  }
+  return 0;
+}
+
+int runDbBuild(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape db build --driver-mesh M.obj --driven-mesh M.obj --driver CACHE "
+      "--driven CACHE -o DB",
+      "Builds a DrivenShape database from a reference animation: a greedy farthest-point pick "
+      "of driver shapes (seeded with --add-frames, else the first candidate frame, by "
+      "convention the rest pose), each paired with the driven shape of the same frame.");
+  parser.option("--driver-mesh", "M.obj", "driver rest mesh (topology, groups)", "", true)
+      .option("--driven-mesh", "M.obj", "driven rest mesh (topology, UVs, groups)", "", true)
+      .option("--driver", "CACHE", "driver reference cache (.pc2 or name.####.exr)", "", true)
+      .option("--driven", "CACHE", "driven reference cache, same frames", "", true)
+      .option("--frames", "RANGE", "candidate frames, e.g. 1-320 or 21-320x2", "all")
+      .option("--count", "N", "shapes to keep", "30")
+      .option("--add-frames", "LIST", "frames always kept (they seed the pick)")
+      .option("--remove-frames", "LIST", "frames never kept")
+      .option("--duplicate-tolerance", "X",
+              "reject shapes within X * driver bbox diagonal (RMS) of a kept one", "0.001")
+      .option("-o", "DB", "database file to write", "", true)
+      .flag("--quiet", "do not list the picks");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  DatabaseBuildOptions options;
+  options.count = parser.getInt("--count", 1);
+  options.duplicateTolerance = parser.getDouble("--duplicate-tolerance", 0.0);
+  if (parser.has("--frames")) {
+    options.frames = parseFrameRange(parser.get("--frames"));
+  }
+  if (parser.has("--add-frames")) {
+    options.addFrames = parseFrameRange(parser.get("--add-frames"));
+  }
+  if (parser.has("--remove-frames")) {
+    options.removeFrames = parseFrameRange(parser.get("--remove-frames"));
+  }
+  const std::string output = parser.get("-o");
+  checkOutputFolderWritable(output);
+  const Mesh driverMesh = readObj(parser.get("--driver-mesh"));
+  const Mesh drivenMesh = readObj(parser.get("--driven-mesh"));
+  const auto driver = openPointCache(parser.get("--driver"), 0);
+  const auto driven = openPointCache(parser.get("--driven"), 0);
+  const Database db = buildDatabase(driverMesh, drivenMesh, *driver, *driven, options,
+                                    parser.has("--quiet") ? nullptr : &std::cerr);
+  saveDatabase(output, db);
+  std::cout << "database: " << absolute(output) << " (" << db.shapeCount() << " shapes, driver "
+            << db.driverVertexCount() << " vertices, driven " << db.drivenVertexCount()
+            << " vertices)\n";
+  return 0;
+}
+
+namespace {
+
+class CliObserver : public BakeObserver {
+ public:
+  explicit CliObserver(long total) : mProgress("bake", total) {}
+  void frameDone(const FrameRecord& record, double seconds) override {
+    if (!mProgress.isTerminal()) {
+      std::fprintf(stderr, "frame %d baked in %.4f s, residual %.3e -> %s\n", record.frame,
+                   seconds, record.relativeResidual, record.output.c_str());
+    }
+    mProgress.advance();
+  }
+  void finish() { mProgress.finish(); }
+
+ private:
+  Progress mProgress;
+};
+
+}  // namespace
+
+int runBake(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape bake --db DB --driver CACHE --frames RANGE -o OUT.####.exr",
+      "Bakes a shot: for each frame of the driver cache, solves the blend weights of the "
+      "database shapes (min ||A w - b||, sum w = 1, 0 <= w <= 1), blends the driven shapes with "
+      "them and writes one point-cache EXR per frame. Frames are evaluated a chunk at a time "
+      "with OpenCL kernels (or the host reference path).\n\n"
+      "Note: the collision correction (binding to the shot's driver) is not implemented yet; "
+      "this version blends only, as if --no-correct were given.");
+  parser.option("--db", "DB", "database from `drivenshape db build`", "", true)
+      .option("--driver", "CACHE", "shot driver cache (.pc2 or name.####.exr)", "", true)
+      .option("--frames", "RANGE", "frames to bake: 1001-1100, 1001-1100x2, 1001,1005", "",
+              true)
+      .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
+      .option("--report", "PATH", "per-bake JSON report", "OUT folder/<name>.report.json")
+      .option("--device", "SPEC", "auto, host, cpu, gpu, an index or a name substring", "auto")
+      .option("--threads", "N", "host threads for weights and EXR writing (0 = all cores)", "0")
+      .option("--chunk", "N", "frames per kernel launch", "64")
+      .option("--compression", "C", "zip, none, zips or piz (all lossless)", "zip")
+      .option("--exr-width", "W", "pixels per EXR row (vertex v is pixel v mod W, v div W)",
+              "1024")
+      .option("--fps", "X", "frames per second written to the EXR headers", "24")
+      .option("--weights", "MODE", "qp (DrivenShape) or nearest (closest shape, a baseline)",
+              "qp")
+      .flag("--skip-existing", "keep outputs that are complete and match this bake")
+      .flag("--no-correct", "skip the collision correction (the current behaviour)")
+      .flag("--quiet", "no progress or per-frame lines")
+      .epilog(
+          "Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical, "
+          "7 interrupted.");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  BakeOptions options;
+  options.frames = parseFrameRange(parser.get("--frames"));
+  options.outputPattern = parser.get("-o");
+  options.reportPath =
+      parser.has("--report") ? parser.get("--report") : defaultReportPath(options.outputPattern);
+  options.threads = parser.getInt("--threads", 0);
+  options.chunkSize = parser.getInt("--chunk", 1);
+  options.compression = parseExrCompression(parser.get("--compression"));
+  options.exrWidth = parser.getInt("--exr-width", 1);
+  options.framesPerSecond = parser.getDouble("--fps", 1e-3);
+  options.skipExisting = parser.has("--skip-existing");
+  const std::string mode = parser.get("--weights");
+  if (mode == "qp") {
+    options.weightMode = WeightMode::kQp;
+  } else if (mode == "nearest") {
+    options.weightMode = WeightMode::kNearest;
+  } else {
+    DS_THROW(kUsage, "--weights takes qp or nearest (got '", mode, "')");
+  }
+  if (!hasFramePattern(options.outputPattern)) {
+    DS_THROW(kUsage, "-o '", options.outputPattern,
+             "' has no frame token; use e.g. out/cloth.####.exr");
+  }
+  checkOutputFolderWritable(expandFramePattern(options.outputPattern, options.frames.front()));
+
+  const Database db = loadDatabase(parser.get("--db"));
+  // EXR driver caches carry a topology hash: it must be the database's driver mesh.
+  const auto driver = openPointCache(parser.get("--driver"), topologyHash(db.driverMesh));
+  std::string device;
+  const auto stages = makeStages(parser.get("--device"), device, std::cerr);
+  const bool quiet = parser.has("--quiet");
+  std::unique_ptr<CliObserver> observer;
+  if (!quiet) {
+    std::cerr << "baking " << options.frames.size() << " frames on " << device << "\n";
+    observer = std::make_unique<CliObserver>(static_cast<long>(options.frames.size()));
+  }
+  const BakeResult result = bake(db, *driver, *stages, options, observer.get());
+  if (observer) {
+    observer->finish();
+  }
+  const double fps = result.times.total > 0 ? result.baked / result.times.total : 0.0;
+  std::cout << "baked " << result.baked << " frames (" << result.skipped << " kept) in "
+            << std::fixed << std::setprecision(3) << result.times.total << " s, "
+            << std::setprecision(1) << fps << " frames/s on " << device << "\n"
+            << "outputs: " << absolute(options.outputPattern) << " (frames "
+            << formatFrameRange(options.frames) << ")\n";
+  if (!options.reportPath.empty()) {
+    std::cout << "report:  " << absolute(options.reportPath) << "\n";
+  }
+  return 0;
+}
+
+int runEval(const std::vector<std::string>& args) {
+  ArgParser parser("drivenshape eval --truth CACHE --bake CACHE --frames RANGE",
+                   "Compares a bake with a truth cache (e.g. the simulation it replaces): mean, "
+                   "RMS and max per-vertex distance per frame and overall.");
+  parser.option("--truth", "CACHE", "reference cache (.pc2 or name.####.exr)", "", true)
+      .option("--bake", "CACHE", "baked cache to judge", "", true)
+      .option("--frames", "RANGE", "frames to compare", "", true)
+      .option("--json", "PATH", "also write the figures as JSON")
+      .flag("--per-frame", "print every frame, not only the summary");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
+  if (parser.has("--json")) {
+    checkOutputFolderWritable(parser.get("--json"));
+  }
+  const auto truth = openPointCache(parser.get("--truth"));
+  const auto baked = openPointCache(parser.get("--bake"));
+  const EvaluationResult result = evaluateCaches(*truth, *baked, frames);
+  std::cout << std::setprecision(6);
+  if (parser.has("--per-frame")) {
+    std::cout << "frame        mean         rms         max  (vertex)\n";
+    for (const FrameError& e : result.frames) {
+      std::cout << std::setw(5) << e.frame << "  " << std::setw(10) << e.mean << "  "
+                << std::setw(10) << e.rms << "  " << std::setw(10) << e.max << "  ("
+                << e.maxVertex << ")\n";
+    }
+  }
+  std::cout << "overall over " << result.frames.size() << " frames x " << result.vertexCount
+            << " vertices: mean " << result.mean << ", rms " << result.rms << ", max "
+            << result.max << " (frame " << result.maxFrame << ")\n";
+  if (parser.has("--json")) {
+    nlohmann::json frameList = nlohmann::json::array();
+    for (const FrameError& e : result.frames) {
+      frameList.push_back({{"frame", e.frame},
+                           {"mean", e.mean},
+                           {"rms", e.rms},
+                           {"max", e.max},
+                           {"max_vertex", e.maxVertex}});
+    }
+    const nlohmann::json report{{"truth", truth->path()},
+                                {"bake", baked->path()},
+                                {"vertices", result.vertexCount},
+                                {"mean", result.mean},
+                                {"rms", result.rms},
+                                {"max", result.max},
+                                {"max_frame", result.maxFrame},
+                                {"frames", frameList}};
+    writeFileAtomically(parser.get("--json"), report.dump(1) + "\n");
+  }
+  return 0;
+}
+
+}  // namespace drivenshape::cli

@@ -1,1 +1,84 @@
-int main() { return 0; }
+// drivenshape: the command line. Picks the command, runs it, and turns every error into one
+// line on stderr and a documented exit code (see drivenshape::ErrorCode and the README).
+
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <new>
+#include <string>
+#include <vector>
+
+#include <drivenshape/error.h>
+#include <drivenshape/version.h>
+
+#include "commands.h"
+#include "posmap_command.h"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: drivenshape COMMAND [options]   (drivenshape COMMAND --help for details)\n"
+    "\n"
+    "commands:\n"
+    "  devices     list OpenCL platforms and devices\n"
+    "  info FILE   describe a cache, mesh, database or EXR\n"
+    "  db build    build a database from reference driver/driven caches\n"
+    "  bake        bake a shot into point-cache EXRs\n"
+    "  eval        compare a bake with a truth cache\n"
+    "  posmap      write UV-space position maps (P, A, N) for compositing\n"
+    "  version     print the version\n";
+
+int dispatch(const std::vector<std::string>& words) {
+  using namespace drivenshape::cli;
+  if (words.empty() || words[0] == "-h" || words[0] == "--help" || words[0] == "help") {
+    std::fputs(kUsage, words.empty() ? stderr : stdout);
+    return words.empty() ? 2 : 0;
+  }
+  const std::string& command = words[0];
+  const std::vector<std::string> rest(words.begin() + 1, words.end());
+  if (command == "version" || command == "--version") {
+    std::printf("drivenshape %s\n", drivenshape::kVersion);
+    return 0;
+  }
+  if (command == "devices") {
+    return runDevices(rest);
+  }
+  if (command == "info") {
+    return runInfo(rest);
+  }
+  if (command == "bake") {
+    return runBake(rest);
+  }
+  if (command == "eval") {
+    return runEval(rest);
+  }
+  if (command == "posmap") {
+    return runPosmap(rest);
+  }
+  if (command == "db") {
+    if (!rest.empty() && rest[0] == "build") {
+      return runDbBuild(std::vector<std::string>(rest.begin() + 1, rest.end()));
+    }
+    DS_THROW(kUsage, "`drivenshape db` needs a subcommand: build");
+  }
+  DS_THROW(kUsage, "unknown command '", command, "'; run `drivenshape --help`");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return dispatch(std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const drivenshape::Error& error) {
+    std::fprintf(stderr, "drivenshape: %s: %s\n", drivenshape::errorCodeName(error.code()),
+                 error.what());
+    return static_cast<int>(error.code());
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "drivenshape: internal error: out of memory; bake fewer frames per "
+                         "chunk (--chunk) or on a machine with more memory\n");
+    return static_cast<int>(drivenshape::ErrorCode::kInternal);
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "drivenshape: internal error: %s\n", error.what());
+    return static_cast<int>(drivenshape::ErrorCode::kInternal);
+  }
+}

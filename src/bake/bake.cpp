@@ -1,1 +1,309 @@
-// placeholder: implemented by the component owner
+#include <drivenshape/bake.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/hash.h>
+#include <drivenshape/qp.h>
+#include <drivenshape/version.h>
+
+#include "parallel.h"
+
+namespace drivenshape {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Eigen::MatrixXd driverMatrix(const Database& db) {
+  const int k = db.shapeCount();
+  const Eigen::Index n = static_cast<Eigen::Index>(db.driverVertexCount()) * 3;
+  Eigen::MatrixXd a(n, k);
+  for (int i = 0; i < k; ++i) {
+    a.col(i) = Eigen::Map<const Eigen::VectorXf>(&db.driverShapes[i * n], n).cast<double>();
+  }
+  return a;
+}
+
+ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver) {
+  ShapeTables tables;
+  tables.driverVertexCount = db.driverVertexCount();
+  tables.drivenVertexCount = db.drivenVertexCount();
+  tables.shapeCount = db.shapeCount();
+  const Eigen::MatrixXd& basis = solver.basis();  // n x (k-1)
+  const Eigen::Index n = basis.rows();
+  tables.projectionRows.resize(static_cast<std::size_t>(basis.size()));
+  for (Eigen::Index r = 0; r < basis.cols(); ++r) {
+    for (Eigen::Index j = 0; j < n; ++j) {
+      tables.projectionRows[r * n + j] = static_cast<float>(basis(j, r));
+    }
+  }
+  tables.center.resize(static_cast<std::size_t>(n));
+  for (Eigen::Index j = 0; j < n; ++j) {
+    tables.center[j] = static_cast<float>(solver.center()(j));
+  }
+  tables.driverShapes = db.driverShapes;
+  tables.drivenShapes = db.drivenShapes;
+  return tables;
+}
+
+int hardwareThreads() {
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+std::uint64_t settingsHashOf(const Database& db, const BakeOptions& options) {
+  Hasher hasher;
+  hasher.addValue(db.contentHash());
+  hasher.addValue(static_cast<int>(options.weightMode));
+  hasher.addValue(options.exrWidth);
+  hasher.addString(kVersion);
+  return hasher.value();
+}
+
+/// True if `path` holds a complete EXR written for this database and these settings.
+bool isReusableOutput(const std::string& path, std::uint64_t topology, std::uint64_t settings,
+                      int frame) {
+  if (!isCompleteExr(path)) {
+    return false;
+  }
+  try {
+    const ExrPointCacheInfo info = readPointCacheExrInfo(path);
+    return info.topologyHash == topology && info.settingsHash == settings && info.frame == frame;
+  } catch (const Error&) {
+    return false;
+  }
+}
+
+void validate(const Database& db, const PointCacheReader& driver, const BakeOptions& options) {
+  if (options.frames.empty()) {
+    DS_THROW(kUsage, "the frame range is empty; pass --frames, e.g. --frames 1001-1100");
+  }
+  if (options.chunkSize < 1) {
+    DS_THROW(kUsage, "--chunk must be at least 1 (got ", options.chunkSize, ")");
+  }
+  if (!hasFramePattern(options.outputPattern)) {
+    DS_THROW(kUsage, "output '", options.outputPattern,
+             "' has no frame token; use e.g. out/cloth.####.exr");
+  }
+  if (driver.vertexCount() != db.driverVertexCount()) {
+    DS_THROW(kInput, "driver cache '", driver.path(), "' has ", driver.vertexCount(),
+             " vertices but the database's driver has ", db.driverVertexCount(),
+             "; bake with a database built for this character");
+  }
+  for (int frame : options.frames) {
+    if (!driver.hasFrame(frame)) {
+      const std::vector<int> frames = driver.frames();
+      DS_THROW(kInput, "driver cache '", driver.path(), "' has no frame ", frame, " (it holds ",
+               frames.empty() ? std::string("no frames") : formatFrameRange(frames),
+               "); pass --frames within that range");
+    }
+  }
+  checkOutputFolderWritable(expandFramePattern(options.outputPattern, options.frames.front()));
+  if (!options.reportPath.empty()) {
+    checkOutputFolderWritable(options.reportPath);
+  }
+}
+
+void writeReport(const std::string& path, const Database& db, const PointCacheReader& driver,
+                 const BakeOptions& options, const BakeResult& result) {
+  using nlohmann::json;
+  json frames = json::array();
+  for (const FrameRecord& record : result.frames) {
+    json entry{{"frame", record.frame}, {"output", record.output}, {"skipped", record.skipped}};
+    if (!record.skipped) {
+      entry["relative_residual"] = record.relativeResidual;
+      entry["kkt_residual"] = record.kktResidual;
+      entry["iterations"] = record.iterations;
+      entry["active_at_zero"] = record.atZero;
+      entry["active_at_one"] = record.atOne;
+      entry["weights"] = record.weights;
+    }
+    frames.push_back(std::move(entry));
+  }
+  const json report{
+      {"tool", "drivenshape"},
+      {"tool_version", kVersion},
+      {"device", result.device},
+      {"database", {{"content_hash", hashToHex(db.contentHash())},
+                    {"shape_count", db.shapeCount()},
+                    {"frames", db.frames}}},
+      {"driver_cache", driver.path()},
+      {"output", options.outputPattern},
+      {"settings_hash", hashToHex(result.settingsHash)},
+      {"settings",
+       {{"weights", options.weightMode == WeightMode::kQp ? "qp" : "nearest"},
+        {"correct", false},
+        {"chunk", options.chunkSize},
+        {"compression", exrCompressionName(options.compression)},
+        {"exr_width", options.exrWidth}}},
+      {"baked", result.baked},
+      {"skipped", result.skipped},
+      {"seconds",
+       {{"read", result.times.read},
+        {"project", result.times.project},
+        {"weights", result.times.weights},
+        {"blend", result.times.blend},
+        {"write", result.times.write},
+        {"total", result.times.total}}},
+      {"frames", frames},
+  };
+  writeFileAtomically(path, report.dump(1) + "\n");
+}
+
+}  // namespace
+
+ShapeTables makeShapeTables(const Database& database) {
+  return tablesFrom(database, SimplexLeastSquares(driverMatrix(database)));
+}
+
+BakeResult bake(const Database& db, const PointCacheReader& driver, StageBackend& stages,
+                const BakeOptions& options, BakeObserver* observer) {
+  const auto bakeStart = Clock::now();
+  validate(db, driver, options);
+  const int threads = options.threads > 0 ? options.threads : hardwareThreads();
+  const int k = db.shapeCount();
+  const std::size_t driverValues = static_cast<std::size_t>(db.driverVertexCount()) * 3;
+  const std::size_t drivenValues = static_cast<std::size_t>(db.drivenVertexCount()) * 3;
+  const std::uint64_t topology = topologyHash(db.drivenMesh);
+
+  BakeResult result;
+  result.device = stages.name();
+  result.settingsHash = settingsHashOf(db, options);
+
+  const Eigen::MatrixXd shapes = driverMatrix(db);
+  const SimplexLeastSquares solver(shapes);
+  stages.upload(tablesFrom(db, solver));
+
+  // Decide up front which frames to bake, so progress counts real work.
+  std::vector<int> todo;
+  for (int frame : options.frames) {
+    FrameRecord record;
+    record.frame = frame;
+    record.output = expandFramePattern(options.outputPattern, frame);
+    if (options.skipExisting &&
+        isReusableOutput(record.output, topology, result.settingsHash, frame)) {
+      record.skipped = true;
+      ++result.skipped;
+    } else {
+      todo.push_back(static_cast<int>(result.frames.size()));
+    }
+    result.frames.push_back(std::move(record));
+  }
+
+  ExrWriteOptions exr;
+  exr.width = options.exrWidth;
+  exr.compression = options.compression;
+  exr.topologyHash = topology;
+  exr.settingsHash = result.settingsHash;
+  exr.framesPerSecond = options.framesPerSecond;
+
+  const int chunk = options.chunkSize;
+  std::vector<float> driverBlock, projections, norms, weights, driven;
+  for (std::size_t begin = 0; begin < todo.size(); begin += static_cast<std::size_t>(chunk)) {
+    if (observer != nullptr && observer->stopRequested()) {
+      DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
+               " frames; finished frames are complete, rerun with --skip-existing to resume");
+    }
+    const int count = static_cast<int>(std::min<std::size_t>(chunk, todo.size() - begin));
+    auto frameRecord = [&](int i) -> FrameRecord& { return result.frames[todo[begin + i]]; };
+    const auto chunkStart = Clock::now();
+
+    auto start = Clock::now();
+    driverBlock.resize(count * driverValues);
+    parallelFor(count, threads, [&](int i) {
+      const int frame = frameRecord(i).frame;
+      float* xyz = &driverBlock[i * driverValues];
+      driver.readFrame(frame, xyz);
+      for (std::size_t j = 0; j < driverValues; ++j) {
+        if (!std::isfinite(xyz[j])) {
+          DS_THROW(kInput, "driver cache '", driver.path(), "' frame ", frame, " vertex ", j / 3,
+                   " is not a finite number; fix the cache or leave the frame out of --frames");
+        }
+      }
+    });
+    result.times.read += secondsSince(start);
+
+    start = Clock::now();
+    projections.resize(static_cast<std::size_t>(count) * (k - 1));
+    norms.resize(static_cast<std::size_t>(count) * 2);
+    if (options.weightMode == WeightMode::kQp) {
+      stages.project(count, driverBlock.data(), projections.data(), norms.data());
+    }
+    result.times.project += secondsSince(start);
+
+    start = Clock::now();
+    weights.assign(static_cast<std::size_t>(count) * k, 0.0f);
+    parallelFor(count, threads, [&](int i) {
+      FrameRecord& record = frameRecord(i);
+      if (options.weightMode == WeightMode::kQp) {
+        const Eigen::VectorXd p =
+            Eigen::Map<const Eigen::VectorXf>(&projections[i * (k - 1)], k - 1).cast<double>();
+        SimplexSolution s;
+        try {
+          s = solver.solveProjected(p, norms[2 * i], norms[2 * i + 1]);
+        } catch (const Error& error) {
+          DS_THROW(kNumerical, "frame ", record.frame, ": ", error.what());
+        }
+        record.weights.assign(s.weights.data(), s.weights.data() + k);
+        record.atZero = s.atZero;
+        record.atOne = s.atOne;
+        record.relativeResidual = s.relativeResidual;
+        record.kktResidual = s.kktResidual;
+        record.iterations = s.iterations;
+      } else {
+        const Eigen::VectorXd b =
+            Eigen::Map<const Eigen::VectorXf>(&driverBlock[i * driverValues], driverValues)
+                .cast<double>();
+        Eigen::Index best = 0;
+        const double distance = (shapes.colwise() - b).colwise().squaredNorm().minCoeff(&best);
+        record.weights.assign(k, 0.0);
+        record.weights[best] = 1.0;
+        record.relativeResidual = b.norm() > 0 ? std::sqrt(distance) / b.norm() : 0.0;
+      }
+      for (int s = 0; s < k; ++s) {
+        weights[i * k + s] = static_cast<float>(record.weights[s]);
+      }
+    });
+    result.times.weights += secondsSince(start);
+
+    start = Clock::now();
+    driven.resize(count * drivenValues);
+    stages.blend(count, weights.data(), driven.data(), nullptr);
+    result.times.blend += secondsSince(start);
+
+    start = Clock::now();
+    parallelFor(count, threads, [&](int i) {
+      FrameRecord& record = frameRecord(i);
+      ExrWriteOptions frameExr = exr;
+      frameExr.frame = record.frame;
+      writePointCacheExr(record.output, db.drivenVertexCount(), &driven[i * drivenValues],
+                         nullptr, frameExr);
+    });
+    result.times.write += secondsSince(start);
+
+    const double perFrame = secondsSince(chunkStart) / count;
+    for (int i = 0; i < count; ++i) {
+      ++result.baked;
+      if (observer != nullptr) {
+        observer->frameDone(frameRecord(i), perFrame);
+      }
+    }
+  }
+  result.times.total = secondsSince(bakeStart);
+  if (!options.reportPath.empty()) {
+    writeReport(options.reportPath, db, driver, options, result);
+  }
+  return result;
+}
+
+}  // namespace drivenshape

@@ -1,1 +1,369 @@
-// placeholder: implemented by the component owner
+// Database file: one self-describing, versioned binary file.
+//
+//   offset 0   8 bytes   magic "DSHAPEDB"
+//          8   uint32    format version (little-endian)
+//         12   uint32    0 (reserved)
+//         16   uint64    header length H
+//         24   H bytes   JSON header: settings, picks, meshes, block table with checksums
+//     24 + H   padding to a multiple of 16, then the blocks, each 16-byte aligned
+//
+// Every block is raw little-endian float32 or int32 data; the header lists its name, dtype,
+// shape, byte offset (from the start of the file) and FNV-1a 64 checksum.
+
+#include <drivenshape/database.h>
+
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/error.h>
+#include <drivenshape/hash.h>
+#include <drivenshape/version.h>
+
+namespace drivenshape {
+namespace {
+
+using nlohmann::json;
+
+constexpr char kMagic[8] = {'D', 'S', 'H', 'A', 'P', 'E', 'D', 'B'};
+constexpr std::size_t kPrefixBytes = 24;
+constexpr std::size_t kAlign = 16;
+
+struct BlockData {
+  std::string name;
+  std::string dtype;  // "float32" or "int32"
+  std::vector<std::int64_t> shape;
+  const void* data;
+  std::size_t bytes;
+};
+
+template <typename T>
+BlockData block(std::string name, const std::vector<T>& values, std::vector<std::int64_t> shape) {
+  static_assert(sizeof(T) == 4, "blocks hold 4-byte values");
+  return BlockData{std::move(name), std::is_same_v<T, float> ? "float32" : "int32",
+                   std::move(shape), values.data(), values.size() * sizeof(T)};
+}
+
+std::vector<float> flatUvs(const Mesh& mesh) {
+  std::vector<float> flat;
+  flat.reserve(mesh.uvs.size() * 2);
+  for (const auto& uv : mesh.uvs) {
+    flat.push_back(uv.x());
+    flat.push_back(uv.y());
+  }
+  return flat;
+}
+
+std::vector<float> flatPositions(const Mesh& mesh) {
+  return std::vector<float>(mesh.positions.data(),
+                            mesh.positions.data() + mesh.positions.size());
+}
+
+json meshJson(const Mesh& mesh) {
+  return json{{"vertices", mesh.vertexCount()},
+              {"faces", mesh.faceCount()},
+              {"triangles", mesh.triangleCount()},
+              {"uvs", mesh.uvs.size()},
+              {"topology_hash", hashToHex(topologyHash(mesh))},
+              {"groups", mesh.groupNames}};
+}
+
+bool isLittleEndian() {
+  const std::uint16_t probe = 1;
+  unsigned char first;
+  std::memcpy(&first, &probe, 1);
+  return first == 1;
+}
+
+}  // namespace
+
+const char* pickReasonName(PickReason reason) {
+  switch (reason) {
+    case PickReason::kSeed:
+      return "seed";
+    case PickReason::kFarthest:
+      return "farthest";
+    case PickReason::kAdded:
+      return "added";
+  }
+  return "unknown";
+}
+
+std::uint64_t Database::contentHash() const {
+  Hasher hasher;
+  hasher.addValue(topologyHash(driverMesh)).addValue(topologyHash(drivenMesh));
+  hasher.add(frames.data(), frames.size() * sizeof(int));
+  hasher.add(driverShapes.data(), driverShapes.size() * sizeof(float));
+  hasher.add(drivenShapes.data(), drivenShapes.size() * sizeof(float));
+  return hasher.value();
+}
+
+void saveDatabase(const std::string& path, const Database& db) {
+  if (!isLittleEndian()) {
+    DS_THROW(kInternal, "database files are little-endian; big-endian hosts are not supported");
+  }
+  const std::int64_t k = db.shapeCount();
+  const std::int64_t vp = db.driverVertexCount();
+  const std::int64_t vd = db.drivenVertexCount();
+  const std::vector<float> driverRest = flatPositions(db.driverMesh);
+  const std::vector<float> drivenRest = flatPositions(db.drivenMesh);
+  const std::vector<float> driverUv = flatUvs(db.driverMesh);
+  const std::vector<float> drivenUv = flatUvs(db.drivenMesh);
+  const Mesh& dm = db.driverMesh;
+  const Mesh& cm = db.drivenMesh;
+  const std::vector<BlockData> blocks = {
+      block("driver_shapes", db.driverShapes, {k, vp, 3}),
+      block("driven_shapes", db.drivenShapes, {k, vd, 3}),
+      block("driver_rest", driverRest, {vp, 3}),
+      block("driver_face_start", dm.faceStart, {static_cast<std::int64_t>(dm.faceStart.size())}),
+      block("driver_face_vertices", dm.faceVertices,
+            {static_cast<std::int64_t>(dm.faceVertices.size())}),
+      block("driver_face_uvs", dm.faceUvs, {static_cast<std::int64_t>(dm.faceUvs.size())}),
+      block("driver_face_group", dm.faceGroup, {static_cast<std::int64_t>(dm.faceGroup.size())}),
+      block("driver_uvs", driverUv, {static_cast<std::int64_t>(dm.uvs.size()), 2}),
+      block("driven_rest", drivenRest, {vd, 3}),
+      block("driven_face_start", cm.faceStart, {static_cast<std::int64_t>(cm.faceStart.size())}),
+      block("driven_face_vertices", cm.faceVertices,
+            {static_cast<std::int64_t>(cm.faceVertices.size())}),
+      block("driven_face_uvs", cm.faceUvs, {static_cast<std::int64_t>(cm.faceUvs.size())}),
+      block("driven_face_group", cm.faceGroup, {static_cast<std::int64_t>(cm.faceGroup.size())}),
+      block("driven_uvs", drivenUv, {static_cast<std::int64_t>(cm.uvs.size()), 2}),
+  };
+
+  json picks = json::array();
+  for (int i = 0; i < db.shapeCount(); ++i) {
+    picks.push_back({{"frame", db.frames[i]},
+                     {"reason", pickReasonName(db.reasons[i])},
+                     {"distance", db.pickDistances[i]}});
+  }
+  json header{
+      {"format", "drivenshape-database"},
+      {"format_version", Database::kFormatVersion},
+      {"tool_version", db.toolVersion.empty() ? std::string(kVersion) : db.toolVersion},
+      {"created", db.created},
+      {"content_hash", hashToHex(db.contentHash())},
+      {"shape_count", db.shapeCount()},
+      {"picks", picks},
+      {"driver", meshJson(db.driverMesh)},
+      {"driven", meshJson(db.drivenMesh)},
+      {"sources", {{"driver", db.driverSource}, {"driven", db.drivenSource}}},
+      {"settings",
+       {{"count", db.options.count},
+        {"candidate_frames", db.options.frames},
+        {"add_frames", db.options.addFrames},
+        {"remove_frames", db.options.removeFrames},
+        {"duplicate_tolerance", db.options.duplicateTolerance}}},
+  };
+  // Offsets depend on the header length, which depends on the offsets' digits: lay out with
+  // a fixed-width placeholder pass until stable.
+  std::vector<std::size_t> offsets(blocks.size(), 0);
+  std::string headerText;
+  for (int pass = 0; pass < 4; ++pass) {
+    json table = json::array();
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+      table.push_back({{"name", blocks[i].name},
+                       {"dtype", blocks[i].dtype},
+                       {"shape", blocks[i].shape},
+                       {"offset", offsets[i]},
+                       {"bytes", blocks[i].bytes},
+                       {"fnv1a64", hashToHex(Hasher().add(blocks[i].data, blocks[i].bytes).value())}});
+    }
+    header["blocks"] = table;
+    headerText = header.dump(1);
+    std::size_t cursor = (kPrefixBytes + headerText.size() + kAlign - 1) / kAlign * kAlign;
+    bool changed = false;
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+      changed = changed || offsets[i] != cursor;
+      offsets[i] = cursor;
+      cursor += (blocks[i].bytes + kAlign - 1) / kAlign * kAlign;
+    }
+    if (!changed) {
+      break;
+    }
+  }
+
+  std::string bytes;
+  bytes.append(kMagic, sizeof(kMagic));
+  const std::uint32_t version = Database::kFormatVersion;
+  const std::uint32_t reserved = 0;
+  const std::uint64_t headerLength = headerText.size();
+  bytes.append(reinterpret_cast<const char*>(&version), 4);
+  bytes.append(reinterpret_cast<const char*>(&reserved), 4);
+  bytes.append(reinterpret_cast<const char*>(&headerLength), 8);
+  bytes += headerText;
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    bytes.resize(offsets[i], '\0');
+    bytes.append(static_cast<const char*>(blocks[i].data), blocks[i].bytes);
+  }
+  writeFileAtomically(path, bytes);
+}
+
+bool isDatabaseFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  return in.read(magic, 8) && std::memcmp(magic, kMagic, 8) == 0;
+}
+
+namespace {
+
+class BlockReader {
+ public:
+  BlockReader(std::string path, std::string bytes, const json& table)
+      : mPath(std::move(path)), mBytes(std::move(bytes)) {
+    for (const auto& entry : table) {
+      mTable[entry.at("name").get<std::string>()] = entry;
+    }
+  }
+
+  template <typename T>
+  std::vector<T> read(const std::string& name, std::size_t expectedCount) const {
+    const auto it = mTable.find(name);
+    if (it == mTable.end()) {
+      DS_THROW(kInput, mPath, ": database block '", name,
+               "' is missing; the file is damaged or from an incompatible tool");
+    }
+    const json& entry = it->second;
+    const std::string dtype = entry.at("dtype").get<std::string>();
+    const std::string wanted = std::is_same_v<T, float> ? "float32" : "int32";
+    const auto offset = entry.at("offset").get<std::size_t>();
+    const auto bytes = entry.at("bytes").get<std::size_t>();
+    if (dtype != wanted || bytes != expectedCount * sizeof(T)) {
+      DS_THROW(kInput, mPath, ": database block '", name, "' holds ", bytes, " bytes of ", dtype,
+               ", expected ", expectedCount * sizeof(T), " bytes of ", wanted);
+    }
+    if (offset > mBytes.size() || bytes > mBytes.size() - offset) {
+      DS_THROW(kInput, mPath, ": database block '", name, "' runs past the end of the file (",
+               mBytes.size(), " bytes); the file is truncated, copy or rebuild it");
+    }
+    const std::string expected = entry.at("fnv1a64").get<std::string>();
+    const std::string actual = hashToHex(Hasher().add(mBytes.data() + offset, bytes).value());
+    if (expected != actual) {
+      DS_THROW(kInput, mPath, ": database block '", name, "' fails its checksum (", actual,
+               " != ", expected, "); the file is corrupted, rebuild it with `drivenshape db build`");
+    }
+    std::vector<T> values(expectedCount);
+    std::memcpy(values.data(), mBytes.data() + offset, bytes);
+    return values;
+  }
+
+  std::size_t count(const std::string& name) const {
+    const auto it = mTable.find(name);
+    if (it == mTable.end()) {
+      return 0;
+    }
+    return it->second.at("bytes").get<std::size_t>() / 4;
+  }
+
+ private:
+  std::string mPath;
+  std::string mBytes;
+  std::map<std::string, json> mTable;
+};
+
+void readMesh(const BlockReader& blocks, const std::string& prefix, const json& info,
+              const std::string& path, Mesh& mesh) {
+  const int vertices = info.at("vertices").get<int>();
+  const int faces = info.at("faces").get<int>();
+  const std::vector<float> rest = blocks.read<float>(prefix + "_rest", std::size_t(vertices) * 3);
+  mesh.positions = Eigen::Map<const Positions>(rest.data(), vertices, 3);
+  mesh.faceStart = blocks.read<int>(prefix + "_face_start", std::size_t(faces) + 1);
+  mesh.faceVertices =
+      blocks.read<int>(prefix + "_face_vertices", blocks.count(prefix + "_face_vertices"));
+  mesh.faceUvs = blocks.read<int>(prefix + "_face_uvs", blocks.count(prefix + "_face_uvs"));
+  mesh.faceGroup = blocks.read<int>(prefix + "_face_group", std::size_t(faces));
+  const std::vector<float> uv = blocks.read<float>(prefix + "_uvs", blocks.count(prefix + "_uvs"));
+  mesh.uvs.resize(uv.size() / 2);
+  for (std::size_t i = 0; i < mesh.uvs.size(); ++i) {
+    mesh.uvs[i] = Eigen::Vector2f(uv[2 * i], uv[2 * i + 1]);
+  }
+  mesh.groupNames = info.at("groups").get<std::vector<std::string>>();
+  for (int v : mesh.faceVertices) {
+    if (v < 0 || v >= vertices) {
+      DS_THROW(kInput, path, ": ", prefix, " face list references vertex ", v, " of ", vertices,
+               "; the file is corrupted");
+    }
+  }
+  mesh.triangulate();
+  const std::string expectedHash = info.at("topology_hash").get<std::string>();
+  if (hashToHex(topologyHash(mesh)) != expectedHash) {
+    DS_THROW(kInput, path, ": ", prefix, " topology hash ", hashToHex(topologyHash(mesh)),
+             " does not match the header's ", expectedHash, "; the file is corrupted");
+  }
+}
+
+}  // namespace
+
+Database loadDatabase(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    DS_THROW(kInput, "cannot open database '", path, "': ", std::strerror(errno));
+  }
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() < kPrefixBytes || std::memcmp(bytes.data(), kMagic, 8) != 0) {
+    DS_THROW(kInput, "'", path, "' is not a drivenshape database (no DSHAPEDB magic); build one ",
+             "with `drivenshape db build`");
+  }
+  std::uint32_t version;
+  std::uint64_t headerLength;
+  std::memcpy(&version, bytes.data() + 8, 4);
+  std::memcpy(&headerLength, bytes.data() + 16, 8);
+  if (version != static_cast<std::uint32_t>(Database::kFormatVersion)) {
+    DS_THROW(kInput, "'", path, "' is a database of format version ", version,
+             "; this drivenshape (", kVersion, ") reads version ", Database::kFormatVersion,
+             version > static_cast<std::uint32_t>(Database::kFormatVersion)
+                 ? ": upgrade drivenshape"
+                 : ": rebuild the database with this version");
+  }
+  if (headerLength > bytes.size() - kPrefixBytes) {
+    DS_THROW(kInput, "'", path, "' is truncated (header of ", headerLength,
+             " bytes does not fit in the file)");
+  }
+  json header;
+  try {
+    header = json::parse(bytes.begin() + kPrefixBytes,
+                         bytes.begin() + kPrefixBytes + static_cast<std::ptrdiff_t>(headerLength));
+  } catch (const json::exception& error) {
+    DS_THROW(kInput, "'", path, "': database header is not valid JSON: ", error.what());
+  }
+  Database db;
+  try {
+    const BlockReader blocks(path, std::move(bytes), header.at("blocks"));
+    readMesh(blocks, "driver", header.at("driver"), path, db.driverMesh);
+    readMesh(blocks, "driven", header.at("driven"), path, db.drivenMesh);
+    const int k = header.at("shape_count").get<int>();
+    for (const auto& pick : header.at("picks")) {
+      db.frames.push_back(pick.at("frame").get<int>());
+      const std::string reason = pick.at("reason").get<std::string>();
+      db.reasons.push_back(reason == "seed"    ? PickReason::kSeed
+                           : reason == "added" ? PickReason::kAdded
+                                               : PickReason::kFarthest);
+      db.pickDistances.push_back(pick.at("distance").get<double>());
+    }
+    if (static_cast<int>(db.frames.size()) != k || k < 1) {
+      DS_THROW(kInput, "'", path, "': header lists ", db.frames.size(), " picks for ", k,
+               " shapes");
+    }
+    db.driverShapes = blocks.read<float>("driver_shapes",
+                                         std::size_t(k) * db.driverVertexCount() * 3);
+    db.drivenShapes = blocks.read<float>("driven_shapes",
+                                         std::size_t(k) * db.drivenVertexCount() * 3);
+    const json& settings = header.at("settings");
+    db.options.count = settings.at("count").get<int>();
+    db.options.frames = settings.at("candidate_frames").get<std::vector<int>>();
+    db.options.addFrames = settings.at("add_frames").get<std::vector<int>>();
+    db.options.removeFrames = settings.at("remove_frames").get<std::vector<int>>();
+    db.options.duplicateTolerance = settings.at("duplicate_tolerance").get<double>();
+    db.driverSource = header.at("sources").at("driver").get<std::string>();
+    db.drivenSource = header.at("sources").at("driven").get<std::string>();
+    db.toolVersion = header.at("tool_version").get<std::string>();
+    db.created = header.at("created").get<std::string>();
+  } catch (const json::exception& error) {
+    DS_THROW(kInput, "'", path, "': database header is incomplete (", error.what(),
+             "); the file is damaged or from an incompatible tool");
+  }
+  return db;
+}
+
+}  // namespace drivenshape

@@ -1,5 +1,7 @@
 #include <drivenshape/cl_stages.h>
 
+#include <cstdio>
+
 namespace drivenshape {
 
 const char* clErrorName(int status) {
@@ -68,8 +70,12 @@ const char* clErrorName(int status) {
     DS_CL_CASE(CL_INVALID_DEVICE_PARTITION_COUNT)
 #undef DS_CL_CASE
     default:
-      return "an unknown OpenCL status";
+      break;
   }
+  // Unknown codes (vendor extensions): the number itself, from a small per-thread buffer.
+  thread_local char text[32];
+  std::snprintf(text, sizeof(text), "OpenCL status %d", status);
+  return text;
 }
 
 }  // namespace drivenshape

@@ -31,7 +31,7 @@ cl::Program buildProgram(const cl::Context& context, const cl::Device& device,
   }
   text << kernels::kSharedTypesSource << "\n";
   for (const KernelSource& source : sources) {
-    text << "#line 1\n" << source.text << "\n";
+    text << "#line 1 \"" << source.name << "\"\n" << source.text << "\n";
     names += names.empty() ? source.name : std::string(", ") + source.name;
   }
   const std::string program_text = text.str();

@@ -1,1 +1,126 @@
-// placeholder: implemented by the component owner
+// The host reference of the correction stage: the same candidate lists as the OpenCL backend,
+// then plain C++ in double for the exact choice (kernels/closest.cl) and the local-frame
+// transfer (kernels/transfer.cl), frames in parallel on host threads.
+
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/error.h>
+
+#include "candidates.h"
+#include "parallel.h"
+#include "triangle_distance.h"
+
+namespace drivenshape {
+namespace {
+
+using correction::loadPoint;
+
+class HostClosest final : public ClosestBackend {
+ public:
+  explicit HostClosest(const ClosestOptions& options) : mSearch(options.threads) {}
+
+  std::string name() const override { return "host"; }
+
+  void setSurface(const Mesh& driver, const BindingMask& mask) override {
+    mSearch.setSurface(driver, mask);
+  }
+
+  void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
+    mSearch.checkChunk("closest triangle", frameCount, hits != nullptr);
+    mSearch.find(frameCount, poses, points, mCandidates);
+    const int pointCount = mSearch.pointCount();
+    const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
+    const double tieRelative = DS_TIE_RELATIVE_DOUBLE;
+    const double tieAbsolute = static_cast<double>(
+        static_cast<float>(DS_TIE_SCALE2_DOUBLE * mSearch.sceneScale() * mSearch.sceneScale()));
+    const std::int32_t* triangles = mSearch.triangles().data();
+    correction::parallelFor(frameCount, mSearch.threads(), [&](int f) {
+      const float* pose = poses + static_cast<std::size_t>(f) * poseStride;
+      for (int i = 0; i < pointCount; ++i) {
+        const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
+        const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
+        const int first = mCandidates.start[item];
+        const int last = mCandidates.start[item + 1];
+        auto distance2 = [&](int t, double& u, double& v) {
+          const std::int32_t* tri = triangles + 3 * static_cast<std::size_t>(t);
+          return correction::triangleDistance2(p, loadPoint(pose, tri[0]), loadPoint(pose, tri[1]),
+                                               loadPoint(pose, tri[2]), u, v);
+        };
+        double u = 0.0;
+        double v = 0.0;
+        double best = std::numeric_limits<double>::infinity();
+        for (int k = first; k < last; ++k) {
+          best =
+              std::fmin(best, distance2(mCandidates.triangles[static_cast<std::size_t>(k)], u, v));
+        }
+        // Same float-rounded tie parameters as the kernel's DsClosestParams.
+        const double band =
+            best + static_cast<double>(static_cast<float>(tieRelative)) * best + tieAbsolute;
+        SurfaceHit hit;
+        hit.distance2 = static_cast<float>(best);
+        for (int k = first; k < last; ++k) {
+          const int t = mCandidates.triangles[static_cast<std::size_t>(k)];
+          const double d2 = distance2(t, u, v);
+          if (d2 <= band) {
+            hit.triangle = t;
+            hit.u = static_cast<float>(u);
+            hit.v = static_cast<float>(v);
+            hit.distance2 = static_cast<float>(d2);
+            break;
+          }
+        }
+        hits[item] = hit;
+      }
+    });
+  }
+
+  void transfer(int frameCount, const SurfaceHit* hits, const float* fromPoses,
+                const float* toPoses, const float* points, float* out) override {
+    correction::checkTransfer(mSearch, frameCount, hits, fromPoses, toPoses, points, out);
+    const int pointCount = mSearch.pointCount();
+    const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
+    const std::int32_t* triangles = mSearch.triangles().data();
+    correction::parallelFor(frameCount, mSearch.threads(), [&](int f) {
+      const float* from = fromPoses + static_cast<std::size_t>(f) * poseStride;
+      const float* to = toPoses + static_cast<std::size_t>(f) * poseStride;
+      for (int i = 0; i < pointCount; ++i) {
+        const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
+        const SurfaceHit& hit = hits[item];
+        const std::int32_t* tri = triangles + 3 * static_cast<std::size_t>(hit.triangle);
+        const double u = hit.u;
+        const double v = hit.v;
+        correction::LocalFrame f0;
+        correction::LocalFrame f1;
+        const bool ok0 = correction::localFrame(loadPoint(from, tri[0]), loadPoint(from, tri[1]),
+                                                loadPoint(from, tri[2]), u, v, f0);
+        const bool ok1 = correction::localFrame(loadPoint(to, tri[0]), loadPoint(to, tri[1]),
+                                                loadPoint(to, tri[2]), u, v, f1);
+        const Eigen::Vector3d d = loadPoint(points, static_cast<long>(item)) - f0.q;
+        const Eigen::Vector3d result =
+            ok0 && ok1 ? Eigen::Vector3d(f1.q + d.dot(f0.e1) * f1.e1 + d.dot(f0.e2) * f1.e2 +
+                                         d.dot(f0.n) * f1.n)
+                       : Eigen::Vector3d(f1.q + d);
+        for (int a = 0; a < 3; ++a) {
+          out[3 * item + static_cast<std::size_t>(a)] = static_cast<float>(result[a]);
+        }
+      }
+    });
+  }
+
+ private:
+  correction::CandidateSearch mSearch;
+  correction::CandidateTable mCandidates;
+};
+
+}  // namespace
+
+std::unique_ptr<ClosestBackend> makeHostClosest(const ClosestOptions& options) {
+  return std::make_unique<HostClosest>(options);
+}
+
+}  // namespace drivenshape

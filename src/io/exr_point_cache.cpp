@@ -1,1 +1,364 @@
-// placeholder: implemented by the component owner
+#include <drivenshape/point_cache.h>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfFramesPerSecond.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfVecAttribute.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/error.h>
+#include <drivenshape/hash.h>
+#include <drivenshape/version.h>
+
+namespace drivenshape {
+namespace {
+
+// Header attribute and channel names (all well under OpenEXR's 31-byte limit).
+constexpr const char* kAttrVertexCount = "dsVertexCount";
+constexpr const char* kAttrFrame = "dsFrame";
+constexpr const char* kAttrTopologyHash = "dsTopologyHash";
+constexpr const char* kAttrToolVersion = "dsToolVersion";
+constexpr const char* kAttrBoundsMin = "dsBoundsMin";
+constexpr const char* kAttrBoundsMax = "dsBoundsMax";
+constexpr const char* kAttrSettingsHash = "dsSettingsHash";
+constexpr const char* kPositionChannels[3] = {"P.X", "P.Y", "P.Z"};
+constexpr const char* kNormalChannels[3] = {"N.X", "N.Y", "N.Z"};
+constexpr const char* kCoverageChannel = "A";
+
+Imf::Compression toImf(ExrCompression compression) {
+  switch (compression) {
+    case ExrCompression::kZip:
+      return Imf::ZIP_COMPRESSION;
+    case ExrCompression::kNone:
+      return Imf::NO_COMPRESSION;
+    case ExrCompression::kZips:
+      return Imf::ZIPS_COMPRESSION;
+    case ExrCompression::kPiz:
+      return Imf::PIZ_COMPRESSION;
+  }
+  return Imf::ZIP_COMPRESSION;
+}
+
+/// The four lossless codecs we write map back exactly; a file re-saved elsewhere with another
+/// codec reports the nearest lossless one (RLE -> none, anything else -> zip).
+ExrCompression fromImf(Imf::Compression compression) {
+  switch (compression) {
+    case Imf::NO_COMPRESSION:
+    case Imf::RLE_COMPRESSION:
+      return ExrCompression::kNone;
+    case Imf::ZIPS_COMPRESSION:
+      return ExrCompression::kZips;
+    case Imf::PIZ_COMPRESSION:
+      return ExrCompression::kPiz;
+    default:
+      return ExrCompression::kZip;
+  }
+}
+
+/// Interleaved xyz of W * H pixels: the V vertices, then zero padding.
+std::vector<float> paddedXyz(const float* xyz, int vertexCount, std::size_t pixels) {
+  std::vector<float> padded(pixels * 3, 0.0f);
+  std::copy(xyz, xyz + 3 * static_cast<std::size_t>(vertexCount), padded.begin());
+  return padded;
+}
+
+void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], float* base,
+                     std::size_t width) {
+  for (int k = 0; k < 3; ++k) {
+    frameBuffer.insert(names[k], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base + k),
+                                            3 * sizeof(float), 3 * sizeof(float) * width));
+  }
+}
+
+void checkExists(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    DS_THROW(kInput, "point-cache EXR '", path, "' does not exist");
+  }
+}
+
+/// Header -> info, with every check that needs no pixels.
+ExrPointCacheInfo parseHeader(const std::string& path, const Imf::Header& header) {
+  ExrPointCacheInfo info;
+  const auto* vertexCount = header.findTypedAttribute<Imf::IntAttribute>(kAttrVertexCount);
+  if (vertexCount == nullptr) {
+    DS_THROW(kInput, path, ": not a drivenshape point cache (no ", kAttrVertexCount, " attribute)");
+  }
+  info.vertexCount = vertexCount->value();
+  if (info.vertexCount <= 0) {
+    DS_THROW(kInput, path, ": ", kAttrVertexCount, " is ", info.vertexCount,
+             "; a point cache holds at least one vertex");
+  }
+  if (const auto* frame = header.findTypedAttribute<Imf::IntAttribute>(kAttrFrame)) {
+    info.frame = frame->value();
+  }
+  if (const auto* hash = header.findTypedAttribute<Imf::StringAttribute>(kAttrTopologyHash)) {
+    if (!hexToHash(hash->value(), info.topologyHash)) {
+      DS_THROW(kInput, path, ": ", kAttrTopologyHash, " '", hash->value(),
+               "' is not 16 hex digits");
+    }
+  }
+  if (const auto* hash = header.findTypedAttribute<Imf::StringAttribute>(kAttrSettingsHash)) {
+    if (!hexToHash(hash->value(), info.settingsHash)) {
+      DS_THROW(kInput, path, ": ", kAttrSettingsHash, " '", hash->value(),
+               "' is not 16 hex digits");
+    }
+  }
+  if (const auto* version = header.findTypedAttribute<Imf::StringAttribute>(kAttrToolVersion)) {
+    info.toolVersion = version->value();
+  }
+  const auto* boundsMin = header.findTypedAttribute<Imf::V3fAttribute>(kAttrBoundsMin);
+  const auto* boundsMax = header.findTypedAttribute<Imf::V3fAttribute>(kAttrBoundsMax);
+  if (boundsMin != nullptr && boundsMax != nullptr) {
+    const Imath::V3f& lo = boundsMin->value();
+    const Imath::V3f& hi = boundsMax->value();
+    info.bounds.min = Eigen::Vector3f(lo.x, lo.y, lo.z);
+    info.bounds.max = Eigen::Vector3f(hi.x, hi.y, hi.z);
+  }
+  if (Imf::hasFramesPerSecond(header)) {
+    info.framesPerSecond = static_cast<double>(Imf::framesPerSecond(header));
+  }
+  const Imf::ChannelList& channels = header.channels();
+  info.hasNormals = channels.findChannel(kNormalChannels[0]) != nullptr &&
+                    channels.findChannel(kNormalChannels[1]) != nullptr &&
+                    channels.findChannel(kNormalChannels[2]) != nullptr;
+  info.compression = fromImf(header.compression());
+
+  const Imath::Box2i& window = header.dataWindow();
+  const long long width = static_cast<long long>(window.max.x) - window.min.x + 1;
+  const long long height = static_cast<long long>(window.max.y) - window.min.y + 1;
+  info.width = static_cast<int>(width);
+  if (width <= 0 || height <= 0 || (info.vertexCount + width - 1) / width != height) {
+    DS_THROW(kInput, path, ": the image is ", width, "x", height, " pixels but ", kAttrVertexCount,
+             " is ", info.vertexCount, " (a ", width, "-wide image needs ",
+             width > 0 ? (info.vertexCount + width - 1) / width : 0,
+             " rows); the file was not written by drivenshape or was modified");
+  }
+  return info;
+}
+
+std::string hashText(std::uint64_t hash) {
+  return hash == 0 ? "none" : hashToHex(hash);
+}
+
+}  // namespace
+
+ExrCompression parseExrCompression(const std::string& text) {
+  std::string lower = text;
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  for (ExrCompression compression :
+       {ExrCompression::kZip, ExrCompression::kNone, ExrCompression::kZips, ExrCompression::kPiz}) {
+    if (lower == exrCompressionName(compression)) {
+      return compression;
+    }
+  }
+  DS_THROW(kUsage, "unknown EXR compression '", text,
+           "'; use zip, none, zips or piz (lossless codecs only)");
+}
+
+const char* exrCompressionName(ExrCompression compression) {
+  switch (compression) {
+    case ExrCompression::kZip:
+      return "zip";
+    case ExrCompression::kNone:
+      return "none";
+    case ExrCompression::kZips:
+      return "zips";
+    case ExrCompression::kPiz:
+      return "piz";
+  }
+  return "zip";
+}
+
+void writePointCacheExr(const std::string& path, int vertexCount, const float* xyz,
+                        const float* normals, const ExrWriteOptions& options) {
+  if (options.width <= 0) {
+    DS_THROW(kUsage, "EXR point-cache width ", options.width, " must be positive (", path, ")");
+  }
+  if (!(options.framesPerSecond > 0.0) || !std::isfinite(options.framesPerSecond)) {
+    DS_THROW(kUsage, "frames per second ", options.framesPerSecond, " must be positive (", path,
+             ")");
+  }
+  if (vertexCount <= 0 || xyz == nullptr) {
+    DS_THROW(kInternal, "writePointCacheExr '", path, "': no vertices to write");
+  }
+  const std::size_t width = static_cast<std::size_t>(options.width);
+  const std::size_t height = (static_cast<std::size_t>(vertexCount) + width - 1) / width;
+  const std::size_t pixels = width * height;
+
+  AtomicFile atomic(path);
+  try {
+    std::vector<float> positions = paddedXyz(xyz, vertexCount, pixels);
+    std::vector<float> normalData;
+    if (normals != nullptr) {
+      normalData = paddedXyz(normals, vertexCount, pixels);
+    }
+    std::vector<float> coverage(pixels, 0.0f);
+    std::fill(coverage.begin(), coverage.begin() + vertexCount, 1.0f);
+
+    Imf::Header header(options.width, static_cast<int>(height));
+    header.compression() = toImf(options.compression);
+    for (const char* name : kPositionChannels) {
+      header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    }
+    header.channels().insert(kCoverageChannel, Imf::Channel(Imf::FLOAT));
+    if (normals != nullptr) {
+      for (const char* name : kNormalChannels) {
+        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+      }
+    }
+    const Bounds bounds = computeBounds(xyz, vertexCount);
+    header.insert(kAttrVertexCount, Imf::IntAttribute(vertexCount));
+    header.insert(kAttrFrame, Imf::IntAttribute(options.frame));
+    header.insert(kAttrTopologyHash, Imf::StringAttribute(hashToHex(options.topologyHash)));
+    header.insert(kAttrToolVersion, Imf::StringAttribute(kVersion));
+    header.insert(kAttrBoundsMin,
+                  Imf::V3fAttribute(Imath::V3f(bounds.min.x(), bounds.min.y(), bounds.min.z())));
+    header.insert(kAttrBoundsMax,
+                  Imf::V3fAttribute(Imath::V3f(bounds.max.x(), bounds.max.y(), bounds.max.z())));
+    if (options.settingsHash != 0) {
+      header.insert(kAttrSettingsHash, Imf::StringAttribute(hashToHex(options.settingsHash)));
+    }
+    Imf::addFramesPerSecond(header, Imf::guessExactFps(options.framesPerSecond));
+
+    Imf::FrameBuffer frameBuffer;
+    insertXyzSlices(frameBuffer, kPositionChannels, positions.data(), width);
+    frameBuffer.insert(kCoverageChannel,
+                       Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(coverage.data()),
+                                  sizeof(float), sizeof(float) * width));
+    if (normals != nullptr) {
+      insertXyzSlices(frameBuffer, kNormalChannels, normalData.data(), width);
+    }
+
+    // Our own stream, so that a failure while OpenEXR's destructor writes the offset table
+    // (which it swallows) still shows up in the stream state below.
+    std::ofstream stream(atomic.tempPath(), std::ios::binary | std::ios::trunc);
+    if (!stream) {
+      DS_THROW(kOutput, "cannot create '", path, "' (temporary file ", atomic.tempPath(), ")");
+    }
+    {
+      Imf::StdOFStream exrStream(stream, atomic.tempPath().c_str());
+      Imf::OutputFile file(exrStream, header);
+      file.setFrameBuffer(frameBuffer);
+      file.writePixels(static_cast<int>(height));
+    }
+    stream.flush();
+    stream.close();
+    if (stream.fail()) {
+      DS_THROW(kOutput, "cannot write '", path, "'; is the disk full?");
+    }
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    DS_THROW(kOutput, "cannot write point-cache EXR '", path, "': ", e.what());
+  }
+  atomic.commit();
+}
+
+ExrPointCacheInfo readPointCacheExrInfo(const std::string& path) {
+  checkExists(path);
+  try {
+    Imf::InputFile file(path.c_str());
+    return parseHeader(path, file.header());
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    DS_THROW(kInput, "cannot read EXR '", path, "': ", e.what());
+  }
+}
+
+ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>& xyz,
+                                    int expectedVertexCount, std::uint64_t expectedTopology) {
+  checkExists(path);
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imf::Header& header = file.header();
+    const ExrPointCacheInfo info = parseHeader(path, header);
+    if (expectedVertexCount != 0 && expectedVertexCount != info.vertexCount) {
+      DS_THROW(kInput, path, ": the cache holds ", info.vertexCount, " vertices but ",
+               expectedVertexCount,
+               " are expected; the cache was baked for another mesh; rebake it or pass the "
+               "matching mesh");
+    }
+    // A file without a recorded topology (hash 0) cannot be checked; its vertex count was.
+    if (expectedTopology != 0 && info.topologyHash != 0 && expectedTopology != info.topologyHash) {
+      DS_THROW(kInput, path, ": topology hash ", hashText(info.topologyHash), " differs from ",
+               hashToHex(expectedTopology),
+               " (same vertex count, different faces); the cache was baked for another mesh; "
+               "rebake it or pass the matching mesh");
+    }
+    for (const char* name : kPositionChannels) {
+      if (header.channels().findChannel(name) == nullptr) {
+        DS_THROW(kInput, path, ": channel ", name,
+                 " is missing; a point cache needs P.X, P.Y and P.Z");
+      }
+    }
+    const Imath::Box2i& window = header.dataWindow();
+    const std::size_t width = static_cast<std::size_t>(info.width);
+    const std::size_t height = static_cast<std::size_t>(window.max.y - window.min.y + 1);
+    xyz.assign(width * height * 3, 0.0f);
+    // OpenEXR addresses slices from the data window origin, which may be nonzero.
+    const std::ptrdiff_t origin =
+        static_cast<std::ptrdiff_t>(window.min.x) +
+        static_cast<std::ptrdiff_t>(window.min.y) * static_cast<std::ptrdiff_t>(width);
+    char* base = reinterpret_cast<char*>(xyz.data()) -
+                 origin * static_cast<std::ptrdiff_t>(3 * sizeof(float));
+    Imf::FrameBuffer frameBuffer;
+    for (int k = 0; k < 3; ++k) {
+      frameBuffer.insert(kPositionChannels[k],
+                         Imf::Slice(Imf::FLOAT, base + k * sizeof(float), 3 * sizeof(float),
+                                    3 * sizeof(float) * width));
+    }
+    file.setFrameBuffer(frameBuffer);
+    file.readPixels(window.min.y, window.max.y);
+    xyz.resize(3 * static_cast<std::size_t>(info.vertexCount));
+    return info;
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    DS_THROW(kInput, "cannot read point-cache EXR '", path, "': ", e.what());
+  }
+}
+
+bool isCompleteExr(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    return false;
+  }
+  try {
+    Imf::InputFile file(path.c_str());
+    if (!file.isComplete()) {
+      return false;
+    }
+    if (file.header().hasTileDescription()) {
+      return true;  // tiled files are not ours; isComplete() is all we check
+    }
+    // isComplete() only looks at the offset table, which survives when a copy loses its
+    // tail. Reading the raw first and last chunks finds that: they are the last chunk in the
+    // file for increasing and decreasing line order.
+    const Imath::Box2i& window = file.header().dataWindow();
+    const char* data = nullptr;
+    int size = 0;
+    file.rawPixelData(window.min.y, data, size);
+    file.rawPixelData(window.max.y, data, size);
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+}  // namespace drivenshape

@@ -1,1 +1,257 @@
-// placeholder: implemented by the component owner
+#include <drivenshape/frames.h>
+
+#include <charconv>
+#include <cstdint>
+#include <cstdlib>
+#include <unordered_set>
+
+#include <drivenshape/error.h>
+
+#include "frame_token.h"
+
+namespace drivenshape {
+namespace {
+
+/// A range that expands to more frames than this is a typo (1001-10000000), not a shot.
+constexpr std::int64_t kMaxFrames = 10'000'000;
+
+const char* const kRangeHelp = "write e.g. 1001, 1001-1100, 1001-1100x2 or 1001,1005,1010-1020";
+
+std::string trim(const std::string& text) {
+  const std::size_t first = text.find_first_not_of(" \t");
+  if (first == std::string::npos) {
+    return {};
+  }
+  const std::size_t last = text.find_last_not_of(" \t");
+  return text.substr(first, last - first + 1);
+}
+
+/// Where an item sits in the whole text, for messages: "" when the item is the whole text.
+std::string inText(const std::string& item, const std::string& text) {
+  return item == trim(text) ? std::string() : " (in '" + text + "')";
+}
+
+/// Parses an int at `pos` (optional leading '-'); advances `pos`. False if there is none.
+bool parseInt(const std::string& item, std::size_t& pos, int& value, bool& overflow) {
+  const char* begin = item.data() + pos;
+  const char* end = item.data() + item.size();
+  const auto result = std::from_chars(begin, end, value);
+  if (result.ec == std::errc::result_out_of_range) {
+    overflow = true;
+    return false;
+  }
+  if (result.ec != std::errc()) {
+    return false;
+  }
+  pos = static_cast<std::size_t>(result.ptr - item.data());
+  return true;
+}
+
+void appendItem(const std::string& item, const std::string& text, std::vector<int>& frames,
+                std::unordered_set<int>& seen) {
+  if (item.empty()) {
+    DS_THROW(kUsage, "frame range '", text, "' has an empty item; ", kRangeHelp);
+  }
+  const auto malformed = [&]() {
+    DS_THROW(kUsage, "frame range '", item, "'", inText(item, text),
+             " is not a frame, a range or a stepped range; ", kRangeHelp);
+  };
+  std::size_t pos = 0;
+  int first = 0;
+  int last = 0;
+  int step = 1;
+  bool overflow = false;
+  if (!parseInt(item, pos, first, overflow)) {
+    if (overflow) {
+      DS_THROW(kUsage, "frame range '", item, "'", inText(item, text),
+               ": frame number out of range");
+    }
+    malformed();
+  }
+  last = first;
+  if (pos < item.size()) {
+    if (item[pos] != '-') {
+      malformed();
+    }
+    ++pos;
+    if (!parseInt(item, pos, last, overflow)) {
+      if (overflow) {
+        DS_THROW(kUsage, "frame range '", item, "'", inText(item, text),
+                 ": frame number out of range");
+      }
+      malformed();
+    }
+    if (pos < item.size()) {
+      if (item[pos] != 'x' && item[pos] != 'X') {
+        malformed();
+      }
+      ++pos;
+      if (!parseInt(item, pos, step, overflow) || pos != item.size()) {
+        if (overflow) {
+          DS_THROW(kUsage, "frame range '", item, "'", inText(item, text), ": step out of range");
+        }
+        malformed();
+      }
+      if (step <= 0) {
+        DS_THROW(kUsage, "frame range '", item, "'", inText(item, text), " has step ", step,
+                 "; the step must be a positive number of frames");
+      }
+    }
+  }
+  if (first > last) {
+    const std::string stepText =
+        item.find_first_of("xX") != std::string::npos ? "x" + std::to_string(step) : std::string();
+    DS_THROW(kUsage, "frame range '", item, "'", inText(item, text), " runs backwards; write ",
+             last, "-", first, stepText);
+  }
+  const std::int64_t count = (static_cast<std::int64_t>(last) - first) / step + 1;
+  if (count + static_cast<std::int64_t>(frames.size()) > kMaxFrames) {
+    DS_THROW(kUsage, "frame range '", text, "' holds more than ", kMaxFrames,
+             " frames; check the numbers");
+  }
+  for (std::int64_t frame = first; frame <= last; frame += step) {
+    if (seen.insert(static_cast<int>(frame)).second) {
+      frames.push_back(static_cast<int>(frame));
+    }
+  }
+}
+
+}  // namespace
+
+namespace io {
+
+std::vector<FrameToken> findFrameTokens(const std::string& pattern) {
+  std::vector<FrameToken> tokens;
+  std::size_t i = 0;
+  const std::size_t n = pattern.size();
+  while (i < n) {
+    const char ch = pattern[i];
+    if (ch == '#') {
+      std::size_t end = i;
+      while (end < n && pattern[end] == '#') {
+        ++end;
+      }
+      tokens.push_back({i, end - i, static_cast<int>(end - i)});
+      i = end;
+      continue;
+    }
+    if (ch == '%') {
+      // %d, %0Nd (zero padded), %Nd (read as zero padded too: spaces make no file names)
+      std::size_t end = i + 1;
+      while (end < n && pattern[end] >= '0' && pattern[end] <= '9') {
+        ++end;
+      }
+      if (end < n && pattern[end] == 'd' && end - i - 1 <= 3) {
+        const int width = end > i + 1 ? std::atoi(pattern.substr(i + 1, end - i - 1).c_str()) : 0;
+        tokens.push_back({i, end + 1 - i, width});
+        i = end + 1;
+        continue;
+      }
+    }
+    if (ch == '$' && i + 1 < n && pattern[i + 1] == 'F') {
+      std::size_t end = i + 2;
+      while (end < n && end < i + 4 && pattern[end] >= '0' && pattern[end] <= '9') {
+        ++end;
+      }
+      const int width = end > i + 2 ? std::atoi(pattern.substr(i + 2, end - i - 2).c_str()) : 0;
+      tokens.push_back({i, end - i, width});
+      i = end;
+      continue;
+    }
+    ++i;
+  }
+  return tokens;
+}
+
+std::string formatFrameNumber(int frame, int width) {
+  const std::int64_t wide = frame;
+  std::string digits = std::to_string(wide < 0 ? -wide : wide);
+  if (static_cast<int>(digits.size()) < width) {
+    digits.insert(0, static_cast<std::size_t>(width) - digits.size(), '0');
+  }
+  return frame < 0 ? "-" + digits : digits;
+}
+
+}  // namespace io
+
+std::vector<int> parseFrameRange(const std::string& text) {
+  if (trim(text).empty()) {
+    DS_THROW(kUsage, "empty frame range '", text, "'; ", kRangeHelp);
+  }
+  std::vector<int> frames;
+  std::unordered_set<int> seen;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item =
+        trim(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    appendItem(item, text, frames, seen);
+    if (comma == std::string::npos) {
+      break;
+    }
+    start = comma + 1;
+  }
+  return frames;
+}
+
+std::string formatFrameRange(const std::vector<int>& frames) {
+  std::string text;
+  const auto append = [&text](const std::string& item) {
+    if (!text.empty()) {
+      text += ',';
+    }
+    text += item;
+  };
+  std::size_t i = 0;
+  while (i < frames.size()) {
+    // The longest run from i with a constant positive step.
+    std::size_t end = i + 1;
+    std::int64_t step = 0;
+    if (end < frames.size()) {
+      step = static_cast<std::int64_t>(frames[end]) - frames[i];
+    }
+    if (step > 0) {
+      while (end < frames.size() &&
+             static_cast<std::int64_t>(frames[end]) - frames[end - 1] == step) {
+        ++end;
+      }
+    } else {
+      end = i + 1;
+    }
+    const std::size_t length = end - i;
+    if (length >= 3 || (length == 2 && step == 1)) {
+      std::string item = std::to_string(frames[i]) + "-" + std::to_string(frames[end - 1]);
+      if (step != 1) {
+        item += "x" + std::to_string(step);
+      }
+      append(item);
+      i = end;
+    } else {
+      // A lone frame, or a pair with a gap: "1,5" reads better than "1-5x4".
+      append(std::to_string(frames[i]));
+      ++i;
+    }
+  }
+  return text;
+}
+
+bool hasFramePattern(const std::string& pattern) {
+  return !io::findFrameTokens(pattern).empty();
+}
+
+std::string expandFramePattern(const std::string& pattern, int frame) {
+  const std::vector<io::FrameToken> tokens = io::findFrameTokens(pattern);
+  if (tokens.empty()) {
+    DS_THROW(kUsage, "'", pattern,
+             "' has no frame token; put one in the file name: ####, %04d or $F4");
+  }
+  if (tokens.size() > 1) {
+    DS_THROW(kUsage, "'", pattern, "' has ", tokens.size(),
+             " frame tokens; use exactly one (####, %04d or $F4)");
+  }
+  const io::FrameToken& token = tokens.front();
+  return pattern.substr(0, token.pos) + io::formatFrameNumber(frame, token.width) +
+         pattern.substr(token.pos + token.length);
+}
+
+}  // namespace drivenshape

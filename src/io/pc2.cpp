@@ -1,1 +1,228 @@
-// placeholder: implemented by the component owner
+#include <drivenshape/point_cache.h>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+
+#include "byte_order.h"
+
+namespace drivenshape {
+namespace {
+
+//   offset  0: char[12] "POINTCACHE2\0"
+//          12: int32    version (1)
+//          16: int32    points
+//          20: float32  start frame
+//          24: float32  sample rate
+//          28: int32    samples
+//          32: float32  x y z of every point of sample 0, then sample 1, ...
+constexpr char kMagic[12] = {'P', 'O', 'I', 'N', 'T', 'C', 'A', 'C', 'H', 'E', '2', '\0'};
+constexpr std::uint64_t kHeaderBytes = 32;
+
+/// Frames whose sample time is this close to an integer are that frame (float start/rate).
+constexpr double kIntegralFrameTol = 1e-3;
+
+/// Reads exactly `bytes` at `offset`; false on a short read (EOF).
+bool readAt(int fd, void* data, std::uint64_t bytes, std::uint64_t offset, int& error) {
+  auto* out = static_cast<unsigned char*>(data);
+  while (bytes > 0) {
+    const ssize_t got = ::pread(fd, out, bytes, static_cast<off_t>(offset));
+    if (got < 0) {
+      if (errno == EINTR) {
+        continue;
+      }
+      error = errno;
+      return false;
+    }
+    if (got == 0) {
+      error = 0;
+      return false;
+    }
+    out += got;
+    bytes -= static_cast<std::uint64_t>(got);
+    offset += static_cast<std::uint64_t>(got);
+  }
+  return true;
+}
+
+class Pc2Reader final : public PointCacheReader {
+ public:
+  explicit Pc2Reader(std::string path) : mPath(std::move(path)) {
+    mFd = ::open(mPath.c_str(), O_RDONLY | O_CLOEXEC);
+    if (mFd < 0) {
+      DS_THROW(kInput, "cannot open PC2 '", mPath, "': ", std::strerror(errno));
+    }
+    try {
+      readHeader();
+    } catch (...) {
+      ::close(mFd);
+      throw;
+    }
+  }
+  ~Pc2Reader() override { ::close(mFd); }
+  Pc2Reader(const Pc2Reader&) = delete;
+  Pc2Reader& operator=(const Pc2Reader&) = delete;
+
+  int vertexCount() const override { return mHeader.points; }
+  std::vector<int> frames() const override { return mFrames; }
+  bool hasFrame(int frame) const override { return sampleOf(frame) >= 0; }
+  const std::string& path() const override { return mPath; }
+
+  void readFrame(int frame, float* xyz) const override {
+    const int sample = sampleOf(frame);
+    if (sample < 0) {
+      DS_THROW(
+          kInput, mPath, ": frame ", frame, " is not in the cache; it holds ",
+          mFrames.empty() ? std::string("no whole frames") : "frames " + formatFrameRange(mFrames));
+    }
+    const std::uint64_t floats = 3 * static_cast<std::uint64_t>(mHeader.points);
+    const std::uint64_t offset = kHeaderBytes + static_cast<std::uint64_t>(sample) * floats * 4;
+    int error = 0;
+    if (!readAt(mFd, xyz, floats * 4, offset, error)) {
+      DS_THROW(kInput, mPath, ": cannot read frame ", frame, " (sample ", sample,
+               "): ", error != 0 ? std::strerror(error) : "unexpected end of file",
+               "; was the file changed while reading?");
+    }
+    if (!io::hostIsLittleEndian()) {
+      io::swapWords(xyz, floats);
+    }
+  }
+
+ private:
+  void readHeader() {
+    struct stat info {};
+    if (::fstat(mFd, &info) != 0) {
+      DS_THROW(kInput, "cannot stat PC2 '", mPath, "': ", std::strerror(errno));
+    }
+    const auto fileBytes = static_cast<std::uint64_t>(info.st_size);
+    unsigned char header[kHeaderBytes];
+    int error = 0;
+    if (fileBytes < kHeaderBytes || !readAt(mFd, header, kHeaderBytes, 0, error)) {
+      DS_THROW(kInput, mPath, ": not a PC2 file: ", fileBytes,
+               " bytes, shorter than the 32-byte header");
+    }
+    if (std::memcmp(header, kMagic, sizeof(kMagic)) != 0) {
+      DS_THROW(kInput, mPath, ": not a PC2 file (it does not start with POINTCACHE2)");
+    }
+    const std::int32_t version = io::loadLeInt32(header + 12);
+    mHeader.points = io::loadLeInt32(header + 16);
+    mHeader.startFrame = io::loadLeFloat(header + 20);
+    mHeader.sampleRate = io::loadLeFloat(header + 24);
+    mHeader.samples = io::loadLeInt32(header + 28);
+    if (version != 1) {
+      DS_THROW(kInput, mPath, ": PC2 version ", version, " is not supported (only version 1)");
+    }
+    if (mHeader.points <= 0) {
+      DS_THROW(kInput, mPath, ": PC2 header says ", mHeader.points,
+               " points; a cache needs at least one");
+    }
+    if (mHeader.samples < 0) {
+      DS_THROW(kInput, mPath, ": PC2 header says ", mHeader.samples, " samples");
+    }
+    if (!std::isfinite(mHeader.startFrame)) {
+      DS_THROW(kInput, mPath, ": PC2 start frame is not a finite number");
+    }
+    if (!(mHeader.sampleRate > 0.0f) || !std::isfinite(mHeader.sampleRate)) {
+      DS_THROW(kInput, mPath, ": PC2 sample rate ", mHeader.sampleRate,
+               " is not a positive number");
+    }
+    const std::uint64_t frameBytes = static_cast<std::uint64_t>(mHeader.points) * 12;
+    const std::uint64_t expected =
+        kHeaderBytes + static_cast<std::uint64_t>(mHeader.samples) * frameBytes;
+    if (fileBytes != expected) {
+      const std::uint64_t whole = (fileBytes - kHeaderBytes) / frameBytes;
+      if (fileBytes < expected) {
+        DS_THROW(kInput, mPath, ": PC2 file is truncated: the header promises ", mHeader.samples,
+                 " samples of ", mHeader.points, " points (", expected, " bytes) but the file has ",
+                 fileBytes, " bytes, ", whole, " whole frames; re-export or rebake the cache");
+      }
+      DS_THROW(kInput, mPath, ": PC2 file has ", fileBytes, " bytes but the header (",
+               mHeader.samples, " samples of ", mHeader.points, " points) accounts for ", expected,
+               "; the file is corrupt or not a PC2 cache");
+    }
+    for (int s = 0; s < mHeader.samples; ++s) {
+      const double time = static_cast<double>(mHeader.startFrame) +
+                          static_cast<double>(s) * static_cast<double>(mHeader.sampleRate);
+      const double nearest = std::round(time);
+      if (std::abs(time - nearest) <= kIntegralFrameTol && std::abs(nearest) < 2.0e9) {
+        const int frame = static_cast<int>(nearest);
+        if (mFrames.empty() || frame > mFrames.back()) {
+          mFrames.push_back(frame);
+          mSamples.push_back(s);
+        }
+      }
+    }
+  }
+
+  int sampleOf(int frame) const {
+    const auto found = std::lower_bound(mFrames.begin(), mFrames.end(), frame);
+    if (found == mFrames.end() || *found != frame) {
+      return -1;
+    }
+    return mSamples[static_cast<std::size_t>(found - mFrames.begin())];
+  }
+
+  std::string mPath;
+  int mFd = -1;
+  Pc2Header mHeader;
+  std::vector<int> mFrames;   ///< ascending integral frames
+  std::vector<int> mSamples;  ///< the sample holding mFrames[i]
+};
+
+}  // namespace
+
+std::unique_ptr<PointCacheReader> openPc2(const std::string& path) {
+  return std::make_unique<Pc2Reader>(path);
+}
+
+void writePc2(const std::string& path, int vertexCount, float startFrame, int frameCount,
+              const float* xyz) {
+  if (vertexCount <= 0 || frameCount < 0 || (frameCount > 0 && xyz == nullptr)) {
+    DS_THROW(kInternal, "writePc2 '", path, "': bad arguments (", vertexCount, " vertices, ",
+             frameCount, " frames)");
+  }
+  AtomicFile atomic(path);
+  std::FILE* file = std::fopen(atomic.tempPath().c_str(), "wb");
+  if (file == nullptr) {
+    DS_THROW(kOutput, "cannot create '", path, "': ", std::strerror(errno));
+  }
+  unsigned char header[kHeaderBytes];
+  std::memcpy(header, kMagic, sizeof(kMagic));
+  io::storeLeInt32(header + 12, 1);
+  io::storeLeInt32(header + 16, vertexCount);
+  io::storeLeFloat(header + 20, startFrame);
+  io::storeLeFloat(header + 24, 1.0f);
+  io::storeLeInt32(header + 28, frameCount);
+  bool ok = std::fwrite(header, 1, kHeaderBytes, file) == kHeaderBytes;
+  const std::size_t frameFloats = 3 * static_cast<std::size_t>(vertexCount);
+  std::vector<float> swapped;
+  for (int f = 0; ok && f < frameCount; ++f) {
+    const float* frame = xyz + static_cast<std::size_t>(f) * frameFloats;
+    if (!io::hostIsLittleEndian()) {
+      swapped.assign(frame, frame + frameFloats);
+      io::swapWords(swapped.data(), frameFloats);
+      frame = swapped.data();
+    }
+    ok = std::fwrite(frame, sizeof(float), frameFloats, file) == frameFloats;
+  }
+  ok = std::fflush(file) == 0 && ok;
+  const int writeErrno = errno;
+  ok = std::fclose(file) == 0 && ok;
+  if (!ok) {
+    DS_THROW(kOutput, "cannot write '", path, "': ", std::strerror(writeErrno),
+             "; is the disk full?");
+  }
+  atomic.commit();
+}
+
+}  // namespace drivenshape

@@ -1,1 +1,161 @@
-// placeholder: implemented by the component owner
+#include <drivenshape/point_cache.h>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <filesystem>
+#include <map>
+
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/hash.h>
+
+#include "frame_token.h"
+
+namespace drivenshape {
+namespace {
+
+bool endsWithPc2(const std::string& spec) {
+  if (spec.size() < 4) {
+    return false;
+  }
+  std::string tail = spec.substr(spec.size() - 4);
+  std::transform(tail.begin(), tail.end(), tail.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  return tail == ".pc2";
+}
+
+/// A point-cache EXR sequence: one file per frame, found by listing the pattern's folder.
+///
+/// A file belongs to the sequence when its name is the pattern with the token replaced by a
+/// frame number written exactly as expandFramePattern writes that frame: `####` takes
+/// `1001`, `0012`, `-0012` and `12345`, but not `012` or `01001`, so each frame has one name.
+class ExrSequenceReader final : public PointCacheReader {
+ public:
+  ExrSequenceReader(std::string pattern, std::uint64_t expectedTopology)
+      : mPattern(std::move(pattern)), mExpectedTopology(expectedTopology) {
+    const std::vector<io::FrameToken> tokens = io::findFrameTokens(mPattern);
+    if (tokens.size() != 1) {
+      DS_THROW(kInput, "'", mPattern, "' has ", tokens.size(),
+               " frame tokens; an EXR sequence pattern needs exactly one (name.####.exr)");
+    }
+    const io::FrameToken& token = tokens.front();
+    const std::filesystem::path patternPath(mPattern);
+    const std::string fileName = patternPath.filename().string();
+    const std::size_t nameStart = mPattern.size() - fileName.size();
+    if (token.pos < nameStart) {
+      DS_THROW(kInput, "'", mPattern,
+               "': the frame token must be in the file name, not in a folder name");
+    }
+    const std::string prefix = mPattern.substr(nameStart, token.pos - nameStart);
+    const std::string suffix = mPattern.substr(token.pos + token.length);
+    const std::string folderText = mPattern.substr(0, nameStart);
+    const std::filesystem::path folder = folderText.empty() ? "." : folderText;
+
+    std::error_code ec;
+    if (!std::filesystem::is_directory(folder, ec)) {
+      DS_THROW(kInput, "EXR sequence '", mPattern, "': folder '", folder.string(),
+               "' does not exist");
+    }
+    std::map<int, std::string> found;
+    for (std::filesystem::directory_iterator it(folder, ec), end; !ec && it != end;
+         it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      if (name.size() <= prefix.size() + suffix.size() || name.compare(0, prefix.size(), prefix) ||
+          name.compare(name.size() - suffix.size(), suffix.size(), suffix)) {
+        continue;
+      }
+      const std::string middle =
+          name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
+      int frame = 0;
+      const auto result = std::from_chars(middle.data(), middle.data() + middle.size(), frame);
+      if (result.ec != std::errc() || result.ptr != middle.data() + middle.size() ||
+          io::formatFrameNumber(frame, token.width) != middle) {
+        continue;
+      }
+      std::error_code fileEc;
+      if (!it->is_regular_file(fileEc)) {
+        continue;
+      }
+      found.emplace(frame, folderText + name);
+    }
+    if (ec) {
+      DS_THROW(kInput, "EXR sequence '", mPattern, "': cannot list folder '", folder.string(),
+               "': ", ec.message());
+    }
+    if (found.empty()) {
+      DS_THROW(kInput, "EXR sequence '", mPattern, "': no files match in folder '", folder.string(),
+               "' (e.g. ", expandFramePattern(mPattern, 1001), ")");
+    }
+    for (const auto& [frame, file] : found) {
+      mFrames.push_back(frame);
+      mFiles.push_back(file);
+    }
+    // The first frame defines the vertex count; every frame read later must agree.
+    const ExrPointCacheInfo info = readPointCacheExrInfo(mFiles.front());
+    mVertexCount = info.vertexCount;
+    if (mExpectedTopology != 0 && info.topologyHash != 0 &&
+        info.topologyHash != mExpectedTopology) {
+      DS_THROW(kInput, mFiles.front(), ": topology hash ", hashToHex(info.topologyHash),
+               " differs from ", hashToHex(mExpectedTopology),
+               "; the cache was baked for another mesh; rebake it or pass the matching mesh");
+    }
+  }
+
+  int vertexCount() const override { return mVertexCount; }
+  std::vector<int> frames() const override { return mFrames; }
+  bool hasFrame(int frame) const override { return indexOf(frame) >= 0; }
+  const std::string& path() const override { return mPattern; }
+
+  void readFrame(int frame, float* xyz) const override {
+    const int index = indexOf(frame);
+    if (index < 0) {
+      DS_THROW(kInput, "EXR sequence '", mPattern, "': frame ", frame,
+               " is missing; the sequence has frames ", formatFrameRange(mFrames));
+    }
+    std::vector<float> buffer;
+    readPointCacheExr(mFiles[static_cast<std::size_t>(index)], buffer, mVertexCount,
+                      mExpectedTopology);
+    std::copy(buffer.begin(), buffer.end(), xyz);
+  }
+
+ private:
+  int indexOf(int frame) const {
+    const auto found = std::lower_bound(mFrames.begin(), mFrames.end(), frame);
+    if (found == mFrames.end() || *found != frame) {
+      return -1;
+    }
+    return static_cast<int>(found - mFrames.begin());
+  }
+
+  std::string mPattern;
+  std::uint64_t mExpectedTopology;
+  int mVertexCount = 0;
+  std::vector<int> mFrames;         ///< ascending
+  std::vector<std::string> mFiles;  ///< file of mFrames[i]
+};
+
+}  // namespace
+
+std::unique_ptr<PointCacheReader> openPointCache(const std::string& spec,
+                                                 std::uint64_t expectedTopology) {
+  if (endsWithPc2(spec)) {
+    return openPc2(spec);
+  }
+  if (hasFramePattern(spec)) {
+    return std::make_unique<ExrSequenceReader>(spec, expectedTopology);
+  }
+  DS_THROW(kInput, "'", spec,
+           "' is neither a .pc2 file nor an EXR sequence pattern (use name.####.exr)");
+}
+
+std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<int>& frames) {
+  const std::size_t frameFloats = 3 * static_cast<std::size_t>(cache.vertexCount());
+  std::vector<float> data(frames.size() * frameFloats);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    cache.readFrame(frames[i], data.data() + i * frameFloats);
+  }
+  return data;
+}
+
+}  // namespace drivenshape

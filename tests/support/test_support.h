@@ -20,8 +20,33 @@ inline constexpr double kQpObjectiveRelTol = 1e-9;
 inline constexpr double kQpConstraintTol = 1e-12;
 /// OpenCL vs host reference: per-vertex distance, as a fraction of the bounding-box diagonal.
 inline constexpr double kDeviceVsHostRelTol = 1e-5;
+/// Projection stage, OpenCL vs host reference: |p_cl - p_host| per value, as a fraction of that
+/// value's scale (||row|| * ||b - m|| for a projection by Cauchy-Schwarz, the value itself for
+/// the norms, whose terms are all positive). The kernel sums products rounded to float with
+/// Kahan compensation per work item, then adds 4 lanes and 64 items pairwise: a worst-case
+/// bound of about 10 float roundings (10 * 2^-24 = 6e-7) of that scale, whatever the vertex
+/// count. Measured: ~1.2e-7.
+inline constexpr double kProjectionRelTol = 1e-6;
+/// Host reference vs an independent double computation (Eigen), per value, as a fraction of
+/// the value's scale as above (sum_i |w_i s_i| for a blend): the host sums in double and rounds
+/// once to float, half an ulp (2^-24) plus double summation-order noise, so 2^-23.
+inline constexpr double kHostVsDoubleRelTol = 1.0 / 8388608.0;
 /// Float round trips through files (PC2, EXR FLOAT channels) must be exact.
 inline constexpr float kFileRoundTripTol = 0.0f;
+/// Position maps: |P_texel - P_expected| against an independent barycentric interpolation of
+/// the triangle under the texel centre (computed in double), as a fraction of the bounding-box
+/// diagonal of the frame (the acceptance bound of issue 6; float interpolation is ~1e-7).
+inline constexpr double kPositionMapRelTol = 1e-5;
+/// Unit normals of position maps: per-component difference between two computations of the
+/// same normal (OpenCL vs host, float host vs an independent double computation). Float
+/// cross-product sums and normalisation are good to ~1e-6 (measured 1.5e-6 on the sleeve);
+/// interpolated normals that nearly cancel across sharp folds amplify that, hence the margin.
+inline constexpr double kNormalTol = 1e-5;
+/// Normals stored as HALF: at most one rounding of a value in [-1, 1], 2^-11 relative.
+inline constexpr double kHalfNormalTol = 1.0 / 2048.0;
+/// A padded texel repeats the arithmetic of the covered texel it copies on the same inputs, so
+/// the two values are identical.
+inline constexpr float kPaddingCopyTol = 0.0f;
 
 // ---- Random seeds: printed, overridable with DS_SEED=N. ----
 

@@ -22,7 +22,8 @@ struct Mesh {
   std::vector<Eigen::Vector2f> uvs;    ///< texture coordinates (may be empty)
   std::vector<int> faceStart;          ///< F + 1 offsets
   std::vector<int> faceVertices;       ///< vertex ids of all faces, concatenated
-  std::vector<int> faceUvs;            ///< uv ids parallel to faceVertices, or empty
+  std::vector<int> faceUvs;            ///< uv ids parallel to faceVertices, or empty;
+                                       ///< -1 where a corner has none (mixed files)
   std::vector<int> faceGroup;          ///< F group ids
   std::vector<std::string> groupNames; ///< group id -> name from `g` (or `o`) lines
   Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor> triangles;  ///< T by 3

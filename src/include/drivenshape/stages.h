@@ -31,7 +31,8 @@ struct ShapeTables {
 ///   frames   F x 3V   frame f, vertex v, axis a at [f * 3V + 3v + a]
 ///   weights  F x k
 ///
-/// upload() is called once, then project()/blend() many times. Not thread-safe.
+/// upload() is called once (again to replace the tables), then project()/blend() many times;
+/// calling them before upload() throws Error(kInternal). Not thread-safe.
 class StageBackend {
  public:
   virtual ~StageBackend() = default;
@@ -42,11 +43,12 @@ class StageBackend {
 
   /// For each frame b (driver positions): projections[f] = M^T (b - m)   (k-1 values) and
   /// norms[f] = { ||b - m||^2, ||b||^2 }.
-  ///   driverFrames  F x 3Vp;  projections  F x (k-1);  norms  F x 2
+  ///   driverFrames  F x 3Vp;  projections  F x (k-1) (may be null when k = 1);  norms  F x 2
   virtual void project(int frameCount, const float* driverFrames, float* projections,
                        float* norms) = 0;
 
-  /// Blends the database shapes with per-frame weights:
+  /// Blends the database shapes with per-frame weights (any linear combination; the bake's
+  /// weights sum to 1):
   ///   driven[f] = sum_i weights[f][i] D_i    (F x 3Vd)
   ///   driver[f] = sum_i weights[f][i] P_i    (F x 3Vp; skipped when `driver` is null)
   virtual void blend(int frameCount, const float* weights, float* driven, float* driver) = 0;

@@ -1,0 +1,229 @@
+// drivenshape_bench: bakes a synthetic shot of the DESIGN.md workloads through OpenCL and
+// through the host reference in one run, and reports per-stage times and frames per second.
+// A benchmark, not a test: it asserts nothing, it measures.
+//
+//   drivenshape_bench [--workload W1] [--frames N] [--device SPEC] [--json PATH] [--keep DIR]
+//
+// The synthetic character is a bending tube (driver) inside a looser tube (driven); database
+// shapes are random bends, the shot a smooth sweep through bends. Generated deterministically.
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <unistd.h>
+
+#include <drivenshape/bake.h>
+#include <drivenshape/database.h>
+#include <drivenshape/error.h>
+#include <drivenshape/point_cache.h>
+
+#include "cli_args.h"
+#include "device_choice.h"
+
+namespace ds = drivenshape;
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A tube of `rings` x `segments` quads around the z axis, radius r, length 1.
+ds::Mesh tube(int rings, int segments, float radius) {
+  ds::Mesh mesh;
+  mesh.positions.resize(rings * segments, 3);
+  for (int i = 0; i < rings; ++i) {
+    for (int j = 0; j < segments; ++j) {
+      const float angle = 2.0f * float(M_PI) * j / segments;
+      mesh.positions.row(i * segments + j) << radius * std::cos(angle),
+          radius * std::sin(angle), float(i) / (rings - 1);
+    }
+  }
+  mesh.faceStart.push_back(0);
+  for (int i = 0; i + 1 < rings; ++i) {
+    for (int j = 0; j < segments; ++j) {
+      const int j1 = (j + 1) % segments;
+      for (int v : {i * segments + j, i * segments + j1, (i + 1) * segments + j1,
+                    (i + 1) * segments + j}) {
+        mesh.faceVertices.push_back(v);
+      }
+      mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
+      mesh.faceGroup.push_back(0);
+    }
+  }
+  mesh.groupNames = {"tube"};
+  mesh.triangulate();
+  return mesh;
+}
+
+/// Bends the tube by angles (a, b) about x and y, growing along z, plus a twist c.
+void bend(const ds::Mesh& rest, float a, float b, float c, float* out) {
+  for (int v = 0; v < rest.vertexCount(); ++v) {
+    const float x = rest.positions(v, 0), y = rest.positions(v, 1), z = rest.positions(v, 2);
+    const float ax = a * z, by = b * z, tw = c * z;
+    const float x1 = x * std::cos(tw) - y * std::sin(tw);
+    const float y1 = x * std::sin(tw) + y * std::cos(tw);
+    const float y2 = y1 * std::cos(ax) - z * std::sin(ax);
+    const float z2 = y1 * std::sin(ax) + z * std::cos(ax);
+    out[3 * v] = x1 * std::cos(by) + z2 * std::sin(by);
+    out[3 * v + 1] = y2;
+    out[3 * v + 2] = -x1 * std::sin(by) + z2 * std::cos(by);
+  }
+}
+
+struct Workload {
+  std::string name;
+  int driverRings, driverSegments, drivenRings, drivenSegments, shapes, frames;
+};
+
+Workload workload(const std::string& name) {
+  if (name == "W1") {
+    return {"W1", 100, 50, 100, 50, 30, 1000};  // 5,000 / 5,000 vertices
+  }
+  if (name == "W2") {
+    return {"W2", 500, 100, 1000, 200, 64, 240};  // 50,000 / 200,000 vertices
+  }
+  DS_THROW(kUsage, "--workload takes W1 or W2 (got '", name, "')");
+}
+
+nlohmann::json timesJson(const ds::BakeResult& r) {
+  return {{"read", r.times.read},     {"project", r.times.project}, {"weights", r.times.weights},
+          {"blend", r.times.blend},   {"write", r.times.write},     {"total", r.times.total},
+          {"frames_per_second", r.baked / r.times.total}};
+}
+
+void printRow(const std::string& name, const ds::BakeResult& r) {
+  std::printf("%-44s %7.3f %7.3f %7.3f %7.3f %7.3f %8.3f %9.1f\n", name.c_str(), r.times.read,
+              r.times.project, r.times.weights, r.times.blend, r.times.write, r.times.total,
+              r.baked / r.times.total);
+}
+
+int runBench(const std::vector<std::string>& args) {
+  ds::cli::ArgParser parser("drivenshape_bench [options]",
+                            "Bakes a synthetic workload through OpenCL and the host reference in "
+                            "one run; prints per-stage seconds and frames/s.");
+  parser.option("--workload", "W", "W1 (5k/5k vertices, 30 shapes, 1000 frames) or W2", "W1")
+      .option("--frames", "N", "override the workload's frame count")
+      .option("--device", "SPEC", "OpenCL device (as for bake)", "auto")
+      .option("--chunk", "N", "frames per launch", "64")
+      .option("--threads", "N", "host threads (0 = all)", "0")
+      .option("--compression", "C", "EXR compression", "zip")
+      .option("--json", "PATH", "also write the figures as JSON")
+      .option("--keep", "DIR", "bake into DIR and keep the files (default: a temp folder)")
+      .flag("--no-host", "skip the host reference bake");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  Workload w = workload(parser.get("--workload"));
+  if (parser.has("--frames")) {
+    w.frames = parser.getInt("--frames", 1);
+  }
+  const fs::path root = parser.has("--keep")
+                            ? fs::path(parser.get("--keep"))
+                            : fs::temp_directory_path() /
+                                  ("drivenshape-bench-" + std::to_string(::getpid()));
+  fs::create_directories(root / "host");
+  fs::create_directories(root / "cl");
+
+  const ds::Mesh driver = tube(w.driverRings, w.driverSegments, 0.1f);
+  const ds::Mesh driven = tube(w.drivenRings, w.drivenSegments, 0.12f);
+  std::mt19937 rng(1234);
+  std::uniform_real_distribution<float> angle(-1.2f, 1.2f);
+  // Reference clip: 4x as many random poses as shapes; the database picks from them.
+  const int referenceFrames = 4 * w.shapes;
+  std::vector<float> refDriver(std::size_t(referenceFrames) * driver.vertexCount() * 3);
+  std::vector<float> refDriven(std::size_t(referenceFrames) * driven.vertexCount() * 3);
+  for (int f = 0; f < referenceFrames; ++f) {
+    const float a = angle(rng), b = angle(rng), c = angle(rng);
+    bend(driver, a, b, c, &refDriver[std::size_t(f) * driver.vertexCount() * 3]);
+    bend(driven, a * 1.05f, b * 0.95f, c, &refDriven[std::size_t(f) * driven.vertexCount() * 3]);
+  }
+  ds::writePc2((root / "ref.driver.pc2").string(), driver.vertexCount(), 1, referenceFrames,
+               refDriver.data());
+  ds::writePc2((root / "ref.driven.pc2").string(), driven.vertexCount(), 1, referenceFrames,
+               refDriven.data());
+  std::vector<float> shot(std::size_t(w.frames) * driver.vertexCount() * 3);
+  for (int f = 0; f < w.frames; ++f) {
+    const float t = float(f) / 24.0f;
+    bend(driver, std::sin(t), 0.8f * std::sin(0.7f * t), 0.5f * std::cos(0.3f * t),
+         &shot[std::size_t(f) * driver.vertexCount() * 3]);
+  }
+  ds::writePc2((root / "shot.driver.pc2").string(), driver.vertexCount(), 1, w.frames,
+               shot.data());
+
+  const auto refDriverCache = ds::openPointCache((root / "ref.driver.pc2").string());
+  const auto refDrivenCache = ds::openPointCache((root / "ref.driven.pc2").string());
+  ds::DatabaseBuildOptions dbOptions;
+  dbOptions.count = w.shapes;
+  const ds::Database db =
+      ds::buildDatabase(driver, driven, *refDriverCache, *refDrivenCache, dbOptions);
+  const auto shotCache = ds::openPointCache((root / "shot.driver.pc2").string());
+
+  ds::BakeOptions options;
+  for (int f = 1; f <= w.frames; ++f) {
+    options.frames.push_back(f);
+  }
+  options.chunkSize = parser.getInt("--chunk", 1);
+  options.threads = parser.getInt("--threads", 0);
+  options.compression = ds::parseExrCompression(parser.get("--compression"));
+
+  std::string clName;
+  auto clStages = ds::cli::makeStages(parser.get("--device"), clName, std::cerr);
+  std::printf("workload %s: driver %d, driven %d vertices, %d shapes, %d frames, chunk %d, "
+              "compression %s\n",
+              w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(),
+              w.frames, options.chunkSize, parser.get("--compression").c_str());
+  std::printf("%-44s %7s %7s %7s %7s %7s %8s %9s\n", "path (seconds per stage)", "read",
+              "project", "weights", "blend", "write", "total", "frames/s");
+
+  nlohmann::json report{{"workload", w.name},
+                        {"driver_vertices", driver.vertexCount()},
+                        {"driven_vertices", driven.vertexCount()},
+                        {"shapes", db.shapeCount()},
+                        {"frames", w.frames},
+                        {"chunk", options.chunkSize}};
+  // Warm-up: builds the kernels (PoCL compiles on first use) outside the timed bakes.
+  {
+    ds::BakeOptions warm = options;
+    warm.frames = {1};
+    warm.outputPattern = (root / "cl" / "warm.####.exr").string();
+    ds::bake(db, *shotCache, *clStages, warm);
+  }
+  options.outputPattern = (root / "cl" / "shot.####.exr").string();
+  const ds::BakeResult cl = ds::bake(db, *shotCache, *clStages, options);
+  printRow("OpenCL: " + clName.substr(0, 36), cl);
+  report["opencl"] = timesJson(cl);
+  report["opencl"]["device"] = clName;
+  if (!parser.has("--no-host")) {
+    auto host = ds::makeHostStages();
+    options.outputPattern = (root / "host" / "shot.####.exr").string();
+    const ds::BakeResult hr = ds::bake(db, *shotCache, *host, options);
+    printRow("host reference", hr);
+    report["host"] = timesJson(hr);
+    std::printf("OpenCL / host speed-up: whole bake %.2fx, project %.2fx, blend %.2fx\n",
+                hr.times.total / cl.times.total, hr.times.project / cl.times.project,
+                hr.times.blend / cl.times.blend);
+  }
+  if (parser.has("--json")) {
+    std::ofstream(parser.get("--json")) << report.dump(1) << "\n";
+  }
+  if (!parser.has("--keep")) {
+    fs::remove_all(root);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return runBench(std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const ds::Error& error) {
+    std::fprintf(stderr, "drivenshape_bench: %s: %s\n", ds::errorCodeName(error.code()),
+                 error.what());
+    return static_cast<int>(error.code());
+  }
+}

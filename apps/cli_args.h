@@ -1,0 +1,55 @@
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace drivenshape::cli {
+
+/// A small declarative parser for `--name value` and `--flag` options of one command.
+/// Unknown flags, missing values, missing required options and bad numbers throw
+/// Error(kUsage) naming the flag and pointing at --help.
+class ArgParser {
+ public:
+  ArgParser(std::string usage, std::string summary);
+
+  /// A value option: `--name VALUE`. `defaultValue` is shown in --help.
+  ArgParser& option(const std::string& name, const std::string& valueName,
+                    const std::string& help, const std::string& defaultValue = "",
+                    bool required = false);
+  /// A boolean flag: `--name`.
+  ArgParser& flag(const std::string& name, const std::string& help);
+  /// Extra text printed after the options in --help.
+  ArgParser& epilog(const std::string& text);
+  /// Accept `count` positional arguments described by `names` (e.g. "FILE").
+  ArgParser& positional(const std::string& names, int count);
+
+  /// Parses args (the words after the command). Returns false if --help was asked for.
+  bool parse(const std::vector<std::string>& args);
+  std::string help() const;
+
+  bool has(const std::string& name) const;
+  std::string get(const std::string& name) const;
+  int getInt(const std::string& name, int minimum) const;
+  double getDouble(const std::string& name, double minimum) const;
+  const std::vector<std::string>& positionals() const { return mPositionals; }
+
+ private:
+  struct Spec {
+    std::string valueName;  // empty for flags
+    std::string help;
+    std::string defaultValue;
+    bool required = false;
+  };
+  std::string mUsage;
+  std::string mSummary;
+  std::string mEpilog;
+  std::string mPositionalNames;
+  int mPositionalCount = 0;
+  std::vector<std::string> mOrder;
+  std::map<std::string, Spec> mSpecs;
+  std::map<std::string, std::string> mValues;
+  std::vector<std::string> mPositionals;
+};
+
+}  // namespace drivenshape::cli

@@ -1,0 +1,16 @@
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace drivenshape::cli {
+
+/// Each command parses its words, calls the library and returns the process exit code
+/// (0 on success). Errors propagate as drivenshape::Error to main's single catch.
+int runDevices(const std::vector<std::string>& args);
+int runInfo(const std::vector<std::string>& args);
+int runDbBuild(const std::vector<std::string>& args);
+int runBake(const std::vector<std::string>& args);
+int runEval(const std::vector<std::string>& args);
+
+}  // namespace drivenshape::cli

@@ -1,0 +1,138 @@
+#include "posmap_command.h"
+
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <optional>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/hash.h>
+#include <drivenshape/position_map.h>
+#include <drivenshape/progress.h>
+
+#include "cli_args.h"
+#include "device_choice.h"
+
+namespace drivenshape::cli {
+namespace {
+
+std::string absolute(const std::string& path) {
+  std::error_code ec;
+  const auto full = std::filesystem::absolute(path, ec);
+  return ec ? path : full.lexically_normal().string();
+}
+
+/// The backend for --device SPEC: OpenCL, or the host reference for `host` (and for `auto`
+/// when there is no OpenCL device, with a warning).
+std::unique_ptr<PositionMapBackend> makeBackend(const std::string& spec, std::string& description,
+                                                std::ostream& log) {
+  std::optional<ClDevice> device = chooseDevice(spec);
+  if (!device) {
+    if (spec == "auto") {
+      log << "warning: no OpenCL device found; using the host reference path (slower). "
+             "Install pocl-opencl-icd or a GPU driver for OpenCL.\n";
+    }
+    description = "host (reference path, no OpenCL)";
+    return makeHostPositionMaps();
+  }
+  description = device->description;
+  return makeClPositionMaps(device->context, device->device, device->queue);
+}
+
+}  // namespace
+
+int runPosmap(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape posmap --mesh M.obj --cache CACHE --frames RANGE --res W[xH] -o OUT.####.exr",
+      "Writes position maps for compositing: per frame, a UV-space EXR whose texels hold the "
+      "world position (P.X P.Y P.Z) interpolated from the mesh triangle under the texel centre, "
+      "a coverage channel A (1 on covered texels, 0 elsewhere, padding included) and, with "
+      "--normals, area-weighted normals (N.X N.Y N.Z). Islands are padded by --padding texels: "
+      "each padded texel copies its nearest covered texel (chessboard distance). Row 0 of the "
+      "image is the top, v = 1; UVs outside [0, 1] are refused.");
+  parser.option("--mesh", "M.obj", "mesh with UVs (vertex order of the cache)", "", true)
+      .option("--cache", "CACHE", "positions per frame (.pc2 or name.####.exr)", "", true)
+      .option("--frames", "RANGE", "frames to write: 1001-1100, 1001-1100x2, 1001,1005", "", true)
+      .option("--res", "W[xH]", "map size in texels, 1..16384 per side", "", true)
+      .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
+      .option("--padding", "N", "texels of dilation around each UV island (0..256)", "8")
+      .option("--device", "SPEC", "auto, host, cpu, gpu, an index or a name substring", "auto")
+      .option("--compression", "C", "zip, none, zips or piz (all lossless)", "zip")
+      .option("--fps", "X", "frames per second written to the EXR headers", "24")
+      .option("--threads", "N", "files written at once (0 = all cores)", "0")
+      .option("--chunk", "N", "frames per kernel launch (0 = as many as fit in 256 MiB)", "0")
+      .flag("--normals", "also write N.X N.Y N.Z (FLOAT)")
+      .flag("--half-normals", "write the normals as HALF (implies --normals)")
+      .flag("--preview", "also write OUT.####.png, P mapped to colours, for eyeballing")
+      .flag("--quiet", "no progress or per-frame lines")
+      .epilog("Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device.");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const auto [width, height] = parsePositionMapResolution(parser.get("--res"), "--res");
+  PositionMapOptions options;
+  options.width = width;
+  options.height = height;
+  options.padding = parser.getInt("--padding", 0);
+  options.halfNormals = parser.has("--half-normals");
+  options.normals = parser.has("--normals") || options.halfNormals;
+  options.preview = parser.has("--preview");
+  options.compression = parseExrCompression(parser.get("--compression"));
+  options.framesPerSecond = parser.getDouble("--fps", 1e-3);
+  options.threads = parser.getInt("--threads", 0);
+  options.chunkSize = parser.getInt("--chunk", 0);
+  const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
+  const std::string output = parser.get("-o");
+  if (!hasFramePattern(output)) {
+    DS_THROW(kUsage, "-o '", output, "' has no frame token; use e.g. maps/cloth.####.exr");
+  }
+  checkOutputFolderWritable(expandFramePattern(output, frames.front()));
+
+  const std::string meshPath = parser.get("--mesh");
+  const Mesh mesh = readObj(meshPath);
+  // EXR caches carry a topology hash: it must be this mesh's.
+  const auto cache = openPointCache(parser.get("--cache"), topologyHash(mesh));
+  const bool quiet = parser.has("--quiet");
+  std::string device;
+  PositionMapWriter writer(mesh, options, makeBackend(parser.get("--device"), device, std::cerr),
+                           meshPath, &std::cerr);
+  if (!quiet) {
+    std::cerr << "position maps " << width << "x" << height << ", padding " << options.padding
+              << ": " << writer.tables().coveredCount << " covered and "
+              << writer.tables().paddedCount << " padded texels; " << frames.size() << " frames on "
+              << device << "\n";
+  }
+  std::unique_ptr<Progress> progress;
+  if (!quiet) {
+    progress = std::make_unique<Progress>("posmap", static_cast<long>(frames.size()));
+  }
+  const PositionMapRunResult result = writePositionMapSequence(
+      writer, *cache, frames, output, [&](int frame, const std::string& path) {
+        if (progress) {
+          if (!progress->isTerminal()) {
+            std::cerr << "frame " << frame << " -> " << path << "\n";
+          }
+          progress->advance();
+        }
+      });
+  if (progress) {
+    progress->finish();
+  }
+  const double fps = result.totalSeconds > 0 ? result.written / result.totalSeconds : 0.0;
+  std::cout << "wrote " << result.written << " position maps (" << width << "x" << height << ") in "
+            << std::fixed << std::setprecision(3) << result.totalSeconds << " s, "
+            << std::setprecision(1) << fps << " frames/s on " << device << " (read "
+            << std::setprecision(3) << result.readSeconds << " s, evaluate "
+            << result.evaluateSeconds << " s, write " << result.writeSeconds << " s)\n"
+            << "outputs: " << absolute(output) << " (frames " << formatFrameRange(frames) << ")\n";
+  if (options.preview) {
+    std::cout << "previews: " << absolute(positionMapPreviewPath(output)) << "\n";
+  }
+  return 0;
+}
+
+}  // namespace drivenshape::cli

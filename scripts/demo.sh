@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The main job on the bundled sample shot (a slice of the sleeve scene in tests/data/sleeve):
+# builds a 30-shape database from the range-of-motion clip, bakes the test clip through OpenCL
+# into point-cache EXRs, compares the bake with the simulated truth, and prints where it all is.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+
+export POCL_CACHE_DIR="$PWD/build/pocl-cache"
+mkdir -p "$POCL_CACHE_DIR"
+data=tests/data/sleeve
+out=out/sample
+mkdir -p "$out/bake"
+ds=build/apps/drivenshape
+
+"$ds" db build --driver-mesh $data/driver_rest.obj --driven-mesh $data/driven_rest.obj \
+  --driver $data/train.driver.pc2 --driven $data/train.driven.pc2 --count 30 --quiet \
+  -o $out/sleeve.dsdb
+"$ds" bake --db $out/sleeve.dsdb --driver $data/test.driver.pc2 --frames 1-48 \
+  -o $out/bake/sleeve.####.exr 2>$out/bake.log
+"$ds" eval --truth $data/test.driven.pc2 --bake "$out/bake/sleeve.####.exr" --frames 1-48 \
+  --json $out/eval.json
+echo "log:      $PWD/$out/bake.log"
+echo "accuracy: $PWD/$out/eval.json"

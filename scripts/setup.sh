@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Installs what is missing (Debian 12 packages, the Python venv for scripts and Python tests),
+# then configures and builds drivenshape (Release, warnings as errors) in ./build.
+# Safe to run again: it installs nothing that is already there and rebuilds incrementally.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(
+  build-essential cmake pkg-config
+  ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
+  libeigen3-dev libopenexr-dev openexr libflann-dev liblz4-dev nlohmann-json3-dev
+  libgtest-dev openimageio-tools
+  python3 python3-venv python3-pip
+)
+
+missing=()
+for package in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$package")
+  fi
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}" >&2
+  SUDO=""
+  if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends \
+    "${missing[@]}" >/dev/null
+fi
+
+# Python: a project venv for scripts/ and the Python-driven tests (quadprog cross-check).
+# Debian's own interpreter is preferred so the venv works the same on every machine.
+PYTHON=/usr/bin/python3
+[[ -x $PYTHON ]] || PYTHON=python3
+stamp=.venv/.requirements.sha256
+want=$(sha256sum scripts/requirements.txt | cut -d' ' -f1)
+if [[ ! -x .venv/bin/python || ! -f $stamp || $(cat "$stamp") != "$want" ]]; then
+  echo "setup: preparing the Python venv in .venv" >&2
+  "$PYTHON" -m venv .venv
+  .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+  .venv/bin/python -m pip install -q -r scripts/requirements.txt
+  echo "$want" >"$stamp"
+fi
+
+jobs=$(nproc 2>/dev/null || echo 2)
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DDRIVENSHAPE_WERROR=ON \
+  -DDRIVENSHAPE_PYTHON="$PWD/.venv/bin/python" >/dev/null
+cmake --build build -j"$jobs"

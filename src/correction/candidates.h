@@ -1,0 +1,90 @@
+#pragma once
+
+// The host half of the closest-triangle stage shared by both backends: the driver topology and
+// mask as flat tables, input checks, and the candidate search (FLANN) whose lists the exact
+// step (kernels/closest.cl or src/host/host_closest.cpp) reduces to one triangle per point.
+
+#include <cstdint>
+#include <vector>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/mesh.h>
+
+namespace drivenshape::correction {
+
+/// Candidate lists of a chunk, compressed rows. Item k = f * Vd + i (frame f, point i):
+///
+///   start       F*Vd + 1    item k's candidates are triangles[start[k] .. start[k+1]-1]
+///   triangles   start[F*Vd] driver triangle ids, increasing within an item, never empty
+///
+///   start:     | 0 | 3 | 7 | 9 | ...
+///   triangles: | t t t | t t t t | t t | ...
+///                item 0  item 1    item 2
+struct CandidateTable {
+  std::vector<std::int32_t> start;
+  std::vector<std::int32_t> triangles;
+};
+
+/// Throws Error(kNumerical) naming `stage`, the frame of the chunk and the vertex when one of
+/// frameCount x count xyz triples is NaN or infinite; `what` names the vertex kind
+/// ("driver vertex", "driven point").
+void checkFinite(const char* stage, const char* what, int frameCount, int count, const float* data);
+
+class CandidateSearch;
+
+/// Checks a transfer call: surface set, buffers present, sizes, no NaN/infinite input
+/// (Error(kNumerical)), hit triangles in range (Error(kInput)).
+void checkTransfer(const CandidateSearch& search, int frameCount, const SurfaceHit* hits,
+                   const float* fromPoses, const float* toPoses, const float* points,
+                   const float* out);
+
+/// Driver topology, mask and candidate search. setSurface() once, find() per chunk.
+class CandidateSearch {
+ public:
+  explicit CandidateSearch(int threads) : mThreads(threads) {}
+
+  /// Validates and keeps the topology and the mask (see ClosestBackend::setSurface).
+  void setSurface(const Mesh& driver, const BindingMask& mask);
+
+  bool ready() const { return mReady; }
+  int vertexCount() const { return mVertexCount; }
+  int pointCount() const { return mPointCount; }
+  int triangleCount() const { return static_cast<int>(mTriangles.size() / 3); }
+  int threads() const { return mThreads; }
+  /// T x 3 vertex ids, interleaved.
+  const std::vector<std::int32_t>& triangles() const { return mTriangles; }
+  /// The length scale of the scene (rest driver: max of bounding-box diagonal and largest
+  /// coordinate magnitude) that sets the absolute part of the tie band.
+  double sceneScale() const { return mSceneScale; }
+
+  /// Checks a chunk call of `stage` (surface set, sizes within int range, buffers present).
+  void checkChunk(const char* stage, int frameCount, bool buffersPresent) const;
+
+  /// Candidate lists for every point of every frame (see candidates.cpp for the bound that
+  /// makes them contain the exact closest triangle). Checks the input for NaN first.
+  ///   poses F x 3Vp, points F x 3Vd
+  void find(int frameCount, const float* poses, const float* points, CandidateTable& table) const;
+
+ private:
+  struct SearchClass {
+    std::vector<int> triangles;  ///< allowed triangles, increasing
+    std::vector<int> points;     ///< driven points of the class, increasing
+  };
+  struct FrameCandidates {
+    std::vector<std::int32_t> count;  ///< per point
+    std::vector<std::int32_t> triangles;
+    std::vector<std::int32_t> offset;  ///< per point, into triangles
+  };
+  void findFrame(const float* pose, const float* points, double frameScale,
+                 FrameCandidates& out) const;
+
+  int mThreads = 0;
+  bool mReady = false;
+  int mVertexCount = 0;
+  int mPointCount = 0;
+  double mSceneScale = 1.0;
+  std::vector<std::int32_t> mTriangles;
+  std::vector<SearchClass> mClasses;
+};
+
+}  // namespace drivenshape::correction

@@ -1,0 +1,63 @@
+#pragma once
+
+// A minimal parallel loop for frame-parallel host work (candidate search, host exact step).
+
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace drivenshape::correction {
+
+/// Threads to use for `requested` (0 = one per hardware thread), never more than `work`.
+inline int resolveThreads(int requested, int work) {
+  int threads = requested > 0 ? requested : static_cast<int>(std::thread::hardware_concurrency());
+  return std::max(1, std::min(threads, work));
+}
+
+/// Calls body(i) for i in [0, count) on `threads` threads (0 = hardware). If bodies throw, the
+/// exception of the smallest i is rethrown after all threads have stopped, so the error a user
+/// sees does not depend on scheduling.
+template <typename Body>
+void parallelFor(int count, int threads, Body&& body) {
+  const int workers = resolveThreads(threads, count);
+  if (workers <= 1) {
+    for (int i = 0; i < count; ++i) {
+      body(i);
+    }
+    return;
+  }
+  std::atomic<int> next{0};
+  std::mutex mutex;
+  int failedIndex = count;
+  std::exception_ptr failure;
+  auto work = [&]() {
+    for (int i = next++; i < count; i = next++) {
+      try {
+        body(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (i < failedIndex) {
+          failedIndex = i;
+          failure = std::current_exception();
+        }
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  pool.reserve(static_cast<std::size_t>(workers - 1));
+  for (int w = 1; w < workers; ++w) {
+    pool.emplace_back(work);
+  }
+  work();
+  for (std::thread& thread : pool) {
+    thread.join();
+  }
+  if (failure) {
+    std::rethrow_exception(failure);
+  }
+}
+
+}  // namespace drivenshape::correction

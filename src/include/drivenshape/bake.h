@@ -1,0 +1,78 @@
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <drivenshape/database.h>
+#include <drivenshape/point_cache.h>
+#include <drivenshape/stages.h>
+
+namespace drivenshape {
+
+/// How the per-frame weights are chosen.
+enum class WeightMode {
+  kQp,      ///< the DrivenShape QP: min ||A w - b|| with sum w = 1, 0 <= w <= 1
+  kNearest  ///< baseline: one-hot on the closest database driver shape
+};
+
+struct BakeOptions {
+  std::vector<int> frames;        ///< frames of the driver cache to bake
+  std::string outputPattern;      ///< EXR sequence with a frame token, e.g. out/cloth.####.exr
+  std::string reportPath;         ///< per-bake JSON report; empty = none
+  int chunkSize = 64;             ///< frames per kernel launch
+  int threads = 0;                ///< host threads (QP, EXR); 0 = all cores
+  bool skipExisting = false;      ///< keep complete outputs of this database and settings
+  WeightMode weightMode = WeightMode::kQp;
+  int exrWidth = 1024;
+  ExrCompression compression = ExrCompression::kZip;
+  double framesPerSecond = 24.0;
+};
+
+/// What happened to one frame.
+struct FrameRecord {
+  int frame = 0;
+  bool skipped = false;            ///< an existing complete output was kept
+  std::vector<double> weights;     ///< k
+  std::vector<int> atZero;         ///< shapes held at weight 0 (active bounds)
+  std::vector<int> atOne;
+  double relativeResidual = 0.0;   ///< ||A w - b|| / ||b||
+  double kktResidual = 0.0;
+  int iterations = 0;
+  std::string output;
+};
+
+/// Seconds spent per stage, summed over chunks.
+struct StageTimes {
+  double read = 0, project = 0, weights = 0, blend = 0, write = 0, total = 0;
+};
+
+struct BakeResult {
+  std::vector<FrameRecord> frames;
+  StageTimes times;
+  std::string device;
+  std::uint64_t settingsHash = 0;
+  int baked = 0;
+  int skipped = 0;
+};
+
+/// Receives progress from a bake (called on the bake's thread).
+struct BakeObserver {
+  virtual ~BakeObserver() = default;
+  virtual void frameDone(const FrameRecord& /*record*/, double /*seconds*/) {}
+  /// Polled between chunks; return true to stop (finished frames are kept).
+  virtual bool stopRequested() { return false; }
+};
+
+/// Bakes `options.frames` of `driver` with `database` on `stages` (host or OpenCL) and writes
+/// one point-cache EXR per frame (atomically). Validates everything it can before the first
+/// frame: vertex counts, frames present, output folder writable. Throws drivenshape::Error.
+BakeResult bake(const Database& database, const PointCacheReader& driver, StageBackend& stages,
+                const BakeOptions& options, BakeObserver* observer = nullptr);
+
+/// Flat tables for the stage backends, built from a database (projection basis, shapes).
+ShapeTables makeShapeTables(const Database& database);
+
+}  // namespace drivenshape

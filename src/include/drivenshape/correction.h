@@ -1,0 +1,204 @@
+#pragma once
+
+// Collision correction (DESIGN.md §1 "Collision / correction", §3 steps 5-6): for every point d
+// of the blended cloth D~, the exact closest triangle of the blended driver P~, and the
+// local-frame transfer of d from P~ to the shot's pose P_new. Binding masks restrict which
+// driver triangles a driven vertex may bind to; InsideAudit tells which points lie inside the
+// driver.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CL/opencl.hpp>
+
+#include <drivenshape/mesh.h>
+
+namespace drivenshape {
+
+/// The closest point of a driver triangle to a point:
+///   q = a + u (b - a) + v (c - a),  (a, b, c) = the vertices of mesh.triangles row `triangle`,
+/// with u >= 0, v >= 0, u + v <= 1, at squared distance `distance2` (squared scene units).
+/// Bit-compatible with DsSurfaceHit in kernels/correction_types.h.
+struct SurfaceHit {
+  std::int32_t triangle = -1;
+  float u = 0.0f;
+  float v = 0.0f;
+  float distance2 = 0.0f;
+};
+
+/// Which driver triangles each driven vertex may bind to.
+///
+///   vertexClass    Vd ints: -1 = any triangle, else an index into the classes
+///   classTriangles C sorted, duplicate-free, non-empty lists of driver triangle ids
+///
+/// Vertices that share a class share the allowed set, so the candidate search builds one tree
+/// per class.
+class BindingMask {
+ public:
+  /// Every vertex of a driven mesh with `drivenVertexCount` vertices binds to every triangle.
+  static BindingMask all(int drivenVertexCount);
+
+  /// A mask from its tables. Throws Error(kInput) on a class index out of range or an empty
+  /// class; sorts the class lists and drops duplicates.
+  BindingMask(std::vector<int> vertexClass, std::vector<std::vector<int>> classTriangles);
+
+  int drivenVertexCount() const { return static_cast<int>(mVertexClass.size()); }
+  int classCount() const { return static_cast<int>(mClassTriangles.size()); }
+  /// -1 (any triangle) or the class of driven vertex `vertex`.
+  int vertexClass(int vertex) const { return mVertexClass[vertex]; }
+  const std::vector<int>& vertexClasses() const { return mVertexClass; }
+  /// The sorted driver triangle ids of class `c`.
+  const std::vector<int>& classTriangles(int c) const { return mClassTriangles[c]; }
+  /// Whether driven vertex `vertex` may bind to driver triangle `triangle`.
+  bool allows(int vertex, int triangle) const;
+  /// True when no vertex is restricted.
+  bool isAll() const;
+
+ private:
+  std::vector<int> mVertexClass;
+  std::vector<std::vector<int>> mClassTriangles;
+};
+
+/// Reads a binding-mask file (JSON). The format:
+///
+///   {
+///     "version": 1,                                  (optional; 1 is the only version)
+///     "bindings": [
+///       {"driven": "left_leg", "driver": ["left_leg", "pelvis"]},
+///       {"name": "cuff",                             (optional label for messages)
+///        "driven": {"groups": ["cuff"], "vertices": [0, 1, "5-9"]},
+///        "driver": {"faces": [12, "40-47"]}}
+///     ]
+///   }
+///
+/// "driven" names driven-mesh vertices: a group name, a list of group names, or an object with
+/// "groups" (names) and/or "vertices" (indices). A group is the set of vertices of the faces of
+/// that `g` (or `o`) group of the driven OBJ. "driver" names driver faces: a group name, a list
+/// of names, or an object with "groups" and/or "faces" (OBJ face indices); a face stands for
+/// all of its fan triangles (Mesh::triangleFace). Indices are 0-based, in file order; a string
+/// "a-b" is the inclusive range a..b. Keys "comment" (anywhere) are ignored; other keys are
+/// errors. Vertices named in no entry bind to every driver triangle.
+///
+/// Throws Error(kInput) naming the file and the entry ("bindings[2]") for: a file that cannot
+/// be read, malformed JSON, an unknown key, an unknown group (the message lists the known
+/// names), a group or list that names nothing, an index out of range, a bad range, and a
+/// driven vertex named by two entries.
+BindingMask readBindingMask(const std::string& path, const Mesh& driver, const Mesh& driven);
+
+/// The same from JSON text; `source` names the text in messages (a file path, "--bind").
+BindingMask parseBindingMask(const std::string& jsonText, const std::string& source,
+                             const Mesh& driver, const Mesh& driven);
+
+/// Settings shared by both backends.
+struct ClosestOptions {
+  /// Host threads for the candidate search (and the host backend's exact step); 0 = one per
+  /// hardware thread.
+  int threads = 0;
+  /// OpenCL only: do the kernels' arithmetic in float even where the device has cl_khr_fp64
+  /// (devices without it always use float). Float is exact to about 1e-5 of the scene scale
+  /// on well-shaped triangles but loses digits on needle-like slivers.
+  bool forceSinglePrecision = false;
+};
+
+/// The correction stage for chunks of F frames. Two implementations share this contract:
+/// OpenCL kernels (makeClClosest) and the plain C++ host reference (makeHostClosest). Both
+/// take their candidate triangles from the same host search (FLANN KD-trees over triangle
+/// centroids with a bound that provably keeps the closest triangle; see
+/// src/correction/candidates.cpp). Frame blocks are frame-major, float32:
+///
+///   poses   F x 3Vp   driver vertex v of frame f, axis a at [f * 3Vp + 3v + a]
+///   points  F x 3Vd   driven point i of frame f at [f * 3Vd + 3i]
+///   hits    F x Vd    SurfaceHit of point i of frame f at [f * Vd + i]
+///
+/// Vp is the driver mesh's vertex count, Vd the mask's driven vertex count. setSurface() is
+/// called once (again to change the surface), then closest()/transfer() many times. Not
+/// thread-safe.
+class ClosestBackend {
+ public:
+  virtual ~ClosestBackend() = default;
+  /// "host" or the OpenCL device name.
+  virtual std::string name() const = 0;
+
+  /// Takes the driver topology (its triangles) and the binding mask; the driver's positions
+  /// only set the length scale of the tie band (max of bounding-box diagonal and largest
+  /// coordinate). Throws Error(kInput) when the driver has no triangles or the mask names a
+  /// triangle the driver does not have.
+  virtual void setSurface(const Mesh& driver, const BindingMask& mask) = 0;
+
+  /// For every point of every frame, the closest triangle of that frame's pose among the
+  /// triangles its mask allows: the distance equals a brute-force search over those triangles
+  /// (to rounding), distances within a tie band of about 1e-7 of the scene scale count as
+  /// equal, and ties go to the smaller triangle index. Zero-area triangles are measured as
+  /// their edges (or their point). Throws Error(kNumerical) naming the frame of the chunk and
+  /// the vertex when a pose or point is NaN or infinite.
+  virtual void closest(int frameCount, const float* poses, const float* points,
+                       SurfaceHit* hits) = 0;
+
+  /// Local-frame transfer: each point is expressed in the frame of its hit on `fromPoses`
+  /// (origin q, axes: unit first edge e1 = (b - a)/|b - a|, unit normal n of (b - a) x (c - a),
+  /// e2 = n x e1) and rebuilt at the same (u, v) of the same triangle of `toPoses` with that
+  /// triangle's frame. Where either frame is degenerate (zero first edge, or the sine of the
+  /// angle at a below 1e-10; 1e-5 in float arithmetic), the offset p - q is kept in world axes:
+  /// deterministic, exact for translations, but not rotated with the triangle. fromPoses, toPoses F
+  /// x 3Vp; points, out F x 3Vd
+  /// (`out` may alias `points`). Throws Error(kNumerical) on NaN/infinite input and
+  /// Error(kInput) on a hit whose triangle is out of range.
+  virtual void transfer(int frameCount, const SurfaceHit* hits, const float* fromPoses,
+                        const float* toPoses, const float* points, float* out) = 0;
+};
+
+/// The host reference implementation (plain C++, double arithmetic).
+std::unique_ptr<ClosestBackend> makeHostClosest(const ClosestOptions& options = {});
+
+/// The OpenCL implementation. The caller owns the device choice and passes an in-order queue.
+/// Programs are built here (-cl-std=CL1.2); a build or launch failure throws Error(kDevice).
+std::unique_ptr<ClosestBackend> makeClClosest(const cl::Context& context, const cl::Device& device,
+                                              const cl::CommandQueue& queue,
+                                              const ClosestOptions& options = {});
+
+/// The whole correction of a chunk: hits on the blended driver, then the transfer of the
+/// blended cloth to the shot's driver.
+///   blendedDriver, shotDriver  F x 3Vp;  blendedDriven, corrected  F x 3Vd;  hits  F x Vd
+void correct(ClosestBackend& backend, int frameCount, const float* blendedDriver,
+             const float* blendedDriven, const float* shotDriver, float* corrected,
+             SurfaceHit* hits);
+
+/// Inside/outside of points with respect to the driver, from their closest points (Baerentzen
+/// & Aanaes, "Signed distance computation using the angle weighted pseudonormal", 2005): the
+/// sign of (p - q) . N, where N is the face normal when q is inside a triangle, the sum of the
+/// normals of the triangles sharing the edge when q is on an edge, and the angle-weighted
+/// vertex normal when q is on a vertex. This is correct only for a closed, consistently
+/// oriented (outward normals, counter-clockwise faces) driver; on an open driver such as a
+/// sleeve's arm without caps, points beyond the border are classified by the border's
+/// pseudo-normals, which is a guess.
+class InsideAudit {
+ public:
+  /// Takes the driver topology (triangles and vertex count; positions are not used).
+  explicit InsideAudit(const Mesh& driver);
+
+  /// Signed distances (scene units, negative inside) of `pointCount` points with their hits on
+  /// one pose: pose Vp x 3 (interleaved), points pointCount x 3, hits pointCount, out
+  /// pointCount. A hit counts as on an edge or vertex when its barycentric coordinates are
+  /// within 1e-6 of it. Points exactly on the surface get 0.
+  void signedDistances(const float* pose, int pointCount, const float* points,
+                       const SurfaceHit* hits, float* out) const;
+
+  /// How many of the points are inside (signed distance < 0).
+  int countInside(const float* pose, int pointCount, const float* points,
+                  const SurfaceHit* hits) const;
+
+ private:
+  int mVertexCount = 0;
+  Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor> mTriangles;
+  /// For triangle t and its edge e (0: ab, 1: bc, 2: ca), every triangle on that edge (t
+  /// included): edgeTriangles[edgeStart[3t + e] .. edgeStart[3t + e + 1] - 1].
+  std::vector<int> mEdgeStart;
+  std::vector<int> mEdgeTriangles;
+  /// Triangles around vertex v: vertexTriangles[vertexStart[v] .. vertexStart[v + 1] - 1].
+  std::vector<int> mVertexStart;
+  std::vector<int> mVertexTriangles;
+};
+
+}  // namespace drivenshape

@@ -1,0 +1,75 @@
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include <drivenshape/mesh.h>
+#include <drivenshape/point_cache.h>
+
+namespace drivenshape {
+
+/// How a database was (or is to be) built.
+struct DatabaseBuildOptions {
+  int count = 30;                  ///< shapes wanted (fewer if the clip runs out of distinct ones)
+  std::vector<int> frames;         ///< candidate frames; empty = every frame of the driver cache
+  std::vector<int> addFrames;      ///< always kept; they seed the greedy pick
+  std::vector<int> removeFrames;   ///< never kept
+  /// Shapes whose RMS per-vertex distance to an already chosen shape is below this fraction
+  /// of the rest driver's bounding-box diagonal are rejected as near-duplicates.
+  double duplicateTolerance = 1e-3;
+};
+
+/// Why a shape is in the database.
+enum class PickReason { kSeed, kFarthest, kAdded };
+const char* pickReasonName(PickReason reason);
+
+/// A DrivenShape database: N pairs of driver and driven shapes plus the meshes they belong to.
+///
+///   driverShapes  N x 3Vp   shape i = source frame frames[i], interleaved xyz, float32
+///   drivenShapes  N x 3Vd
+///
+/// Stored as one self-describing, versioned file (see saveDatabase and the README).
+struct Database {
+  static constexpr int kFormatVersion = 1;
+
+  Mesh driverMesh;  ///< rest positions, faces, groups (from the driver OBJ)
+  Mesh drivenMesh;  ///< rest positions, faces, UVs, groups (from the driven OBJ)
+  std::vector<int> frames;            ///< source frame of each shape, in pick order
+  std::vector<PickReason> reasons;    ///< why each was picked
+  std::vector<double> pickDistances;  ///< RMS distance to the shapes before it (0 for the first)
+  std::vector<float> driverShapes;
+  std::vector<float> drivenShapes;
+  DatabaseBuildOptions options;
+  std::string driverSource;  ///< provenance: caches and meshes it was built from
+  std::string drivenSource;
+  std::string toolVersion;
+  std::string created;       ///< UTC, ISO 8601
+
+  int shapeCount() const { return static_cast<int>(frames.size()); }
+  int driverVertexCount() const { return driverMesh.vertexCount(); }
+  int drivenVertexCount() const { return drivenMesh.vertexCount(); }
+  /// Hash of the shapes and topologies: identifies the database in output headers.
+  std::uint64_t contentHash() const;
+};
+
+/// Builds a database from reference caches. The greedy farthest-point pick on driver shapes:
+/// the set starts from `addFrames` if given, else from the first candidate frame (by
+/// convention the rest or bind pose, which every shot starts near); each step then adds the
+/// candidate whose smallest RMS distance to the chosen shapes is largest. Candidates closer
+/// than the duplicate tolerance to a chosen shape are dropped. Progress and decisions are
+/// written to `log` if not null. Throws Error(kInput/kUsage) naming the cache and frame on
+/// mismatched vertex counts, missing frames or bad options.
+Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
+                       const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
+                       const DatabaseBuildOptions& options, std::ostream* log = nullptr);
+
+/// Writes the database atomically (see the README for the layout).
+void saveDatabase(const std::string& path, const Database& database);
+/// Reads and verifies (magic, version, checksums); Error(kInput) with the reason otherwise.
+Database loadDatabase(const std::string& path);
+/// True if the file starts with the database magic (for `drivenshape info`).
+bool isDatabaseFile(const std::string& path);
+
+}  // namespace drivenshape

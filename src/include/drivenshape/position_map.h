@@ -1,0 +1,287 @@
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <CL/opencl.hpp>
+
+#include <drivenshape/mesh.h>
+#include <drivenshape/point_cache.h>
+
+namespace drivenshape {
+
+// ---------------------------------------------------------------------------------------
+// Position maps: UV-space images of a deforming mesh for compositing. Each texel whose centre
+// lies in a UV triangle holds the world position interpolated from that triangle's vertices.
+//
+// UV-to-image convention. OBJ v points up, image rows go down; row 0 is the TOP of the image
+// (v = 1), which is also the first scanline of the EXR. Texel (x, y) of a W x H map covers
+//
+//     u in [x / W, (x + 1) / W]      v in [1 - (y + 1) / H, 1 - y / H]
+//
+// and is sampled at its centre (u, v) = ((x + 0.5) / W, 1 - (y + 0.5) / H):
+//
+//     v = 1  +-------+-------+-- ... --+-------+   row 0       (first EXR scanline)
+//            | (0,0) | (1,0) |         |(W-1,0)|
+//            +-------+-------+-- ... --+-------+   row 1
+//            | (0,1) |   .   |         |       |
+//            :       :       :         :       :
+//            +-------+-------+-- ... --+-------+   row H-1     (last EXR scanline)
+//            |(0,H-1)|       |         |       |
+//     v = 0  +-------+-------+-- ... --+-------+
+//          u = 0                             u = 1
+//
+// A UV triangle in the top-left corner of the UV square lands on the left end of row 0.
+//
+// UVs outside [0, 1] are refused (Error(kInput) naming the face and the UV): a map covers the
+// 0-1 tile only, and wrapping or clamping would silently pile islands onto each other.
+//
+// Coverage is decided exactly: UVs are snapped to 1/256 texel and tested against texel
+// centres in integer arithmetic, with a fixed tie rule for centres that lie on an edge or a
+// vertex (like a GPU's top-left rule), so triangles that share an edge never both claim a
+// texel and never leave a gap between them. The barycentric weights of a covered texel are
+// computed in double from the unsnapped UVs.
+// Where UV islands overlap, the triangle with the lowest index (fan order of the faces, see
+// Mesh::triangulate) keeps the texel, and the overlap is reported (UvOverlapReport).
+//
+// Padding dilates every island by N texels so that filtering across a UV seam does not pull
+// in background. A texel within chessboard distance N (max(|dx|, |dy|), i.e. N rings of the
+// 8-neighbourhood) of a covered texel copies the values of its nearest covered texel: the one
+// at the smallest chessboard distance, then the smallest Euclidean distance, then the lowest
+// row-major index. Padded texels carry P (and N) but A = 0: A is 1 exactly on covered texels,
+// so a compositor can matte with it while the padding keeps filtered lookups clean.
+
+/// Largest width or height accepted for a map (a 16384^2 map already holds 3 GiB of P).
+inline constexpr int kMaxPositionMapSide = 16384;
+/// Largest padding accepted, in texels (the dilation costs time in its square).
+inline constexpr int kMaxPositionMapPadding = 256;
+
+/// Parses a resolution `W` (square) or `WxH`. Throws Error(kUsage) naming `flag` and the text
+/// when it is malformed or a side is outside 1..kMaxPositionMapSide.
+std::pair<int, int> parsePositionMapResolution(const std::string& text,
+                                               const std::string& flag = "--res");
+
+/// UV texels claimed by more than one triangle (islands overlapping in UV space).
+struct UvOverlapReport {
+  long long texels = 0;     ///< texels inside two or more UV triangles
+  long long facePairs = 0;  ///< distinct (kept face, hidden face) pairs
+  /// The first few pairs (kept face, hidden face), in order of discovery; faces are 0-based
+  /// in file order. The kept face owns the lower-index triangle.
+  std::vector<std::pair<int, int>> examples;
+  bool empty() const { return texels == 0; }
+  /// One line for a warning, e.g. "UV islands overlap on 120 texels (3 face pairs: 4/17, ...)";
+  /// empty when there is no overlap.
+  std::string describe() const;
+};
+
+/// The rasterised UV layout and the mesh tables a backend needs: built once per mesh and map
+/// size ("far"), then evaluated for many frames. Active texels are the covered ones plus the
+/// padding; each holds the triangle and barycentric weights its value is interpolated with (a
+/// padded texel holds those of the covered texel it copies, so per-frame padding needs no
+/// pass of its own).
+///
+///   triangles            T x 3   vertex ids, fan triangles of the faces (Mesh::triangulate)
+///   vertexTriangleStart  V + 1   incident triangles of vertex v:
+///   vertexTriangles              vertexTriangles[vertexTriangleStart[v] .. [v+1]-1], ascending
+///   texels               E       texel index y * W + x of each active texel, ascending
+///   texelTriangles       E       triangle under the texel centre (or under its source's)
+///   texelWeights         E x 2   barycentric weights (b1, b2) of corners 1 and 2; corner 0
+///                                has 1 - b1 - b2
+///   texelSources         E       active index of the covered texel this one copies
+///                                (itself when covered)
+///   coverage             W x H   the A channel: 1 on covered texels, 0 elsewhere
+struct PositionMapTables {
+  int width = 0;
+  int height = 0;
+  int padding = 0;
+  int vertexCount = 0;
+  long long coveredCount = 0;  ///< covered texels (A = 1)
+  long long paddedCount = 0;   ///< padded texels (A = 0, P copied)
+  std::uint64_t topologyHash = 0;
+  std::vector<int> triangles;
+  std::vector<int> triangleFaces;  ///< T: face of each triangle (for messages)
+  std::vector<int> vertexTriangleStart;
+  std::vector<int> vertexTriangles;
+  std::vector<int> texels;
+  std::vector<int> texelTriangles;
+  std::vector<float> texelWeights;
+  std::vector<int> texelSources;
+  std::vector<float> coverage;
+  UvOverlapReport overlaps;
+
+  int triangleCount() const { return static_cast<int>(triangles.size() / 3); }
+  std::size_t activeCount() const { return texels.size(); }
+  std::size_t texelCount() const {
+    return static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  }
+};
+
+/// Rasterises the UV layout of `mesh` into a width x height map with `padding` texels of
+/// dilation. `meshName` (a path, usually) prefixes input errors. Throws Error(kUsage) for a
+/// size outside 1..kMaxPositionMapSide or a padding outside 0..kMaxPositionMapPadding, and
+/// Error(kInput) for a mesh without UVs, a face corner without a UV, or a UV outside [0, 1]
+/// (naming the face, the UV index and its value).
+PositionMapTables buildPositionMapTables(const Mesh& mesh, int width, int height, int padding,
+                                         const std::string& meshName = "mesh");
+
+/// Evaluates position maps for F frames per call ("osd" side). Two implementations share this
+/// contract: OpenCL kernels (makeClPositionMaps) and the plain C++ host reference
+/// (makeHostPositionMaps), the oracle in tests. Blocks are frame-major, interleaved xyz:
+///
+///   frames     F x 3V        frame f, vertex v, axis a at [f * 3V + 3v + a]
+///   positions  F x 3(W*H)    frame f, texel i = y * W + x, axis a at [f * 3WH + 3i + a]
+///   normals    F x 3(W*H)    same layout; unit length or 0 where the normal is degenerate
+///
+/// Every texel of every frame is written: active texels get the interpolated value
+///   P = p0 + b1 (p1 - p0) + b2 (p2 - p0)
+/// (N the same way from the frame's area-weighted vertex normals, then normalised), all other
+/// texels 0. upload() once, evaluate() many times. Not thread-safe.
+class PositionMapBackend {
+ public:
+  virtual ~PositionMapBackend() = default;
+  /// "host" or the OpenCL device name.
+  virtual std::string name() const = 0;
+  /// Makes the tables resident (device memory for OpenCL). Must precede evaluate().
+  virtual void upload(const PositionMapTables& tables) = 0;
+  /// `normals` may be null (no normals computed).
+  virtual void evaluate(int frameCount, const float* frames, float* positions, float* normals) = 0;
+  /// The largest single buffer the backend can hold, in bytes (bounds the frames per call).
+  virtual std::size_t maxBufferBytes() const = 0;
+};
+
+/// The host reference implementation (plain C++, no OpenCL).
+std::unique_ptr<PositionMapBackend> makeHostPositionMaps();
+/// The OpenCL implementation (kernels/posmap.cl) on the caller's context, device and in-order
+/// queue. Builds its program once here; a build failure throws Error(kDevice) with the log.
+std::unique_ptr<PositionMapBackend> makeClPositionMaps(const cl::Context& context,
+                                                       const cl::Device& device,
+                                                       const cl::CommandQueue& queue);
+
+// ---------------------------------------------------------------------------------------
+// Position-map EXR: scanline, one file per frame, W x H, row 0 = top (see above). Channels
+//   P.X P.Y P.Z   FLOAT  world position
+//   A             FLOAT  1 on covered texels, 0 elsewhere (padding included)
+//   N.X N.Y N.Z   FLOAT, or HALF with halfNormals; only when normals are written
+// Header attributes (names <= 31 bytes):
+//   dsKind "positionMap" (string), dsFrame (int), dsTopologyHash (string, 16 hex digits),
+//   dsToolVersion (string), dsMeshVertexCount (int), dsBoundsMin / dsBoundsMax (v3f, the
+//   frame's vertex bounds), dsPadding (int), dsUvLayout (string, the convention above),
+//   framesPerSecond (rational, standard).
+// dsMeshVertexCount is deliberately not the point cache's dsVertexCount, so a position map is
+// never mistaken for a point cache.
+
+struct PositionMapOptions {
+  int width = 2048;
+  int height = 2048;
+  int padding = 8;           ///< texels of dilation, 0..kMaxPositionMapPadding
+  bool normals = false;      ///< also write N.X N.Y N.Z
+  bool halfNormals = false;  ///< N as HALF (implies normals)
+  bool preview = false;      ///< also write an 8-bit PNG per map (previewPath)
+  ExrCompression compression = ExrCompression::kZip;
+  double framesPerSecond = 24.0;
+  int threads = 0;    ///< files written at once (0 = all cores)
+  int chunkSize = 0;  ///< frames per launch (0 = as many as fit in 256 MiB of maps, <= 16)
+};
+
+/// Header fields of one position-map EXR.
+struct PositionMapFrameHeader {
+  int frame = 0;
+  std::uint64_t topologyHash = 0;
+  int meshVertexCount = 0;
+  int padding = 0;
+  Bounds bounds;
+  ExrCompression compression = ExrCompression::kZip;
+  double framesPerSecond = 24.0;
+  bool halfNormals = false;
+};
+
+/// Writes one position-map EXR atomically (temp file + rename). `positions` and `normals`
+/// are W*H interleaved xyz (row 0 = top), `coverage` W*H; `normals` may be null.
+void writePositionMapExr(const std::string& path, int width, int height, const float* positions,
+                         const float* coverage, const float* normals,
+                         const PositionMapFrameHeader& header);
+
+/// Writes an 8-bit RGB PNG of one map atomically: covered texels show P scaled from `bounds`
+/// to 0..255 per axis (x red, y green, z blue), padded texels the same at half brightness,
+/// the rest black. For eyeballing a map, not for data.
+void writePositionMapPreview(const std::string& path, const PositionMapTables& tables,
+                             const float* positions, const Bounds& bounds);
+
+/// "out/cloth.1001.exr" -> "out/cloth.1001.png" (the extension replaced or appended).
+std::string positionMapPreviewPath(const std::string& exrPath);
+
+/// Writes position maps of one mesh frame by frame: rasterises once, evaluates on a backend,
+/// writes EXRs (and previews). The bake calls it after blending, the `posmap` command after
+/// reading a cache.
+///
+///     PositionMapWriter writer(mesh, options, makeHostPositionMaps(), "cloth.obj", &std::cerr);
+///     writer.writeFrame(1001, xyz, "maps/cloth.1001.exr");
+class PositionMapWriter {
+ public:
+  /// Builds the tables (buildPositionMapTables: may throw kUsage / kInput) and uploads them.
+  /// An overlap of UV islands is reported on `log` as a warning line (when `log` is set).
+  PositionMapWriter(const Mesh& mesh, const PositionMapOptions& options,
+                    std::unique_ptr<PositionMapBackend> backend,
+                    const std::string& meshName = "mesh", std::ostream* log = nullptr);
+  ~PositionMapWriter();
+  PositionMapWriter(const PositionMapWriter&) = delete;
+  PositionMapWriter& operator=(const PositionMapWriter&) = delete;
+
+  const PositionMapTables& tables() const { return mTables; }
+  const PositionMapOptions& options() const { return mOptions; }
+  std::string backendName() const;
+  /// Frames per writeFrames() call that one launch handles (from options and memory).
+  int chunkSize() const { return mChunkSize; }
+
+  /// One frame: `xyz` holds 3V floats of the mesh's vertices.
+  void writeFrame(int frame, const float* xyz, const std::string& path);
+  /// Several frames: `xyz` is F x 3V (frame-major), `paths[f]` the output of `frames[f]`.
+  /// Frames beyond chunkSize() are split into several launches. Files are written on up to
+  /// options.threads threads; a failed file does not stop the others, and the first failure
+  /// is rethrown after the rest are written.
+  void writeFrames(const std::vector<int>& frames, const float* xyz,
+                   const std::vector<std::string>& paths);
+
+  /// Seconds spent so far in evaluation (backend) and in writing files.
+  double evaluateSeconds() const { return mEvaluateSeconds; }
+  double writeSeconds() const { return mWriteSeconds; }
+
+ private:
+  void writeChunk(int count, const int* frames, const float* xyz, const std::string* paths);
+
+  PositionMapOptions mOptions;
+  PositionMapTables mTables;
+  std::unique_ptr<PositionMapBackend> mBackend;
+  int mChunkSize = 1;
+  std::vector<float> mPositions;
+  std::vector<float> mNormals;
+  double mEvaluateSeconds = 0.0;
+  double mWriteSeconds = 0.0;
+};
+
+/// What writePositionMapSequence did.
+struct PositionMapRunResult {
+  int written = 0;
+  double readSeconds = 0.0;
+  double evaluateSeconds = 0.0;
+  double writeSeconds = 0.0;
+  double totalSeconds = 0.0;
+};
+
+/// Writes the maps of `frames` of `cache` to `outputPattern` (a frame token, e.g.
+/// maps/cloth.####.exr), a chunk of frames at a time. Checks first that the cache has the
+/// mesh's vertex count and every frame (Error(kInput) naming the cache, the counts or the
+/// missing frames) and that the output folder is writable (Error(kOutput)).
+/// `frameDone(frame, path)` is called after each file, on the calling thread.
+PositionMapRunResult writePositionMapSequence(
+    PositionMapWriter& writer, const PointCacheReader& cache, const std::vector<int>& frames,
+    const std::string& outputPattern,
+    const std::function<void(int, const std::string&)>& frameDone = {});
+
+}  // namespace drivenshape

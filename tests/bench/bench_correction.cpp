@@ -1,0 +1,282 @@
+// Micro-benchmark of the correction stage on W1-like sizes (DESIGN.md section 7): closest
+// triangle (host candidate search + exact step) and local-frame transfer for a whole shot, in
+// chunks, through the host reference and through OpenCL, in one run on one machine. Not a
+// test: run it by hand.
+//
+//   bench_correction [--frames 100] [--chunk 100] [--vertices 5000] [--points 5000]
+//                    [--repeat 5] [--threads 0] [--device NAME]
+//
+// The scene is an arm-like tube of about --vertices driver vertices (quads, fan triangulated)
+// bending a little more every frame, and a looser tube of about --points cloth points around
+// it. Each measurement is one pass over all frames (every chunk, results read back, the queue
+// finished inside the timed region), after one warm-up pass; it reports min and median over
+// --repeat passes and frames per second from the median. "candidates" is the host FLANN search
+// alone (shared by both backends), so closest minus candidates is the exact step.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/error.h>
+
+#include "candidates.h"
+
+namespace {
+
+using drivenshape::BindingMask;
+using drivenshape::ClosestBackend;
+using drivenshape::Mesh;
+using drivenshape::SurfaceHit;
+
+struct Options {
+  int frames = 100;
+  int chunk = 100;
+  int vertices = 5000;
+  int points = 5000;
+  int repeat = 5;
+  int threads = 0;
+  std::string device;
+};
+
+Options parse(int argc, char** argv) {
+  Options options;
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (i + 1 >= argc) {
+      DS_THROW(kUsage, flag, " needs a value");
+    }
+    const char* value = argv[++i];
+    if (flag == "--device") {
+      options.device = value;
+      continue;
+    }
+    const int number = std::atoi(value);
+    if (number < 0 || (number == 0 && flag != "--threads")) {
+      DS_THROW(kUsage, flag, " needs a positive number, got '", value, "'");
+    }
+    if (flag == "--frames") {
+      options.frames = number;
+    } else if (flag == "--chunk") {
+      options.chunk = number;
+    } else if (flag == "--vertices") {
+      options.vertices = number;
+    } else if (flag == "--points") {
+      options.points = number;
+    } else if (flag == "--repeat") {
+      options.repeat = number;
+    } else if (flag == "--threads") {
+      options.threads = number;
+    } else {
+      DS_THROW(kUsage, "unknown flag ", flag);
+    }
+  }
+  return options;
+}
+
+/// A tube of `around` x `along` vertices, radius r, length 0.6, along x; quads.
+Mesh makeTube(int around, int along, float radius) {
+  Mesh mesh;
+  mesh.positions.resize(static_cast<long>(around) * along, 3);
+  for (int j = 0; j < along; ++j) {
+    for (int i = 0; i < around; ++i) {
+      const float angle = 6.2831853f * static_cast<float>(i) / static_cast<float>(around);
+      mesh.positions.row(static_cast<long>(j) * around + i)
+          << 0.6f * static_cast<float>(j) / static_cast<float>(along - 1),
+          radius * std::cos(angle), radius * std::sin(angle);
+    }
+  }
+  mesh.faceStart.push_back(0);
+  for (int j = 0; j + 1 < along; ++j) {
+    for (int i = 0; i < around; ++i) {
+      const int a = j * around + i;
+      const int b = j * around + (i + 1) % around;
+      mesh.faceVertices.insert(mesh.faceVertices.end(), {a, b, b + around, a + around});
+      mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
+      mesh.faceGroup.push_back(0);
+    }
+  }
+  mesh.groupNames = {"default"};
+  mesh.triangulate();
+  return mesh;
+}
+
+/// Bends positions about the tube's middle by `angle` (radians) in the xy plane, for x > 0.3.
+void bend(const float* in, int count, float angle, float* out) {
+  for (int v = 0; v < count; ++v) {
+    const float x = in[3 * v];
+    const float y = in[3 * v + 1];
+    const float z = in[3 * v + 2];
+    if (x <= 0.3f) {
+      out[3 * v] = x;
+      out[3 * v + 1] = y;
+      out[3 * v + 2] = z;
+      continue;
+    }
+    const float c = std::cos(angle);
+    const float s = std::sin(angle);
+    out[3 * v] = 0.3f + c * (x - 0.3f) - s * y;
+    out[3 * v + 1] = s * (x - 0.3f) + c * y;
+    out[3 * v + 2] = z;
+  }
+}
+
+struct Timing {
+  double minMs = 0.0;
+  double medianMs = 0.0;
+};
+
+Timing measure(int repeat, const std::function<void()>& pass) {
+  pass();  // warm-up: first-use allocations, caches, lazy compilation
+  std::vector<double> ms;
+  for (int r = 0; r < repeat; ++r) {
+    const auto start = std::chrono::steady_clock::now();
+    pass();
+    const auto stop = std::chrono::steady_clock::now();
+    ms.push_back(std::chrono::duration<double, std::milli>(stop - start).count());
+  }
+  std::sort(ms.begin(), ms.end());
+  return {ms.front(), ms[ms.size() / 2]};
+}
+
+int run(const Options& options) {
+  const int around = std::max(8, static_cast<int>(std::lround(std::sqrt(options.vertices * 2.0))));
+  const int along = std::max(2, options.vertices / around);
+  const Mesh driver = makeTube(around, along, 0.05f);
+  const int aroundD = std::max(8, static_cast<int>(std::lround(std::sqrt(options.points * 2.0))));
+  const int alongD = std::max(2, options.points / aroundD);
+  const Mesh driven = makeTube(aroundD, alongD, 0.056f);
+  const int vp = driver.vertexCount();
+  const int vd = driven.vertexCount();
+  const std::size_t frames = static_cast<std::size_t>(options.frames);
+
+  // Blended driver/cloth bend by angle a_f, the shot's driver by a_f + 0.05 (what the
+  // correction moves the cloth to); the cloth carries a little noise.
+  std::mt19937 rng(20081112u);
+  std::normal_distribution<float> noise(0.0f, 0.002f);
+  std::vector<float> blended(frames * 3 * vp);
+  std::vector<float> shot(frames * 3 * vp);
+  std::vector<float> cloth(frames * 3 * vd);
+  for (std::size_t f = 0; f < frames; ++f) {
+    const float angle = 1.2f * static_cast<float>(f) / static_cast<float>(frames);
+    bend(driver.positions.data(), vp, angle, blended.data() + f * 3 * vp);
+    bend(driver.positions.data(), vp, angle + 0.05f, shot.data() + f * 3 * vp);
+    bend(driven.positions.data(), vd, angle, cloth.data() + f * 3 * vd);
+  }
+  for (float& x : cloth) {
+    x += noise(rng);
+  }
+  std::vector<SurfaceHit> hits(frames * vd);
+  std::vector<float> corrected(frames * 3 * vd);
+
+  std::vector<cl::Platform> platforms;
+  cl::Platform::get(&platforms);
+  cl::Device device;
+  bool found = false;
+  for (cl::Platform& platform : platforms) {
+    std::vector<cl::Device> devices;
+    platform.getDevices(CL_DEVICE_TYPE_ALL, &devices);
+    for (cl::Device& candidate : devices) {
+      if (!found && candidate.getInfo<CL_DEVICE_NAME>().find(options.device) != std::string::npos) {
+        device = candidate;
+        found = true;
+      }
+    }
+  }
+  if (!found) {
+    DS_THROW(kDevice, "no OpenCL device", options.device.empty() ? "" : " matching ",
+             options.device);
+  }
+  cl::Context context(device);
+  cl::CommandQueue queue(context, device);
+
+  drivenshape::ClosestOptions closestOptions;
+  closestOptions.threads = options.threads;
+  std::unique_ptr<ClosestBackend> backends[] = {
+      drivenshape::makeHostClosest(closestOptions),
+      drivenshape::makeClClosest(context, device, queue, closestOptions)};
+  const BindingMask mask = BindingMask::all(vd);
+  std::printf(
+      "bench_correction: driver %d vertices / %d triangles, %d cloth points, %d frames in chunks "
+      "of %d, %d passes, %d host threads (0 = all)\n",
+      vp, driver.triangleCount(), vd, options.frames, options.chunk, options.repeat,
+      options.threads);
+  std::printf("OpenCL device: %s (%u compute units)\n", device.getInfo<CL_DEVICE_NAME>().c_str(),
+              device.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+
+  const auto chunks = [&](const std::function<void(std::size_t, int)>& body) {
+    for (std::size_t first = 0; first < frames; first += static_cast<std::size_t>(options.chunk)) {
+      body(first, static_cast<int>(std::min<std::size_t>(options.chunk, frames - first)));
+    }
+    queue.finish();
+  };
+  struct Row {
+    std::string stage;
+    std::string backend;
+    Timing timing;
+  };
+  std::vector<Row> rows;
+
+  drivenshape::correction::CandidateSearch search(options.threads);
+  search.setSurface(driver, mask);
+  drivenshape::correction::CandidateTable table;
+  std::size_t candidates = 0;
+  rows.push_back({"candidates", "host (shared)", measure(options.repeat, [&] {
+                    candidates = 0;
+                    chunks([&](std::size_t first, int count) {
+                      search.find(count, blended.data() + first * 3 * vp,
+                                  cloth.data() + first * 3 * vd, table);
+                      candidates += table.triangles.size();
+                    });
+                  })});
+
+  for (auto& backend : backends) {
+    backend->setSurface(driver, mask);
+    rows.push_back({"closest", backend->name(), measure(options.repeat, [&] {
+                      chunks([&](std::size_t first, int count) {
+                        backend->closest(count, blended.data() + first * 3 * vp,
+                                         cloth.data() + first * 3 * vd, hits.data() + first * vd);
+                      });
+                    })});
+    rows.push_back({"transfer", backend->name(), measure(options.repeat, [&] {
+                      chunks([&](std::size_t first, int count) {
+                        backend->transfer(
+                            count, hits.data() + first * vd, blended.data() + first * 3 * vp,
+                            shot.data() + first * 3 * vp, cloth.data() + first * 3 * vd,
+                            corrected.data() + first * 3 * vd);
+                      });
+                    })});
+  }
+
+  std::printf("candidates per point: %.1f\n",
+              static_cast<double>(candidates) / (static_cast<double>(frames) * vd));
+  std::printf("%-11s %-40s %10s %10s %10s\n", "stage", "backend", "min ms", "median ms",
+              "frames/s");
+  for (const Row& row : rows) {
+    std::printf("%-11s %-40s %10.2f %10.2f %10.1f\n", row.stage.c_str(), row.backend.c_str(),
+                row.timing.minMs, row.timing.medianMs,
+                1000.0 * static_cast<double>(frames) / row.timing.medianMs);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(parse(argc, argv));
+  } catch (const drivenshape::Error& error) {
+    std::fprintf(stderr, "bench_correction: %s\n", error.what());
+    return static_cast<int>(error.code());
+  } catch (const cl::Error& error) {
+    std::fprintf(stderr, "bench_correction: OpenCL error in %s (%d)\n", error.what(), error.err());
+    return static_cast<int>(drivenshape::ErrorCode::kDevice);
+  }
+}

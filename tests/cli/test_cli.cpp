@@ -1,0 +1,295 @@
+// The command line as users run it: a real process, real files, exit codes and messages.
+// Every bad input must give a one-line error naming the file (or flag) and a documented exit
+// code, and must leave no partial output behind.
+
+#include <gtest/gtest.h>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfOutputFile.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <drivenshape/mesh.h>
+#include <drivenshape/point_cache.h>
+
+#include "test_support.h"
+
+namespace drivenshape {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::TempDir;
+
+struct CliRun {
+  int code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string quote(const std::string& word) {
+  std::string quoted = "'";
+  for (char ch : word) {
+    quoted += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+  }
+  return quoted + "'";
+}
+
+CliRun runCli(const TempDir& dir, const std::vector<std::string>& args) {
+  std::string command = quote(DS_CLI_PATH);
+  for (const auto& arg : args) {
+    command += " " + quote(arg);
+  }
+  const std::string out = dir.file(".stdout"), err = dir.file(".stderr");
+  command += " >" + quote(out) + " 2>" + quote(err);
+  const int status = std::system(command.c_str());
+  CliRun result;
+  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  result.out = slurp(out);
+  result.err = slurp(err);
+  fs::remove(out);
+  fs::remove(err);
+  return result;
+}
+
+std::string sample(const std::string& name) { return testing::dataDir() + "/sleeve/" + name; }
+
+/// Builds a small database of the sample (5 shapes) in `dir`; returns its path.
+std::string buildDb(const TempDir& dir) {
+  const std::string db = dir.file("sleeve.dsdb");
+  const CliRun r = runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"),
+                          "--driven-mesh", sample("driven_rest.obj"), "--driver",
+                          sample("train.driver.pc2"), "--driven", sample("train.driven.pc2"),
+                          "--count", "5", "--quiet", "-o", db});
+  EXPECT_EQ(r.code, 0) << r.err;
+  return db;
+}
+
+/// Files in `dir` (recursively) other than the harness's own.
+std::vector<std::string> filesIn(const std::string& dir) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+    if (entry.is_regular_file() && entry.path().filename().string()[0] != '.') {
+      names.push_back(entry.path().string());
+    }
+    if (entry.is_regular_file() && entry.path().filename().string().find(".tmp-") !=
+                                       std::string::npos) {
+      names.push_back(entry.path().string());  // a leftover temp file is a failure too
+    }
+  }
+  return names;
+}
+
+/// A one-line error naming `fragment`, with exit code `code`.
+void expectError(const CliRun& r, int code, const std::string& fragment) {
+  EXPECT_EQ(r.code, code) << r.err;
+  // Exactly one error line ("drivenshape: <kind>: ..."), and it names the culprit.
+  std::istringstream lines(r.err);
+  std::vector<std::string> errors;
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("drivenshape: ", 0) == 0) {
+      errors.push_back(line);
+    }
+  }
+  ASSERT_EQ(errors.size(), 1u) << "stderr: " << r.err;
+  EXPECT_NE(errors[0].find(fragment), std::string::npos) << "stderr: " << r.err;
+}
+
+TEST(Cli, HelpForEveryCommand) {
+  TempDir dir;
+  for (const std::vector<std::string>& words :
+       {std::vector<std::string>{"--help"}, {"devices", "--help"}, {"info", "--help"},
+        {"db", "build", "--help"}, {"bake", "--help"}, {"eval", "--help"}}) {
+    const CliRun r = runCli(dir, words);
+    EXPECT_EQ(r.code, 0) << words[0];
+    EXPECT_NE(r.out.find("usage"), std::string::npos) << r.out;
+  }
+  EXPECT_NE(runCli(dir, {"bake", "--help"}).out.find("Exit codes"), std::string::npos);
+}
+
+TEST(Cli, UsageErrorsExitWithTwo) {
+  TempDir dir;
+  expectError(runCli(dir, {"bake", "--bogus"}), 2, "--bogus");
+  expectError(runCli(dir, {"frobnicate"}), 2, "frobnicate");
+  expectError(runCli(dir, {"bake", "--db", "x"}), 2, "missing required option");
+  expectError(runCli(dir, {"db", "build", "--driver-mesh", "a", "--driven-mesh", "b", "--driver",
+                        "c", "--driven", "d", "-o", dir.file("db"), "--count", "zero"}),
+              2, "--count");
+}
+
+TEST(Cli, DevicesListsTheOpenClDevice) {
+  TempDir dir;
+  const CliRun r = runCli(dir, {"devices"});
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("0: "), std::string::npos) << "no OpenCL device listed: " << r.out;
+}
+
+TEST(Cli, EndToEndBuildBakeEvalInfo) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  CliRun r = runCli(dir, {"info", db});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("5 shapes"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("seed"), std::string::npos) << r.out;
+
+  fs::create_directories(dir.file("out"));
+  r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-10x3",
+                "-o", dir.file("out/sleeve.####.exr"), "--device", "0"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("outputs: "), std::string::npos);
+  for (int frame : {1, 4, 7, 10}) {
+    char name[64];
+    std::snprintf(name, sizeof(name), "out/sleeve.%04d.exr", frame);
+    EXPECT_TRUE(fs::exists(dir.file(name))) << name;
+  }
+  EXPECT_TRUE(fs::exists(dir.file("out/sleeve.report.json")));
+  EXPECT_NE(r.err.find("ALF_PROGRESS 100%"), std::string::npos) << r.err;
+
+  r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+                dir.file("out/sleeve.####.exr"), "--frames", "1-10x3", "--json",
+                dir.file("eval.json")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("rms"), std::string::npos);
+  EXPECT_TRUE(fs::exists(dir.file("eval.json")));
+
+  r = runCli(dir, {"info", dir.file("out/sleeve.0004.exr")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("2244 vertices"), std::string::npos) << r.out;
+}
+
+TEST(Cli, TruncatedPc2IsAnInputError) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  const std::string full = slurp(sample("test.driver.pc2"));
+  std::ofstream(dir.file("cut.pc2"), std::ios::binary) << full.substr(0, full.size() - 1000);
+  fs::create_directories(dir.file("out"));
+  const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", dir.file("cut.pc2"), "--frames", "1-3",
+                          "-o", dir.file("out/x.####.exr")});
+  expectError(r, 3, "cut.pc2");
+  EXPECT_TRUE(filesIn(dir.file("out")).empty());
+}
+
+TEST(Cli, ObjWithOutOfRangeIndexIsAnInputError) {
+  TempDir dir;
+  std::ofstream(dir.file("bad.obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n";
+  const CliRun r = runCli(dir, {"db", "build", "--driver-mesh", dir.file("bad.obj"), "--driven-mesh",
+                          sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"),
+                          "--driven", sample("train.driven.pc2"), "-o", dir.file("db.dsdb")});
+  expectError(r, 3, "bad.obj");
+  EXPECT_FALSE(fs::exists(dir.file("db.dsdb")));
+}
+
+TEST(Cli, BadExrDriverCachesAreInputErrors) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  const Mesh driver = readObj(sample("driver_rest.obj"));
+  const auto cache = openPointCache(sample("test.driver.pc2"));
+  std::vector<float> xyz(cache->vertexCount() * 3);
+  cache->readFrame(1, xyz.data());
+  fs::create_directories(dir.file("out"));
+
+  // Wrong vertex count.
+  fs::create_directories(dir.file("count"));
+  ExrWriteOptions options;
+  options.frame = 1;
+  options.topologyHash = topologyHash(cache->vertexCount() - 10);
+  writePointCacheExr(dir.file("count/drv.0001.exr"), cache->vertexCount() - 10, xyz.data(),
+                     nullptr, options);
+  expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("count/drv.####.exr"),
+                        "--frames", "1", "-o", dir.file("out/x.####.exr")}),
+              3, "drv.");
+
+  // Right count, another topology.
+  fs::create_directories(dir.file("topo"));
+  options.topologyHash = 0x0123456789abcdefULL;
+  writePointCacheExr(dir.file("topo/drv.0001.exr"), cache->vertexCount(), xyz.data(), nullptr,
+                     options);
+  expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("topo/drv.####.exr"), "--frames",
+                        "1", "-o", dir.file("out/x.####.exr")}),
+              3, "topology");
+
+  // Missing P.Y channel.
+  fs::create_directories(dir.file("chan"));
+  {
+    const int width = 1024, height = (cache->vertexCount() + width - 1) / width;
+    Imf::Header header(width, height);
+    header.channels().insert("P.X", Imf::Channel(Imf::FLOAT));
+    header.channels().insert("P.Z", Imf::Channel(Imf::FLOAT));
+    header.insert("dsVertexCount", Imf::IntAttribute(cache->vertexCount()));
+    header.insert("dsFrame", Imf::IntAttribute(1));
+    Imf::OutputFile file(dir.file("chan/drv.0001.exr").c_str(), header);
+    std::vector<float> zeros(static_cast<std::size_t>(width) * height, 0.0f);
+    Imf::FrameBuffer buffer;
+    buffer.insert("P.X", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(zeros.data()),
+                                     sizeof(float), sizeof(float) * width));
+    buffer.insert("P.Z", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(zeros.data()),
+                                     sizeof(float), sizeof(float) * width));
+    file.setFrameBuffer(buffer);
+    file.writePixels(height);
+  }
+  expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("chan/drv.####.exr"), "--frames",
+                        "1", "-o", dir.file("out/x.####.exr")}),
+              3, "P.Y");
+  EXPECT_TRUE(filesIn(dir.file("out")).empty());
+}
+
+TEST(Cli, EmptyFrameRangeIsAUsageError) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  fs::create_directories(dir.file("out"));
+  for (const std::string range : {"", "10-1", "1-10x0", "abc"}) {
+    const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
+                            range, "-o", dir.file("out/x.####.exr")});
+    EXPECT_EQ(r.code, 2) << "range '" << range << "': " << r.err;
+  }
+  EXPECT_TRUE(filesIn(dir.file("out")).empty());
+}
+
+TEST(Cli, DriverOfAnotherCharacterIsAnInputError) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  fs::create_directories(dir.file("out"));
+  // The driven cache has another vertex count than the database's driver.
+  const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driven.pc2"), "--frames",
+                          "1-3", "-o", dir.file("out/x.####.exr")});
+  expectError(r, 3, "test.driven.pc2");
+  EXPECT_NE(r.err.find("2146"), std::string::npos) << r.err;
+  EXPECT_TRUE(filesIn(dir.file("out")).empty());
+}
+
+TEST(Cli, UnwritableOutputFolderIsAnOutputError) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  // A folder that does not exist.
+  CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-3",
+                    "-o", dir.file("missing/x.####.exr")});
+  expectError(r, 4, "missing");
+  EXPECT_FALSE(fs::exists(dir.file("missing")));
+  // A read-only folder (only meaningful when not root: root writes anywhere).
+  fs::create_directories(dir.file("ro"));
+  fs::permissions(dir.file("ro"), fs::perms::owner_read | fs::perms::owner_exec);
+  if (::access(dir.file("ro").c_str(), W_OK) != 0) {
+    r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-3",
+                  "-o", dir.file("ro/x.####.exr")});
+    expectError(r, 4, "not writable");
+  }
+  fs::permissions(dir.file("ro"), fs::perms::owner_all);
+  EXPECT_TRUE(filesIn(dir.file("ro")).empty());
+}
+
+}  // namespace
+}  // namespace drivenshape

@@ -1,0 +1,35 @@
+#pragma once
+// The correction tests' fixture: one host and one OpenCL backend per test binary (the OpenCL
+// program is built once), and the exactness check against the brute-force oracle.
+
+#include <memory>
+#include <vector>
+
+#include <drivenshape/correction.h>
+
+#include "test_support.h"
+
+namespace drivenshape::testing {
+
+class CorrectionClTest : public OpenClTest {
+ protected:
+  /// Backends shared by the tests of this binary; tests call setSurface() before use.
+  static ClosestBackend* hostBackend();
+  static ClosestBackend* clBackend();
+};
+
+/// Brute-force distances (the oracle) of frameCount x Vd points to the triangles each point's
+/// mask class allows, frame f on pose f. Multi-threaded.
+std::vector<double> bruteForceAll(const Mesh& mesh, int frameCount, const float* poses,
+                                  const float* points, const BindingMask& mask);
+
+/// Checks hits against the brute-force distances: the hit's distance2 within `tolerance`, the
+/// distance to its (u, v) point within kHitPointRelTol (or the tolerance, if looser), the
+/// triangle allowed by the mask, (u, v) inside the triangle. Reports the failures, the
+/// tolerance and the worst error.
+struct DistanceTolerance;
+void expectExact(const Mesh& mesh, int frameCount, const float* poses, const float* points,
+                 const BindingMask& mask, const std::vector<SurfaceHit>& hits,
+                 const std::vector<double>& brute, const DistanceTolerance& tolerance);
+
+}  // namespace drivenshape::testing
