@@ -89,15 +89,17 @@ Workload workload(const std::string& name) {
 }
 
 nlohmann::json timesJson(const ds::BakeResult& r) {
-  return {{"read", r.times.read},     {"project", r.times.project}, {"weights", r.times.weights},
-          {"blend", r.times.blend},   {"write", r.times.write},     {"total", r.times.total},
+  return {{"read", r.times.read},       {"project", r.times.project},
+          {"weights", r.times.weights}, {"blend", r.times.blend},
+          {"correct", r.times.correct}, {"audit", r.times.audit},
+          {"write", r.times.write},     {"total", r.times.total},
           {"frames_per_second", r.baked / r.times.total}};
 }
 
 void printRow(const std::string& name, const ds::BakeResult& r) {
-  std::printf("%-44s %7.3f %7.3f %7.3f %7.3f %7.3f %8.3f %9.1f\n", name.c_str(), r.times.read,
-              r.times.project, r.times.weights, r.times.blend, r.times.write, r.times.total,
-              r.baked / r.times.total);
+  std::printf("%-28s %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f %8.3f %9.1f\n", name.c_str(),
+              r.times.read, r.times.project, r.times.weights, r.times.blend, r.times.correct,
+              r.times.audit, r.times.write, r.times.total, r.baked / r.times.total);
 }
 
 int runBench(const std::vector<std::string>& args) {
@@ -112,6 +114,8 @@ int runBench(const std::vector<std::string>& args) {
       .option("--compression", "C", "EXR compression", "zip")
       .option("--json", "PATH", "also write the figures as JSON")
       .option("--keep", "DIR", "bake into DIR and keep the files (default: a temp folder)")
+      .flag("--no-correct", "blend only (no collision correction)")
+      .flag("--no-audit", "skip the per-frame audit")
       .flag("--no-host", "skip the host reference bake");
   if (!parser.parse(args)) {
     std::cout << parser.help();
@@ -169,38 +173,43 @@ int runBench(const std::vector<std::string>& args) {
   options.chunkSize = parser.getInt("--chunk", 1);
   options.threads = parser.getInt("--threads", 0);
   options.compression = ds::parseExrCompression(parser.get("--compression"));
+  options.correct = !parser.has("--no-correct");
+  options.audit = !parser.has("--no-audit");
 
-  std::string clName;
-  auto clStages = ds::cli::makeStages(parser.get("--device"), clName, std::cerr);
+  const ds::cli::DeviceBackends clBackends = ds::cli::makeBackends(parser.get("--device"), std::cerr);
+  const std::string& clName = clBackends.description;
   std::printf("workload %s: driver %d, driven %d vertices, %d shapes, %d frames, chunk %d, "
-              "compression %s\n",
+              "compression %s, correction %s, audit %s\n",
               w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(),
-              w.frames, options.chunkSize, parser.get("--compression").c_str());
-  std::printf("%-44s %7s %7s %7s %7s %7s %8s %9s\n", "path (seconds per stage)", "read",
-              "project", "weights", "blend", "write", "total", "frames/s");
+              w.frames, options.chunkSize, parser.get("--compression").c_str(),
+              options.correct ? "on" : "off", options.audit ? "on" : "off");
+  std::printf("%-28s %7s %7s %7s %7s %7s %7s %7s %8s %9s\n", "path (seconds per stage)", "read",
+              "project", "weights", "blend", "correct", "audit", "write", "total", "frames/s");
 
   nlohmann::json report{{"workload", w.name},
                         {"driver_vertices", driver.vertexCount()},
                         {"driven_vertices", driven.vertexCount()},
                         {"shapes", db.shapeCount()},
                         {"frames", w.frames},
-                        {"chunk", options.chunkSize}};
+                        {"chunk", options.chunkSize},
+                        {"correct", options.correct},
+                        {"audit", options.audit}};
   // Warm-up: builds the kernels (PoCL compiles on first use) outside the timed bakes.
   {
     ds::BakeOptions warm = options;
     warm.frames = {1};
     warm.outputPattern = (root / "cl" / "warm.####.exr").string();
-    ds::bake(db, *shotCache, *clStages, warm);
+    ds::bake(db, *shotCache, clBackends.view(), warm);
   }
   options.outputPattern = (root / "cl" / "shot.####.exr").string();
-  const ds::BakeResult cl = ds::bake(db, *shotCache, *clStages, options);
-  printRow("OpenCL: " + clName.substr(0, 36), cl);
+  const ds::BakeResult cl = ds::bake(db, *shotCache, clBackends.view(), options);
+  printRow("OpenCL: " + clName.substr(0, 20), cl);
   report["opencl"] = timesJson(cl);
   report["opencl"]["device"] = clName;
   if (!parser.has("--no-host")) {
-    auto host = ds::makeHostStages();
+    const ds::cli::DeviceBackends host = ds::cli::makeBackends("host", std::cerr);
     options.outputPattern = (root / "host" / "shot.####.exr").string();
-    const ds::BakeResult hr = ds::bake(db, *shotCache, *host, options);
+    const ds::BakeResult hr = ds::bake(db, *shotCache, host.view(), options);
     printRow("host reference", hr);
     report["host"] = timesJson(hr);
     std::printf("OpenCL / host speed-up: whole bake %.2fx, project %.2fx, blend %.2fx\n",

@@ -229,10 +229,10 @@ int runBake(const std::vector<std::string>& args) {
       "drivenshape bake --db DB --driver CACHE --frames RANGE -o OUT.####.exr",
       "Bakes a shot: for each frame of the driver cache, solves the blend weights of the "
       "database shapes (min ||A w - b||, sum w = 1, 0 <= w <= 1), blends the driven shapes with "
-      "them and writes one point-cache EXR per frame. Frames are evaluated a chunk at a time "
-      "with OpenCL kernels (or the host reference path).\n\n"
-      "Note: the collision correction (binding to the shot's driver) is not implemented yet; "
-      "this version blends only, as if --no-correct were given.");
+      "them, corrects the blend onto the shot's driver (each cloth vertex bound to its exact "
+      "closest triangle of the blended driver and carried to the shot's driver in that "
+      "triangle's frame) and writes one point-cache EXR per frame. Frames are evaluated a "
+      "chunk at a time with OpenCL kernels (or the host reference path).");
   parser.option("--db", "DB", "database from `drivenshape db build`", "", true)
       .option("--driver", "CACHE", "shot driver cache (.pc2 or name.####.exr)", "", true)
       .option("--frames", "RANGE", "frames to bake: 1001-1100, 1001-1100x2, 1001,1005", "",
@@ -249,7 +249,9 @@ int runBake(const std::vector<std::string>& args) {
       .option("--weights", "MODE", "qp (DrivenShape) or nearest (closest shape, a baseline)",
               "qp")
       .flag("--skip-existing", "keep outputs that are complete and match this bake")
-      .flag("--no-correct", "skip the collision correction (the current behaviour)")
+      .option("--bind", "MAP", "binding mask (JSON): which driver groups each cloth group binds to")
+      .flag("--no-correct", "skip the collision correction (blend only)")
+      .flag("--no-audit", "skip the per-frame penetration/popping audit (faster)")
       .flag("--quiet", "no progress or per-frame lines")
       .epilog(
           "Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical, "
@@ -269,6 +271,14 @@ int runBake(const std::vector<std::string>& args) {
   options.exrWidth = parser.getInt("--exr-width", 1);
   options.framesPerSecond = parser.getDouble("--fps", 1e-3);
   options.skipExisting = parser.has("--skip-existing");
+  options.correct = !parser.has("--no-correct");
+  options.audit = !parser.has("--no-audit");
+  if (parser.has("--bind")) {
+    if (!options.correct) {
+      DS_THROW(kUsage, "--bind has no effect with --no-correct; drop one of them");
+    }
+    options.bindingMaskPath = parser.get("--bind");
+  }
   const std::string mode = parser.get("--weights");
   if (mode == "qp") {
     options.weightMode = WeightMode::kQp;
@@ -286,15 +296,15 @@ int runBake(const std::vector<std::string>& args) {
   const Database db = loadDatabase(parser.get("--db"));
   // EXR driver caches carry a topology hash: it must be the database's driver mesh.
   const auto driver = openPointCache(parser.get("--driver"), topologyHash(db.driverMesh));
-  std::string device;
-  const auto stages = makeStages(parser.get("--device"), device, std::cerr);
+  const DeviceBackends backends = makeBackends(parser.get("--device"), std::cerr);
+  const std::string& device = backends.description;
   const bool quiet = parser.has("--quiet");
   std::unique_ptr<CliObserver> observer;
   if (!quiet) {
     std::cerr << "baking " << options.frames.size() << " frames on " << device << "\n";
     observer = std::make_unique<CliObserver>(static_cast<long>(options.frames.size()));
   }
-  const BakeResult result = bake(db, *driver, *stages, options, observer.get());
+  const BakeResult result = bake(db, *driver, backends.view(), options, observer.get());
   if (observer) {
     observer->finish();
   }
@@ -306,6 +316,23 @@ int runBake(const std::vector<std::string>& args) {
             << formatFrameRange(options.frames) << ")\n";
   if (!options.reportPath.empty()) {
     std::cout << "report:  " << absolute(options.reportPath) << "\n";
+  }
+  if (options.audit && result.baked > 0) {
+    long before = 0, after = 0, switches = 0;
+    double jump = 0;
+    for (const FrameRecord& record : result.frames) {
+      if (!record.skipped) {
+        before += record.insideBefore;
+        after += record.insideAfter;
+        switches += std::max(record.bindingSwitches, 0);
+        jump = std::max(jump, record.maxJump);
+      }
+    }
+    std::cout << "audit:   cloth vertices inside the driver per frame: " << std::setprecision(1)
+              << double(before) / result.baked << " blended, " << double(after) / result.baked
+              << (options.correct ? " corrected" : " (no correction)") << "; binding switches "
+              << switches << "; largest frame-to-frame jump " << std::setprecision(4) << jump
+              << "\n";
   }
   return 0;
 }

@@ -137,19 +137,26 @@ std::optional<ClDevice> chooseDevice(const std::string& spec) {
   }
 }
 
-std::unique_ptr<StageBackend> makeStages(const std::string& spec, std::string& description,
-                                         std::ostream& log) {
-  std::optional<ClDevice> device = chooseDevice(spec);
-  if (!device) {
+DeviceBackends makeBackends(const std::string& spec, std::ostream& log) {
+  DeviceBackends backends;
+  backends.device = chooseDevice(spec);
+  if (!backends.device) {
     if (spec == "auto") {
       log << "warning: no OpenCL device found; using the host reference path (slower). "
              "Install pocl-opencl-icd or a GPU driver for OpenCL.\n";
     }
-    description = "host (reference path, no OpenCL)";
-    return makeHostStages();
+    backends.description = "host (reference path, no OpenCL)";
+    backends.stages = makeHostStages();
+    backends.binding = makeHostClosest();
+    backends.audit = makeHostClosest();
+    return backends;
   }
-  description = device->description;
-  return makeClStages(device->context, device->device, device->queue);
+  const ClDevice& d = *backends.device;
+  backends.description = d.description;
+  backends.stages = makeClStages(d.context, d.device, d.queue);
+  backends.binding = makeClClosest(d.context, d.device, d.queue);
+  backends.audit = makeClClosest(d.context, d.device, d.queue);
+  return backends;
 }
 
 }  // namespace drivenshape::cli

@@ -5,7 +5,9 @@
 #include <optional>
 #include <string>
 
+#include <drivenshape/bake.h>
 #include <drivenshape/cl_stages.h>
+#include <drivenshape/correction.h>
 
 namespace drivenshape::cli {
 
@@ -26,8 +28,19 @@ void listDevices(std::ostream& out);
 /// there is.
 std::optional<ClDevice> chooseDevice(const std::string& spec);
 
-/// The stage backend for --device SPEC (OpenCL or host). `description` receives its name.
-std::unique_ptr<StageBackend> makeStages(const std::string& spec, std::string& description,
-                                         std::ostream& log);
+/// Every backend a bake needs, on one device, owned together.
+struct DeviceBackends {
+  std::string description;
+  std::optional<ClDevice> device;  ///< empty for the host path
+  std::unique_ptr<StageBackend> stages;
+  std::unique_ptr<ClosestBackend> binding;
+  std::unique_ptr<ClosestBackend> audit;
+
+  BakeBackends view() const { return {stages.get(), binding.get(), audit.get()}; }
+};
+
+/// The backends for --device SPEC (OpenCL or host); `log` gets a warning when `auto` finds no
+/// OpenCL device and falls back to the host path.
+DeviceBackends makeBackends(const std::string& spec, std::ostream& log);
 
 }  // namespace drivenshape::cli

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -61,11 +62,17 @@ int hardwareThreads() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-std::uint64_t settingsHashOf(const Database& db, const BakeOptions& options) {
+std::uint64_t settingsHashOf(const Database& db, const BakeOptions& options,
+                             const BindingMask& mask) {
   Hasher hasher;
   hasher.addValue(db.contentHash());
   hasher.addValue(static_cast<int>(options.weightMode));
   hasher.addValue(options.exrWidth);
+  hasher.addValue(options.correct);
+  for (int c = 0; c < mask.classCount(); ++c) {
+    hasher.add(mask.classTriangles(c).data(), mask.classTriangles(c).size() * sizeof(int));
+  }
+  hasher.add(mask.vertexClasses().data(), mask.vertexClasses().size() * sizeof(int));
   hasher.addString(kVersion);
   return hasher.value();
 }
@@ -84,7 +91,12 @@ bool isReusableOutput(const std::string& path, std::uint64_t topology, std::uint
   }
 }
 
-void validate(const Database& db, const PointCacheReader& driver, const BakeOptions& options) {
+void validate(const Database& db, const PointCacheReader& driver, const BakeBackends& backends,
+              const BakeOptions& options) {
+  if (backends.stages == nullptr || (options.correct && backends.binding == nullptr) ||
+      (options.audit && backends.audit == nullptr)) {
+    DS_THROW(kInternal, "bake called without the backends its options need");
+  }
   if (options.frames.empty()) {
     DS_THROW(kUsage, "the frame range is empty; pass --frames, e.g. --frames 1001-1100");
   }
@@ -127,6 +139,17 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
       entry["active_at_zero"] = record.atZero;
       entry["active_at_one"] = record.atOne;
       entry["weights"] = record.weights;
+      if (record.insideAfter >= 0) {
+        entry["inside_before"] = record.insideBefore;
+        entry["inside_after"] = record.insideAfter;
+      }
+      if (record.bindingSwitches >= 0) {
+        entry["binding_switches"] = record.bindingSwitches;
+      }
+      if (record.maxJump >= 0) {
+        entry["max_jump"] = record.maxJump;
+        entry["max_jump_vertex"] = record.maxJumpVertex;
+      }
     }
     frames.push_back(std::move(entry));
   }
@@ -142,7 +165,9 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
       {"settings_hash", hashToHex(result.settingsHash)},
       {"settings",
        {{"weights", options.weightMode == WeightMode::kQp ? "qp" : "nearest"},
-        {"correct", false},
+        {"correct", options.correct},
+        {"binding_mask", options.bindingMaskPath},
+        {"audit", options.audit},
         {"chunk", options.chunkSize},
         {"compression", exrCompressionName(options.compression)},
         {"exr_width", options.exrWidth}}},
@@ -153,6 +178,8 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
         {"project", result.times.project},
         {"weights", result.times.weights},
         {"blend", result.times.blend},
+        {"correct", result.times.correct},
+        {"audit", result.times.audit},
         {"write", result.times.write},
         {"total", result.times.total}}},
       {"frames", frames},
@@ -166,10 +193,15 @@ ShapeTables makeShapeTables(const Database& database) {
   return tablesFrom(database, SimplexLeastSquares(driverMatrix(database)));
 }
 
-BakeResult bake(const Database& db, const PointCacheReader& driver, StageBackend& stages,
+BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBackends& backends,
                 const BakeOptions& options, BakeObserver* observer) {
   const auto bakeStart = Clock::now();
-  validate(db, driver, options);
+  validate(db, driver, backends, options);
+  StageBackend& stages = *backends.stages;
+  const BindingMask mask = options.bindingMaskPath.empty()
+                               ? BindingMask::all(db.drivenVertexCount())
+                               : readBindingMask(options.bindingMaskPath, db.driverMesh,
+                                                 db.drivenMesh);
   const int threads = options.threads > 0 ? options.threads : hardwareThreads();
   const int k = db.shapeCount();
   const std::size_t driverValues = static_cast<std::size_t>(db.driverVertexCount()) * 3;
@@ -178,11 +210,22 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, StageBackend
 
   BakeResult result;
   result.device = stages.name();
-  result.settingsHash = settingsHashOf(db, options);
+  result.settingsHash = settingsHashOf(db, options, mask);
 
   const Eigen::MatrixXd shapes = driverMatrix(db);
   const SimplexLeastSquares solver(shapes);
   stages.upload(tablesFrom(db, solver));
+  if (options.correct) {
+    backends.binding->setSurface(db.driverMesh, mask);
+  }
+  std::unique_ptr<InsideAudit> inside;
+  if (options.audit) {
+    backends.audit->setSurface(db.driverMesh, BindingMask::all(db.drivenVertexCount()));
+    inside = std::make_unique<InsideAudit>(db.driverMesh);
+  }
+  // The previous baked frame, for binding switches and jumps across chunk boundaries.
+  std::vector<SurfaceHit> previousHits;
+  std::vector<float> previousOutput;
 
   // Decide up front which frames to bake, so progress counts real work.
   std::vector<int> todo;
@@ -208,7 +251,8 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, StageBackend
   exr.framesPerSecond = options.framesPerSecond;
 
   const int chunk = options.chunkSize;
-  std::vector<float> driverBlock, projections, norms, weights, driven;
+  std::vector<float> driverBlock, projections, norms, weights, driven, blendedDriver, output;
+  std::vector<SurfaceHit> hits, auditHits;
   for (std::size_t begin = 0; begin < todo.size(); begin += static_cast<std::size_t>(chunk)) {
     if (observer != nullptr && observer->stopRequested()) {
       DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
@@ -278,15 +322,90 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, StageBackend
 
     start = Clock::now();
     driven.resize(count * drivenValues);
-    stages.blend(count, weights.data(), driven.data(), nullptr);
+    blendedDriver.resize(options.correct ? count * driverValues : 0);
+    stages.blend(count, weights.data(), driven.data(),
+                 options.correct ? blendedDriver.data() : nullptr);
     result.times.blend += secondsSince(start);
+
+    // Correction: bind D~ to P~ (exact closest triangles), carry it to P_new.
+    start = Clock::now();
+    const std::size_t points = static_cast<std::size_t>(count) * db.drivenVertexCount();
+    const float* final = driven.data();
+    if (options.correct) {
+      hits.resize(points);
+      output.resize(count * drivenValues);
+      backends.binding->closest(count, blendedDriver.data(), driven.data(), hits.data());
+      backends.binding->transfer(count, hits.data(), blendedDriver.data(), driverBlock.data(),
+                                 driven.data(), output.data());
+      final = output.data();
+    }
+    result.times.correct += secondsSince(start);
+
+    start = Clock::now();
+    if (options.audit) {
+      auditHits.resize(points);
+      const int vd = db.drivenVertexCount();
+      auto countInside = [&](const float* cloth, bool after) {
+        backends.audit->closest(count, driverBlock.data(), cloth, auditHits.data());
+        parallelFor(count, threads, [&](int i) {
+          const int inside_count = inside->countInside(
+              &driverBlock[i * driverValues], vd, cloth + i * drivenValues, &auditHits[i * vd]);
+          (after ? frameRecord(i).insideAfter : frameRecord(i).insideBefore) = inside_count;
+        });
+      };
+      countInside(driven.data(), false);
+      if (options.correct) {
+        countInside(final, true);
+      } else {
+        for (int i = 0; i < count; ++i) {
+          frameRecord(i).insideAfter = frameRecord(i).insideBefore;
+        }
+      }
+      // Switches and jumps against the previous baked frame, in bake order.
+      for (int i = 0; i < count; ++i) {
+        FrameRecord& record = frameRecord(i);
+        const float* now = final + i * drivenValues;
+        const float* before = i > 0 ? final + (i - 1) * drivenValues
+                              : previousOutput.empty() ? nullptr
+                                                       : previousOutput.data();
+        if (before != nullptr) {
+          record.maxJump = 0.0;
+          for (int v = 0; v < vd; ++v) {
+            const double dx = now[3 * v] - before[3 * v], dy = now[3 * v + 1] - before[3 * v + 1],
+                         dz = now[3 * v + 2] - before[3 * v + 2];
+            const double jump = std::sqrt(dx * dx + dy * dy + dz * dz);
+            if (jump > record.maxJump) {
+              record.maxJump = jump;
+              record.maxJumpVertex = v;
+            }
+          }
+        }
+        if (options.correct) {
+          const SurfaceHit* nowHits = &hits[i * vd];
+          const SurfaceHit* beforeHits = i > 0 ? &hits[(i - 1) * vd]
+                                         : previousHits.empty() ? nullptr
+                                                                : previousHits.data();
+          if (beforeHits != nullptr) {
+            record.bindingSwitches = 0;
+            for (int v = 0; v < vd; ++v) {
+              record.bindingSwitches += nowHits[v].triangle != beforeHits[v].triangle ? 1 : 0;
+            }
+          }
+        }
+      }
+      previousOutput.assign(final + (count - 1) * drivenValues, final + count * drivenValues);
+      if (options.correct) {
+        previousHits.assign(hits.end() - vd, hits.end());
+      }
+    }
+    result.times.audit += secondsSince(start);
 
     start = Clock::now();
     parallelFor(count, threads, [&](int i) {
       FrameRecord& record = frameRecord(i);
       ExrWriteOptions frameExr = exr;
       frameExr.frame = record.frame;
-      writePointCacheExr(record.output, db.drivenVertexCount(), &driven[i * drivenValues],
+      writePointCacheExr(record.output, db.drivenVertexCount(), final + i * drivenValues,
                          nullptr, frameExr);
     });
     result.times.write += secondsSince(start);

@@ -370,7 +370,8 @@ struct RandomQp {
 /// A random strictly convex QP with n <= 6, up to 2 equalities and up to 8 inequalities.
 /// Kinds: "feasible" (constraints built around a random point, some tight there),
 /// "random" (random bounds, often infeasible), "dependent" (copies, multiples and mirrored
-/// copies of constraints), "ill" (R with a condition number up to 1e4, G up to 1e8).
+/// copies of constraints, some mirrors shifted so that the pair is infeasible), "ill" (R with a
+/// condition number up to 1e4, G up to 1e8).
 RandomQp randomQp(std::mt19937& rng, int variant) {
   std::normal_distribution<double> normal;
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -430,6 +431,9 @@ RandomQp randomQp(std::mt19937& rng, int variant) {
         const double scale = choice < 0.4 ? 1.0 : choice < 0.7 ? 0.5 + 2.0 * uniform(rng) : -1.0;
         qp.C.col(i) = scale * qp.C.col(source);
         qp.c(i) = scale * qp.c(source);
+        if (choice > 0.85) {
+          qp.c(i) += 0.5 * uniform(rng);  // a mirror past the original: infeasible
+        }
       }
     }
   }

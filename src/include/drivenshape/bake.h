@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/stages.h>
@@ -29,6 +30,24 @@ struct BakeOptions {
   int exrWidth = 1024;
   ExrCompression compression = ExrCompression::kZip;
   double framesPerSecond = 24.0;
+  /// Collision correction: bind every blended cloth vertex to its exact closest triangle of
+  /// the blended driver P~ and carry it to the shot's driver P_new in that triangle's frame.
+  bool correct = true;
+  /// Binding mask file (see readBindingMask); empty = every vertex may bind anywhere.
+  std::string bindingMaskPath;
+  /// Per-frame audit: cloth vertices inside the shot's driver before and after correction,
+  /// binding switches, the largest frame-to-frame jump.
+  bool audit = true;
+};
+
+/// The backends a bake runs on, all on one device (or all host): the per-frame stages, the
+/// closest-triangle search used for binding (the mask is applied to it), and a second one for
+/// the inside/outside audit (always against every triangle). The last two may be null when
+/// options.correct and options.audit are off.
+struct BakeBackends {
+  StageBackend* stages = nullptr;
+  ClosestBackend* binding = nullptr;
+  ClosestBackend* audit = nullptr;
 };
 
 /// What happened to one frame.
@@ -42,11 +61,18 @@ struct FrameRecord {
   double kktResidual = 0.0;
   int iterations = 0;
   std::string output;
+  // Audit (-1 where not measured).
+  int insideBefore = -1;           ///< blended cloth vertices inside the shot's driver
+  int insideAfter = -1;            ///< the same after correction (= before without correction)
+  int bindingSwitches = -1;        ///< vertices bound to another triangle than the previous frame
+  double maxJump = -1.0;           ///< largest vertex move since the previous baked frame
+  int maxJumpVertex = -1;
 };
 
 /// Seconds spent per stage, summed over chunks.
 struct StageTimes {
-  double read = 0, project = 0, weights = 0, blend = 0, write = 0, total = 0;
+  double read = 0, project = 0, weights = 0, blend = 0, correct = 0, audit = 0, write = 0,
+         total = 0;
 };
 
 struct BakeResult {
@@ -69,8 +95,9 @@ struct BakeObserver {
 /// Bakes `options.frames` of `driver` with `database` on `stages` (host or OpenCL) and writes
 /// one point-cache EXR per frame (atomically). Validates everything it can before the first
 /// frame: vertex counts, frames present, output folder writable. Throws drivenshape::Error.
-BakeResult bake(const Database& database, const PointCacheReader& driver, StageBackend& stages,
-                const BakeOptions& options, BakeObserver* observer = nullptr);
+BakeResult bake(const Database& database, const PointCacheReader& driver,
+                const BakeBackends& backends, const BakeOptions& options,
+                BakeObserver* observer = nullptr);
 
 /// Flat tables for the stage backends, built from a database (projection basis, shapes).
 ShapeTables makeShapeTables(const Database& database);
