@@ -109,7 +109,7 @@ int runBench(const std::vector<std::string>& args) {
   parser.option("--workload", "W", "W1 (5k/5k vertices, 30 shapes, 1000 frames) or W2", "W1")
       .option("--frames", "N", "override the workload's frame count")
       .option("--device", "SPEC", "OpenCL device (as for bake)", "auto")
-      .option("--chunk", "N", "frames per launch", "64")
+      .option("--batch", "N", "frames per launch", "64")
       .option("--threads", "N", "host threads (0 = all)", "0")
       .option("--compression", "C", "EXR compression", "zip")
       .option("--json", "PATH", "also write the figures as JSON")
@@ -170,7 +170,7 @@ int runBench(const std::vector<std::string>& args) {
   for (int f = 1; f <= w.frames; ++f) {
     options.frames.push_back(f);
   }
-  options.chunkSize = parser.getInt("--chunk", 1);
+  options.chunkSize = parser.getInt("--batch", 1);
   options.threads = parser.getInt("--threads", 0);
   options.compression = ds::parseExrCompression(parser.get("--compression"));
   options.correct = !parser.has("--no-correct");
@@ -178,7 +178,7 @@ int runBench(const std::vector<std::string>& args) {
 
   const ds::cli::DeviceBackends clBackends = ds::cli::makeBackends(parser.get("--device"), std::cerr);
   const std::string& clName = clBackends.description;
-  std::printf("workload %s: driver %d, driven %d vertices, %d shapes, %d frames, chunk %d, "
+  std::printf("workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
               "compression %s, correction %s, audit %s\n",
               w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(),
               w.frames, options.chunkSize, parser.get("--compression").c_str(),
@@ -191,7 +191,7 @@ int runBench(const std::vector<std::string>& args) {
                         {"driven_vertices", driven.vertexCount()},
                         {"shapes", db.shapeCount()},
                         {"frames", w.frames},
-                        {"chunk", options.chunkSize},
+                        {"batch", options.chunkSize},
                         {"correct", options.correct},
                         {"audit", options.audit}};
   // Warm-up: builds the kernels (PoCL compiles on first use) outside the timed bakes.

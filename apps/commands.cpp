@@ -1,6 +1,9 @@
 #include "commands.h"
 
 #include <algorithm>
+#include <atomic>
+#include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
@@ -206,20 +209,86 @@ int runDbBuild(const std::vector<std::string>& args) {
 
 namespace {
 
+/// Threads for host work: --threads if given, else the farm's SLURM_CPUS_PER_TASK, else 0
+/// (all cores).
+int threadsFor(int requested) {
+  if (requested > 0) {
+    return requested;
+  }
+  if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK")) {
+    const int cpus = std::atoi(slurm);
+    if (cpus > 0) {
+      return cpus;
+    }
+  }
+  return 0;
+}
+
+/// The frames of one farm chunk: --chunk-size N frames starting at chunk --chunk-index of
+/// --frames (in the order given). Frame numbers are never array indices.
+std::vector<int> farmChunk(const std::vector<int>& frames, const ArgParser& parser) {
+  if (!parser.has("--chunk-size") || !parser.has("--chunk-index")) {
+    DS_THROW(kUsage, "--chunk-size and --chunk-index go together");
+  }
+  const int size = parser.getInt("--chunk-size", 1);
+  int index;
+  if (parser.get("--chunk-index") == "env") {
+    const char* text = std::getenv("SLURM_ARRAY_TASK_ID");
+    if (text == nullptr || *text == '\0') {
+      DS_THROW(kUsage, "--chunk-index env: SLURM_ARRAY_TASK_ID is not set (run inside a Slurm "
+                       "array job, or pass the index)");
+    }
+    char* end = nullptr;
+    const long value = std::strtol(text, &end, 10);
+    if (*end != '\0' || value < 0 || value > 1000000) {
+      DS_THROW(kUsage, "--chunk-index env: SLURM_ARRAY_TASK_ID='", text,
+               "' is not a chunk index");
+    }
+    index = static_cast<int>(value);
+  } else {
+    index = parser.getInt("--chunk-index", 0);
+  }
+  const int chunks = static_cast<int>((frames.size() + size - 1) / size);
+  if (index >= chunks) {
+    DS_THROW(kUsage, "--chunk-index ", index, " is past the last chunk: ", frames.size(),
+             " frames in chunks of ", size, " make ", chunks, " chunks (0-", chunks - 1, ")");
+  }
+  const auto first = frames.begin() + static_cast<std::ptrdiff_t>(index) * size;
+  const auto last = frames.begin() + std::min<std::ptrdiff_t>(
+                                         static_cast<std::ptrdiff_t>(index + 1) * size,
+                                         static_cast<std::ptrdiff_t>(frames.size()));
+  return std::vector<int>(first, last);
+}
+
+/// Set by SIGINT/SIGTERM; the bake stops at the next chunk boundary.
+std::atomic<bool> gStopRequested{false};
+
+extern "C" void onStopSignal(int) { gStopRequested = true; }
+
 class CliObserver : public BakeObserver {
  public:
-  explicit CliObserver(long total) : mProgress("bake", total) {}
+  explicit CliObserver(long total, bool quiet) : mProgress("bake", quiet ? 0 : total),
+                                                 mQuiet(quiet) {}
+  bool stopRequested() override { return gStopRequested.load(); }
   void frameDone(const FrameRecord& record, double seconds) override {
+    if (mQuiet) {
+      return;
+    }
     if (!mProgress.isTerminal()) {
       std::fprintf(stderr, "frame %d baked in %.4f s, residual %.3e -> %s\n", record.frame,
                    seconds, record.relativeResidual, record.output.c_str());
     }
     mProgress.advance();
   }
-  void finish() { mProgress.finish(); }
+  void finish() {
+    if (!mQuiet) {
+      mProgress.finish();
+    }
+  }
 
  private:
   Progress mProgress;
+  bool mQuiet;
 };
 
 }  // namespace
@@ -241,12 +310,17 @@ int runBake(const std::vector<std::string>& args) {
       .option("--report", "PATH", "per-bake JSON report", "OUT folder/<name>.report.json")
       .option("--device", "SPEC", "auto, host, cpu, gpu, an index or a name substring", "auto")
       .option("--threads", "N", "host threads for weights and EXR writing (0 = all cores)", "0")
-      .option("--chunk", "N", "frames per kernel launch", "64")
+      .option("--batch", "N", "frames per kernel launch (bounds device memory)", "64")
+      .option("--chunk-size", "N", "farm chunk: bake only chunk --chunk-index of N frames")
+      .option("--chunk-index", "I|env",
+              "which chunk (0-based) of --frames; env reads SLURM_ARRAY_TASK_ID")
       .option("--compression", "C", "zip, none, zips or piz (all lossless)", "zip")
       .option("--exr-width", "W", "pixels per EXR row (vertex v is pixel v mod W, v div W)",
               "1024")
       .option("--fps", "X", "frames per second written to the EXR headers", "24")
-      .option("--weights", "MODE", "qp (DrivenShape) or nearest (closest shape, a baseline)",
+      .option("--weights", "MODE",
+              "qp (DrivenShape); baselines: nearest (closest database shape), bind (rest cloth "
+              "bound to the rest driver and carried along, like Point Deform)",
               "qp")
       .flag("--skip-existing", "keep outputs that are complete and match this bake")
       .option("--bind", "MAP", "binding mask (JSON): which driver groups each cloth group binds to")
@@ -265,8 +339,11 @@ int runBake(const std::vector<std::string>& args) {
   options.outputPattern = parser.get("-o");
   options.reportPath =
       parser.has("--report") ? parser.get("--report") : defaultReportPath(options.outputPattern);
-  options.threads = parser.getInt("--threads", 0);
-  options.chunkSize = parser.getInt("--chunk", 1);
+  options.chunkSize = parser.getInt("--batch", 1);
+  options.threads = threadsFor(parser.getInt("--threads", 0));
+  if (parser.has("--chunk-size") || parser.has("--chunk-index")) {
+    options.frames = farmChunk(options.frames, parser);
+  }
   options.compression = parseExrCompression(parser.get("--compression"));
   options.exrWidth = parser.getInt("--exr-width", 1);
   options.framesPerSecond = parser.getDouble("--fps", 1e-3);
@@ -284,8 +361,10 @@ int runBake(const std::vector<std::string>& args) {
     options.weightMode = WeightMode::kQp;
   } else if (mode == "nearest") {
     options.weightMode = WeightMode::kNearest;
+  } else if (mode == "bind") {
+    options.weightMode = WeightMode::kBind;
   } else {
-    DS_THROW(kUsage, "--weights takes qp or nearest (got '", mode, "')");
+    DS_THROW(kUsage, "--weights takes qp, nearest or bind (got '", mode, "')");
   }
   if (!hasFramePattern(options.outputPattern)) {
     DS_THROW(kUsage, "-o '", options.outputPattern,
@@ -296,18 +375,24 @@ int runBake(const std::vector<std::string>& args) {
   const Database db = loadDatabase(parser.get("--db"));
   // EXR driver caches carry a topology hash: it must be the database's driver mesh.
   const auto driver = openPointCache(parser.get("--driver"), topologyHash(db.driverMesh));
+  if (options.threads > 0 && std::getenv("POCL_MAX_PTHREAD_COUNT") == nullptr) {
+    // PoCL reads this when the platform loads: cap its worker threads like ours.
+    ::setenv("POCL_MAX_PTHREAD_COUNT", std::to_string(options.threads).c_str(), 0);
+  }
   const DeviceBackends backends = makeBackends(parser.get("--device"), std::cerr);
   const std::string& device = backends.description;
   const bool quiet = parser.has("--quiet");
-  std::unique_ptr<CliObserver> observer;
   if (!quiet) {
-    std::cerr << "baking " << options.frames.size() << " frames on " << device << "\n";
-    observer = std::make_unique<CliObserver>(static_cast<long>(options.frames.size()));
+    std::cerr << "baking " << options.frames.size() << " frames ("
+              << formatFrameRange(options.frames) << ") on " << device << "\n";
   }
-  const BakeResult result = bake(db, *driver, backends.view(), options, observer.get());
-  if (observer) {
-    observer->finish();
-  }
+  // Farm tasks are stopped with SIGTERM (and users press Ctrl-C): finish the batch in hand,
+  // keep every complete frame, leave no temporary file, exit with code 7.
+  std::signal(SIGTERM, onStopSignal);
+  std::signal(SIGINT, onStopSignal);
+  CliObserver observer(static_cast<long>(options.frames.size()), quiet);
+  const BakeResult result = bake(db, *driver, backends.view(), options, &observer);
+  observer.finish();
   const double fps = result.times.total > 0 ? result.baked / result.times.total : 0.0;
   std::cout << "baked " << result.baked << " frames (" << result.skipped << " kept) in "
             << std::fixed << std::setprecision(3) << result.times.total << " s, "

@@ -12,6 +12,7 @@
 #include <drivenshape/version.h>
 
 #include "commands.h"
+#include "farm_command.h"
 #include "posmap_command.h"
 
 namespace {
@@ -26,6 +27,7 @@ constexpr const char* kUsage =
     "  bake        bake a shot into point-cache EXRs\n"
     "  eval        compare a bake with a truth cache\n"
     "  posmap      write UV-space position maps (P, A, N) for compositing\n"
+    "  farm        write Slurm array scripts or Open Job Description templates for a shot\n"
     "  version     print the version\n";
 
 int dispatch(const std::vector<std::string>& words) {
@@ -54,6 +56,9 @@ int dispatch(const std::vector<std::string>& words) {
   }
   if (command == "posmap") {
     return runPosmap(rest);
+  }
+  if (command == "farm") {
+    return runFarm(rest);
   }
   if (command == "db") {
     if (!rest.empty() && rest[0] == "build") {

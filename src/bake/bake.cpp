@@ -100,8 +100,12 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeBack
   if (options.frames.empty()) {
     DS_THROW(kUsage, "the frame range is empty; pass --frames, e.g. --frames 1001-1100");
   }
+  if (options.weightMode == WeightMode::kBind && !options.correct) {
+    DS_THROW(kUsage, "the bind baseline is the correction applied to the rest shapes; it cannot "
+                     "run with --no-correct");
+  }
   if (options.chunkSize < 1) {
-    DS_THROW(kUsage, "--chunk must be at least 1 (got ", options.chunkSize, ")");
+    DS_THROW(kUsage, "--batch must be at least 1 (got ", options.chunkSize, ")");
   }
   if (!hasFramePattern(options.outputPattern)) {
     DS_THROW(kUsage, "output '", options.outputPattern,
@@ -164,11 +168,13 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
       {"output", options.outputPattern},
       {"settings_hash", hashToHex(result.settingsHash)},
       {"settings",
-       {{"weights", options.weightMode == WeightMode::kQp ? "qp" : "nearest"},
+       {{"weights", options.weightMode == WeightMode::kQp        ? "qp"
+                    : options.weightMode == WeightMode::kNearest ? "nearest"
+                                                                 : "bind"},
         {"correct", options.correct},
         {"binding_mask", options.bindingMaskPath},
         {"audit", options.audit},
-        {"chunk", options.chunkSize},
+        {"batch", options.chunkSize},
         {"compression", exrCompressionName(options.compression)},
         {"exr_width", options.exrWidth}}},
       {"baked", result.baked},
@@ -287,7 +293,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
 
     start = Clock::now();
     weights.assign(static_cast<std::size_t>(count) * k, 0.0f);
-    parallelFor(count, threads, [&](int i) {
+    parallelFor(options.weightMode == WeightMode::kBind ? 0 : count, threads, [&](int i) {
       FrameRecord& record = frameRecord(i);
       if (options.weightMode == WeightMode::kQp) {
         const Eigen::VectorXd p =
@@ -323,8 +329,17 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
     start = Clock::now();
     driven.resize(count * drivenValues);
     blendedDriver.resize(options.correct ? count * driverValues : 0);
-    stages.blend(count, weights.data(), driven.data(),
-                 options.correct ? blendedDriver.data() : nullptr);
+    if (options.weightMode == WeightMode::kBind) {
+      // The rest shapes stand in for the blend: every frame binds the rest cloth to the rest
+      // driver and carries it to the shot's pose.
+      for (int i = 0; i < count; ++i) {
+        std::copy_n(db.drivenMesh.positions.data(), drivenValues, &driven[i * drivenValues]);
+        std::copy_n(db.driverMesh.positions.data(), driverValues, &blendedDriver[i * driverValues]);
+      }
+    } else {
+      stages.blend(count, weights.data(), driven.data(),
+                   options.correct ? blendedDriver.data() : nullptr);
+    }
     result.times.blend += secondsSince(start);
 
     // Correction: bind D~ to P~ (exact closest triangles), carry it to P_new.

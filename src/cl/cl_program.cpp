@@ -12,7 +12,7 @@ void rethrowClError(const char* what, const cl::Error& error) {
   DS_THROW(kDevice, "OpenCL failed while ", what, ": ", error.what(), " returned ",
            clErrorName(error.err()),
            error.err() == CL_OUT_OF_RESOURCES || error.err() == CL_MEM_OBJECT_ALLOCATION_FAILURE
-               ? "; try a smaller --chunk or another --device"
+               ? "; bake fewer frames per launch (--batch) or use another --device"
                : "");
 }
 

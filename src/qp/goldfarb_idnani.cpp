@@ -199,7 +199,7 @@ void DualActiveSet::dropConstraint(int position) {
   --mQ;
 }
 
-// One step of iterative refinement on the KKT system of the final active set:
+// One step of iterative refinement on the KKT system of the current active set:
 //
 //     G dx - N du = N u - G x - a,     N^T dx = b_N - N^T x.
 //

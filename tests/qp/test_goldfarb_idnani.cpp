@@ -146,7 +146,7 @@ Reference enumerateActiveSets(const QpProblem& qp) {
     Eigen::VectorXd kktRhs(n + q);
     kktRhs << -qp.a, rhs;
     Eigen::FullPivLU<Eigen::MatrixXd> lu(K);
-    lu.setThreshold(1e-10);
+    lu.setThreshold(1e-13);
     if (lu.rank() < n + q) {
       continue;
     }

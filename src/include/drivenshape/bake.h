@@ -16,14 +16,16 @@ namespace drivenshape {
 /// How the per-frame weights are chosen.
 enum class WeightMode {
   kQp,      ///< the DrivenShape QP: min ||A w - b|| with sum w = 1, 0 <= w <= 1
-  kNearest  ///< baseline: one-hot on the closest database driver shape
+  kNearest,  ///< baseline: one-hot on the closest database driver shape
+  kBind      ///< baseline: no database; the rest cloth bound to the rest driver and carried to
+             ///< every frame by the correction (what Houdini's Point Deform does)
 };
 
 struct BakeOptions {
   std::vector<int> frames;        ///< frames of the driver cache to bake
   std::string outputPattern;      ///< EXR sequence with a frame token, e.g. out/cloth.####.exr
   std::string reportPath;         ///< per-bake JSON report; empty = none
-  int chunkSize = 64;             ///< frames per kernel launch
+  int chunkSize = 64;             ///< frames per kernel launch (`--batch`)
   int threads = 0;                ///< host threads (QP, EXR); 0 = all cores
   bool skipExisting = false;      ///< keep complete outputs of this database and settings
   WeightMode weightMode = WeightMode::kQp;

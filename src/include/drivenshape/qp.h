@@ -25,15 +25,20 @@ struct QpProblem {
 
 struct QpResult {
   Eigen::VectorXd x;
-  double objective = 0.0;      ///< 1/2 x^T G x + a^T x
-  std::vector<int> active;     ///< indices of active constraints (equalities first: 0..me-1,
-                               ///< then me + i for inequality i)
-  Eigen::VectorXd multipliers; ///< Lagrange multipliers of `active`, same order
+  double objective = 0.0;       ///< 1/2 x^T G x + a^T x
+  std::vector<int> active;      ///< indices of active constraints (equalities first: 0..me-1,
+                                ///< then me + i for inequality i). A linearly independent
+                                ///< subset: an equality or inequality that depends on those
+                                ///< already active is left out even when it holds with equality.
+  Eigen::VectorXd multipliers;  ///< Lagrange multipliers of `active`, same order
   int iterations = 0;
-  bool feasible = true;        ///< false: the constraints admit no point
+  bool feasible = true;  ///< false: the constraints admit no point
 };
 
 /// Solves the problem; never throws for an infeasible problem (result.feasible = false).
+/// Throws Error(kInternal) on inconsistent sizes and Error(kNumerical) on non-finite entries,
+/// a singular R, or when 10 (n + me + mi) + 50 constraint additions and drops do not converge.
+/// Entries of R below the diagonal are ignored. n = 0 is allowed.
 QpResult solveGoldfarbIdnani(const QpProblem& problem);
 
 /// Blend weights for DrivenShape:
@@ -53,14 +58,15 @@ QpResult solveGoldfarbIdnani(const QpProblem& problem);
 /// ||b - m||^2 (computed by the projection kernel for whole chunks of frames), and gets the
 /// weights with their checks.
 struct SimplexSolution {
-  Eigen::VectorXd weights;          ///< k, sum 1, in [0,1] (clamped to the bounds exactly)
-  std::vector<int> atZero;          ///< shapes whose weight is held at 0
-  std::vector<int> atOne;           ///< shapes whose weight is held at 1
-  double objective = 0.0;           ///< ||A w - b||^2 (ridge excluded), from the projection
-  double relativeResidual = 0.0;    ///< ||A w - b|| / ||b||
-  double kktResidual = 0.0;         ///< max-norm of the KKT stationarity residual, relative
-  double sumError = 0.0;            ///< |sum(w) - 1|
-  double boundViolation = 0.0;      ///< max(0, -min w, max w - 1) before clamping
+  Eigen::VectorXd weights;        ///< k, sum 1, in [0,1] (clamped to the bounds exactly)
+  std::vector<int> atZero;        ///< shapes whose weight is held at 0 (exactly 0 in weights)
+  std::vector<int> atOne;         ///< shapes whose weight is held at 1 (then all others are 0)
+  double objective = 0.0;         ///< ||A w - b||^2 (ridge excluded), from the projection
+  double relativeResidual = 0.0;  ///< ||A w - b|| / ||b||
+  double kktResidual = 0.0;       ///< max-norm of the KKT stationarity residual in w (and of
+                                  ///< any negative multiplier), over max(trace(M^T M), |p|_inf)
+  double sumError = 0.0;          ///< |sum(w) - 1|
+  double boundViolation = 0.0;    ///< max(0, -min w, max w - 1) before clamping
   int iterations = 0;
 };
 

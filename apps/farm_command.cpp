@@ -1,0 +1,645 @@
+#include "farm_command.h"
+
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/point_cache.h>
+#include <drivenshape/version.h>
+
+#include "cli_args.h"
+
+namespace drivenshape::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Slurm's default MaxArraySize: array indices 0..1000.
+constexpr int kSlurmDefaultMaxArraySize = 1001;
+
+/// Bake options the farm command sets itself on every task; --extra-args must not repeat them.
+const char* const kReservedBakeOptions[] = {"--db",         "--driver",      "--frames",
+                                            "-o",           "--chunk-size",  "--chunk-index",
+                                            "--skip-existing"};
+
+const char* const kFarmExitCodes =
+    "Each task runs `drivenshape bake ... --chunk-size N --chunk-index I --skip-existing`, so a "
+    "retried task keeps the frames it finished and bakes the rest. Task exit codes are the "
+    "bake's: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical, 7 interrupted "
+    "(SIGTERM/SIGINT; rerun to resume). The farm command itself exits 2 for usage errors, 3 "
+    "when an input is missing, 4 when the job file or log folder cannot be written or sbatch "
+    "fails.";
+
+std::string absolute(const std::string& path) {
+  std::error_code ec;
+  const fs::path full = fs::absolute(path, ec);
+  return ec ? path : full.lexically_normal().string();
+}
+
+/// POSIX shell single quoting: 'it'\''s'.
+std::string shellQuote(const std::string& word) {
+  std::string quoted = "'";
+  for (char c : word) {
+    if (c == '\'') {
+      quoted += "'\\''";
+    } else {
+      quoted += c;
+    }
+  }
+  return quoted + "'";
+}
+
+/// Splits --extra-args like a shell would for plain words: whitespace separates words, single
+/// and double quotes group them, backslash escapes one character. No expansion of any kind.
+std::vector<std::string> splitWords(const std::string& text) {
+  std::vector<std::string> words;
+  std::string word;
+  bool inWord = false;
+  char quote = '\0';
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quote != '\0') {
+      if (c == quote) {
+        quote = '\0';
+      } else if (c == '\\' && quote == '"' && i + 1 < text.size()) {
+        word += text[++i];
+      } else {
+        word += c;
+      }
+    } else if (c == '\'' || c == '"') {
+      quote = c;
+      inWord = true;
+    } else if (c == '\\' && i + 1 < text.size()) {
+      word += text[++i];
+      inWord = true;
+    } else if (std::isspace(static_cast<unsigned char>(c))) {
+      if (inWord) {
+        words.push_back(word);
+        word.clear();
+        inWord = false;
+      }
+    } else {
+      word += c;
+      inWord = true;
+    }
+  }
+  if (quote != '\0') {
+    DS_THROW(kUsage, "--extra-args '", text, "' has an unclosed ", quote, " quote");
+  }
+  if (inWord) {
+    words.push_back(word);
+  }
+  return words;
+}
+
+/// Seconds in a Slurm time limit: MM, MM:SS, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS.
+long parseTimeLimit(const std::string& text) {
+  auto fail = [&]() {
+    DS_THROW(kUsage, "--time '", text, "' is not a time limit; use HH:MM:SS, MM or D-HH:MM:SS");
+  };
+  std::string rest = text;
+  long days = -1;
+  if (const auto dash = rest.find('-'); dash != std::string::npos) {
+    const std::string dayText = rest.substr(0, dash);
+    if (dayText.empty() || !std::all_of(dayText.begin(), dayText.end(), ::isdigit)) {
+      fail();
+    }
+    days = std::stol(dayText);
+    rest = rest.substr(dash + 1);
+  }
+  std::vector<long> parts;
+  std::stringstream stream(rest);
+  std::string part;
+  while (std::getline(stream, part, ':')) {
+    if (part.empty() || part.size() > 6 || !std::all_of(part.begin(), part.end(), ::isdigit)) {
+      fail();
+    }
+    parts.push_back(std::stol(part));
+  }
+  if (parts.empty() || parts.size() > 3 || (!rest.empty() && rest.back() == ':')) {
+    fail();
+  }
+  long seconds = 0;
+  if (days >= 0) {  // D-HH[:MM[:SS]]
+    seconds = days * 86400 + parts[0] * 3600 + (parts.size() > 1 ? parts[1] * 60 : 0) +
+              (parts.size() > 2 ? parts[2] : 0);
+  } else if (parts.size() == 1) {  // MM
+    seconds = parts[0] * 60;
+  } else if (parts.size() == 2) {  // MM:SS
+    seconds = parts[0] * 60 + parts[1];
+  } else {  // HH:MM:SS
+    seconds = parts[0] * 3600 + parts[1] * 60 + parts[2];
+  }
+  if (seconds <= 0) {
+    fail();
+  }
+  return seconds;
+}
+
+/// A name safe in file names and scheduler job names: letters, digits, '.', '_', '-'.
+std::string safeName(const std::string& text) {
+  std::string name;
+  for (char c : text) {
+    const bool ok = std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-';
+    name += ok ? c : '_';
+  }
+  return name.empty() ? std::string("drivenshape") : name;
+}
+
+/// out/cloth.####.exr -> ds_cloth
+std::string defaultJobName(const std::string& pattern) {
+  std::string stem = fs::path(pattern).filename().string();
+  stem = stem.substr(0, stem.find_first_of("#%$"));
+  while (!stem.empty() && (stem.back() == '.' || stem.back() == '_' || stem.back() == '-')) {
+    stem.pop_back();
+  }
+  return "ds_" + safeName(stem.empty() ? std::string("bake") : stem);
+}
+
+/// What both schedulers need: one bake command per chunk, everything absolute.
+struct FarmJob {
+  std::string binary;         ///< absolute path of the drivenshape executable
+  std::string database;       ///< absolute
+  std::string driver;         ///< absolute .pc2 or EXR sequence pattern
+  std::string frames;         ///< --frames as given (validated)
+  std::string outputPattern;  ///< absolute, with a frame token
+  int frameCount = 0;
+  int chunkSize = 0;
+  int chunks = 0;
+  std::string name;
+  std::vector<std::string> extraArgs;
+  std::string timeLimit;  ///< Slurm form, empty when not given
+  int cpus = 0;           ///< 0 when not given
+  int memoryMb = 0;       ///< 0 when not given
+};
+
+void addJobOptions(ArgParser& parser) {
+  parser.option("--db", "DB", "database from `drivenshape db build`", "", true)
+      .option("--driver", "CACHE", "shot driver cache (.pc2 or name.####.exr)", "", true)
+      .option("--frames", "RANGE", "frames of the shot: 1001-1100, 1001-1100x2, 1001,1005", "",
+              true)
+      .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
+      .option("--chunk-size", "N", "frames per task; task I bakes frames [I*N, (I+1)*N) of --frames",
+              "", true)
+      .option("-O", "JOBFILE", "job file to write", "", true)
+      .option("--job-name", "NAME", "job name", "ds_<output name>")
+      .option("--time", "HH:MM:SS", "time limit per task (also MM or D-HH:MM:SS)")
+      .option("--cpus", "N", "CPU cores per task (the bake uses as many threads)")
+      .option("--mem", "MB", "memory per task in MiB")
+      .option("--extra-args", "\"...\"",
+              "more bake options for every task, e.g. \"--batch 16 --no-audit\"")
+      .option("--binary", "PATH", "drivenshape executable the tasks run", "this executable")
+      .flag("--no-check", "do not check from this machine that the inputs exist");
+}
+
+FarmJob jobFrom(const ArgParser& parser) {
+  FarmJob job;
+  std::error_code ec;
+  if (parser.has("--binary")) {
+    job.binary = absolute(parser.get("--binary"));
+  } else {
+    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) {
+      DS_THROW(kInternal, "cannot find this executable through /proc/self/exe (", ec.message(),
+               "); pass --binary /path/to/drivenshape");
+    }
+    job.binary = self.string();
+  }
+  job.database = absolute(parser.get("--db"));
+  job.driver = absolute(parser.get("--driver"));
+  job.outputPattern = absolute(parser.get("-o"));
+  job.frames = parser.get("--frames");
+  const std::vector<int> frames = parseFrameRange(job.frames);
+  job.frameCount = static_cast<int>(frames.size());
+  job.chunkSize = parser.getInt("--chunk-size", 1);
+  job.chunks = (job.frameCount + job.chunkSize - 1) / job.chunkSize;
+  if (!hasFramePattern(job.outputPattern)) {
+    DS_THROW(kUsage, "-o '", parser.get("-o"), "' has no frame token; use e.g. out/cloth.####.exr");
+  }
+  job.name = parser.has("--job-name") ? parser.get("--job-name") : defaultJobName(job.outputPattern);
+  if (job.name.empty() || job.name.size() > 128 ||
+      std::any_of(job.name.begin(), job.name.end(),
+                  [](char c) { return std::iscntrl(static_cast<unsigned char>(c)); })) {
+    DS_THROW(kUsage, "--job-name must be 1 to 128 printable characters");
+  }
+  if (parser.has("--time")) {
+    job.timeLimit = parser.get("--time");
+    parseTimeLimit(job.timeLimit);
+  }
+  job.cpus = parser.has("--cpus") ? parser.getInt("--cpus", 1) : 0;
+  job.memoryMb = parser.has("--mem") ? parser.getInt("--mem", 1) : 0;
+  if (parser.has("--extra-args")) {
+    job.extraArgs = splitWords(parser.get("--extra-args"));
+  }
+  for (const std::string& word : job.extraArgs) {
+    const std::string name = word.substr(0, word.find('='));
+    for (const char* reserved : kReservedBakeOptions) {
+      if (name == reserved) {
+        DS_THROW(kUsage, "--extra-args must not hold ", reserved,
+                 ": the farm command sets it on every task");
+      }
+    }
+  }
+
+  if (!parser.has("--no-check")) {
+    if (!fs::is_regular_file(job.binary, ec)) {
+      DS_THROW(kInput, "drivenshape executable '", job.binary, "' does not exist");
+    }
+    if (!fs::is_regular_file(job.database, ec)) {
+      DS_THROW(kInput, "database '", job.database,
+               "' does not exist (or pass --no-check when only the farm can see it)");
+    }
+    const auto driver = openPointCache(job.driver);
+    std::vector<int> missing;
+    for (int frame : frames) {
+      if (!driver->hasFrame(frame)) {
+        missing.push_back(frame);
+      }
+    }
+    if (!missing.empty()) {
+      DS_THROW(kInput, "driver cache '", job.driver, "' lacks frames ", formatFrameRange(missing),
+               " of --frames ", job.frames, "; fix the range or the cache");
+    }
+  }
+  return job;
+}
+
+/// The bake of one chunk as argv words; `chunkIndex` is a number, `env` or a template token.
+std::vector<std::string> bakeCommand(const FarmJob& job, const std::string& chunkIndex) {
+  std::vector<std::string> words{job.binary,    "bake",           "--db",
+                                 job.database,  "--driver",       job.driver,
+                                 "--frames",    job.frames,       "-o",
+                                 job.outputPattern, "--chunk-size", std::to_string(job.chunkSize),
+                                 "--chunk-index", chunkIndex,     "--skip-existing"};
+  words.insert(words.end(), job.extraArgs.begin(), job.extraArgs.end());
+  return words;
+}
+
+/// Creates `folder` (and parents); Error(kOutput) if it cannot be made or written.
+void makeFolder(const std::string& folder, const char* what) {
+  std::error_code ec;
+  fs::create_directories(folder, ec);
+  if (ec) {
+    DS_THROW(kOutput, "cannot create the ", what, " folder '", folder, "': ", ec.message());
+  }
+  checkOutputFolderWritable((fs::path(folder) / "probe").string());
+}
+
+// ---- Slurm -------------------------------------------------------------------------------
+
+std::string slurmScript(const FarmJob& job, const std::string& logDir,
+                        const std::string& partition) {
+  const std::string last = std::to_string(job.chunks - 1);
+  std::ostringstream s;
+  s << "#!/bin/bash\n"
+    << "# Written by drivenshape " << kVersion << " (`drivenshape farm slurm`): " << job.frameCount
+    << " frames (" << job.frames << ") in " << job.chunks << " chunks of up to " << job.chunkSize
+    << ".\n"
+    << "# Array index I is a chunk number, never a frame number: task I bakes frames\n"
+    << "# [I*" << job.chunkSize << ", (I+1)*" << job.chunkSize
+    << ") of the range. Every task passes --skip-existing, so a requeued or\n"
+    << "# resubmitted task keeps its finished frames; resubmit failed chunks with\n"
+    << "#   sbatch --array=I,J " << "<this file>\n"
+    << "#SBATCH --job-name=" << job.name << "\n"
+    << "#SBATCH --array=0-" << last << "\n"
+    << "#SBATCH --output=" << logDir << "/" << safeName(job.name) << "_%A_%a.log\n"
+    << "#SBATCH --open-mode=append\n"
+    << "#SBATCH --ntasks=1\n";
+  if (!partition.empty()) {
+    s << "#SBATCH --partition=" << partition << "\n";
+  }
+  if (!job.timeLimit.empty()) {
+    s << "#SBATCH --time=" << job.timeLimit << "\n";
+  }
+  if (job.cpus > 0) {
+    s << "#SBATCH --cpus-per-task=" << job.cpus << "\n";
+  }
+  if (job.memoryMb > 0) {
+    s << "#SBATCH --mem=" << job.memoryMb << "\n";
+  }
+  s << "set -u\n"
+    << "\n"
+    << "# PoCL compiles kernels into a cache; keep it in a folder this task can write.\n"
+    << "if [ -z \"${POCL_CACHE_DIR:-}\" ] || ! mkdir -p \"$POCL_CACHE_DIR\" 2>/dev/null ||\n"
+    << "   [ ! -w \"$POCL_CACHE_DIR\" ]; then\n"
+    << "  export POCL_CACHE_DIR=\"${TMPDIR:-/tmp}/drivenshape-pocl-$(id -u)\"\n"
+    << "  mkdir -p \"$POCL_CACHE_DIR\"\n"
+    << "fi\n"
+    << "export POCL_CACHE_DIR\n"
+    << "mkdir -p " << shellQuote(fs::path(job.outputPattern).parent_path().string()) << "\n"
+    << "echo \"drivenshape farm: job ${SLURM_ARRAY_JOB_ID:-?} chunk ${SLURM_ARRAY_TASK_ID:-?} "
+    << "of 0-" << last << " on $(hostname) at $(date '+%F %T')\"\n"
+    << "\n"
+    << "# The bake runs in the background so that this shell can pass SIGTERM (scancel, time\n"
+    << "# limit, preemption) and SIGINT on to it; the bake finishes the frames in hand, removes\n"
+    << "# its temporary files and exits 7. The task's exit code is always the bake's.\n";
+  const std::vector<std::string> words = bakeCommand(job, "env");
+  for (std::size_t i = 0; i < words.size(); ++i) {
+    s << (i == 0 ? "" : " ") << shellQuote(words[i]);
+  }
+  s << " &\n"
+    << "bake=$!\n"
+    << "signalled=0\n"
+    << "forward() { signalled=1; kill -s \"$1\" \"$bake\" 2>/dev/null || true; }\n"
+    << "trap 'forward TERM' TERM\n"
+    << "trap 'forward INT' INT\n"
+    << "wait \"$bake\"\n"
+    << "status=$?\n"
+    << "# A trapped signal ends `wait` early (status > 128): wait again for the bake's own code.\n"
+    << "while [ \"$signalled\" -eq 1 ]; do\n"
+    << "  signalled=0\n"
+    << "  wait \"$bake\"\n"
+    << "  status=$?\n"
+    << "done\n"
+    << "echo \"drivenshape farm: chunk ${SLURM_ARRAY_TASK_ID:-?} exited with $status at "
+    << "$(date '+%F %T')\"\n"
+    << "exit \"$status\"\n";
+  return s.str();
+}
+
+/// Runs `sbatch --parsable SCRIPT` and returns the job id it prints.
+std::string submitToSlurm(const std::string& script) {
+  const std::string command = "sbatch --parsable " + shellQuote(script) + " 2>&1";
+  std::FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) {
+    DS_THROW(kOutput, "cannot run sbatch; the job script is at '", script,
+             "', submit it by hand with `sbatch ", script, "`");
+  }
+  std::string output;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) {
+    output += buffer;
+  }
+  const int status = ::pclose(pipe);
+  while (!output.empty() && std::isspace(static_cast<unsigned char>(output.back()))) {
+    output.pop_back();
+  }
+  const int code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
+  if (code != 0) {
+    DS_THROW(kOutput, "sbatch failed (exit ", code, code == 127 ? ", is Slurm installed?" : "",
+             "): ", output, "; the job script is at '", script, "'");
+  }
+  // --parsable prints "jobid" or "jobid;cluster"; the id is the last line's first field.
+  std::string id = output.substr(output.find_last_of('\n') + 1);
+  id = id.substr(0, id.find(';'));
+  if (id.empty() || !std::all_of(id.begin(), id.end(), ::isdigit)) {
+    DS_THROW(kOutput, "sbatch printed no job id: '", output, "'; the job script is at '", script,
+             "'");
+  }
+  return id;
+}
+
+int runFarmSlurm(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape farm slurm --db DB --driver CACHE --frames RANGE -o OUT.####.exr "
+      "--chunk-size N -O job.sbatch",
+      "Writes an sbatch array script for a shot: one array task per chunk of --chunk-size "
+      "frames (array indices are chunk numbers, never frame numbers), a log per task, SIGTERM "
+      "passed on to the bake, absolute paths throughout. --submit also runs sbatch and prints "
+      "the job id.");
+  addJobOptions(parser);
+  parser.option("--partition", "P", "Slurm partition")
+      .option("--log-dir", "DIR", "folder of the per-task logs (NAME_JOBID_CHUNK.log)",
+              "OUT folder/logs")
+      .option("--max-array-size", "N",
+              "the cluster's MaxArraySize, when more than 1001 chunks are wanted")
+      .flag("--submit", "submit the script with sbatch and print the job id")
+      .epilog(kFarmExitCodes);
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const FarmJob job = jobFrom(parser);
+  const int maxArraySize = parser.has("--max-array-size") ? parser.getInt("--max-array-size", 1)
+                                                          : kSlurmDefaultMaxArraySize;
+  if (job.chunks > maxArraySize) {
+    DS_THROW(kUsage, job.frameCount, " frames in chunks of ", job.chunkSize, " make ", job.chunks,
+             " array tasks, more than Slurm's MaxArraySize of ", maxArraySize,
+             "; raise --chunk-size to at least ",
+             (job.frameCount + maxArraySize - 1) / maxArraySize,
+             ", or pass --max-array-size if the cluster allows more");
+  }
+  const std::string logDir =
+      absolute(parser.has("--log-dir")
+                   ? parser.get("--log-dir")
+                   : (fs::path(job.outputPattern).parent_path() / "logs").string());
+  if (logDir.find_first_of(" \t\n%") != std::string::npos) {
+    DS_THROW(kUsage, "--log-dir '", logDir, "' holds a space or '%', which #SBATCH lines cannot "
+             "carry; choose another folder");
+  }
+  const std::string jobFile = absolute(parser.get("-O"));
+  checkOutputFolderWritable(jobFile);
+  // Slurm opens the task logs before the script runs: the folder must exist at submission.
+  makeFolder(logDir, "log");
+  writeFileAtomically(jobFile, slurmScript(job, logDir, parser.get("--partition")));
+  fs::permissions(jobFile, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
+                  fs::perm_options::add);
+  std::cout << "slurm job: " << jobFile << " (" << job.chunks << " array tasks 0-"
+            << job.chunks - 1 << ", " << job.frameCount << " frames in chunks of up to "
+            << job.chunkSize << ")\n"
+            << "logs:      " << logDir << "/" << safeName(job.name) << "_<job>_<chunk>.log\n";
+  if (parser.has("--submit")) {
+    const std::string id = submitToSlurm(jobFile);
+    std::cout << "submitted: job " << id << "\n";
+  } else {
+    std::cout << "submit with: sbatch " << shellQuote(jobFile) << "\n";
+  }
+  return 0;
+}
+
+// ---- Open Job Description ------------------------------------------------------------------
+
+nlohmann::json openJobTemplate(const FarmJob& job, long timeoutSeconds, int notifySeconds) {
+  using nlohmann::json;
+  json args = json::array();
+  for (const std::string& word : bakeCommand(job, "{{Task.Param.Chunk}}")) {
+    args.push_back(word);
+  }
+  // The paths are job parameters (so a render manager can path-map them); the command uses
+  // the parameters, never the literal defaults.
+  args.erase(args.begin());
+  args[2] = "{{Param.Database}}";
+  args[4] = "{{Param.DriverCache}}";
+  args[8] = "{{Param.OutputPattern}}";
+
+  json onRun{{"command", "{{Param.DrivenshapeBinary}}"},
+             {"args", args},
+             {"cancelation", {{"mode", "NOTIFY_THEN_TERMINATE"},
+                              {"notifyPeriodInSeconds", notifySeconds}}}};
+  if (timeoutSeconds > 0) {
+    onRun["timeout"] = timeoutSeconds;
+  }
+  json step{
+      {"name", "Bake"},
+      {"description", "One task per chunk of " + std::to_string(job.chunkSize) +
+                          " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " + job.frames +
+                          ", keeping finished frames (--skip-existing)."},
+      {"parameterSpace",
+       {{"taskParameterDefinitions",
+         json::array({{{"name", "Chunk"},
+                       {"type", "INT"},
+                       {"range", "0-" + std::to_string(job.chunks - 1)}}})}}},
+      {"stepEnvironments",
+       json::array({{{"name", "DrivenshapeBakeEnv"},
+                     {"description", "PoCL kernel cache in the session's own folder"},
+                     {"variables",
+                      {{"POCL_CACHE_DIR", "{{Session.WorkingDirectory}}/pocl-cache"}}}}})},
+      {"script", {{"actions", {{"onRun", onRun}}}}}};
+  if (job.cpus > 0 || job.memoryMb > 0) {
+    json amounts = json::array();
+    if (job.cpus > 0) {
+      amounts.push_back({{"name", "amount.worker.vcpu"}, {"min", job.cpus}});
+    }
+    if (job.memoryMb > 0) {
+      amounts.push_back({{"name", "amount.worker.memory"}, {"min", job.memoryMb}});
+    }
+    step["hostRequirements"] = {{"amounts", amounts}};
+  }
+  auto pathParameter = [](const char* name, const std::string& value, const char* objectType,
+                          const char* flow, const char* description) {
+    json parameter{{"name", name},
+                   {"type", "PATH"},
+                   {"dataFlow", flow},
+                   {"default", value},
+                   {"description", description}};
+    if (objectType != nullptr) {
+      parameter["objectType"] = objectType;
+    }
+    return parameter;
+  };
+  return json{
+      {"specificationVersion", "jobtemplate-2023-09"},
+      {"name", job.name},
+      {"description", "drivenshape " + std::string(kVersion) + " bake of " +
+                          std::to_string(job.frameCount) + " frames (" + job.frames + ") in " +
+                          std::to_string(job.chunks) + " chunks"},
+      {"parameterDefinitions",
+       json::array({pathParameter("DrivenshapeBinary", job.binary, "FILE", "NONE",
+                                  "the drivenshape executable on the workers"),
+                    pathParameter("Database", job.database, "FILE", "IN",
+                                  "database from `drivenshape db build`"),
+                    pathParameter("DriverCache", job.driver, nullptr, "IN",
+                                  "shot driver cache (.pc2 or name.####.exr)"),
+                    pathParameter("OutputPattern", job.outputPattern, nullptr, "OUT",
+                                  "output EXR sequence")})},
+      {"steps", json::array({step})}};
+}
+
+/// Block-style YAML of a JSON value. Strings are written as JSON strings, which YAML reads as
+/// double-quoted scalars with the same escapes, so no value can change meaning.
+void writeYaml(std::ostream& out, const nlohmann::json& value, int indent, bool inlineFirst) {
+  const std::string pad(static_cast<std::size_t>(indent), ' ');
+  if (value.is_object()) {
+    bool first = true;
+    for (const auto& item : value.items()) {
+      out << ((first && inlineFirst) ? std::string() : pad) << nlohmann::json(item.key()).dump()
+          << ":";
+      const auto& child = item.value();
+      if ((child.is_object() || child.is_array()) && !child.empty()) {
+        out << "\n";
+        writeYaml(out, child, indent + 2, false);
+      } else {
+        out << " " << child.dump() << "\n";
+      }
+      first = false;
+    }
+  } else if (value.is_array()) {
+    for (const auto& child : value) {
+      out << pad << "- ";
+      if ((child.is_object() || child.is_array()) && !child.empty()) {
+        writeYaml(out, child, indent + 2, true);
+      } else {
+        out << child.dump() << "\n";
+      }
+    }
+  } else {
+    out << pad << value.dump() << "\n";
+  }
+}
+
+bool hasSuffix(const std::string& text, const std::string& suffix) {
+  return text.size() >= suffix.size() &&
+         text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+int runFarmOpenjd(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape farm openjd --db DB --driver CACHE --frames RANGE -o OUT.####.exr "
+      "--chunk-size N -O job.template.json",
+      "Writes an Open Job Description (2023-09) job template for a shot: one step whose task "
+      "parameter Chunk (INT, 0 to chunks-1) selects the chunk of --chunk-size frames each task "
+      "bakes. Paths are PATH job parameters (defaults: the absolute paths given here). The "
+      "format follows -O: .yaml/.yml writes YAML, anything else JSON. Check and run it with "
+      "`openjd check FILE` and `openjd run FILE --step Bake`.");
+  addJobOptions(parser);
+  parser.option("--cancel-grace", "S",
+                "seconds between SIGTERM and SIGKILL when a task is canceled", "120")
+      .epilog(kFarmExitCodes);
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const FarmJob job = jobFrom(parser);
+  if (job.chunks > 1024) {
+    // IntRangeExpr has no such limit, but render managers cap tasks per step; say so early.
+    std::cerr << "warning: " << job.chunks
+              << " tasks in one step; render managers may cap this, consider a larger "
+                 "--chunk-size\n";
+  }
+  const long timeout = job.timeLimit.empty() ? 0 : parseTimeLimit(job.timeLimit);
+  const nlohmann::json jobTemplate =
+      openJobTemplate(job, timeout, parser.getInt("--cancel-grace", 1));
+  const std::string jobFile = absolute(parser.get("-O"));
+  std::string text;
+  if (hasSuffix(jobFile, ".yaml") || hasSuffix(jobFile, ".yml")) {
+    std::ostringstream yaml;
+    yaml << "# Open Job Description job template written by drivenshape " << kVersion << "\n";
+    writeYaml(yaml, jobTemplate, 0, false);
+    text = yaml.str();
+  } else {
+    text = jobTemplate.dump(2) + "\n";
+  }
+  checkOutputFolderWritable(jobFile);
+  writeFileAtomically(jobFile, text);
+  std::cout << "openjd template: " << jobFile << " (step Bake, " << job.chunks
+            << " tasks Chunk=0-" << job.chunks - 1 << ", " << job.frameCount
+            << " frames in chunks of up to " << job.chunkSize << ")\n"
+            << "check with: openjd check " << shellQuote(jobFile) << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int runFarm(const std::vector<std::string>& args) {
+  constexpr const char* kFarmUsage =
+      "usage: drivenshape farm slurm|openjd [options]   (drivenshape farm slurm --help)\n"
+      "\n"
+      "  slurm    write (and with --submit, submit) an sbatch array script, one task per chunk\n"
+      "  openjd   write an Open Job Description job template, one task per chunk\n";
+  if (args.empty()) {
+    DS_THROW(kUsage, "`drivenshape farm` needs a scheduler: slurm or openjd");
+  }
+  if (args[0] == "-h" || args[0] == "--help") {
+    std::cout << kFarmUsage;
+    return 0;
+  }
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (args[0] == "slurm") {
+    return runFarmSlurm(rest);
+  }
+  if (args[0] == "openjd") {
+    return runFarmOpenjd(rest);
+  }
+  DS_THROW(kUsage, "unknown scheduler '", args[0], "' for `drivenshape farm`: slurm or openjd");
+}
+
+}  // namespace drivenshape::cli
