@@ -10,6 +10,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <tuple>
 
 #include <drivenshape/atomic_file.h>
 #include <drivenshape/bake.h>
@@ -18,6 +19,7 @@
 #include <drivenshape/evaluate.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
+#include <drivenshape/position_map.h>
 #include <drivenshape/progress.h>
 
 #include "cli_args.h"
@@ -270,6 +272,24 @@ class CliObserver : public BakeObserver {
   explicit CliObserver(long total, bool quiet) : mProgress("bake", quiet ? 0 : total),
                                                  mQuiet(quiet) {}
   bool stopRequested() override { return gStopRequested.load(); }
+  /// Position maps straight from the baked positions (bake --posmap).
+  void setPositionMaps(std::unique_ptr<PositionMapWriter> writer, std::string pattern) {
+    mMaps = std::move(writer);
+    mMapPattern = std::move(pattern);
+  }
+  void batchBaked(const std::vector<const FrameRecord*>& records,
+                  const float* positions) override {
+    if (!mMaps) {
+      return;
+    }
+    std::vector<int> frames;
+    std::vector<std::string> paths;
+    for (const FrameRecord* record : records) {
+      frames.push_back(record->frame);
+      paths.push_back(expandFramePattern(mMapPattern, record->frame));
+    }
+    mMaps->writeFrames(frames, positions, paths);
+  }
   void frameDone(const FrameRecord& record, double seconds) override {
     if (mQuiet) {
       return;
@@ -289,7 +309,18 @@ class CliObserver : public BakeObserver {
  private:
   Progress mProgress;
   bool mQuiet;
+  std::unique_ptr<PositionMapWriter> mMaps;
+  std::string mMapPattern;
 };
+
+/// out/cloth.####.exr -> out/cloth.posmap.####.exr
+std::string defaultPosmapPattern(const std::string& pattern) {
+  const std::filesystem::path path(pattern);
+  std::string name = path.filename().string();
+  const auto token = name.find_first_of("#%$");
+  name.insert(token == std::string::npos ? 0 : token, "posmap.");
+  return (path.parent_path() / name).string();
+}
 
 }  // namespace
 
@@ -322,6 +353,11 @@ int runBake(const std::vector<std::string>& args) {
               "qp (DrivenShape); baselines: nearest (closest database shape), bind (rest cloth "
               "bound to the rest driver and carried along, like Point Deform)",
               "qp")
+      .option("--posmap", "W[xH]", "also write UV-space position maps of the baked cloth")
+      .option("--posmap-out", "PATTERN", "position-map EXR sequence",
+              "OUT with .posmap before the frame token")
+      .option("--posmap-padding", "N", "texels of padding around UV islands", "8")
+      .flag("--posmap-normals", "add N.X N.Y N.Z to the position maps")
       .flag("--skip-existing", "keep outputs that are complete and match this bake")
       .option("--bind", "MAP", "binding mask (JSON): which driver groups each cloth group binds to")
       .flag("--no-correct", "skip the collision correction (blend only)")
@@ -391,6 +427,32 @@ int runBake(const std::vector<std::string>& args) {
   std::signal(SIGTERM, onStopSignal);
   std::signal(SIGINT, onStopSignal);
   CliObserver observer(static_cast<long>(options.frames.size()), quiet);
+  std::string posmapPattern;
+  if (parser.has("--posmap")) {
+    PositionMapOptions maps;
+    std::tie(maps.width, maps.height) = parsePositionMapResolution(parser.get("--posmap"),
+                                                                   "--posmap");
+    maps.padding = parser.getInt("--posmap-padding", 0);
+    maps.normals = parser.has("--posmap-normals");
+    maps.compression = options.compression;
+    maps.framesPerSecond = options.framesPerSecond;
+    maps.threads = options.threads;
+    posmapPattern = parser.has("--posmap-out") ? parser.get("--posmap-out")
+                                               : defaultPosmapPattern(options.outputPattern);
+    if (!hasFramePattern(posmapPattern)) {
+      DS_THROW(kUsage, "--posmap-out '", posmapPattern, "' has no frame token");
+    }
+    checkOutputFolderWritable(expandFramePattern(posmapPattern, options.frames.front()));
+    auto backend = backends.device ? makeClPositionMaps(backends.device->context,
+                                                        backends.device->device,
+                                                        backends.device->queue)
+                                   : makeHostPositionMaps();
+    observer.setPositionMaps(std::make_unique<PositionMapWriter>(db.drivenMesh, maps,
+                                                                 std::move(backend),
+                                                                 "the database's driven mesh",
+                                                                 &std::cerr),
+                             posmapPattern);
+  }
   const BakeResult result = bake(db, *driver, backends.view(), options, &observer);
   observer.finish();
   const double fps = result.times.total > 0 ? result.baked / result.times.total : 0.0;
@@ -399,6 +461,9 @@ int runBake(const std::vector<std::string>& args) {
             << std::setprecision(1) << fps << " frames/s on " << device << "\n"
             << "outputs: " << absolute(options.outputPattern) << " (frames "
             << formatFrameRange(options.frames) << ")\n";
+  if (!posmapPattern.empty()) {
+    std::cout << "posmaps: " << absolute(posmapPattern) << "\n";
+  }
   if (!options.reportPath.empty()) {
     std::cout << "report:  " << absolute(options.reportPath) << "\n";
   }

@@ -425,6 +425,13 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
     });
     result.times.write += secondsSince(start);
 
+    if (observer != nullptr) {
+      std::vector<const FrameRecord*> records;
+      for (int i = 0; i < count; ++i) {
+        records.push_back(&frameRecord(i));
+      }
+      observer->batchBaked(records, final);
+    }
     const double perFrame = secondsSince(chunkStart) / count;
     for (int i = 0; i < count; ++i) {
       ++result.baked;

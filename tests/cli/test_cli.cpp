@@ -7,6 +7,7 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 
@@ -289,6 +290,47 @@ TEST(Cli, UnwritableOutputFolderIsAnOutputError) {
   }
   fs::permissions(dir.file("ro"), fs::perms::owner_all);
   EXPECT_TRUE(filesIn(dir.file("ro")).empty());
+}
+
+/// The P.X/P.Y/P.Z/A planes of an EXR image, concatenated.
+std::vector<float> exrPlanes(const std::string& path) {
+  Imf::InputFile file(path.c_str());
+  const Imath::Box2i window = file.header().dataWindow();
+  const int width = window.max.x - window.min.x + 1, height = window.max.y - window.min.y + 1;
+  std::vector<float> planes(static_cast<std::size_t>(width) * height * 4);
+  Imf::FrameBuffer buffer;
+  const char* names[] = {"P.X", "P.Y", "P.Z", "A"};
+  for (int c = 0; c < 4; ++c) {
+    char* base = reinterpret_cast<char*>(&planes[static_cast<std::size_t>(c) * width * height]) -
+                 (static_cast<std::ptrdiff_t>(window.min.y) * width + window.min.x) *
+                     static_cast<std::ptrdiff_t>(sizeof(float));
+    buffer.insert(names[c],
+                  Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * width));
+  }
+  file.setFrameBuffer(buffer);
+  file.readPixels(window.min.y, window.max.y);
+  return planes;
+}
+
+TEST(Cli, BakePosmapEqualsPosmapOfTheBakedCache) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  fs::create_directories(dir.file("out"));
+  CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
+                          "5-7", "-o", dir.file("out/s.####.exr"), "--posmap", "96x64",
+                          "--quiet"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache",
+                   dir.file("out/s.####.exr"), "--frames", "5-7", "--res", "96x64", "-o",
+                   dir.file("out/alone.####.exr")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* frame : {"0005", "0006", "0007"}) {
+    const std::vector<float> inBake = exrPlanes(dir.file(std::string("out/s.posmap.") + frame + ".exr"));
+    const std::vector<float> alone = exrPlanes(dir.file(std::string("out/alone.") + frame + ".exr"));
+    EXPECT_EQ(inBake, alone) << "frame " << frame;
+    EXPECT_GT(std::count(inBake.begin() + 3 * 96 * 64, inBake.end(), 1.0f), 100)
+        << "the map covers texels";
+  }
 }
 
 }  // namespace

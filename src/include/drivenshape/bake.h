@@ -92,6 +92,10 @@ struct BakeObserver {
   virtual void frameDone(const FrameRecord& /*record*/, double /*seconds*/) {}
   /// Polled between chunks; return true to stop (finished frames are kept).
   virtual bool stopRequested() { return false; }
+  /// Called after each launch batch is written, with the baked positions of its frames
+  /// (records.size() x 3Vd, frame-major), e.g. to write position maps without re-reading.
+  virtual void batchBaked(const std::vector<const FrameRecord*>& /*records*/,
+                          const float* /*positions*/) {}
 };
 
 /// Bakes `options.frames` of `driver` with `database` on `stages` (host or OpenCL) and writes
