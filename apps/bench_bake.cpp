@@ -7,15 +7,15 @@
 // The synthetic character is a bending tube (driver) inside a looser tube (driven); database
 // shapes are random bends, the shot a smooth sweep through bends. Generated deterministically.
 
+#include <unistd.h>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <iostream>
 #include <fstream>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <unistd.h>
 
 #include <drivenshape/bake.h>
 #include <drivenshape/database.h>
@@ -37,16 +37,16 @@ ds::Mesh tube(int rings, int segments, float radius) {
   for (int i = 0; i < rings; ++i) {
     for (int j = 0; j < segments; ++j) {
       const float angle = 2.0f * float(M_PI) * j / segments;
-      mesh.positions.row(i * segments + j) << radius * std::cos(angle),
-          radius * std::sin(angle), float(i) / (rings - 1);
+      mesh.positions.row(i * segments + j) << radius * std::cos(angle), radius * std::sin(angle),
+          float(i) / (rings - 1);
     }
   }
   mesh.faceStart.push_back(0);
   for (int i = 0; i + 1 < rings; ++i) {
     for (int j = 0; j < segments; ++j) {
       const int j1 = (j + 1) % segments;
-      for (int v : {i * segments + j, i * segments + j1, (i + 1) * segments + j1,
-                    (i + 1) * segments + j}) {
+      for (int v :
+           {i * segments + j, i * segments + j1, (i + 1) * segments + j1, (i + 1) * segments + j}) {
         mesh.faceVertices.push_back(v);
       }
       mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
@@ -89,10 +89,14 @@ Workload workload(const std::string& name) {
 }
 
 nlohmann::json timesJson(const ds::BakeResult& r) {
-  return {{"read", r.times.read},       {"project", r.times.project},
-          {"weights", r.times.weights}, {"blend", r.times.blend},
-          {"correct", r.times.correct}, {"audit", r.times.audit},
-          {"write", r.times.write},     {"total", r.times.total},
+  return {{"read", r.times.read},
+          {"project", r.times.project},
+          {"weights", r.times.weights},
+          {"blend", r.times.blend},
+          {"correct", r.times.correct},
+          {"audit", r.times.audit},
+          {"write", r.times.write},
+          {"total", r.times.total},
           {"frames_per_second", r.baked / r.times.total}};
 }
 
@@ -125,10 +129,10 @@ int runBench(const std::vector<std::string>& args) {
   if (parser.has("--frames")) {
     w.frames = parser.getInt("--frames", 1);
   }
-  const fs::path root = parser.has("--keep")
-                            ? fs::path(parser.get("--keep"))
-                            : fs::temp_directory_path() /
-                                  ("drivenshape-bench-" + std::to_string(::getpid()));
+  const fs::path root =
+      parser.has("--keep")
+          ? fs::path(parser.get("--keep"))
+          : fs::temp_directory_path() / ("drivenshape-bench-" + std::to_string(::getpid()));
   fs::create_directories(root / "host");
   fs::create_directories(root / "cl");
 
@@ -155,8 +159,7 @@ int runBench(const std::vector<std::string>& args) {
     bend(driver, std::sin(t), 0.8f * std::sin(0.7f * t), 0.5f * std::cos(0.3f * t),
          &shot[std::size_t(f) * driver.vertexCount() * 3]);
   }
-  ds::writePc2((root / "shot.driver.pc2").string(), driver.vertexCount(), 1, w.frames,
-               shot.data());
+  ds::writePc2((root / "shot.driver.pc2").string(), driver.vertexCount(), 1, w.frames, shot.data());
 
   const auto refDriverCache = ds::openPointCache((root / "ref.driver.pc2").string());
   const auto refDrivenCache = ds::openPointCache((root / "ref.driven.pc2").string());
@@ -176,13 +179,15 @@ int runBench(const std::vector<std::string>& args) {
   options.correct = !parser.has("--no-correct");
   options.audit = !parser.has("--no-audit");
 
-  const ds::cli::DeviceBackends clBackends = ds::cli::makeBackends(parser.get("--device"), std::cerr);
+  const ds::cli::DeviceBackends clBackends =
+      ds::cli::makeBackends(parser.get("--device"), std::cerr);
   const std::string& clName = clBackends.description;
-  std::printf("workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
-              "compression %s, correction %s, audit %s\n",
-              w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(),
-              w.frames, options.chunkSize, parser.get("--compression").c_str(),
-              options.correct ? "on" : "off", options.audit ? "on" : "off");
+  std::printf(
+      "workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
+      "compression %s, correction %s, audit %s\n",
+      w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(), w.frames,
+      options.chunkSize, parser.get("--compression").c_str(), options.correct ? "on" : "off",
+      options.audit ? "on" : "off");
   std::printf("%-28s %7s %7s %7s %7s %7s %7s %7s %8s %9s\n", "path (seconds per stage)", "read",
               "project", "weights", "blend", "correct", "audit", "write", "total", "frames/s");
 

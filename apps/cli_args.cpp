@@ -124,7 +124,9 @@ std::string ArgParser::help() const {
   return out.str();
 }
 
-bool ArgParser::has(const std::string& name) const { return mValues.count(name) != 0; }
+bool ArgParser::has(const std::string& name) const {
+  return mValues.count(name) != 0;
+}
 
 std::string ArgParser::get(const std::string& name) const {
   const auto it = mValues.find(name);
@@ -140,8 +142,7 @@ int ArgParser::getInt(const std::string& name, int minimum) const {
   errno = 0;
   const long value = std::strtol(text.c_str(), &end, 10);
   if (text.empty() || *end != '\0' || errno != 0 || value < minimum || value > 1000000000L) {
-    DS_THROW(kUsage, "option ", name, " takes a whole number >= ", minimum, " (got '", text,
-             "')");
+    DS_THROW(kUsage, "option ", name, " takes a whole number >= ", minimum, " (got '", text, "')");
   }
   return static_cast<int>(value);
 }

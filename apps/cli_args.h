@@ -14,9 +14,8 @@ class ArgParser {
   ArgParser(std::string usage, std::string summary);
 
   /// A value option: `--name VALUE`. `defaultValue` is shown in --help.
-  ArgParser& option(const std::string& name, const std::string& valueName,
-                    const std::string& help, const std::string& defaultValue = "",
-                    bool required = false);
+  ArgParser& option(const std::string& name, const std::string& valueName, const std::string& help,
+                    const std::string& defaultValue = "", bool required = false);
   /// A boolean flag: `--name`.
   ArgParser& flag(const std::string& name, const std::string& help);
   /// Extra text printed after the options in --help.

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <csignal>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -58,9 +58,9 @@ std::string defaultReportPath(const std::string& pattern) {
 }
 
 void printMesh(const char* role, const Mesh& mesh) {
-  std::cout << role << ": " << mesh.vertexCount() << " vertices, " << mesh.faceCount()
-            << " faces, " << mesh.triangleCount() << " triangles, " << mesh.uvs.size()
-            << " uvs, topology " << hashToHex(topologyHash(mesh)) << "\n";
+  std::cout << role << ": " << mesh.vertexCount() << " vertices, " << mesh.faceCount() << " faces, "
+            << mesh.triangleCount() << " triangles, " << mesh.uvs.size() << " uvs, topology "
+            << hashToHex(topologyHash(mesh)) << "\n";
   std::cout << "  groups:";
   for (const auto& name : mesh.groupNames) {
     std::cout << " " << name;
@@ -111,8 +111,9 @@ void infoExr(const std::string& path) {
 }  // namespace
 
 int runDevices(const std::vector<std::string>& args) {
-  ArgParser parser("drivenshape devices", "Lists the OpenCL platforms and devices with the "
-                                          "index that `--device` accepts.");
+  ArgParser parser("drivenshape devices",
+                   "Lists the OpenCL platforms and devices with the "
+                   "index that `--device` accepts.");
   if (!parser.parse(args)) {
     std::cout << parser.help();
     return 0;
@@ -237,14 +238,14 @@ std::vector<int> farmChunk(const std::vector<int>& frames, const ArgParser& pars
   if (parser.get("--chunk-index") == "env") {
     const char* text = std::getenv("SLURM_ARRAY_TASK_ID");
     if (text == nullptr || *text == '\0') {
-      DS_THROW(kUsage, "--chunk-index env: SLURM_ARRAY_TASK_ID is not set (run inside a Slurm "
-                       "array job, or pass the index)");
+      DS_THROW(kUsage,
+               "--chunk-index env: SLURM_ARRAY_TASK_ID is not set (run inside a Slurm "
+               "array job, or pass the index)");
     }
     char* end = nullptr;
     const long value = std::strtol(text, &end, 10);
     if (*end != '\0' || value < 0 || value > 1000000) {
-      DS_THROW(kUsage, "--chunk-index env: SLURM_ARRAY_TASK_ID='", text,
-               "' is not a chunk index");
+      DS_THROW(kUsage, "--chunk-index env: SLURM_ARRAY_TASK_ID='", text, "' is not a chunk index");
     }
     index = static_cast<int>(value);
   } else {
@@ -256,29 +257,30 @@ std::vector<int> farmChunk(const std::vector<int>& frames, const ArgParser& pars
              " frames in chunks of ", size, " make ", chunks, " chunks (0-", chunks - 1, ")");
   }
   const auto first = frames.begin() + static_cast<std::ptrdiff_t>(index) * size;
-  const auto last = frames.begin() + std::min<std::ptrdiff_t>(
-                                         static_cast<std::ptrdiff_t>(index + 1) * size,
-                                         static_cast<std::ptrdiff_t>(frames.size()));
+  const auto last =
+      frames.begin() + std::min<std::ptrdiff_t>(static_cast<std::ptrdiff_t>(index + 1) * size,
+                                                static_cast<std::ptrdiff_t>(frames.size()));
   return std::vector<int>(first, last);
 }
 
 /// Set by SIGINT/SIGTERM; the bake stops at the next chunk boundary.
 std::atomic<bool> gStopRequested{false};
 
-extern "C" void onStopSignal(int) { gStopRequested = true; }
+extern "C" void onStopSignal(int) {
+  gStopRequested = true;
+}
 
 class CliObserver : public BakeObserver {
  public:
-  explicit CliObserver(long total, bool quiet) : mProgress("bake", quiet ? 0 : total),
-                                                 mQuiet(quiet) {}
+  explicit CliObserver(long total, bool quiet)
+      : mProgress("bake", quiet ? 0 : total), mQuiet(quiet) {}
   bool stopRequested() override { return gStopRequested.load(); }
   /// Position maps straight from the baked positions (bake --posmap).
   void setPositionMaps(std::unique_ptr<PositionMapWriter> writer, std::string pattern) {
     mMaps = std::move(writer);
     mMapPattern = std::move(pattern);
   }
-  void batchBaked(const std::vector<const FrameRecord*>& records,
-                  const float* positions) override {
+  void batchBaked(const std::vector<const FrameRecord*>& records, const float* positions) override {
     if (!mMaps) {
       return;
     }
@@ -295,8 +297,8 @@ class CliObserver : public BakeObserver {
       return;
     }
     if (!mProgress.isTerminal()) {
-      std::fprintf(stderr, "frame %d baked in %.4f s, residual %.3e -> %s\n", record.frame,
-                   seconds, record.relativeResidual, record.output.c_str());
+      std::fprintf(stderr, "frame %d baked in %.4f s, residual %.3e -> %s\n", record.frame, seconds,
+                   record.relativeResidual, record.output.c_str());
     }
     mProgress.advance();
   }
@@ -335,8 +337,7 @@ int runBake(const std::vector<std::string>& args) {
       "chunk at a time with OpenCL kernels (or the host reference path).");
   parser.option("--db", "DB", "database from `drivenshape db build`", "", true)
       .option("--driver", "CACHE", "shot driver cache (.pc2 or name.####.exr)", "", true)
-      .option("--frames", "RANGE", "frames to bake: 1001-1100, 1001-1100x2, 1001,1005", "",
-              true)
+      .option("--frames", "RANGE", "frames to bake: 1001-1100, 1001-1100x2, 1001,1005", "", true)
       .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
       .option("--report", "PATH", "per-bake JSON report", "OUT folder/<name>.report.json")
       .option("--device", "SPEC", "auto, host, cpu, gpu, an index or a name substring", "auto")
@@ -346,8 +347,7 @@ int runBake(const std::vector<std::string>& args) {
       .option("--chunk-index", "I|env",
               "which chunk (0-based) of --frames; env reads SLURM_ARRAY_TASK_ID")
       .option("--compression", "C", "zip, none, zips or piz (all lossless)", "zip")
-      .option("--exr-width", "W", "pixels per EXR row (vertex v is pixel v mod W, v div W)",
-              "1024")
+      .option("--exr-width", "W", "pixels per EXR row (vertex v is pixel v mod W, v div W)", "1024")
       .option("--fps", "X", "frames per second written to the EXR headers", "24")
       .option("--weights", "MODE",
               "qp (DrivenShape); baselines: nearest (closest database shape), bind (rest cloth "
@@ -375,6 +375,16 @@ int runBake(const std::vector<std::string>& args) {
   options.outputPattern = parser.get("-o");
   options.reportPath =
       parser.has("--report") ? parser.get("--report") : defaultReportPath(options.outputPattern);
+  if (!parser.has("--report") && parser.has("--chunk-index")) {
+    // Farm chunks run side by side: one report each (<name>.chunk<I>.report.json).
+    const std::string index = parser.get("--chunk-index") == "env"
+                                  ? std::string(std::getenv("SLURM_ARRAY_TASK_ID") != nullptr
+                                                    ? std::getenv("SLURM_ARRAY_TASK_ID")
+                                                    : "")
+                                  : parser.get("--chunk-index");
+    const std::string suffix = ".report.json";
+    options.reportPath.insert(options.reportPath.size() - suffix.size(), ".chunk" + index);
+  }
   options.chunkSize = parser.getInt("--batch", 1);
   options.threads = threadsFor(parser.getInt("--threads", 0));
   if (parser.has("--chunk-size") || parser.has("--chunk-index")) {
@@ -430,8 +440,8 @@ int runBake(const std::vector<std::string>& args) {
   std::string posmapPattern;
   if (parser.has("--posmap")) {
     PositionMapOptions maps;
-    std::tie(maps.width, maps.height) = parsePositionMapResolution(parser.get("--posmap"),
-                                                                   "--posmap");
+    std::tie(maps.width, maps.height) =
+        parsePositionMapResolution(parser.get("--posmap"), "--posmap");
     maps.padding = parser.getInt("--posmap-padding", 0);
     maps.normals = parser.has("--posmap-normals");
     maps.compression = options.compression;
@@ -443,15 +453,14 @@ int runBake(const std::vector<std::string>& args) {
       DS_THROW(kUsage, "--posmap-out '", posmapPattern, "' has no frame token");
     }
     checkOutputFolderWritable(expandFramePattern(posmapPattern, options.frames.front()));
-    auto backend = backends.device ? makeClPositionMaps(backends.device->context,
-                                                        backends.device->device,
-                                                        backends.device->queue)
-                                   : makeHostPositionMaps();
-    observer.setPositionMaps(std::make_unique<PositionMapWriter>(db.drivenMesh, maps,
-                                                                 std::move(backend),
-                                                                 "the database's driven mesh",
-                                                                 &std::cerr),
-                             posmapPattern);
+    auto backend = backends.device
+                       ? makeClPositionMaps(backends.device->context, backends.device->device,
+                                            backends.device->queue)
+                       : makeHostPositionMaps();
+    observer.setPositionMaps(
+        std::make_unique<PositionMapWriter>(db.drivenMesh, maps, std::move(backend),
+                                            "the database's driven mesh", &std::cerr),
+        posmapPattern);
   }
   const BakeResult result = bake(db, *driver, backends.view(), options, &observer);
   observer.finish();
@@ -512,13 +521,13 @@ int runEval(const std::vector<std::string>& args) {
     std::cout << "frame        mean         rms         max  (vertex)\n";
     for (const FrameError& e : result.frames) {
       std::cout << std::setw(5) << e.frame << "  " << std::setw(10) << e.mean << "  "
-                << std::setw(10) << e.rms << "  " << std::setw(10) << e.max << "  ("
-                << e.maxVertex << ")\n";
+                << std::setw(10) << e.rms << "  " << std::setw(10) << e.max << "  (" << e.maxVertex
+                << ")\n";
     }
   }
   std::cout << "overall over " << result.frames.size() << " frames x " << result.vertexCount
-            << " vertices: mean " << result.mean << ", rms " << result.rms << ", max "
-            << result.max << " (frame " << result.maxFrame << ")\n";
+            << " vertices: mean " << result.mean << ", rms " << result.rms << ", max " << result.max
+            << " (frame " << result.maxFrame << ")\n";
   if (parser.has("--json")) {
     nlohmann::json frameList = nlohmann::json::array();
     for (const FrameError& e : result.frames) {
@@ -528,14 +537,10 @@ int runEval(const std::vector<std::string>& args) {
                            {"max", e.max},
                            {"max_vertex", e.maxVertex}});
     }
-    const nlohmann::json report{{"truth", truth->path()},
-                                {"bake", baked->path()},
-                                {"vertices", result.vertexCount},
-                                {"mean", result.mean},
-                                {"rms", result.rms},
-                                {"max", result.max},
-                                {"max_frame", result.maxFrame},
-                                {"frames", frameList}};
+    const nlohmann::json report{
+        {"truth", truth->path()},       {"bake", baked->path()}, {"vertices", result.vertexCount},
+        {"mean", result.mean},          {"rms", result.rms},     {"max", result.max},
+        {"max_frame", result.maxFrame}, {"frames", frameList}};
     writeFileAtomically(parser.get("--json"), report.dump(1) + "\n");
   }
   return 0;

@@ -79,8 +79,9 @@ int main(int argc, char** argv) {
                  error.what());
     return static_cast<int>(error.code());
   } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "drivenshape: internal error: out of memory; bake fewer frames per "
-                         "chunk (--chunk) or on a machine with more memory\n");
+    std::fprintf(stderr,
+                 "drivenshape: internal error: out of memory; bake fewer frames per "
+                 "chunk (--chunk) or on a machine with more memory\n");
     return static_cast<int>(drivenshape::ErrorCode::kInternal);
   } catch (const std::exception& error) {
     std::fprintf(stderr, "drivenshape: internal error: %s\n", error.what());

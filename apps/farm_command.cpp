@@ -27,9 +27,8 @@ namespace fs = std::filesystem;
 constexpr int kSlurmDefaultMaxArraySize = 1001;
 
 /// Bake options the farm command sets itself on every task; --extra-args must not repeat them.
-const char* const kReservedBakeOptions[] = {"--db",         "--driver",      "--frames",
-                                            "-o",           "--chunk-size",  "--chunk-index",
-                                            "--skip-existing"};
+const char* const kReservedBakeOptions[] = {"--db",         "--driver",      "--frames",       "-o",
+                                            "--chunk-size", "--chunk-index", "--skip-existing"};
 
 const char* const kFarmExitCodes =
     "Each task runs `drivenshape bake ... --chunk-size N --chunk-index I --skip-existing`, so a "
@@ -155,14 +154,14 @@ std::string safeName(const std::string& text) {
   return name.empty() ? std::string("drivenshape") : name;
 }
 
-/// out/cloth.####.exr -> ds_cloth
-std::string defaultJobName(const std::string& pattern) {
+/// out/cloth.####.exr -> cloth (the name before the frame token, as the bake's report uses).
+std::string outputStem(const std::string& pattern) {
   std::string stem = fs::path(pattern).filename().string();
   stem = stem.substr(0, stem.find_first_of("#%$"));
   while (!stem.empty() && (stem.back() == '.' || stem.back() == '_' || stem.back() == '-')) {
     stem.pop_back();
   }
-  return "ds_" + safeName(stem.empty() ? std::string("bake") : stem);
+  return stem.empty() ? std::string("bake") : stem;
 }
 
 /// What both schedulers need: one bake command per chunk, everything absolute.
@@ -172,6 +171,11 @@ struct FarmJob {
   std::string driver;         ///< absolute .pc2 or EXR sequence pattern
   std::string frames;         ///< --frames as given (validated)
   std::string outputPattern;  ///< absolute, with a frame token
+  std::string outputFolder;   ///< absolute folder of outputPattern
+  /// Each task's JSON report, `<output folder>/<stem>.chunk<I>.report.json` (tasks run side by
+  /// side, so one shared report path would keep only the last task's), unless --extra-args
+  /// names --report itself.
+  bool perChunkReport = true;
   int frameCount = 0;
   int chunkSize = 0;
   int chunks = 0;
@@ -188,8 +192,8 @@ void addJobOptions(ArgParser& parser) {
       .option("--frames", "RANGE", "frames of the shot: 1001-1100, 1001-1100x2, 1001,1005", "",
               true)
       .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
-      .option("--chunk-size", "N", "frames per task; task I bakes frames [I*N, (I+1)*N) of --frames",
-              "", true)
+      .option("--chunk-size", "N",
+              "frames per task; task I bakes frames [I*N, (I+1)*N) of --frames", "", true)
       .option("-O", "JOBFILE", "job file to write", "", true)
       .option("--job-name", "NAME", "job name", "ds_<output name>")
       .option("--time", "HH:MM:SS", "time limit per task (also MM or D-HH:MM:SS)")
@@ -217,6 +221,7 @@ FarmJob jobFrom(const ArgParser& parser) {
   job.database = absolute(parser.get("--db"));
   job.driver = absolute(parser.get("--driver"));
   job.outputPattern = absolute(parser.get("-o"));
+  job.outputFolder = fs::path(job.outputPattern).parent_path().string();
   job.frames = parser.get("--frames");
   const std::vector<int> frames = parseFrameRange(job.frames);
   job.frameCount = static_cast<int>(frames.size());
@@ -225,7 +230,8 @@ FarmJob jobFrom(const ArgParser& parser) {
   if (!hasFramePattern(job.outputPattern)) {
     DS_THROW(kUsage, "-o '", parser.get("-o"), "' has no frame token; use e.g. out/cloth.####.exr");
   }
-  job.name = parser.has("--job-name") ? parser.get("--job-name") : defaultJobName(job.outputPattern);
+  job.name = parser.has("--job-name") ? parser.get("--job-name")
+                                      : "ds_" + safeName(outputStem(job.outputPattern));
   if (job.name.empty() || job.name.size() > 128 ||
       std::any_of(job.name.begin(), job.name.end(),
                   [](char c) { return std::iscntrl(static_cast<unsigned char>(c)); })) {
@@ -242,6 +248,9 @@ FarmJob jobFrom(const ArgParser& parser) {
   }
   for (const std::string& word : job.extraArgs) {
     const std::string name = word.substr(0, word.find('='));
+    if (name == "--report") {
+      job.perChunkReport = false;
+    }
     for (const char* reserved : kReservedBakeOptions) {
       if (name == reserved) {
         DS_THROW(kUsage, "--extra-args must not hold ", reserved,
@@ -275,11 +284,11 @@ FarmJob jobFrom(const ArgParser& parser) {
 
 /// The bake of one chunk as argv words; `chunkIndex` is a number, `env` or a template token.
 std::vector<std::string> bakeCommand(const FarmJob& job, const std::string& chunkIndex) {
-  std::vector<std::string> words{job.binary,    "bake",           "--db",
-                                 job.database,  "--driver",       job.driver,
-                                 "--frames",    job.frames,       "-o",
+  std::vector<std::string> words{job.binary,        "bake",         "--db",
+                                 job.database,      "--driver",     job.driver,
+                                 "--frames",        job.frames,     "-o",
                                  job.outputPattern, "--chunk-size", std::to_string(job.chunkSize),
-                                 "--chunk-index", chunkIndex,     "--skip-existing"};
+                                 "--chunk-index",   chunkIndex,     "--skip-existing"};
   words.insert(words.end(), job.extraArgs.begin(), job.extraArgs.end());
   return words;
 }
@@ -292,6 +301,17 @@ void makeFolder(const std::string& folder, const char* what) {
     DS_THROW(kOutput, "cannot create the ", what, " folder '", folder, "': ", ec.message());
   }
   checkOutputFolderWritable((fs::path(folder) / "probe").string());
+}
+
+/// The bake wants its output folder to exist. Made here when this machine can (a shared file
+/// system); otherwise a warning, since the workers may see paths this machine does not.
+void createOutputFolder(const FarmJob& job) {
+  std::error_code ec;
+  fs::create_directories(job.outputFolder, ec);
+  if (ec) {
+    std::cerr << "warning: cannot create the output folder '" << job.outputFolder << "' from here ("
+              << ec.message() << "); create it before the tasks run\n";
+  }
 }
 
 // ---- Slurm -------------------------------------------------------------------------------
@@ -308,7 +328,8 @@ std::string slurmScript(const FarmJob& job, const std::string& logDir,
     << "# [I*" << job.chunkSize << ", (I+1)*" << job.chunkSize
     << ") of the range. Every task passes --skip-existing, so a requeued or\n"
     << "# resubmitted task keeps its finished frames; resubmit failed chunks with\n"
-    << "#   sbatch --array=I,J " << "<this file>\n"
+    << "#   sbatch --array=I,J "
+    << "<this file>\n"
     << "#SBATCH --job-name=" << job.name << "\n"
     << "#SBATCH --array=0-" << last << "\n"
     << "#SBATCH --output=" << logDir << "/" << safeName(job.name) << "_%A_%a.log\n"
@@ -335,7 +356,7 @@ std::string slurmScript(const FarmJob& job, const std::string& logDir,
     << "  mkdir -p \"$POCL_CACHE_DIR\"\n"
     << "fi\n"
     << "export POCL_CACHE_DIR\n"
-    << "mkdir -p " << shellQuote(fs::path(job.outputPattern).parent_path().string()) << "\n"
+    << "mkdir -p " << shellQuote(job.outputFolder) << "\n"
     << "echo \"drivenshape farm: job ${SLURM_ARRAY_JOB_ID:-?} chunk ${SLURM_ARRAY_TASK_ID:-?} "
     << "of 0-" << last << " on $(hostname) at $(date '+%F %T')\"\n"
     << "\n"
@@ -345,6 +366,11 @@ std::string slurmScript(const FarmJob& job, const std::string& logDir,
   const std::vector<std::string> words = bakeCommand(job, "env");
   for (std::size_t i = 0; i < words.size(); ++i) {
     s << (i == 0 ? "" : " ") << shellQuote(words[i]);
+  }
+  if (job.perChunkReport) {
+    s << " '--report' "
+      << shellQuote(job.outputFolder + "/" + outputStem(job.outputPattern) + ".chunk")
+      << "\"$SLURM_ARRAY_TASK_ID\"'.report.json'";
   }
   s << " &\n"
     << "bake=$!\n"
@@ -428,24 +454,24 @@ int runFarmSlurm(const std::vector<std::string>& args) {
              (job.frameCount + maxArraySize - 1) / maxArraySize,
              ", or pass --max-array-size if the cluster allows more");
   }
-  const std::string logDir =
-      absolute(parser.has("--log-dir")
-                   ? parser.get("--log-dir")
-                   : (fs::path(job.outputPattern).parent_path() / "logs").string());
+  const std::string logDir = absolute(
+      parser.has("--log-dir") ? parser.get("--log-dir")
+                              : (fs::path(job.outputPattern).parent_path() / "logs").string());
   if (logDir.find_first_of(" \t\n%") != std::string::npos) {
-    DS_THROW(kUsage, "--log-dir '", logDir, "' holds a space or '%', which #SBATCH lines cannot "
+    DS_THROW(kUsage, "--log-dir '", logDir,
+             "' holds a space or '%', which #SBATCH lines cannot "
              "carry; choose another folder");
   }
   const std::string jobFile = absolute(parser.get("-O"));
   checkOutputFolderWritable(jobFile);
   // Slurm opens the task logs before the script runs: the folder must exist at submission.
   makeFolder(logDir, "log");
+  createOutputFolder(job);
   writeFileAtomically(jobFile, slurmScript(job, logDir, parser.get("--partition")));
   fs::permissions(jobFile, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
                   fs::perm_options::add);
-  std::cout << "slurm job: " << jobFile << " (" << job.chunks << " array tasks 0-"
-            << job.chunks - 1 << ", " << job.frameCount << " frames in chunks of up to "
-            << job.chunkSize << ")\n"
+  std::cout << "slurm job: " << jobFile << " (" << job.chunks << " array tasks 0-" << job.chunks - 1
+            << ", " << job.frameCount << " frames in chunks of up to " << job.chunkSize << ")\n"
             << "logs:      " << logDir << "/" << safeName(job.name) << "_<job>_<chunk>.log\n";
   if (parser.has("--submit")) {
     const std::string id = submitToSlurm(jobFile);
@@ -458,8 +484,16 @@ int runFarmSlurm(const std::vector<std::string>& args) {
 
 // ---- Open Job Description ------------------------------------------------------------------
 
-nlohmann::json openJobTemplate(const FarmJob& job, long timeoutSeconds, int notifySeconds) {
-  using nlohmann::json;
+/// The template. PATH parameters (path-mapped by render managers) hold the data. The spec
+/// only allows relative defaults that stay inside the template's folder `templateDir` (they are
+/// joined to it when a job is created), so a path gets a default only there; every path's
+/// absolute value also goes into `values`, the job parameter values file written beside the
+/// template. The executable is a STRING: it is where drivenshape is installed on the workers,
+/// not data to map.
+nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& templateDir,
+                                       long timeoutSeconds, int notifySeconds,
+                                       nlohmann::ordered_json& values) {
+  using json = nlohmann::ordered_json;
   json args = json::array();
   for (const std::string& word : bakeCommand(job, "{{Task.Param.Chunk}}")) {
     args.push_back(word);
@@ -470,30 +504,34 @@ nlohmann::json openJobTemplate(const FarmJob& job, long timeoutSeconds, int noti
   args[2] = "{{Param.Database}}";
   args[4] = "{{Param.DriverCache}}";
   args[8] = "{{Param.OutputPattern}}";
+  if (job.perChunkReport) {
+    args.push_back("--report");
+    args.push_back("{{Param.ReportFolder}}/" + outputStem(job.outputPattern) +
+                   ".chunk{{Task.Param.Chunk}}.report.json");
+  }
 
   json onRun{{"command", "{{Param.DrivenshapeBinary}}"},
              {"args", args},
-             {"cancelation", {{"mode", "NOTIFY_THEN_TERMINATE"},
-                              {"notifyPeriodInSeconds", notifySeconds}}}};
+             {"cancelation",
+              {{"mode", "NOTIFY_THEN_TERMINATE"}, {"notifyPeriodInSeconds", notifySeconds}}}};
   if (timeoutSeconds > 0) {
     onRun["timeout"] = timeoutSeconds;
   }
-  json step{
-      {"name", "Bake"},
-      {"description", "One task per chunk of " + std::to_string(job.chunkSize) +
-                          " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " + job.frames +
-                          ", keeping finished frames (--skip-existing)."},
-      {"parameterSpace",
-       {{"taskParameterDefinitions",
-         json::array({{{"name", "Chunk"},
-                       {"type", "INT"},
-                       {"range", "0-" + std::to_string(job.chunks - 1)}}})}}},
-      {"stepEnvironments",
-       json::array({{{"name", "DrivenshapeBakeEnv"},
-                     {"description", "PoCL kernel cache in the session's own folder"},
-                     {"variables",
-                      {{"POCL_CACHE_DIR", "{{Session.WorkingDirectory}}/pocl-cache"}}}}})},
-      {"script", {{"actions", {{"onRun", onRun}}}}}};
+  json step{{"name", "Bake"},
+            {"description", "One task per chunk of " + std::to_string(job.chunkSize) +
+                                " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " +
+                                job.frames + ", keeping finished frames (--skip-existing)."},
+            {"parameterSpace",
+             {{"taskParameterDefinitions",
+               json::array({{{"name", "Chunk"},
+                             {"type", "INT"},
+                             {"range", "0-" + std::to_string(job.chunks - 1)}}})}}},
+            {"stepEnvironments",
+             json::array({{{"name", "DrivenshapeBakeEnv"},
+                           {"description", "PoCL kernel cache in the session's own folder"},
+                           {"variables",
+                            {{"POCL_CACHE_DIR", "{{Session.WorkingDirectory}}/pocl-cache"}}}}})},
+            {"script", {{"actions", {{"onRun", onRun}}}}}};
   if (job.cpus > 0 || job.memoryMb > 0) {
     json amounts = json::array();
     if (job.cpus > 0) {
@@ -504,45 +542,59 @@ nlohmann::json openJobTemplate(const FarmJob& job, long timeoutSeconds, int noti
     }
     step["hostRequirements"] = {{"amounts", amounts}};
   }
-  auto pathParameter = [](const char* name, const std::string& value, const char* objectType,
-                          const char* flow, const char* description) {
-    json parameter{{"name", name},
-                   {"type", "PATH"},
-                   {"dataFlow", flow},
-                   {"default", value},
-                   {"description", description}};
+  auto pathParameter = [&](const char* name, const std::string& value, const char* objectType,
+                           const char* flow, const char* description) {
+    json parameter{{"name", name}, {"type", "PATH"}, {"dataFlow", flow}};
     if (objectType != nullptr) {
       parameter["objectType"] = objectType;
     }
+    const fs::path relative = fs::path(value).lexically_relative(templateDir);
+    if (!relative.empty() && *relative.begin() != "..") {
+      parameter["default"] = relative.string();
+    }
+    parameter["description"] = description;
+    values[name] = value;
     return parameter;
   };
-  return json{
-      {"specificationVersion", "jobtemplate-2023-09"},
-      {"name", job.name},
-      {"description", "drivenshape " + std::string(kVersion) + " bake of " +
-                          std::to_string(job.frameCount) + " frames (" + job.frames + ") in " +
-                          std::to_string(job.chunks) + " chunks"},
-      {"parameterDefinitions",
-       json::array({pathParameter("DrivenshapeBinary", job.binary, "FILE", "NONE",
-                                  "the drivenshape executable on the workers"),
-                    pathParameter("Database", job.database, "FILE", "IN",
-                                  "database from `drivenshape db build`"),
-                    pathParameter("DriverCache", job.driver, nullptr, "IN",
-                                  "shot driver cache (.pc2 or name.####.exr)"),
-                    pathParameter("OutputPattern", job.outputPattern, nullptr, "OUT",
-                                  "output EXR sequence")})},
-      {"steps", json::array({step})}};
+  return json{{"specificationVersion", "jobtemplate-2023-09"},
+              {"name", job.name},
+              {"description", "drivenshape " + std::string(kVersion) + " bake of " +
+                                  std::to_string(job.frameCount) + " frames (" + job.frames +
+                                  ") in " + std::to_string(job.chunks) + " chunks"},
+              {"parameterDefinitions",
+               json::array({{{"name", "DrivenshapeBinary"},
+                             {"type", "STRING"},
+                             {"default", job.binary},
+                             {"description", "the drivenshape executable on the workers"}},
+                            pathParameter("Database", job.database, "FILE", "IN",
+                                          "database from `drivenshape db build`"),
+                            pathParameter("DriverCache", job.driver, nullptr, "IN",
+                                          "shot driver cache (.pc2 or name.####.exr)"),
+                            pathParameter("OutputPattern", job.outputPattern, nullptr, "OUT",
+                                          "output EXR sequence"),
+                            pathParameter("ReportFolder", job.outputFolder, "DIRECTORY", "OUT",
+                                          "folder of the per-chunk JSON reports")})},
+              {"steps", json::array({step})}};
+}
+
+/// A mapping key: plain when it is an identifier, else a JSON (double-quoted) string.
+std::string yamlKey(const std::string& key) {
+  const bool plain =
+      !key.empty() && (std::isalpha(static_cast<unsigned char>(key[0])) || key[0] == '_') &&
+      std::all_of(key.begin(), key.end(),
+                  [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+  return plain ? key : nlohmann::json(key).dump();
 }
 
 /// Block-style YAML of a JSON value. Strings are written as JSON strings, which YAML reads as
 /// double-quoted scalars with the same escapes, so no value can change meaning.
-void writeYaml(std::ostream& out, const nlohmann::json& value, int indent, bool inlineFirst) {
+void writeYaml(std::ostream& out, const nlohmann::ordered_json& value, int indent,
+               bool inlineFirst) {
   const std::string pad(static_cast<std::size_t>(indent), ' ');
   if (value.is_object()) {
     bool first = true;
     for (const auto& item : value.items()) {
-      out << ((first && inlineFirst) ? std::string() : pad) << nlohmann::json(item.key()).dump()
-          << ":";
+      out << ((first && inlineFirst) ? std::string() : pad) << yamlKey(item.key()) << ":";
       const auto& child = item.value();
       if ((child.is_object() || child.is_array()) && !child.empty()) {
         out << "\n";
@@ -571,6 +623,18 @@ bool hasSuffix(const std::string& text, const std::string& suffix) {
          text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
+/// shot.template.json -> shot.template.params.json (also for .yaml/.yml and no extension).
+std::string parametersPathFor(const std::string& jobFile) {
+  std::string stem = jobFile;
+  for (const char* extension : {".json", ".yaml", ".yml"}) {
+    if (hasSuffix(stem, extension)) {
+      stem.resize(stem.size() - std::string(extension).size());
+      break;
+    }
+  }
+  return stem + ".params.json";
+}
+
 int runFarmOpenjd(const std::vector<std::string>& args) {
   ArgParser parser(
       "drivenshape farm openjd --db DB --driver CACHE --frames RANGE -o OUT.####.exr "
@@ -581,8 +645,9 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
       "format follows -O: .yaml/.yml writes YAML, anything else JSON. Check and run it with "
       "`openjd check FILE` and `openjd run FILE --step Bake`.");
   addJobOptions(parser);
-  parser.option("--cancel-grace", "S",
-                "seconds between SIGTERM and SIGKILL when a task is canceled", "120")
+  parser
+      .option("--cancel-grace", "S", "seconds between SIGTERM and SIGKILL when a task is canceled",
+              "120")
       .epilog(kFarmExitCodes);
   if (!parser.parse(args)) {
     std::cout << parser.help();
@@ -596,9 +661,12 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
                  "--chunk-size\n";
   }
   const long timeout = job.timeLimit.empty() ? 0 : parseTimeLimit(job.timeLimit);
-  const nlohmann::json jobTemplate =
-      openJobTemplate(job, timeout, parser.getInt("--cancel-grace", 1));
   const std::string jobFile = absolute(parser.get("-O"));
+  nlohmann::ordered_json values = nlohmann::ordered_json::object();
+  const nlohmann::ordered_json jobTemplate =
+      openJobTemplate(job, fs::path(jobFile).parent_path().string(), timeout,
+                      parser.getInt("--cancel-grace", 1), values);
+  const std::string valuesFile = parametersPathFor(jobFile);
   std::string text;
   if (hasSuffix(jobFile, ".yaml") || hasSuffix(jobFile, ".yml")) {
     std::ostringstream yaml;
@@ -609,11 +677,16 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
     text = jobTemplate.dump(2) + "\n";
   }
   checkOutputFolderWritable(jobFile);
+  createOutputFolder(job);
+  writeFileAtomically(valuesFile, values.dump(2) + "\n");
   writeFileAtomically(jobFile, text);
-  std::cout << "openjd template: " << jobFile << " (step Bake, " << job.chunks
-            << " tasks Chunk=0-" << job.chunks - 1 << ", " << job.frameCount
-            << " frames in chunks of up to " << job.chunkSize << ")\n"
-            << "check with: openjd check " << shellQuote(jobFile) << "\n";
+  std::cout << "openjd template: " << jobFile << " (step Bake, " << job.chunks << " tasks Chunk=0-"
+            << job.chunks - 1 << ", " << job.frameCount << " frames in chunks of up to "
+            << job.chunkSize << ")\n"
+            << "job parameters: " << valuesFile << "\n"
+            << "check with: openjd check " << shellQuote(jobFile) << "\n"
+            << "run with:   openjd run " << shellQuote(jobFile) << " --step Bake --job-param "
+            << shellQuote("file://" + valuesFile) << "\n";
   return 0;
 }
 

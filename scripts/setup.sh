@@ -9,7 +9,7 @@ PACKAGES=(
   build-essential cmake pkg-config
   ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
   libeigen3-dev libopenexr-dev openexr libflann-dev liblz4-dev nlohmann-json3-dev
-  libgtest-dev openimageio-tools
+  libgtest-dev openimageio-tools clang-format git slurm-wlm munge
   python3 python3-venv python3-pip
 )
 

@@ -12,10 +12,9 @@
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
+#include <drivenshape/parallel.h>
 #include <drivenshape/qp.h>
 #include <drivenshape/version.h>
-
-#include "parallel.h"
 
 namespace drivenshape {
 namespace {
@@ -101,8 +100,9 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeBack
     DS_THROW(kUsage, "the frame range is empty; pass --frames, e.g. --frames 1001-1100");
   }
   if (options.weightMode == WeightMode::kBind && !options.correct) {
-    DS_THROW(kUsage, "the bind baseline is the correction applied to the rest shapes; it cannot "
-                     "run with --no-correct");
+    DS_THROW(kUsage,
+             "the bind baseline is the correction applied to the rest shapes; it cannot "
+             "run with --no-correct");
   }
   if (options.chunkSize < 1) {
     DS_THROW(kUsage, "--batch must be at least 1 (got ", options.chunkSize, ")");
@@ -161,9 +161,10 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
       {"tool", "drivenshape"},
       {"tool_version", kVersion},
       {"device", result.device},
-      {"database", {{"content_hash", hashToHex(db.contentHash())},
-                    {"shape_count", db.shapeCount()},
-                    {"frames", db.frames}}},
+      {"database",
+       {{"content_hash", hashToHex(db.contentHash())},
+        {"shape_count", db.shapeCount()},
+        {"frames", db.frames}}},
       {"driver_cache", driver.path()},
       {"output", options.outputPattern},
       {"settings_hash", hashToHex(result.settingsHash)},
@@ -204,10 +205,10 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
   const auto bakeStart = Clock::now();
   validate(db, driver, backends, options);
   StageBackend& stages = *backends.stages;
-  const BindingMask mask = options.bindingMaskPath.empty()
-                               ? BindingMask::all(db.drivenVertexCount())
-                               : readBindingMask(options.bindingMaskPath, db.driverMesh,
-                                                 db.drivenMesh);
+  const BindingMask mask =
+      options.bindingMaskPath.empty()
+          ? BindingMask::all(db.drivenVertexCount())
+          : readBindingMask(options.bindingMaskPath, db.driverMesh, db.drivenMesh);
   const int threads = options.threads > 0 ? options.threads : hardwareThreads();
   const int k = db.shapeCount();
   const std::size_t driverValues = static_cast<std::size_t>(db.driverVertexCount()) * 3;
@@ -380,7 +381,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
       for (int i = 0; i < count; ++i) {
         FrameRecord& record = frameRecord(i);
         const float* now = final + i * drivenValues;
-        const float* before = i > 0 ? final + (i - 1) * drivenValues
+        const float* before = i > 0                    ? final + (i - 1) * drivenValues
                               : previousOutput.empty() ? nullptr
                                                        : previousOutput.data();
         if (before != nullptr) {
@@ -397,7 +398,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
         }
         if (options.correct) {
           const SurfaceHit* nowHits = &hits[i * vd];
-          const SurfaceHit* beforeHits = i > 0 ? &hits[(i - 1) * vd]
+          const SurfaceHit* beforeHits = i > 0                  ? &hits[(i - 1) * vd]
                                          : previousHits.empty() ? nullptr
                                                                 : previousHits.data();
           if (beforeHits != nullptr) {
@@ -420,8 +421,8 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
       FrameRecord& record = frameRecord(i);
       ExrWriteOptions frameExr = exr;
       frameExr.frame = record.frame;
-      writePointCacheExr(record.output, db.drivenVertexCount(), final + i * drivenValues,
-                         nullptr, frameExr);
+      writePointCacheExr(record.output, db.drivenVertexCount(), final + i * drivenValues, nullptr,
+                         frameExr);
     });
     result.times.write += secondsSince(start);
 

@@ -57,8 +57,7 @@ std::vector<float> flatUvs(const Mesh& mesh) {
 }
 
 std::vector<float> flatPositions(const Mesh& mesh) {
-  return std::vector<float>(mesh.positions.data(),
-                            mesh.positions.data() + mesh.positions.size());
+  return std::vector<float>(mesh.positions.data(), mesh.positions.data() + mesh.positions.size());
 }
 
 json meshJson(const Mesh& mesh) {
@@ -163,12 +162,13 @@ void saveDatabase(const std::string& path, const Database& db) {
   for (int pass = 0; pass < 4; ++pass) {
     json table = json::array();
     for (std::size_t i = 0; i < blocks.size(); ++i) {
-      table.push_back({{"name", blocks[i].name},
-                       {"dtype", blocks[i].dtype},
-                       {"shape", blocks[i].shape},
-                       {"offset", offsets[i]},
-                       {"bytes", blocks[i].bytes},
-                       {"fnv1a64", hashToHex(Hasher().add(blocks[i].data, blocks[i].bytes).value())}});
+      table.push_back(
+          {{"name", blocks[i].name},
+           {"dtype", blocks[i].dtype},
+           {"shape", blocks[i].shape},
+           {"offset", offsets[i]},
+           {"bytes", blocks[i].bytes},
+           {"fnv1a64", hashToHex(Hasher().add(blocks[i].data, blocks[i].bytes).value())}});
     }
     header["blocks"] = table;
     headerText = header.dump(1);
@@ -241,7 +241,8 @@ class BlockReader {
     const std::string actual = hashToHex(Hasher().add(mBytes.data() + offset, bytes).value());
     if (expected != actual) {
       DS_THROW(kInput, mPath, ": database block '", name, "' fails its checksum (", actual,
-               " != ", expected, "); the file is corrupted, rebuild it with `drivenshape db build`");
+               " != ", expected,
+               "); the file is corrupted, rebuild it with `drivenshape db build`");
     }
     std::vector<T> values(expectedCount);
     std::memcpy(values.data(), mBytes.data() + offset, bytes);
@@ -345,10 +346,10 @@ Database loadDatabase(const std::string& path) {
       DS_THROW(kInput, "'", path, "': header lists ", db.frames.size(), " picks for ", k,
                " shapes");
     }
-    db.driverShapes = blocks.read<float>("driver_shapes",
-                                         std::size_t(k) * db.driverVertexCount() * 3);
-    db.drivenShapes = blocks.read<float>("driven_shapes",
-                                         std::size_t(k) * db.drivenVertexCount() * 3);
+    db.driverShapes =
+        blocks.read<float>("driver_shapes", std::size_t(k) * db.driverVertexCount() * 3);
+    db.drivenShapes =
+        blocks.read<float>("driven_shapes", std::size_t(k) * db.drivenVertexCount() * 3);
     const json& settings = header.at("settings");
     db.options.count = settings.at("count").get<int>();
     db.options.frames = settings.at("candidate_frames").get<std::vector<int>>();

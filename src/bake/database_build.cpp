@@ -133,9 +133,9 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
     }
     for (std::size_t other = 0; other < n; ++other) {
       if (!chosen[other]) {
-        minDistance[other] =
-            std::min(minDistance[other], rmsDistance(&shapes[other * driverValues],
-                                                     &shapes[c * driverValues], driverValues));
+        minDistance[other] = std::min(
+            minDistance[other],
+            rmsDistance(&shapes[other * driverValues], &shapes[c * driverValues], driverValues));
       }
     }
   };

@@ -13,9 +13,8 @@ EvaluationResult evaluateCaches(const PointCacheReader& truth, const PointCacheR
     DS_THROW(kUsage, "the frame range is empty; pass --frames");
   }
   if (truth.vertexCount() != baked.vertexCount()) {
-    DS_THROW(kInput, "truth '", truth.path(), "' has ", truth.vertexCount(),
-             " vertices but bake '", baked.path(), "' has ", baked.vertexCount(),
-             "; compare caches of the same mesh");
+    DS_THROW(kInput, "truth '", truth.path(), "' has ", truth.vertexCount(), " vertices but bake '",
+             baked.path(), "' has ", baked.vertexCount(), "; compare caches of the same mesh");
   }
   for (const PointCacheReader* cache : {&truth, &baked}) {
     for (int frame : frames) {

@@ -50,9 +50,8 @@ cl::Program buildProgram(const cl::Context& context, const cl::Device& device,
     } catch (const cl::Error&) {
       log = "(no build log available)";
     }
-    DS_THROW(kDevice, "OpenCL build of ", names, " failed on '",
-             device.getInfo<CL_DEVICE_NAME>(), "' (", clErrorName(error.err()),
-             "). Build log:\n", log);
+    DS_THROW(kDevice, "OpenCL build of ", names, " failed on '", device.getInfo<CL_DEVICE_NAME>(),
+             "' (", clErrorName(error.err()), "). Build log:\n", log);
   }
   return program;
 }

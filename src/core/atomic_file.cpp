@@ -22,8 +22,8 @@ std::string folderOf(const std::string& path) {
 std::string tempPathFor(const std::string& finalPath) {
   static std::atomic<unsigned> counter{0};
   const std::filesystem::path target(finalPath);
-  const std::string name = "." + target.filename().string() + ".tmp-" +
-                           std::to_string(::getpid()) + "-" + std::to_string(counter++);
+  const std::string name = "." + target.filename().string() + ".tmp-" + std::to_string(::getpid()) +
+                           "-" + std::to_string(counter++);
   return (target.parent_path() / name).string();
 }
 
@@ -37,8 +37,8 @@ void checkOutputFolderWritable(const std::string& path) {
              ") does not exist; create it first");
   }
   if (::access(folder.c_str(), W_OK) != 0) {
-    DS_THROW(kOutput, "output folder '", folder, "' (for ", path, ") is not writable: ",
-             std::strerror(errno));
+    DS_THROW(kOutput, "output folder '", folder, "' (for ", path,
+             ") is not writable: ", std::strerror(errno));
   }
 }
 
@@ -86,8 +86,8 @@ void writeFileAtomically(const std::string& path, const std::string& bytes) {
   const int writeErrno = errno;
   std::fclose(stream);
   if (written != bytes.size() || !flushed) {
-    DS_THROW(kOutput, "cannot write '", path, "' (", bytes.size(), " bytes): ",
-             std::strerror(writeErrno), "; is the disk full?");
+    DS_THROW(kOutput, "cannot write '", path, "' (", bytes.size(),
+             " bytes): ", std::strerror(writeErrno), "; is the disk full?");
   }
   file.commit();
 }

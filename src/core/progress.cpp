@@ -14,7 +14,9 @@ Progress::Progress(std::string label, long total, std::FILE* stream)
       mStart(std::chrono::steady_clock::now()),
       mLastDraw(mStart) {}
 
-Progress::~Progress() { finish(); }
+Progress::~Progress() {
+  finish();
+}
 
 void Progress::advance(long count) {
   mDone = std::min(mTotal, mDone + count);

@@ -61,8 +61,8 @@
 #include <flann/flann.hpp>
 
 #include <drivenshape/error.h>
+#include <drivenshape/parallel.h>
 
-#include "parallel.h"
 #include "triangle_distance.h"
 
 namespace drivenshape::correction {

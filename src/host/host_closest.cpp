@@ -10,9 +10,9 @@
 
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include <drivenshape/parallel.h>
 
 #include "candidates.h"
-#include "parallel.h"
 #include "triangle_distance.h"
 
 namespace drivenshape {
@@ -39,7 +39,7 @@ class HostClosest final : public ClosestBackend {
     const double tieAbsolute = static_cast<double>(
         static_cast<float>(DS_TIE_SCALE2_DOUBLE * mSearch.sceneScale() * mSearch.sceneScale()));
     const std::int32_t* triangles = mSearch.triangles().data();
-    correction::parallelFor(frameCount, mSearch.threads(), [&](int f) {
+    parallelFor(frameCount, mSearch.threads(), [&](int f) {
       const float* pose = poses + static_cast<std::size_t>(f) * poseStride;
       for (int i = 0; i < pointCount; ++i) {
         const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
@@ -85,7 +85,7 @@ class HostClosest final : public ClosestBackend {
     const int pointCount = mSearch.pointCount();
     const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
     const std::int32_t* triangles = mSearch.triangles().data();
-    correction::parallelFor(frameCount, mSearch.threads(), [&](int f) {
+    parallelFor(frameCount, mSearch.threads(), [&](int f) {
       const float* from = fromPoses + static_cast<std::size_t>(f) * poseStride;
       const float* to = toPoses + static_cast<std::size_t>(f) * poseStride;
       for (int i = 0; i < pointCount; ++i) {

@@ -6,9 +6,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfIntAttribute.h>
-#include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
-#include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
 
@@ -16,41 +14,21 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/version.h>
 
+#include "exr_common.h"
+
 namespace drivenshape {
 namespace {
 
-// Header attribute and channel names (all well under OpenEXR's 31-byte limit).
-constexpr const char* kAttrVertexCount = "dsVertexCount";
-constexpr const char* kAttrFrame = "dsFrame";
-constexpr const char* kAttrTopologyHash = "dsTopologyHash";
-constexpr const char* kAttrToolVersion = "dsToolVersion";
-constexpr const char* kAttrBoundsMin = "dsBoundsMin";
-constexpr const char* kAttrBoundsMax = "dsBoundsMax";
-constexpr const char* kAttrSettingsHash = "dsSettingsHash";
-constexpr const char* kPositionChannels[3] = {"P.X", "P.Y", "P.Z"};
-constexpr const char* kNormalChannels[3] = {"N.X", "N.Y", "N.Z"};
-constexpr const char* kCoverageChannel = "A";
+using namespace exr_detail;  // the names shared with the other EXR kind
 
-Imf::Compression toImf(ExrCompression compression) {
-  switch (compression) {
-    case ExrCompression::kZip:
-      return Imf::ZIP_COMPRESSION;
-    case ExrCompression::kNone:
-      return Imf::NO_COMPRESSION;
-    case ExrCompression::kZips:
-      return Imf::ZIPS_COMPRESSION;
-    case ExrCompression::kPiz:
-      return Imf::PIZ_COMPRESSION;
-  }
-  return Imf::ZIP_COMPRESSION;
-}
+// Header attributes of point caches only (the shared names: exr_common.h).
+constexpr const char* kAttrVertexCount = "dsVertexCount";
+constexpr const char* kAttrSettingsHash = "dsSettingsHash";
 
 /// The four lossless codecs we write map back exactly; a file re-saved elsewhere with another
 /// codec reports the nearest lossless one (RLE -> none, anything else -> zip).
@@ -73,14 +51,6 @@ std::vector<float> paddedXyz(const float* xyz, int vertexCount, std::size_t pixe
   std::vector<float> padded(pixels * 3, 0.0f);
   std::copy(xyz, xyz + 3 * static_cast<std::size_t>(vertexCount), padded.begin());
   return padded;
-}
-
-void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], float* base,
-                     std::size_t width) {
-  for (int k = 0; k < 3; ++k) {
-    frameBuffer.insert(names[k], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base + k),
-                                            3 * sizeof(float), 3 * sizeof(float) * width));
-  }
 }
 
 void checkExists(const std::string& path) {
@@ -200,8 +170,7 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
   const std::size_t height = (static_cast<std::size_t>(vertexCount) + width - 1) / width;
   const std::size_t pixels = width * height;
 
-  AtomicFile atomic(path);
-  try {
+  writeExrAtomically(path, "point-cache", [&](const std::string& tempPath) {
     std::vector<float> positions = paddedXyz(xyz, vertexCount, pixels);
     std::vector<float> normalData;
     if (normals != nullptr) {
@@ -244,29 +213,8 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
       insertXyzSlices(frameBuffer, kNormalChannels, normalData.data(), width);
     }
 
-    // Our own stream, so that a failure while OpenEXR's destructor writes the offset table
-    // (which it swallows) still shows up in the stream state below.
-    std::ofstream stream(atomic.tempPath(), std::ios::binary | std::ios::trunc);
-    if (!stream) {
-      DS_THROW(kOutput, "cannot create '", path, "' (temporary file ", atomic.tempPath(), ")");
-    }
-    {
-      Imf::StdOFStream exrStream(stream, atomic.tempPath().c_str());
-      Imf::OutputFile file(exrStream, header);
-      file.setFrameBuffer(frameBuffer);
-      file.writePixels(static_cast<int>(height));
-    }
-    stream.flush();
-    stream.close();
-    if (stream.fail()) {
-      DS_THROW(kOutput, "cannot write '", path, "'; is the disk full?");
-    }
-  } catch (const Error&) {
-    throw;
-  } catch (const std::exception& e) {
-    DS_THROW(kOutput, "cannot write point-cache EXR '", path, "': ", e.what());
-  }
-  atomic.commit();
+    writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height));
+  });
 }
 
 ExrPointCacheInfo readPointCacheExrInfo(const std::string& path) {

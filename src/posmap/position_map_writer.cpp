@@ -3,6 +3,8 @@
 
 #include <drivenshape/position_map.h>
 
+#include <drivenshape/parallel.h>
+
 #include <algorithm>
 #include <chrono>
 #include <exception>
@@ -27,39 +29,6 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 
 int hardwareThreads() {
   return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-}
-
-/// Runs body(i) for i in [0, count) on up to `threads` threads. Every item runs even when
-/// others fail; the first failure by index is rethrown at the end.
-template <typename Body>
-void forEachItem(int count, int threads, Body&& body) {
-  threads = std::max(1, std::min(threads, count));
-  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(std::max(count, 0)));
-  auto run = [&](int first) {
-    for (int i = first; i < count; i += threads) {
-      try {
-        body(i);
-      } catch (...) {
-        errors[static_cast<std::size_t>(i)] = std::current_exception();
-      }
-    }
-  };
-  if (threads == 1) {
-    run(0);
-  } else {
-    std::vector<std::thread> pool;
-    for (int t = 0; t < threads; ++t) {
-      pool.emplace_back(run, t);
-    }
-    for (auto& thread : pool) {
-      thread.join();
-    }
-  }
-  for (auto& error : errors) {
-    if (error) {
-      std::rethrow_exception(error);
-    }
-  }
 }
 
 }  // namespace
@@ -144,7 +113,7 @@ void PositionMapWriter::writeChunk(int count, const int* frames, const float* xy
 
   const auto writeStart = std::chrono::steady_clock::now();
   const int threads = mOptions.threads > 0 ? mOptions.threads : hardwareThreads();
-  forEachItem(count, threads, [&](int i) {
+  parallelFor(count, threads, [&](int i) {
     const std::size_t f = static_cast<std::size_t>(i);
     PositionMapFrameHeader header;
     header.frame = frames[i];

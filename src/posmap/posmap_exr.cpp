@@ -8,65 +8,34 @@
 #include <OpenEXR/ImfFramesPerSecond.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfIntAttribute.h>
-#include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
-#include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
 
 #include <cmath>
-#include <fstream>
 #include <vector>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/version.h>
 
+#include "exr_common.h"
+
 namespace drivenshape {
 namespace {
 
-// Header attribute and channel names (all well under OpenEXR's 31-byte limit). dsFrame,
-// dsTopologyHash, dsToolVersion and dsBounds* mean what they mean in point-cache EXRs.
+using namespace exr_detail;  // the names shared with the other EXR kind
+
+// Header attributes of position maps only (all well under OpenEXR's 31-byte limit). The names
+// shared with point-cache EXRs (dsFrame, dsTopologyHash, dsToolVersion, dsBounds*, the P, N and
+// A channels) are in io/exr_common.h and mean the same thing in both.
 constexpr const char* kAttrKind = "dsKind";
 constexpr const char* kKindValue = "positionMap";
-constexpr const char* kAttrFrame = "dsFrame";
-constexpr const char* kAttrTopologyHash = "dsTopologyHash";
-constexpr const char* kAttrToolVersion = "dsToolVersion";
 constexpr const char* kAttrMeshVertexCount = "dsMeshVertexCount";
-constexpr const char* kAttrBoundsMin = "dsBoundsMin";
-constexpr const char* kAttrBoundsMax = "dsBoundsMax";
 constexpr const char* kAttrPadding = "dsPadding";
 constexpr const char* kAttrUvLayout = "dsUvLayout";
 constexpr const char* kUvLayoutValue =
     "texel (x,y) centre = (u,v) = ((x+0.5)/W, 1-(y+0.5)/H); row 0 is v = 1 (top)";
-constexpr const char* kPositionChannels[3] = {"P.X", "P.Y", "P.Z"};
-constexpr const char* kNormalChannels[3] = {"N.X", "N.Y", "N.Z"};
-constexpr const char* kCoverageChannel = "A";
-
-Imf::Compression toImf(ExrCompression compression) {
-  switch (compression) {
-    case ExrCompression::kZip:
-      return Imf::ZIP_COMPRESSION;
-    case ExrCompression::kNone:
-      return Imf::NO_COMPRESSION;
-    case ExrCompression::kZips:
-      return Imf::ZIPS_COMPRESSION;
-    case ExrCompression::kPiz:
-      return Imf::PIZ_COMPRESSION;
-  }
-  return Imf::ZIP_COMPRESSION;
-}
-
-/// Slices of an interleaved xyz image (3 floats per texel) for three channels.
-void insertXyz(Imf::FrameBuffer& frameBuffer, const char* const names[3], const float* base,
-               std::size_t width) {
-  char* bytes = reinterpret_cast<char*>(const_cast<float*>(base));
-  for (int k = 0; k < 3; ++k) {
-    frameBuffer.insert(names[k], Imf::Slice(Imf::FLOAT, bytes + k * sizeof(float),
-                                            3 * sizeof(float), 3 * sizeof(float) * width));
-  }
-}
 
 }  // namespace
 
@@ -86,8 +55,7 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
   }
   const std::size_t rowTexels = static_cast<std::size_t>(width);
 
-  AtomicFile atomic(path);
-  try {
+  writeExrAtomically(path, "position-map", [&](const std::string& tempPath) {
     Imf::Header exrHeader(width, height);
     exrHeader.compression() = toImf(header.compression);
     for (const char* name : kPositionChannels) {
@@ -115,7 +83,7 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
     Imf::addFramesPerSecond(exrHeader, Imf::guessExactFps(header.framesPerSecond));
 
     Imf::FrameBuffer frameBuffer;
-    insertXyz(frameBuffer, kPositionChannels, positions, rowTexels);
+    insertXyzSlices(frameBuffer, kPositionChannels, positions, rowTexels);
     frameBuffer.insert(kCoverageChannel,
                        Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(coverage)),
                                   sizeof(float), sizeof(float) * rowTexels));
@@ -134,32 +102,11 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
                                       3 * sizeof(half) * rowTexels));
       }
     } else if (normals != nullptr) {
-      insertXyz(frameBuffer, kNormalChannels, normals, rowTexels);
+      insertXyzSlices(frameBuffer, kNormalChannels, normals, rowTexels);
     }
 
-    // Our own stream, so that a failure while OpenEXR's destructor writes the offset table
-    // (which it swallows) still shows up in the stream state below.
-    std::ofstream stream(atomic.tempPath(), std::ios::binary | std::ios::trunc);
-    if (!stream) {
-      DS_THROW(kOutput, "cannot create '", path, "' (temporary file ", atomic.tempPath(), ")");
-    }
-    {
-      Imf::StdOFStream exrStream(stream, atomic.tempPath().c_str());
-      Imf::OutputFile file(exrStream, exrHeader);
-      file.setFrameBuffer(frameBuffer);
-      file.writePixels(height);
-    }
-    stream.flush();
-    stream.close();
-    if (stream.fail()) {
-      DS_THROW(kOutput, "cannot write '", path, "'; is the disk full?");
-    }
-  } catch (const Error&) {
-    throw;
-  } catch (const std::exception& e) {
-    DS_THROW(kOutput, "cannot write position-map EXR '", path, "': ", e.what());
-  }
-  atomic.commit();
+    writeScanlines(path, tempPath, exrHeader, frameBuffer, height);
+  });
 }
 
 }  // namespace drivenshape

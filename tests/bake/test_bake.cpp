@@ -22,7 +22,9 @@ namespace {
 
 using testing::TempDir;
 
-std::string sample(const std::string& name) { return testing::dataDir() + "/sleeve/" + name; }
+std::string sample(const std::string& name) {
+  return testing::dataDir() + "/sleeve/" + name;
+}
 
 /// The 30-shape database of the sample, built once for the whole binary.
 const Database& sampleDatabase() {
@@ -50,7 +52,9 @@ struct Backends {
   BakeBackends view() const { return {stages.get(), binding.get(), audit.get()}; }
 };
 
-Backends hostBackends() { return {makeHostStages(), makeHostClosest(), makeHostClosest()}; }
+Backends hostBackends() {
+  return {makeHostStages(), makeHostClosest(), makeHostClosest()};
+}
 
 class BakeTest : public testing::OpenClTest {
  protected:
@@ -73,9 +77,9 @@ double compareBakes(const std::string& a, const std::string& b, const std::vecto
     for (int v = 0; v < vertexCount; ++v) {
       const float* p = &x[f * values + 3 * v];
       const float* q = &y[f * values + 3 * v];
-      const double d = std::sqrt(double(p[0] - q[0]) * (p[0] - q[0]) +
-                                 double(p[1] - q[1]) * (p[1] - q[1]) +
-                                 double(p[2] - q[2]) * (p[2] - q[2]));
+      const double d =
+          std::sqrt(double(p[0] - q[0]) * (p[0] - q[0]) + double(p[1] - q[1]) * (p[1] - q[1]) +
+                    double(p[2] - q[2]) * (p[2] - q[2]));
       worst = std::max(worst, d / bounds.diagonal());
       if (d > testing::kDeviceVsHostRelTol * bounds.diagonal()) {
         ADD_FAILURE() << "frame " << frames[f] << " vertex " << v << ": " << d / bounds.diagonal()
@@ -109,8 +113,9 @@ TEST_F(BakeTest, OpenClBlendMatchesHostReferenceOnEveryFrame) {
   EXPECT_EQ(result.baked, static_cast<int>(options.frames.size()));
   const double worst = compareBakes(dir.file("host.####.exr"), dir.file("cl.####.exr"),
                                     options.frames, db.drivenVertexCount());
-  std::printf("[ measured ] blend: worst OpenCL-vs-host distance %.3g of the diagonal (limit %.0e)\n",
-              worst, testing::kDeviceVsHostRelTol);
+  std::printf(
+      "[ measured ] blend: worst OpenCL-vs-host distance %.3g of the diagonal (limit %.0e)\n",
+      worst, testing::kDeviceVsHostRelTol);
 }
 
 TEST_F(BakeTest, OpenClCorrectionMatchesHostReferenceOnEveryFrame) {
@@ -161,9 +166,10 @@ TEST_F(BakeTest, CorrectionReducesPenetrationsAndErrorOnTheSample) {
       evaluateCaches(*truth, *openPointCache(dir.file("corrected.####.exr")), options.frames);
   const auto without =
       evaluateCaches(*truth, *openPointCache(dir.file("blended.####.exr")), options.frames);
-  std::printf("[ measured ] inside the driver: %ld blended, %ld corrected; mean error %.5f "
-              "corrected vs %.5f blended\n",
-              before, after, withCorrection.mean, without.mean);
+  std::printf(
+      "[ measured ] inside the driver: %ld blended, %ld corrected; mean error %.5f "
+      "corrected vs %.5f blended\n",
+      before, after, withCorrection.mean, without.mean);
   EXPECT_LT(after, before);
   EXPECT_LE(withCorrection.mean, without.mean);
 }
@@ -207,13 +213,14 @@ TEST_F(BakeTest, DatabaseFramesReproduceTheirDrivenShape) {
   const std::vector<float> baked = readExrFrames(options.outputPattern, options.frames);
   const int shapeIndex[] = {0, 7, 29};
   for (int i = 0; i < 3; ++i) {
-    EXPECT_NEAR(result.frames[i].weights[shapeIndex[i]], 1.0, 1e-3) << "frame " << options.frames[i];
-    const Bounds bounds = computeBounds(&db.drivenShapes[shapeIndex[i] * values],
-                                        db.drivenVertexCount());
+    EXPECT_NEAR(result.frames[i].weights[shapeIndex[i]], 1.0, 1e-3)
+        << "frame " << options.frames[i];
+    const Bounds bounds =
+        computeBounds(&db.drivenShapes[shapeIndex[i] * values], db.drivenVertexCount());
     double worst = 0;
     for (std::size_t j = 0; j < values; ++j) {
       worst = std::max(worst, std::abs(double(baked[i * values + j]) -
-                                        db.drivenShapes[shapeIndex[i] * values + j]));
+                                       db.drivenShapes[shapeIndex[i] * values + j]));
     }
     EXPECT_LE(worst, 1e-3 * bounds.diagonal()) << "frame " << options.frames[i];
   }

@@ -11,12 +11,12 @@
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
@@ -67,15 +67,17 @@ CliRun runCli(const TempDir& dir, const std::vector<std::string>& args) {
   return result;
 }
 
-std::string sample(const std::string& name) { return testing::dataDir() + "/sleeve/" + name; }
+std::string sample(const std::string& name) {
+  return testing::dataDir() + "/sleeve/" + name;
+}
 
 /// Builds a small database of the sample (5 shapes) in `dir`; returns its path.
 std::string buildDb(const TempDir& dir) {
   const std::string db = dir.file("sleeve.dsdb");
-  const CliRun r = runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"),
-                          "--driven-mesh", sample("driven_rest.obj"), "--driver",
-                          sample("train.driver.pc2"), "--driven", sample("train.driven.pc2"),
-                          "--count", "5", "--quiet", "-o", db});
+  const CliRun r =
+      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
   EXPECT_EQ(r.code, 0) << r.err;
   return db;
 }
@@ -87,8 +89,8 @@ std::vector<std::string> filesIn(const std::string& dir) {
     if (entry.is_regular_file() && entry.path().filename().string()[0] != '.') {
       names.push_back(entry.path().string());
     }
-    if (entry.is_regular_file() && entry.path().filename().string().find(".tmp-") !=
-                                       std::string::npos) {
+    if (entry.is_regular_file() &&
+        entry.path().filename().string().find(".tmp-") != std::string::npos) {
       names.push_back(entry.path().string());  // a leftover temp file is a failure too
     }
   }
@@ -112,9 +114,12 @@ void expectError(const CliRun& r, int code, const std::string& fragment) {
 
 TEST(Cli, HelpForEveryCommand) {
   TempDir dir;
-  for (const std::vector<std::string>& words :
-       {std::vector<std::string>{"--help"}, {"devices", "--help"}, {"info", "--help"},
-        {"db", "build", "--help"}, {"bake", "--help"}, {"eval", "--help"}}) {
+  for (const std::vector<std::string>& words : {std::vector<std::string>{"--help"},
+                                                {"devices", "--help"},
+                                                {"info", "--help"},
+                                                {"db", "build", "--help"},
+                                                {"bake", "--help"},
+                                                {"eval", "--help"}}) {
     const CliRun r = runCli(dir, words);
     EXPECT_EQ(r.code, 0) << words[0];
     EXPECT_NE(r.out.find("usage"), std::string::npos) << r.out;
@@ -128,7 +133,7 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   expectError(runCli(dir, {"frobnicate"}), 2, "frobnicate");
   expectError(runCli(dir, {"bake", "--db", "x"}), 2, "missing required option");
   expectError(runCli(dir, {"db", "build", "--driver-mesh", "a", "--driven-mesh", "b", "--driver",
-                        "c", "--driven", "d", "-o", dir.file("db"), "--count", "zero"}),
+                           "c", "--driven", "d", "-o", dir.file("db"), "--count", "zero"}),
               2, "--count");
 }
 
@@ -149,7 +154,7 @@ TEST(Cli, EndToEndBuildBakeEvalInfo) {
 
   fs::create_directories(dir.file("out"));
   r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-10x3",
-                "-o", dir.file("out/sleeve.####.exr"), "--device", "0"});
+                   "-o", dir.file("out/sleeve.####.exr"), "--device", "0"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("outputs: "), std::string::npos);
   for (int frame : {1, 4, 7, 10}) {
@@ -160,9 +165,9 @@ TEST(Cli, EndToEndBuildBakeEvalInfo) {
   EXPECT_TRUE(fs::exists(dir.file("out/sleeve.report.json")));
   EXPECT_NE(r.err.find("ALF_PROGRESS 100%"), std::string::npos) << r.err;
 
-  r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
-                dir.file("out/sleeve.####.exr"), "--frames", "1-10x3", "--json",
-                dir.file("eval.json")});
+  r = runCli(
+      dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake", dir.file("out/sleeve.####.exr"),
+            "--frames", "1-10x3", "--json", dir.file("eval.json")});
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("rms"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir.file("eval.json")));
@@ -178,8 +183,8 @@ TEST(Cli, TruncatedPc2IsAnInputError) {
   const std::string full = slurp(sample("test.driver.pc2"));
   std::ofstream(dir.file("cut.pc2"), std::ios::binary) << full.substr(0, full.size() - 1000);
   fs::create_directories(dir.file("out"));
-  const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", dir.file("cut.pc2"), "--frames", "1-3",
-                          "-o", dir.file("out/x.####.exr")});
+  const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", dir.file("cut.pc2"), "--frames",
+                                "1-3", "-o", dir.file("out/x.####.exr")});
   expectError(r, 3, "cut.pc2");
   EXPECT_TRUE(filesIn(dir.file("out")).empty());
 }
@@ -187,9 +192,10 @@ TEST(Cli, TruncatedPc2IsAnInputError) {
 TEST(Cli, ObjWithOutOfRangeIndexIsAnInputError) {
   TempDir dir;
   std::ofstream(dir.file("bad.obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n";
-  const CliRun r = runCli(dir, {"db", "build", "--driver-mesh", dir.file("bad.obj"), "--driven-mesh",
-                          sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"),
-                          "--driven", sample("train.driven.pc2"), "-o", dir.file("db.dsdb")});
+  const CliRun r =
+      runCli(dir, {"db", "build", "--driver-mesh", dir.file("bad.obj"), "--driven-mesh",
+                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+                   sample("train.driven.pc2"), "-o", dir.file("db.dsdb")});
   expectError(r, 3, "bad.obj");
   EXPECT_FALSE(fs::exists(dir.file("db.dsdb")));
 }
@@ -208,10 +214,10 @@ TEST(Cli, BadExrDriverCachesAreInputErrors) {
   ExrWriteOptions options;
   options.frame = 1;
   options.topologyHash = topologyHash(cache->vertexCount() - 10);
-  writePointCacheExr(dir.file("count/drv.0001.exr"), cache->vertexCount() - 10, xyz.data(),
-                     nullptr, options);
+  writePointCacheExr(dir.file("count/drv.0001.exr"), cache->vertexCount() - 10, xyz.data(), nullptr,
+                     options);
   expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("count/drv.####.exr"),
-                        "--frames", "1", "-o", dir.file("out/x.####.exr")}),
+                           "--frames", "1", "-o", dir.file("out/x.####.exr")}),
               3, "drv.");
 
   // Right count, another topology.
@@ -219,8 +225,8 @@ TEST(Cli, BadExrDriverCachesAreInputErrors) {
   options.topologyHash = 0x0123456789abcdefULL;
   writePointCacheExr(dir.file("topo/drv.0001.exr"), cache->vertexCount(), xyz.data(), nullptr,
                      options);
-  expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("topo/drv.####.exr"), "--frames",
-                        "1", "-o", dir.file("out/x.####.exr")}),
+  expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("topo/drv.####.exr"),
+                           "--frames", "1", "-o", dir.file("out/x.####.exr")}),
               3, "topology");
 
   // Missing P.Y channel.
@@ -236,14 +242,14 @@ TEST(Cli, BadExrDriverCachesAreInputErrors) {
     std::vector<float> zeros(static_cast<std::size_t>(width) * height, 0.0f);
     Imf::FrameBuffer buffer;
     buffer.insert("P.X", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(zeros.data()),
-                                     sizeof(float), sizeof(float) * width));
+                                    sizeof(float), sizeof(float) * width));
     buffer.insert("P.Z", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(zeros.data()),
-                                     sizeof(float), sizeof(float) * width));
+                                    sizeof(float), sizeof(float) * width));
     file.setFrameBuffer(buffer);
     file.writePixels(height);
   }
-  expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("chan/drv.####.exr"), "--frames",
-                        "1", "-o", dir.file("out/x.####.exr")}),
+  expectError(runCli(dir, {"bake", "--db", db, "--driver", dir.file("chan/drv.####.exr"),
+                           "--frames", "1", "-o", dir.file("out/x.####.exr")}),
               3, "P.Y");
   EXPECT_TRUE(filesIn(dir.file("out")).empty());
 }
@@ -253,8 +259,8 @@ TEST(Cli, EmptyFrameRangeIsAUsageError) {
   const std::string db = buildDb(dir);
   fs::create_directories(dir.file("out"));
   for (const std::string range : {"", "10-1", "1-10x0", "abc"}) {
-    const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
-                            range, "-o", dir.file("out/x.####.exr")});
+    const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"),
+                                  "--frames", range, "-o", dir.file("out/x.####.exr")});
     EXPECT_EQ(r.code, 2) << "range '" << range << "': " << r.err;
   }
   EXPECT_TRUE(filesIn(dir.file("out")).empty());
@@ -265,8 +271,8 @@ TEST(Cli, DriverOfAnotherCharacterIsAnInputError) {
   const std::string db = buildDb(dir);
   fs::create_directories(dir.file("out"));
   // The driven cache has another vertex count than the database's driver.
-  const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driven.pc2"), "--frames",
-                          "1-3", "-o", dir.file("out/x.####.exr")});
+  const CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driven.pc2"),
+                                "--frames", "1-3", "-o", dir.file("out/x.####.exr")});
   expectError(r, 3, "test.driven.pc2");
   EXPECT_NE(r.err.find("2146"), std::string::npos) << r.err;
   EXPECT_TRUE(filesIn(dir.file("out")).empty());
@@ -276,8 +282,8 @@ TEST(Cli, UnwritableOutputFolderIsAnOutputError) {
   TempDir dir;
   const std::string db = buildDb(dir);
   // A folder that does not exist.
-  CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-3",
-                    "-o", dir.file("missing/x.####.exr")});
+  CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
+                          "1-3", "-o", dir.file("missing/x.####.exr")});
   expectError(r, 4, "missing");
   EXPECT_FALSE(fs::exists(dir.file("missing")));
   // A read-only folder (only meaningful when not root: root writes anywhere).
@@ -285,7 +291,7 @@ TEST(Cli, UnwritableOutputFolderIsAnOutputError) {
   fs::permissions(dir.file("ro"), fs::perms::owner_read | fs::perms::owner_exec);
   if (::access(dir.file("ro").c_str(), W_OK) != 0) {
     r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-3",
-                  "-o", dir.file("ro/x.####.exr")});
+                     "-o", dir.file("ro/x.####.exr")});
     expectError(r, 4, "not writable");
   }
   fs::permissions(dir.file("ro"), fs::perms::owner_all);
@@ -304,8 +310,7 @@ std::vector<float> exrPlanes(const std::string& path) {
     char* base = reinterpret_cast<char*>(&planes[static_cast<std::size_t>(c) * width * height]) -
                  (static_cast<std::ptrdiff_t>(window.min.y) * width + window.min.x) *
                      static_cast<std::ptrdiff_t>(sizeof(float));
-    buffer.insert(names[c],
-                  Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * width));
+    buffer.insert(names[c], Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * width));
   }
   file.setFrameBuffer(buffer);
   file.readPixels(window.min.y, window.max.y);
@@ -317,16 +322,17 @@ TEST(Cli, BakePosmapEqualsPosmapOfTheBakedCache) {
   const std::string db = buildDb(dir);
   fs::create_directories(dir.file("out"));
   CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
-                          "5-7", "-o", dir.file("out/s.####.exr"), "--posmap", "96x64",
-                          "--quiet"});
+                          "5-7", "-o", dir.file("out/s.####.exr"), "--posmap", "96x64", "--quiet"});
   ASSERT_EQ(r.code, 0) << r.err;
-  r = runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache",
-                   dir.file("out/s.####.exr"), "--frames", "5-7", "--res", "96x64", "-o",
-                   dir.file("out/alone.####.exr")});
+  r = runCli(dir,
+             {"posmap", "--mesh", sample("driven_rest.obj"), "--cache", dir.file("out/s.####.exr"),
+              "--frames", "5-7", "--res", "96x64", "-o", dir.file("out/alone.####.exr")});
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* frame : {"0005", "0006", "0007"}) {
-    const std::vector<float> inBake = exrPlanes(dir.file(std::string("out/s.posmap.") + frame + ".exr"));
-    const std::vector<float> alone = exrPlanes(dir.file(std::string("out/alone.") + frame + ".exr"));
+    const std::vector<float> inBake =
+        exrPlanes(dir.file(std::string("out/s.posmap.") + frame + ".exr"));
+    const std::vector<float> alone =
+        exrPlanes(dir.file(std::string("out/alone.") + frame + ".exr"));
     EXPECT_EQ(inBake, alone) << "frame " << frame;
     EXPECT_GT(std::count(inBake.begin() + 3 * 96 * 64, inBake.end(), 1.0f), 100)
         << "the map covers texels";

@@ -43,14 +43,15 @@ std::uint32_t testSeed(std::uint32_t fallback) {
   return seed;
 }
 
-std::string dataDir() { return DS_TEST_DATA_DIR; }
+std::string dataDir() {
+  return DS_TEST_DATA_DIR;
+}
 
 TempDir::TempDir() {
   static std::atomic<int> counter{0};
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  std::string name = info != nullptr
-                         ? std::string(info->test_suite_name()) + "." + info->name()
-                         : std::string("test");
+  std::string name = info != nullptr ? std::string(info->test_suite_name()) + "." + info->name()
+                                     : std::string("test");
   for (char& ch : name) {
     if (ch == '/') {
       ch = '_';
@@ -88,16 +89,15 @@ void OpenClTest::SetUpTestSuite() {
         cl::Context context(device);
         cl::CommandQueue queue(context, device);
         clState() = ClState{context, device, queue};
-        std::printf("[ device   ] %s / %s (%s)\n",
-                    platform.getInfo<CL_PLATFORM_NAME>().c_str(), name.c_str(),
-                    device.getInfo<CL_DEVICE_VERSION>().c_str());
+        std::printf("[ device   ] %s / %s (%s)\n", platform.getInfo<CL_PLATFORM_NAME>().c_str(),
+                    name.c_str(), device.getInfo<CL_DEVICE_VERSION>().c_str());
         return;
       }
     }
     clFailure() = "no OpenCL device found (is pocl-opencl-icd installed?)";
   } catch (const cl::Error& error) {
-    clFailure() = std::string("OpenCL error while looking for a device: ") + error.what() +
-                  " (" + std::to_string(error.err()) + ")";
+    clFailure() = std::string("OpenCL error while looking for a device: ") + error.what() + " (" +
+                  std::to_string(error.err()) + ")";
   }
 }
 
@@ -105,8 +105,14 @@ void OpenClTest::SetUp() {
   ASSERT_TRUE(clState().has_value()) << clFailure();
 }
 
-cl::Context& OpenClTest::context() { return clState()->context; }
-cl::Device& OpenClTest::device() { return clState()->device; }
-cl::CommandQueue& OpenClTest::queue() { return clState()->queue; }
+cl::Context& OpenClTest::context() {
+  return clState()->context;
+}
+cl::Device& OpenClTest::device() {
+  return clState()->device;
+}
+cl::CommandQueue& OpenClTest::queue() {
+  return clState()->queue;
+}
 
 }  // namespace drivenshape::testing

@@ -15,19 +15,19 @@ namespace drivenshape {
 
 /// How the per-frame weights are chosen.
 enum class WeightMode {
-  kQp,      ///< the DrivenShape QP: min ||A w - b|| with sum w = 1, 0 <= w <= 1
+  kQp,       ///< the DrivenShape QP: min ||A w - b|| with sum w = 1, 0 <= w <= 1
   kNearest,  ///< baseline: one-hot on the closest database driver shape
   kBind      ///< baseline: no database; the rest cloth bound to the rest driver and carried to
              ///< every frame by the correction (what Houdini's Point Deform does)
 };
 
 struct BakeOptions {
-  std::vector<int> frames;        ///< frames of the driver cache to bake
-  std::string outputPattern;      ///< EXR sequence with a frame token, e.g. out/cloth.####.exr
-  std::string reportPath;         ///< per-bake JSON report; empty = none
-  int chunkSize = 64;             ///< frames per kernel launch (`--batch`)
-  int threads = 0;                ///< host threads (QP, EXR); 0 = all cores
-  bool skipExisting = false;      ///< keep complete outputs of this database and settings
+  std::vector<int> frames;    ///< frames of the driver cache to bake
+  std::string outputPattern;  ///< EXR sequence with a frame token, e.g. out/cloth.####.exr
+  std::string reportPath;     ///< per-bake JSON report; empty = none
+  int chunkSize = 64;         ///< frames per kernel launch (`--batch`)
+  int threads = 0;            ///< host threads (QP, EXR); 0 = all cores
+  bool skipExisting = false;  ///< keep complete outputs of this database and settings
   WeightMode weightMode = WeightMode::kQp;
   int exrWidth = 1024;
   ExrCompression compression = ExrCompression::kZip;
@@ -55,19 +55,19 @@ struct BakeBackends {
 /// What happened to one frame.
 struct FrameRecord {
   int frame = 0;
-  bool skipped = false;            ///< an existing complete output was kept
-  std::vector<double> weights;     ///< k
-  std::vector<int> atZero;         ///< shapes held at weight 0 (active bounds)
+  bool skipped = false;         ///< an existing complete output was kept
+  std::vector<double> weights;  ///< k
+  std::vector<int> atZero;      ///< shapes held at weight 0 (active bounds)
   std::vector<int> atOne;
-  double relativeResidual = 0.0;   ///< ||A w - b|| / ||b||
+  double relativeResidual = 0.0;  ///< ||A w - b|| / ||b||
   double kktResidual = 0.0;
   int iterations = 0;
   std::string output;
   // Audit (-1 where not measured).
-  int insideBefore = -1;           ///< blended cloth vertices inside the shot's driver
-  int insideAfter = -1;            ///< the same after correction (= before without correction)
-  int bindingSwitches = -1;        ///< vertices bound to another triangle than the previous frame
-  double maxJump = -1.0;           ///< largest vertex move since the previous baked frame
+  int insideBefore = -1;     ///< blended cloth vertices inside the shot's driver
+  int insideAfter = -1;      ///< the same after correction (= before without correction)
+  int bindingSwitches = -1;  ///< vertices bound to another triangle than the previous frame
+  double maxJump = -1.0;     ///< largest vertex move since the previous baked frame
   int maxJumpVertex = -1;
 };
 

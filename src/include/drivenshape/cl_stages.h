@@ -17,7 +17,8 @@ namespace drivenshape {
 std::unique_ptr<StageBackend> makeClStages(const cl::Context& context, const cl::Device& device,
                                            const cl::CommandQueue& queue);
 
-/// Turns an OpenCL status code into its name ("CL_OUT_OF_RESOURCES"); unknown codes as "OpenCL status N".
+/// Turns an OpenCL status code into its name ("CL_OUT_OF_RESOURCES"); unknown codes as "OpenCL
+/// status N".
 const char* clErrorName(int status);
 
 }  // namespace drivenshape

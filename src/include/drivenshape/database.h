@@ -12,10 +12,10 @@ namespace drivenshape {
 
 /// How a database was (or is to be) built.
 struct DatabaseBuildOptions {
-  int count = 30;                  ///< shapes wanted (fewer if the clip runs out of distinct ones)
-  std::vector<int> frames;         ///< candidate frames; empty = every frame of the driver cache
-  std::vector<int> addFrames;      ///< always kept; they seed the greedy pick
-  std::vector<int> removeFrames;   ///< never kept
+  int count = 30;                 ///< shapes wanted (fewer if the clip runs out of distinct ones)
+  std::vector<int> frames;        ///< candidate frames; empty = every frame of the driver cache
+  std::vector<int> addFrames;     ///< always kept; they seed the greedy pick
+  std::vector<int> removeFrames;  ///< never kept
   /// Shapes whose RMS per-vertex distance to an already chosen shape is below this fraction
   /// of the rest driver's bounding-box diagonal are rejected as near-duplicates.
   double duplicateTolerance = 1e-3;
@@ -34,8 +34,8 @@ const char* pickReasonName(PickReason reason);
 struct Database {
   static constexpr int kFormatVersion = 1;
 
-  Mesh driverMesh;  ///< rest positions, faces, groups (from the driver OBJ)
-  Mesh drivenMesh;  ///< rest positions, faces, UVs, groups (from the driven OBJ)
+  Mesh driverMesh;                    ///< rest positions, faces, groups (from the driver OBJ)
+  Mesh drivenMesh;                    ///< rest positions, faces, UVs, groups (from the driven OBJ)
   std::vector<int> frames;            ///< source frame of each shape, in pick order
   std::vector<PickReason> reasons;    ///< why each was picked
   std::vector<double> pickDistances;  ///< RMS distance to the shapes before it (0 for the first)
@@ -45,7 +45,7 @@ struct Database {
   std::string driverSource;  ///< provenance: caches and meshes it was built from
   std::string drivenSource;
   std::string toolVersion;
-  std::string created;       ///< UTC, ISO 8601
+  std::string created;  ///< UTC, ISO 8601
 
   int shapeCount() const { return static_cast<int>(frames.size()); }
   int driverVertexCount() const { return driverMesh.vertexCount(); }

@@ -18,16 +18,16 @@ using Positions = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
 ///              triangleFace[t] is the face it came from
 ///   groups:    faceGroup[f] indexes groupNames ("default" when the file names none)
 struct Mesh {
-  Positions positions;                 ///< V by 3
-  std::vector<Eigen::Vector2f> uvs;    ///< texture coordinates (may be empty)
-  std::vector<int> faceStart;          ///< F + 1 offsets
-  std::vector<int> faceVertices;       ///< vertex ids of all faces, concatenated
-  std::vector<int> faceUvs;            ///< uv ids parallel to faceVertices, or empty;
-                                       ///< -1 where a corner has none (mixed files)
-  std::vector<int> faceGroup;          ///< F group ids
-  std::vector<std::string> groupNames; ///< group id -> name from `g` (or `o`) lines
+  Positions positions;                  ///< V by 3
+  std::vector<Eigen::Vector2f> uvs;     ///< texture coordinates (may be empty)
+  std::vector<int> faceStart;           ///< F + 1 offsets
+  std::vector<int> faceVertices;        ///< vertex ids of all faces, concatenated
+  std::vector<int> faceUvs;             ///< uv ids parallel to faceVertices, or empty;
+                                        ///< -1 where a corner has none (mixed files)
+  std::vector<int> faceGroup;           ///< F group ids
+  std::vector<std::string> groupNames;  ///< group id -> name from `g` (or `o`) lines
   Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor> triangles;  ///< T by 3
-  std::vector<int> triangleFace;       ///< T face ids
+  std::vector<int> triangleFace;                                     ///< T face ids
 
   int vertexCount() const { return static_cast<int>(positions.rows()); }
   int faceCount() const { return static_cast<int>(faceGroup.size()); }

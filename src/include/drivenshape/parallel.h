@@ -1,6 +1,8 @@
 #pragma once
 
-// A minimal parallel loop for frame-parallel host work (candidate search, host exact step).
+// A minimal parallel loop for independent items (frames, files): the host stages, the
+// candidate search, EXR writing. Results never depend on the thread count, because each item
+// writes only its own outputs.
 
 #include <algorithm>
 #include <atomic>
@@ -9,7 +11,7 @@
 #include <thread>
 #include <vector>
 
-namespace drivenshape::correction {
+namespace drivenshape {
 
 /// Threads to use for `requested` (0 = one per hardware thread), never more than `work`.
 inline int resolveThreads(int requested, int work) {
@@ -60,4 +62,4 @@ void parallelFor(int count, int threads, Body&& body) {
   }
 }
 
-}  // namespace drivenshape::correction
+}  // namespace drivenshape

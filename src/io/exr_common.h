@@ -1,0 +1,48 @@
+// OpenEXR helpers shared by point-cache EXRs (io/exr_point_cache.cpp) and position-map EXRs
+// (posmap/posmap_exr.cpp). Private to the libraries in src/; not installed.
+
+#pragma once
+
+#include <OpenEXR/ImfCompression.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+
+#include <cstddef>
+#include <functional>
+#include <string>
+
+#include <drivenshape/point_cache.h>
+
+namespace drivenshape::exr_detail {
+
+// Header attribute and channel names common to both kinds of file (all well under OpenEXR's
+// 31-byte limit); they mean the same thing in each.
+inline constexpr const char* kAttrFrame = "dsFrame";
+inline constexpr const char* kAttrTopologyHash = "dsTopologyHash";
+inline constexpr const char* kAttrToolVersion = "dsToolVersion";
+inline constexpr const char* kAttrBoundsMin = "dsBoundsMin";
+inline constexpr const char* kAttrBoundsMax = "dsBoundsMax";
+inline constexpr const char* kPositionChannels[3] = {"P.X", "P.Y", "P.Z"};
+inline constexpr const char* kNormalChannels[3] = {"N.X", "N.Y", "N.Z"};
+inline constexpr const char* kCoverageChannel = "A";
+
+Imf::Compression toImf(ExrCompression compression);
+
+/// FLOAT slices of an interleaved xyz image (3 floats per pixel, `width` pixels per row) for the
+/// three channels `names`. OpenEXR only reads through the slices when writing.
+void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], const float* base,
+                     std::size_t width);
+
+/// Writes `path` atomically: `body` writes the file at the temporary path it is given (with
+/// writeScanlines) and the file is renamed into place once `body` returns. drivenshape::Error
+/// passes through; any other exception becomes Error(kOutput) "cannot write <kind> EXR '<path>'".
+void writeExrAtomically(const std::string& path, const char* kind,
+                        const std::function<void(const std::string& tempPath)>& body);
+
+/// Writes the `height` scan lines of `frameBuffer` with `header` to `tempPath` (the temporary
+/// file of `path`) through our own stream, so that a failure while OpenEXR's destructor writes
+/// the offset table (which it swallows) still shows up as Error(kOutput).
+void writeScanlines(const std::string& path, const std::string& tempPath, const Imf::Header& header,
+                    const Imf::FrameBuffer& frameBuffer, int height);
+
+}  // namespace drivenshape::exr_detail

@@ -1,0 +1,160 @@
+"""Shared helpers of the farm tests (tests/farm): paths, running the CLI, comparing outputs.
+
+Every test script takes the same arguments (see CMakeLists.txt):
+  --cli PATH      the drivenshape executable
+  --data DIR      tests/data/sleeve
+  --work DIR      the fixture folder written by farm_fixture.py (database, reference bake)
+  --scripts DIR   the project's scripts/ folder
+
+The reference is one uninterrupted bake of all 48 frames of test.driver.pc2 with default
+settings (ref/c.####.exr). Outputs are compared byte for byte: a frame must be bitwise identical
+whatever the chunking, order, thread count or interruptions.
+
+A failed check raises CheckFailed with what was expected and what happened; main() prints it and
+exits 1. A missing tool is a failure, never a skip.
+"""
+
+import argparse
+import os
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+FRAMES = list(range(1, 49))
+FRAME_RANGE = "1-48"
+OUTPUT_NAME = "c.####.exr"
+
+
+class CheckFailed(Exception):
+    pass
+
+
+def check(condition, message):
+    if not condition:
+        raise CheckFailed(message)
+
+
+class Farm:
+    """Paths and helpers for one test run."""
+
+    def __init__(self, args):
+        self.cli = Path(args.cli).resolve()
+        self.data = Path(args.data).resolve()
+        self.work = Path(args.work).resolve()
+        self.scripts = Path(args.scripts).resolve()
+        self.db = self.work / "db.dsdb"
+        self.driver = self.data / "test.driver.pc2"
+        self.ref = self.work / "ref"
+        check(self.cli.is_file(), f"drivenshape executable {self.cli} does not exist; build it")
+        self.env = dict(os.environ)
+        self.env.setdefault("POCL_CACHE_DIR", str(self.work / "pocl-cache"))
+        Path(self.env["POCL_CACHE_DIR"]).mkdir(parents=True, exist_ok=True)
+
+    def scratch(self, name):
+        """A fresh folder for one test under the work folder (kept after the run to inspect)."""
+        folder = self.work / name
+        if folder.exists():
+            for path in folder.rglob("*"):  # read-only leftovers of an earlier run
+                try:
+                    path.chmod(0o755)
+                except OSError:
+                    pass
+            shutil.rmtree(folder)
+        folder.mkdir(parents=True)
+        return folder
+
+    def run(self, *words, expect=0, cwd=None, timeout=300, env=None):
+        """Runs drivenshape WORDS...; checks the exit code; returns the CompletedProcess."""
+        command = [str(self.cli)] + [str(w) for w in words]
+        started = time.monotonic()
+        result = subprocess.run(command, capture_output=True, text=True, cwd=cwd,
+                                env=env or self.env, timeout=timeout)
+        seconds = time.monotonic() - started
+        print(f"$ {' '.join(command)}  -> exit {result.returncode} in {seconds:.1f} s", flush=True)
+        if expect is not None and result.returncode != expect:
+            raise CheckFailed(f"expected exit code {expect}, got {result.returncode} from\n"
+                              f"  {' '.join(command)}\nstdout:\n{result.stdout}\n"
+                              f"stderr (last 3000 chars):\n{result.stderr[-3000:]}")
+        return result
+
+    def bake_args(self, out_folder, frames=FRAME_RANGE, driver=None):
+        return ["bake", "--db", self.db, "--driver", driver or self.driver, "--frames", frames,
+                "-o", Path(out_folder) / OUTPUT_NAME]
+
+    def ref_frame(self, frame):
+        return self.ref / frame_name(frame)
+
+
+def frame_name(frame):
+    return f"c.{frame:04d}.exr"
+
+
+def temp_files(folder):
+    """Temporary files of atomic writes (`.NAME.tmp-PID-N`) left in `folder`."""
+    return sorted(p.name for p in Path(folder).iterdir() if ".tmp-" in p.name)
+
+
+def exr_files(folder):
+    return sorted(p.name for p in Path(folder).glob("c.*.exr"))
+
+
+def compare_with_reference(farm, folder, frames=FRAMES, allow_missing=False):
+    """Checks that every frame in `folder` is byte-identical to the reference bake."""
+    different, missing = [], []
+    for frame in frames:
+        path = Path(folder) / frame_name(frame)
+        if not path.exists():
+            missing.append(frame)
+        elif path.read_bytes() != farm.ref_frame(frame).read_bytes():
+            different.append(frame)
+    check(not different, f"{folder}: frames {different} differ from the reference bake "
+                         f"{farm.ref} (byte comparison)")
+    if not allow_missing:
+        check(not missing, f"{folder}: frames {missing} are missing")
+    return len(frames) - len(missing)
+
+
+def wait_for_outputs(folder, count, process, timeout=120):
+    """Waits until `folder` holds at least `count` finished EXRs (or the process ends)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if len(exr_files(folder)) >= count:
+            return True
+        if process.poll() is not None:
+            return False
+        time.sleep(0.01)
+    raise CheckFailed(f"no {count} outputs in {folder} after {timeout} s")
+
+
+def main(tests):
+    """Runs the named test functions (each takes a Farm) and reports; exit 1 on any failure."""
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--cli", required=True)
+    parser.add_argument("--data", required=True)
+    parser.add_argument("--work", required=True)
+    parser.add_argument("--scripts", required=True)
+    args = parser.parse_args()
+    failures = 0
+    try:
+        farm = Farm(args)
+    except CheckFailed as error:
+        print(f"FAILED to set up: {error}", flush=True)
+        return 1
+    for test in tests:
+        started = time.monotonic()
+        print(f"==== {test.__name__}", flush=True)
+        try:
+            test(farm)
+            print(f"---- ok {test.__name__} ({time.monotonic() - started:.1f} s)", flush=True)
+        except CheckFailed as error:
+            failures += 1
+            print(f"---- FAILED {test.__name__}: {error}", flush=True)
+        except subprocess.TimeoutExpired as error:
+            failures += 1
+            print(f"---- FAILED {test.__name__}: timed out: {error}", flush=True)
+    if failures:
+        print(f"{failures} of {len(tests)} checks failed", flush=True)
+        return 1
+    print(f"all {len(tests)} checks passed", flush=True)
+    return 0
