@@ -48,6 +48,32 @@ inline constexpr double kHalfNormalTol = 1.0 / 2048.0;
 /// the two values are identical.
 inline constexpr float kPaddingCopyTol = 0.0f;
 
+// ---- Tolerances of the correction quantities (each used by every test of that quantity) ----
+
+/// How far a hit's distance may be from the brute-force oracle's: relative * d + scale * S,
+/// with d the oracle distance and S the scene scale (max of bounding-box diagonal and largest
+/// coordinate magnitude).
+struct DistanceTolerance {
+  double relative;
+  double scale;
+};
+/// Host backend and OpenCL devices computing in double: the stored distance2 is the double
+/// result rounded to float (2^-24 relative to d^2, so 3e-8 of d), plus double rounding
+/// (~1e-15 of S). A triangle missed by the candidate search shows as an error above this
+/// unless it is within 1e-7 of d of the true minimum.
+inline constexpr DistanceTolerance kClosestDistanceTol = {1e-7, 1e-9};
+/// OpenCL forced to float arithmetic (ClosestOptions::forceSinglePrecision), on scenes without
+/// needle-like slivers: a few float roundings of the scene scale.
+inline constexpr DistanceTolerance kClosestSingleTol = {1e-5, 2e-6};
+/// The distance to the hit's point q(u, v) vs the oracle, as a fraction of (S + d): u and v
+/// are stored as float, so q moves by up to 2^-24 (|b - a| + |c - a|) <= 1.2e-7 S.
+inline constexpr double kHitPointRelTol = 1e-6;
+/// Transfer results vs their expected positions (identity, rigid motion), as a fraction of the
+/// scene scale: float outputs of a double computation.
+inline constexpr double kTransferRelTol = 1e-6;
+/// Barycentric range of a hit: u >= -tol, v >= -tol, u + v <= 1 + tol (float rounding).
+inline constexpr double kBarycentricTol = 1e-6;
+
 // ---- Random seeds: printed, overridable with DS_SEED=N. ----
 
 /// The seed for this test: DS_SEED from the environment, else `fallback`. Printed once.
