@@ -425,7 +425,7 @@ int runBake(const std::vector<std::string>& args) {
     // PoCL reads this when the platform loads: cap its worker threads like ours.
     ::setenv("POCL_MAX_PTHREAD_COUNT", std::to_string(options.threads).c_str(), 0);
   }
-  const DeviceBackends backends = makeBackends(parser.get("--device"), std::cerr);
+  const DeviceBackends backends = makeBackends(parser.get("--device"), std::cerr, options.threads);
   const std::string& device = backends.description;
   const bool quiet = parser.has("--quiet");
   if (!quiet) {

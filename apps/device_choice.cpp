@@ -137,8 +137,10 @@ std::optional<ClDevice> chooseDevice(const std::string& spec) {
   }
 }
 
-DeviceBackends makeBackends(const std::string& spec, std::ostream& log) {
+DeviceBackends makeBackends(const std::string& spec, std::ostream& log, int threads) {
   DeviceBackends backends;
+  ClosestOptions search;
+  search.threads = threads;
   backends.device = chooseDevice(spec);
   if (!backends.device) {
     if (spec == "auto") {
@@ -147,15 +149,15 @@ DeviceBackends makeBackends(const std::string& spec, std::ostream& log) {
     }
     backends.description = "host (reference path, no OpenCL)";
     backends.stages = makeHostStages();
-    backends.binding = makeHostClosest();
-    backends.audit = makeHostClosest();
+    backends.binding = makeHostClosest(search);
+    backends.audit = makeHostClosest(search);
     return backends;
   }
   const ClDevice& d = *backends.device;
   backends.description = d.description;
   backends.stages = makeClStages(d.context, d.device, d.queue);
-  backends.binding = makeClClosest(d.context, d.device, d.queue);
-  backends.audit = makeClClosest(d.context, d.device, d.queue);
+  backends.binding = makeClClosest(d.context, d.device, d.queue, search);
+  backends.audit = makeClClosest(d.context, d.device, d.queue, search);
   return backends;
 }
 

@@ -41,6 +41,7 @@ struct DeviceBackends {
 
 /// The backends for --device SPEC (OpenCL or host); `log` gets a warning when `auto` finds no
 /// OpenCL device and falls back to the host path.
-DeviceBackends makeBackends(const std::string& spec, std::ostream& log);
+/// `threads` caps the host threads of the closest-triangle search (0 = all cores).
+DeviceBackends makeBackends(const std::string& spec, std::ostream& log, int threads = 0);
 
 }  // namespace drivenshape::cli
