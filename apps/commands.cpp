@@ -228,13 +228,13 @@ int threadsFor(int requested) {
 }
 
 /// The frames of one farm chunk: --chunk-size N frames starting at chunk --chunk-index of
-/// --frames (in the order given). Frame numbers are never array indices.
-std::vector<int> farmChunk(const std::vector<int>& frames, const ArgParser& parser) {
+/// --frames (in the order given); `index` receives the chunk index. Frame numbers are never
+/// array indices.
+std::vector<int> farmChunk(const std::vector<int>& frames, const ArgParser& parser, int& index) {
   if (!parser.has("--chunk-size") || !parser.has("--chunk-index")) {
     DS_THROW(kUsage, "--chunk-size and --chunk-index go together");
   }
   const int size = parser.getInt("--chunk-size", 1);
-  int index;
   if (parser.get("--chunk-index") == "env") {
     const char* text = std::getenv("SLURM_ARRAY_TASK_ID");
     if (text == nullptr || *text == '\0') {
@@ -375,20 +375,17 @@ int runBake(const std::vector<std::string>& args) {
   options.outputPattern = parser.get("-o");
   options.reportPath =
       parser.has("--report") ? parser.get("--report") : defaultReportPath(options.outputPattern);
-  if (!parser.has("--report") && parser.has("--chunk-index")) {
-    // Farm chunks run side by side: one report each (<name>.chunk<I>.report.json).
-    const std::string index = parser.get("--chunk-index") == "env"
-                                  ? std::string(std::getenv("SLURM_ARRAY_TASK_ID") != nullptr
-                                                    ? std::getenv("SLURM_ARRAY_TASK_ID")
-                                                    : "")
-                                  : parser.get("--chunk-index");
-    const std::string suffix = ".report.json";
-    options.reportPath.insert(options.reportPath.size() - suffix.size(), ".chunk" + index);
-  }
   options.chunkSize = parser.getInt("--batch", 1);
   options.threads = threadsFor(parser.getInt("--threads", 0));
   if (parser.has("--chunk-size") || parser.has("--chunk-index")) {
-    options.frames = farmChunk(options.frames, parser);
+    int chunkIndex = 0;
+    options.frames = farmChunk(options.frames, parser, chunkIndex);
+    if (!parser.has("--report")) {
+      // Farm chunks run side by side: one report each (<name>.chunk<I>.report.json).
+      const std::string suffix = ".report.json";
+      options.reportPath.insert(options.reportPath.size() - suffix.size(),
+                                ".chunk" + std::to_string(chunkIndex));
+    }
   }
   options.compression = parseExrCompression(parser.get("--compression"));
   options.exrWidth = parser.getInt("--exr-width", 1);
