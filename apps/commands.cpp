@@ -44,17 +44,8 @@ std::string absolute(const std::string& path) {
 
 /// out/cloth.####.exr -> out/cloth.report.json
 std::string defaultReportPath(const std::string& pattern) {
-  const std::filesystem::path path(pattern);
-  std::string stem = path.filename().string();
-  const auto token = stem.find_first_of("#%$");
-  stem = stem.substr(0, token);
-  while (!stem.empty() && (stem.back() == '.' || stem.back() == '_' || stem.back() == '-')) {
-    stem.pop_back();
-  }
-  if (stem.empty()) {
-    stem = "bake";
-  }
-  return (path.parent_path() / (stem + ".report.json")).string();
+  return (std::filesystem::path(pattern).parent_path() / (sequenceStem(pattern) + ".report.json"))
+      .string();
 }
 
 void printMesh(const char* role, const Mesh& mesh) {
@@ -319,7 +310,7 @@ class CliObserver : public BakeObserver {
 std::string defaultPosmapPattern(const std::string& pattern) {
   const std::filesystem::path path(pattern);
   std::string name = path.filename().string();
-  const auto token = name.find_first_of("#%$");
+  const std::size_t token = framePatternPosition(name);
   name.insert(token == std::string::npos ? 0 : token, "posmap.");
   return (path.parent_path() / name).string();
 }

@@ -154,16 +154,6 @@ std::string safeName(const std::string& text) {
   return name.empty() ? std::string("drivenshape") : name;
 }
 
-/// out/cloth.####.exr -> cloth (the name before the frame token, as the bake's report uses).
-std::string outputStem(const std::string& pattern) {
-  std::string stem = fs::path(pattern).filename().string();
-  stem = stem.substr(0, stem.find_first_of("#%$"));
-  while (!stem.empty() && (stem.back() == '.' || stem.back() == '_' || stem.back() == '-')) {
-    stem.pop_back();
-  }
-  return stem.empty() ? std::string("bake") : stem;
-}
-
 /// What both schedulers need: one bake command per chunk, everything absolute.
 struct FarmJob {
   std::string binary;         ///< absolute path of the drivenshape executable
@@ -231,7 +221,7 @@ FarmJob jobFrom(const ArgParser& parser) {
     DS_THROW(kUsage, "-o '", parser.get("-o"), "' has no frame token; use e.g. out/cloth.####.exr");
   }
   job.name = parser.has("--job-name") ? parser.get("--job-name")
-                                      : "ds_" + safeName(outputStem(job.outputPattern));
+                                      : "ds_" + safeName(sequenceStem(job.outputPattern));
   if (job.name.empty() || job.name.size() > 128 ||
       std::any_of(job.name.begin(), job.name.end(),
                   [](char c) { return std::iscntrl(static_cast<unsigned char>(c)); })) {
@@ -369,7 +359,7 @@ std::string slurmScript(const FarmJob& job, const std::string& logDir,
   }
   if (job.perChunkReport) {
     s << " '--report' "
-      << shellQuote(job.outputFolder + "/" + outputStem(job.outputPattern) + ".chunk")
+      << shellQuote(job.outputFolder + "/" + sequenceStem(job.outputPattern) + ".chunk")
       << "\"$SLURM_ARRAY_TASK_ID\"'.report.json'";
   }
   s << " &\n"
@@ -506,7 +496,7 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
   args[8] = "{{Param.OutputPattern}}";
   if (job.perChunkReport) {
     args.push_back("--report");
-    args.push_back("{{Param.ReportFolder}}/" + outputStem(job.outputPattern) +
+    args.push_back("{{Param.ReportFolder}}/" + sequenceStem(job.outputPattern) +
                    ".chunk{{Task.Param.Chunk}}.report.json");
   }
 

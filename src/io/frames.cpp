@@ -239,6 +239,21 @@ bool hasFramePattern(const std::string& pattern) {
   return !io::findFrameTokens(pattern).empty();
 }
 
+std::size_t framePatternPosition(const std::string& pattern) {
+  const std::vector<io::FrameToken> tokens = io::findFrameTokens(pattern);
+  return tokens.empty() ? std::string::npos : tokens.front().pos;
+}
+
+std::string sequenceStem(const std::string& pattern) {
+  const std::size_t slash = pattern.find_last_of('/');
+  std::string name = slash == std::string::npos ? pattern : pattern.substr(slash + 1);
+  name = name.substr(0, framePatternPosition(name));
+  while (!name.empty() && (name.back() == '.' || name.back() == '_' || name.back() == '-')) {
+    name.pop_back();
+  }
+  return name.empty() ? std::string("bake") : name;
+}
+
 std::string expandFramePattern(const std::string& pattern, int frame) {
   const std::vector<io::FrameToken> tokens = io::findFrameTokens(pattern);
   if (tokens.empty()) {

@@ -149,5 +149,15 @@ TEST(FramePattern, NoTokenOrTwoTokensIsAUsageError) {
   EXPECT_TRUE(contains(error.what(), "2 frame tokens"));
 }
 
+TEST(Frames, SequenceStemIsTheNameBeforeTheToken) {
+  EXPECT_EQ(framePatternPosition("cloth.####.exr"), 6u);
+  EXPECT_EQ(framePatternPosition("a%b/cloth_$F4.exr"), 10u);  // a '%' that is no token
+  EXPECT_EQ(framePatternPosition("cloth.exr"), std::string::npos);
+  EXPECT_EQ(sequenceStem("out/cloth.####.exr"), "cloth");
+  EXPECT_EQ(sequenceStem("/a/b/shot_010_%04d.exr"), "shot_010");
+  EXPECT_EQ(sequenceStem("out/####.exr"), "bake");
+  EXPECT_EQ(sequenceStem("100%/cloth-$F.exr"), "cloth");
+}
+
 }  // namespace
 }  // namespace drivenshape::testing

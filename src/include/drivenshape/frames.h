@@ -18,6 +18,14 @@ std::string formatFrameRange(const std::vector<int>& frames);
 /// `$F`/`$FN` (Houdini, N digits).
 bool hasFramePattern(const std::string& pattern);
 
+/// Where the (first) frame token of `pattern` starts, or std::string::npos if it has none.
+std::size_t framePatternPosition(const std::string& pattern);
+
+/// The name of a sequence: the file-name part before the frame token, without trailing '.',
+/// '_' or '-' (out/cloth.####.exr -> "cloth"); "bake" when nothing is left. Reports and farm
+/// logs are named after it.
+std::string sequenceStem(const std::string& pattern);
+
 /// Replaces the frame token with `frame`, zero padded to the token's width (negative frames
 /// keep the sign before the padding: -0012). Throws Error(kUsage) if there is no token or more
 /// than one.
