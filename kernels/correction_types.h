@@ -1,7 +1,7 @@
 // Types and constants of the correction stage (closest triangle, local-frame transfer), shared
 // by the host (C++, src/correction, src/host, src/cl) and the device (kernels/closest.cl,
-// kernels/transfer.cl). The OpenCL programs get this text as their first source, so both sides
-// see one layout; the host checks the sizes with static_assert.
+// kernels/transfer.cl, kernels/resolve.cl). The OpenCL programs get this text as their first
+// source, so both sides see one layout; the host checks the sizes with static_assert.
 #ifndef DRIVENSHAPE_CORRECTION_TYPES_H
 #define DRIVENSHAPE_CORRECTION_TYPES_H
 
@@ -48,6 +48,77 @@ typedef struct DsTransferParams {
   ds_int triangleCount;  // T
 } DsTransferParams;
 
+// Scalars of one dsResolve launch (passed by value).
+typedef struct DsResolveParams {
+  ds_int frameCount;     // F
+  ds_int pointCount;     // Vd
+  ds_int vertexCount;    // Vp
+  ds_int triangleCount;  // T
+  float offset;          // scene units, >= 0
+  ds_int pad0;
+  ds_int pad1;
+  ds_int pad2;
+} DsResolveParams;
+
+// One node of a bounding-volume hierarchy over driver triangles (kernels/bvh.cl, built by
+// src/correction/bvh.cpp). A leaf (count > 0) holds leafTriangles[first .. first + count - 1];
+// an inner node (count == 0) has two children, node ids `left` and `right`.
+typedef struct DsBvhNode {
+  ds_int left;
+  ds_int right;
+  ds_int first;
+  ds_int count;
+} DsBvhNode;
+
+// Scalars of one dsBvhRefit launch: the nodes [levelFirst, levelFirst + levelCount) of every
+// frame (one depth of the trees; deeper levels were refitted by earlier launches).
+typedef struct DsBvhRefitParams {
+  ds_int frameCount;   // F
+  ds_int vertexCount;  // Vp
+  ds_int nodeCount;    // N, nodes per frame
+  ds_int levelFirst;
+  ds_int levelCount;
+  ds_int pad0;
+  ds_int pad1;
+  ds_int pad2;
+} DsBvhRefitParams;
+
+// Scalars of one dsBvhClosest launch. The tie band is that of DsClosestParams; a box is
+// skipped when its squared distance exceeds band * (1 + pruneRelative) + pruneAbsolute, a
+// margin far wider than the rounding of the distance arithmetic (see kernels/bvh.cl).
+typedef struct DsBvhQueryParams {
+  ds_int frameCount;   // F
+  ds_int pointCount;   // Vd
+  ds_int vertexCount;  // Vp
+  ds_int nodeCount;    // N
+  float tieRelative;
+  float tieAbsolute;    // squared length
+  float pruneRelative;  //
+  float pruneAbsolute;  // squared length
+} DsBvhQueryParams;
+
+// The deepest BVH a query can walk (its stack size); the host builds balanced trees (median
+// splits), so a tree of 2^40 leaves would still fit.
+#define DS_BVH_MAX_DEPTH 48
+
+// How many triangles within the tie band a BVH walk remembers (a point closest to a vertex
+// ties with every triangle around it); beyond that a second walk breaks the tie.
+#define DS_BVH_TIES 16
+
+// Pruning margins of the BVH walk (DsBvhQueryParams), relative to the band and to the squared
+// scale S^2 of the scene. The computed squared distances of a triangle and of a box are each
+// within a few unit roundoffs u of (d^2 + S^2) of the truth (the coordinates are at most S, the
+// differences are formed before squaring); the margins are about 1e4 u in double and 16 u in
+// float (where a wider margin would open many more boxes), so a box is never skipped because
+// of rounding.
+#define DS_PRUNE_RELATIVE_DOUBLE 1e-12
+#define DS_PRUNE_RELATIVE_SINGLE 1e-6
+
+// A closest point (u, v) counts as on an edge when one of its barycentric weights
+// (1 - u - v, u, v) is at most DS_FEATURE_TOL, on a vertex when two are (pseudo-normals of the
+// inside audit and of the penetration resolution; see src/correction/surface_features.h).
+#define DS_FEATURE_TOL 1e-6
+
 // A triangle is treated as a segment/point set (no face region) when
 //   |(b-a) x (c-a)|^2 <= DS_FLAT_SIN2 * |b-a|^2 |c-a|^2,
 // i.e. when the sine of its angle at a is below sqrt(DS_FLAT_SIN2). Such a triangle lies within
@@ -90,6 +161,10 @@ typedef float3 ds_real3;
 static_assert(sizeof(DsSurfaceHit) == 16, "DsSurfaceHit layout");
 static_assert(sizeof(DsClosestParams) == 32, "DsClosestParams layout");
 static_assert(sizeof(DsTransferParams) == 16, "DsTransferParams layout");
+static_assert(sizeof(DsResolveParams) == 32, "DsResolveParams layout");
+static_assert(sizeof(DsBvhNode) == 16, "DsBvhNode layout");
+static_assert(sizeof(DsBvhRefitParams) == 32, "DsBvhRefitParams layout");
+static_assert(sizeof(DsBvhQueryParams) == 32, "DsBvhQueryParams layout");
 }  // namespace drivenshape
 #endif
 

@@ -85,3 +85,37 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsTrans
   out[3 * item + 1] = (float)result.y;
   out[3 * item + 2] = (float)result.z;
 }
+
+// Rebuild from local coordinates (contract: ClosestBackend::rebuild): the second half of
+// dsTransfer with the local coordinates given. hits[i] is shared by every frame; where the frame
+// is degenerate, the coordinates are a world-axes offset from q (the same rule as dsTransfer).
+//
+// Mapping: 1-D, local size DS_LOCAL_SIZE, one item per (frame f, point i), item id f * Vd + i.
+//
+//   hits        Vd DsSurfaceHit   (triangle ids checked by the host)
+//   toPoses     F x 3Vp float
+//   triangles   T x 3 int
+//   coordinates F x 3Vd float     local coordinates (along e1, along e2, along n)
+//   out         F x 3Vd float
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsRebuild(
+    __global const DsSurfaceHit* hits, __global const float* toPoses, __global const int* triangles,
+    __global const float* coordinates, __global float* out, const DsTransferParams params) {
+  const int item = (int)get_global_id(0);
+  if (item >= params.frameCount * params.pointCount) {
+    return;
+  }
+  const int frame = item / params.pointCount;
+  __global const float* to = toPoses + (size_t)frame * (size_t)(3 * params.vertexCount);
+  const DsSurfaceHit hit = hits[item - frame * params.pointCount];
+  const int ia = triangles[3 * hit.triangle];
+  const int ib = triangles[3 * hit.triangle + 1];
+  const int ic = triangles[3 * hit.triangle + 2];
+  ds_real3 q, e1, e2, n;
+  const int ok = dsFrame(dsLoadPoint(to, ia), dsLoadPoint(to, ib), dsLoadPoint(to, ic),
+                         (ds_real)hit.u, (ds_real)hit.v, &q, &e1, &e2, &n);
+  const ds_real3 l = dsLoadPoint(coordinates, item);
+  const ds_real3 result = ok ? q + l.x * e1 + l.y * e2 + l.z * n : q + l;
+  out[3 * item] = (float)result.x;
+  out[3 * item + 1] = (float)result.y;
+  out[3 * item + 2] = (float)result.z;
+}

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Closest-triangle exactness on every frame of the pants test clip (../shared/data, not shipped
 # with the repository): the library's OpenCL search vs an independent brute force, per vertex.
-# Needs a build (scripts/setup.sh). Takes a few minutes on 2 cores.
+# Needs a build (scripts/setup.sh; DRIVENSHAPE_BUILD names another build folder). Takes a few
+# minutes on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=${DRIVENSHAPE_DATA:-../shared/data}
-export POCL_CACHE_DIR="$PWD/build/pocl-cache"
+build=${DRIVENSHAPE_BUILD:-build}
+export POCL_CACHE_DIR="$PWD/$build/pocl-cache"
 for scene in ${*:-pants}; do
-  build/tests/correction/check_closest_exact "$data/$scene/driver_rest.obj" \
+  "$build/tests/correction/check_closest_exact" "$data/$scene/driver_rest.obj" \
     "$data/$scene/test_public.driver.pc2" "$data/$scene/test_public.driven.pc2"
 done

@@ -1,6 +1,7 @@
 // The OpenCL backend of the correction stage: the host candidate search (shared with the host
 // backend), then kernels/closest.cl for the exact choice and kernels/transfer.cl for the
-// local-frame transfer. One program holds both kernels; it is built once per backend.
+// local-frame transfer and rebuild, kernels/resolve.cl for the penetration resolution. One
+// program holds all the kernels; it is built once per backend.
 
 #include <algorithm>
 #include <cstddef>
@@ -10,15 +11,19 @@
 
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include <drivenshape_kernels/bvh_cl.h>
 #include <drivenshape_kernels/closest_cl.h>
 #include <drivenshape_kernels/correction_types_cl.h>
+#include <drivenshape_kernels/resolve_cl.h>
 #include <drivenshape_kernels/transfer_cl.h>
 
 #include <correction_types.h>
 #include <shared_types.h>
 
+#include "bvh.h"
 #include "candidates.h"
 #include "cl_program.h"
+#include "surface_features.h"
 
 namespace drivenshape {
 namespace {
@@ -59,7 +64,11 @@ class ClClosest final : public ClosestBackend {
  public:
   ClClosest(const cl::Context& context, const cl::Device& device, const cl::CommandQueue& queue,
             const ClosestOptions& options)
-      : mContext(context), mDevice(device), mQueue(queue), mSearch(options.threads) {
+      : mContext(context),
+        mDevice(device),
+        mQueue(queue),
+        mUseBvh(options.deviceSearch == ClosestOptions::DeviceSearch::kBvh),
+        mSearch(options.threads) {
     mDouble = !options.forceSinglePrecision && hasFp64(device);
     std::vector<std::string> defines;
     if (mDouble) {
@@ -69,11 +78,17 @@ class ClClosest final : public ClosestBackend {
         context, device,
         {{kernels::kCorrectionTypesSourceName, kernels::kCorrectionTypesSource},
          {kernels::kClosestSourceName, kernels::kClosestSource},
-         {kernels::kTransferSourceName, kernels::kTransferSource}},
+         {kernels::kTransferSourceName, kernels::kTransferSource},
+         {kernels::kResolveSourceName, kernels::kResolveSource},
+         {kernels::kBvhSourceName, kernels::kBvhSource}},
         defines);
     cl_util::guard("creating the correction kernels", [&] {
       mClosestKernel = cl::Kernel(mProgram, "dsClosest");
       mTransferKernel = cl::Kernel(mProgram, "dsTransfer");
+      mRebuildKernel = cl::Kernel(mProgram, "dsRebuild");
+      mResolveKernel = cl::Kernel(mProgram, "dsResolve");
+      mRefitKernel = cl::Kernel(mProgram, "dsBvhRefit");
+      mBvhKernel = cl::Kernel(mProgram, "dsBvhClosest");
       mName = device.getInfo<CL_DEVICE_NAME>();
     });
   }
@@ -87,11 +102,27 @@ class ClClosest final : public ClosestBackend {
       mTriangles = cl::Buffer(mContext, CL_MEM_READ_ONLY, triangles.size() * sizeof(std::int32_t));
       mQueue.enqueueWriteBuffer(mTriangles, CL_TRUE, 0, triangles.size() * sizeof(std::int32_t),
                                 triangles.data());
+      const correction::FeatureTables features = correction::buildFeatureTables(
+          triangles.data(), mSearch.triangleCount(), mSearch.vertexCount());
+      mEdgeStart = upload(features.edgeStart);
+      mEdgeTriangles = upload(features.edgeTriangles);
+      mVertexStart = upload(features.vertexStart);
+      mVertexTriangles = upload(features.vertexTriangles);
+      mBvh = correction::buildBvh(driver, mask, kLeafSize);
+      mNodes = uploadBytes(mBvh.nodes.data(), mBvh.nodes.size() * sizeof(DsBvhNode));
+      mLeafTriangles = upload(mBvh.leafTriangles);
+      mPointRoot = upload(mBvh.pointRoot);
+      mSeeds = upload(std::vector<std::int32_t>(mBvh.pointRoot.size(), 0));
+      mSeeded = false;
     });
   }
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
     mSearch.checkChunk("closest triangle", frameCount, hits != nullptr);
+    if (mUseBvh) {
+      closestBvh(frameCount, poses, points, hits);
+      return;
+    }
     mSearch.find(frameCount, poses, points, mCandidates);
     if (frameCount == 0 || mSearch.pointCount() == 0) {
       return;
@@ -182,25 +213,250 @@ class ClClosest final : public ClosestBackend {
     });
   }
 
+  void rebuild(int frameCount, const SurfaceHit* hits, const float* toPoses, const float* local,
+               float* out) override {
+    correction::checkRebuild(mSearch, frameCount, hits, toPoses, local, out);
+    if (frameCount == 0 || mSearch.pointCount() == 0) {
+      return;
+    }
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    const std::size_t hitBytes =
+        static_cast<std::size_t>(mSearch.pointCount()) * sizeof(SurfaceHit);
+    const std::size_t poseBytes =
+        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
+    const std::size_t pointBytes = items * 3 * sizeof(float);
+    DsTransferParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = mSearch.pointCount();
+    params.vertexCount = mSearch.vertexCount();
+    params.triangleCount = mSearch.triangleCount();
+
+    cl_util::guard("running the rebuild kernel", [&] {
+      cl::Buffer& hitBuffer = mHits.reserve(mContext, hitBytes);
+      cl::Buffer& toBuffer = mToPoses.reserve(mContext, poseBytes);
+      cl::Buffer& localBuffer = mPoints.reserve(mContext, pointBytes);
+      cl::Buffer& outBuffer = mOut.reserve(mContext, pointBytes);
+      mQueue.enqueueWriteBuffer(hitBuffer, CL_FALSE, 0, hitBytes, hits);
+      mQueue.enqueueWriteBuffer(toBuffer, CL_FALSE, 0, poseBytes, toPoses);
+      mQueue.enqueueWriteBuffer(localBuffer, CL_FALSE, 0, pointBytes, local);
+      mRebuildKernel.setArg(0, hitBuffer);
+      mRebuildKernel.setArg(1, toBuffer);
+      mRebuildKernel.setArg(2, mTriangles);
+      mRebuildKernel.setArg(3, localBuffer);
+      mRebuildKernel.setArg(4, outBuffer);
+      mRebuildKernel.setArg(5, sizeof(params), &params);
+      mQueue.enqueueNDRangeKernel(mRebuildKernel, cl::NullRange,
+                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
+                                  cl::NDRange(DS_LOCAL_SIZE));
+      mQueue.enqueueReadBuffer(outBuffer, CL_TRUE, 0, pointBytes, out);
+    });
+  }
+
+  void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
+               float* points, int* moved) override {
+    correction::checkResolve(mSearch, frameCount, poses, hits, offset, points);
+    if (frameCount == 0) {
+      return;
+    }
+    if (mSearch.pointCount() == 0) {
+      std::fill(moved, moved + (moved != nullptr ? frameCount : 0), 0);
+      return;
+    }
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    const std::size_t poseBytes =
+        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
+    const std::size_t pointBytes = items * 3 * sizeof(float);
+    const std::size_t countBytes = static_cast<std::size_t>(frameCount) * sizeof(cl_int);
+    DsResolveParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = mSearch.pointCount();
+    params.vertexCount = mSearch.vertexCount();
+    params.triangleCount = mSearch.triangleCount();
+    params.offset = offset;
+
+    cl_util::guard("running the penetration-resolution kernel", [&] {
+      cl::Buffer& posesBuffer = mPoses.reserve(mContext, poseBytes);
+      cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
+      cl::Buffer& pointsBuffer = mOut.reserve(mContext, pointBytes);
+      cl::Buffer& countBuffer = mCounts.reserve(mContext, countBytes);
+      mQueue.enqueueWriteBuffer(posesBuffer, CL_FALSE, 0, poseBytes, poses);
+      mQueue.enqueueWriteBuffer(hitBuffer, CL_FALSE, 0, items * sizeof(SurfaceHit), hits);
+      mQueue.enqueueWriteBuffer(pointsBuffer, CL_FALSE, 0, pointBytes, points);
+      mQueue.enqueueFillBuffer(countBuffer, cl_int(0), 0, countBytes);
+      cl_uint arg = 0;
+      mResolveKernel.setArg(arg++, posesBuffer);
+      mResolveKernel.setArg(arg++, mTriangles);
+      mResolveKernel.setArg(arg++, mEdgeStart);
+      mResolveKernel.setArg(arg++, mEdgeTriangles);
+      mResolveKernel.setArg(arg++, mVertexStart);
+      mResolveKernel.setArg(arg++, mVertexTriangles);
+      mResolveKernel.setArg(arg++, hitBuffer);
+      mResolveKernel.setArg(arg++, pointsBuffer);
+      mResolveKernel.setArg(arg++, countBuffer);
+      mResolveKernel.setArg(arg++, sizeof(params), &params);
+      mQueue.enqueueNDRangeKernel(mResolveKernel, cl::NullRange,
+                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
+                                  cl::NDRange(DS_LOCAL_SIZE));
+      mQueue.enqueueReadBuffer(pointsBuffer, CL_TRUE, 0, pointBytes, points);
+      std::vector<cl_int> counts(static_cast<std::size_t>(frameCount));
+      mQueue.enqueueReadBuffer(countBuffer, CL_TRUE, 0, countBytes, counts.data());
+      if (moved != nullptr) {
+        std::copy(counts.begin(), counts.end(), moved);
+      }
+    });
+  }
+
  private:
+  /// At most this many triangles per BVH leaf (measured on W1: 4 and 8 are within noise).
+  static constexpr int kLeafSize = 4;
+
+  /// ClosestBackend::closest through the BVH (see src/correction/bvh.cpp and kernels/bvh.cl).
+  void closestBvh(int frameCount, const float* poses, const float* points, SurfaceHit* hits) {
+    mSearch.checkChunk("closest triangle", frameCount, poses != nullptr && points != nullptr);
+    correction::checkFinite("closest triangle", "driver vertex", frameCount, mSearch.vertexCount(),
+                            poses);
+    correction::checkFinite("closest triangle", "driven point", frameCount, mSearch.pointCount(),
+                            points);
+    const int pointCount = mSearch.pointCount();
+    if (frameCount == 0 || pointCount == 0) {
+      return;
+    }
+    const int vertexCount = mSearch.vertexCount();
+    const int nodeCount = static_cast<int>(mBvh.nodes.size());
+    const std::size_t items = static_cast<std::size_t>(frameCount) * pointCount;
+    const std::size_t poseBytes =
+        static_cast<std::size_t>(frameCount) * 3 * vertexCount * sizeof(float);
+    const std::size_t pointBytes = items * 3 * sizeof(float);
+    const std::size_t boxBytes = static_cast<std::size_t>(frameCount) *
+                                 static_cast<std::size_t>(nodeCount) * 6 * sizeof(float);
+    const double scale2 = mSearch.sceneScale() * mSearch.sceneScale();
+    const double prune = mDouble ? DS_PRUNE_RELATIVE_DOUBLE : DS_PRUNE_RELATIVE_SINGLE;
+
+    DsBvhQueryParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = pointCount;
+    params.vertexCount = vertexCount;
+    params.nodeCount = nodeCount;
+    params.tieRelative =
+        static_cast<float>(mDouble ? DS_TIE_RELATIVE_DOUBLE : DS_TIE_RELATIVE_SINGLE);
+    params.tieAbsolute =
+        static_cast<float>((mDouble ? DS_TIE_SCALE2_DOUBLE : DS_TIE_SCALE2_SINGLE) * scale2);
+    params.pruneRelative = static_cast<float>(prune);
+    params.pruneAbsolute = static_cast<float>(prune * scale2);
+
+    if (!mSeeded) {
+      correction::seedTriangles(mBvh, mSearch.triangles().data(), poses, points, mSeedHost);
+      cl_util::guard("uploading the closest-triangle warm start", [&] {
+        mQueue.enqueueWriteBuffer(mSeeds, CL_TRUE, 0, mSeedHost.size() * sizeof(std::int32_t),
+                                  mSeedHost.data());
+      });
+      mSeeded = true;
+    }
+
+    cl_util::guard("running the closest-triangle kernels", [&] {
+      cl::Buffer& posesBuffer = mPoses.reserve(mContext, poseBytes);
+      cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
+      cl::Buffer& boxBuffer = mBoxes.reserve(mContext, boxBytes);
+      cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
+      mQueue.enqueueWriteBuffer(posesBuffer, CL_FALSE, 0, poseBytes, poses);
+      mQueue.enqueueWriteBuffer(pointsBuffer, CL_FALSE, 0, pointBytes, points);
+      DsBvhRefitParams refit{};
+      refit.frameCount = frameCount;
+      refit.vertexCount = vertexCount;
+      refit.nodeCount = nodeCount;
+      mRefitKernel.setArg(0, posesBuffer);
+      mRefitKernel.setArg(1, mNodes);
+      mRefitKernel.setArg(2, mLeafTriangles);
+      mRefitKernel.setArg(3, boxBuffer);
+      for (int level = mBvh.depth() - 1; level >= 0; --level) {
+        refit.levelFirst = mBvh.levelStart[static_cast<std::size_t>(level)];
+        refit.levelCount = mBvh.levelStart[static_cast<std::size_t>(level) + 1] - refit.levelFirst;
+        mRefitKernel.setArg(4, sizeof(refit), &refit);
+        const std::size_t work = static_cast<std::size_t>(frameCount) * refit.levelCount;
+        mQueue.enqueueNDRangeKernel(mRefitKernel, cl::NullRange,
+                                    cl::NDRange(cl_util::roundUp(work, DS_LOCAL_SIZE)),
+                                    cl::NDRange(DS_LOCAL_SIZE));
+      }
+      cl_uint arg = 0;
+      mBvhKernel.setArg(arg++, posesBuffer);
+      mBvhKernel.setArg(arg++, mTriangles);
+      mBvhKernel.setArg(arg++, mNodes);
+      mBvhKernel.setArg(arg++, mLeafTriangles);
+      mBvhKernel.setArg(arg++, boxBuffer);
+      mBvhKernel.setArg(arg++, pointsBuffer);
+      mBvhKernel.setArg(arg++, mPointRoot);
+      mBvhKernel.setArg(arg++, mSeeds);
+      mBvhKernel.setArg(arg++, hitBuffer);
+      mBvhKernel.setArg(arg++, sizeof(params), &params);
+      mQueue.enqueueNDRangeKernel(mBvhKernel, cl::NullRange,
+                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
+                                  cl::NDRange(DS_LOCAL_SIZE));
+      mQueue.enqueueReadBuffer(hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
+      // The next chunk starts from this chunk's last frame (a warm start only; see bvh.cpp).
+      const SurfaceHit* last = hits + (items - static_cast<std::size_t>(pointCount));
+      for (int i = 0; i < pointCount; ++i) {
+        mSeedHost[static_cast<std::size_t>(i)] = last[i].triangle;
+      }
+      mQueue.enqueueWriteBuffer(mSeeds, CL_TRUE, 0, mSeedHost.size() * sizeof(std::int32_t),
+                                mSeedHost.data());
+    });
+  }
+
+  cl::Buffer uploadBytes(const void* data, std::size_t bytes) {
+    cl::Buffer buffer(mContext, CL_MEM_READ_ONLY, std::max<std::size_t>(bytes, 16));
+    if (bytes > 0) {
+      mQueue.enqueueWriteBuffer(buffer, CL_TRUE, 0, bytes, data);
+    }
+    return buffer;
+  }
+
+  /// A read-only device copy of a host table (at least one element, so empty tables work).
+  cl::Buffer upload(const std::vector<std::int32_t>& table) {
+    const std::size_t bytes = std::max<std::size_t>(table.size(), 1) * sizeof(std::int32_t);
+    cl::Buffer buffer(mContext, CL_MEM_READ_ONLY, bytes);
+    if (!table.empty()) {
+      mQueue.enqueueWriteBuffer(buffer, CL_TRUE, 0, table.size() * sizeof(std::int32_t),
+                                table.data());
+    }
+    return buffer;
+  }
+
   cl::Context mContext;
   cl::Device mDevice;
   cl::CommandQueue mQueue;
   bool mDouble = false;
+  bool mUseBvh = true;
   std::string mName;
   cl::Program mProgram;
   cl::Kernel mClosestKernel;
   cl::Kernel mTransferKernel;
+  cl::Kernel mRebuildKernel;
+  cl::Kernel mResolveKernel;
+  cl::Kernel mRefitKernel;
+  cl::Kernel mBvhKernel;
   correction::CandidateSearch mSearch;
   correction::CandidateTable mCandidates;
   cl::Buffer mTriangles;
+  cl::Buffer mEdgeStart;
+  cl::Buffer mEdgeTriangles;
+  cl::Buffer mVertexStart;
+  cl::Buffer mVertexTriangles;
+  correction::BvhTables mBvh;
+  cl::Buffer mNodes;
+  cl::Buffer mLeafTriangles;
+  cl::Buffer mPointRoot;
+  cl::Buffer mSeeds;
+  std::vector<std::int32_t> mSeedHost;
+  bool mSeeded = false;
+  GrowingBuffer mBoxes{CL_MEM_READ_WRITE};
   GrowingBuffer mPoses{CL_MEM_READ_ONLY};
   GrowingBuffer mToPoses{CL_MEM_READ_ONLY};
   GrowingBuffer mPoints{CL_MEM_READ_ONLY};
   GrowingBuffer mStart{CL_MEM_READ_ONLY};
   GrowingBuffer mCandidateTriangles{CL_MEM_READ_ONLY};
   GrowingBuffer mHits{CL_MEM_READ_WRITE};
-  GrowingBuffer mOut{CL_MEM_WRITE_ONLY};
+  GrowingBuffer mOut{CL_MEM_READ_WRITE};
+  GrowingBuffer mCounts{CL_MEM_READ_WRITE};
 };
 
 }  // namespace

@@ -111,17 +111,50 @@ void checkTransfer(const CandidateSearch& search, int frameCount, const SurfaceH
   checkFinite("transfer", "driver vertex of the 'to' pose", frameCount, search.vertexCount(),
               toPoses);
   checkFinite("transfer", "driven point", frameCount, search.pointCount(), points);
-  const std::size_t items = static_cast<std::size_t>(frameCount) * search.pointCount();
-  for (std::size_t k = 0; k < items; ++k) {
+  checkHits("transfer", search.triangleCount(),
+            static_cast<std::size_t>(frameCount) * search.pointCount(), search.pointCount(), hits);
+}
+
+void checkHits(const char* stage, int triangleCount, std::size_t count, int perFrame,
+               const SurfaceHit* hits) {
+  for (std::size_t k = 0; k < count; ++k) {
     const int t = hits[k].triangle;
-    if (t < 0 || t >= search.triangleCount() || !std::isfinite(hits[k].u) ||
-        !std::isfinite(hits[k].v)) {
-      DS_THROW(kInput, "transfer: frame ", k / static_cast<std::size_t>(search.pointCount()),
-               " of the chunk: point ", k % static_cast<std::size_t>(search.pointCount()),
+    if (t < 0 || t >= triangleCount || !std::isfinite(hits[k].u) || !std::isfinite(hits[k].v)) {
+      DS_THROW(kInput, stage, ": frame ", k / static_cast<std::size_t>(perFrame),
+               " of the chunk: point ", k % static_cast<std::size_t>(perFrame),
                " has hit triangle ", t, " (u ", hits[k].u, ", v ", hits[k].v, "); the driver has ",
-               search.triangleCount(), " triangles; were the hits made for another surface?");
+               triangleCount, " triangles; were the hits made for another surface?");
     }
   }
+}
+
+void checkRebuild(const CandidateSearch& search, int frameCount, const SurfaceHit* hits,
+                  const float* toPoses, const float* local, const float* out) {
+  search.checkChunk("rebuild", frameCount,
+                    hits != nullptr && toPoses != nullptr && local != nullptr && out != nullptr);
+  checkFinite("rebuild", "driver vertex of the 'to' pose", frameCount, search.vertexCount(),
+              toPoses);
+  checkFinite("rebuild", "local coordinates of driven point", frameCount, search.pointCount(),
+              local);
+  if (frameCount > 0) {
+    checkHits("rebuild", search.triangleCount(), static_cast<std::size_t>(search.pointCount()),
+              std::max(search.pointCount(), 1), hits);
+  }
+}
+
+void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
+                  const SurfaceHit* hits, float offset, const float* points) {
+  search.checkChunk("penetration resolution", frameCount,
+                    poses != nullptr && hits != nullptr && points != nullptr);
+  if (!std::isfinite(offset) || offset < 0.0f) {
+    DS_THROW(kInput, "penetration resolution: the offset is ", offset,
+             "; it must be a finite distance >= 0 in scene units");
+  }
+  checkFinite("penetration resolution", "driver vertex", frameCount, search.vertexCount(), poses);
+  checkFinite("penetration resolution", "driven point", frameCount, search.pointCount(), points);
+  checkHits("penetration resolution", search.triangleCount(),
+            static_cast<std::size_t>(frameCount) * search.pointCount(),
+            std::max(search.pointCount(), 1), hits);
 }
 
 void CandidateSearch::setSurface(const Mesh& driver, const BindingMask& mask) {

@@ -4,6 +4,7 @@
 // mask as flat tables, input checks, and the candidate search (FLANN) whose lists the exact
 // step (kernels/closest.cl or src/host/host_closest.cpp) reduces to one triangle per point.
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -37,6 +38,20 @@ class CandidateSearch;
 void checkTransfer(const CandidateSearch& search, int frameCount, const SurfaceHit* hits,
                    const float* fromPoses, const float* toPoses, const float* points,
                    const float* out);
+
+/// Throws Error(kInput) naming `stage` when one of `count` hits has a triangle out of
+/// [0, triangleCount) or a non-finite (u, v); `perFrame` (> 0) is the hit count of one frame,
+/// for the frame number in the message.
+void checkHits(const char* stage, int triangleCount, std::size_t count, int perFrame,
+               const SurfaceHit* hits);
+
+/// Checks a rebuild call (see ClosestBackend::rebuild) the way checkTransfer does.
+void checkRebuild(const CandidateSearch& search, int frameCount, const SurfaceHit* hits,
+                  const float* toPoses, const float* local, const float* out);
+
+/// Checks a resolve call (see ClosestBackend::resolve): also the offset (finite, >= 0).
+void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
+                  const SurfaceHit* hits, float offset, const float* points);
 
 /// Driver topology, mask and candidate search. setSurface() once, find() per chunk.
 class CandidateSearch {

@@ -1,9 +1,11 @@
 // The host reference of the correction stage: the same candidate lists as the OpenCL backend,
 // then plain C++ in double for the exact choice (kernels/closest.cl) and the local-frame
-// transfer (kernels/transfer.cl), frames in parallel on host threads.
+// transfer and rebuild (kernels/transfer.cl), and the penetration resolution
+// (kernels/resolve.cl), frames in parallel on host threads.
 
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <string>
@@ -13,6 +15,7 @@
 #include <drivenshape/parallel.h>
 
 #include "candidates.h"
+#include "surface_features.h"
 #include "triangle_distance.h"
 
 namespace drivenshape {
@@ -28,6 +31,8 @@ class HostClosest final : public ClosestBackend {
 
   void setSurface(const Mesh& driver, const BindingMask& mask) override {
     mSearch.setSurface(driver, mask);
+    mFeatures = correction::buildFeatureTables(mSearch.triangles().data(), mSearch.triangleCount(),
+                                               mSearch.vertexCount());
   }
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
@@ -112,8 +117,75 @@ class HostClosest final : public ClosestBackend {
     });
   }
 
+  void rebuild(int frameCount, const SurfaceHit* hits, const float* toPoses, const float* local,
+               float* out) override {
+    correction::checkRebuild(mSearch, frameCount, hits, toPoses, local, out);
+    const int pointCount = mSearch.pointCount();
+    const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
+    const std::int32_t* triangles = mSearch.triangles().data();
+    parallelFor(frameCount, mSearch.threads(), [&](int f) {
+      const float* to = toPoses + static_cast<std::size_t>(f) * poseStride;
+      for (int i = 0; i < pointCount; ++i) {
+        const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
+        const SurfaceHit& hit = hits[i];
+        const std::int32_t* tri = triangles + 3 * static_cast<std::size_t>(hit.triangle);
+        correction::LocalFrame frame;
+        const bool ok = correction::localFrame(loadPoint(to, tri[0]), loadPoint(to, tri[1]),
+                                               loadPoint(to, tri[2]), hit.u, hit.v, frame);
+        const Eigen::Vector3d l = loadPoint(local, static_cast<long>(item));
+        const Eigen::Vector3d result =
+            ok ? Eigen::Vector3d(frame.q + l.x() * frame.e1 + l.y() * frame.e2 + l.z() * frame.n)
+               : Eigen::Vector3d(frame.q + l);
+        for (int a = 0; a < 3; ++a) {
+          out[3 * item + static_cast<std::size_t>(a)] = static_cast<float>(result[a]);
+        }
+      }
+    });
+  }
+
+  void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
+               float* points, int* moved) override {
+    correction::checkResolve(mSearch, frameCount, poses, hits, offset, points);
+    const int pointCount = mSearch.pointCount();
+    const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
+    const std::int32_t* triangles = mSearch.triangles().data();
+    const correction::FeatureView features = correction::viewOf(mFeatures);
+    const double target = offset;
+    parallelFor(frameCount, mSearch.threads(), [&](int f) {
+      const float* pose = poses + static_cast<std::size_t>(f) * poseStride;
+      int count = 0;
+      for (int i = 0; i < pointCount; ++i) {
+        const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
+        const SurfaceHit& hit = hits[item];
+        const std::int32_t* tri = triangles + 3 * static_cast<std::size_t>(hit.triangle);
+        const Eigen::Vector3d a = loadPoint(pose, tri[0]);
+        const double u = hit.u;
+        const double v = hit.v;
+        const Eigen::Vector3d q =
+            a + u * (loadPoint(pose, tri[1]) - a) + v * (loadPoint(pose, tri[2]) - a);
+        const Eigen::Vector3d offsetVector = loadPoint(points, static_cast<long>(item)) - q;
+        const Eigen::Vector3d normal =
+            correction::pseudoNormal(pose, triangles, features, hit.triangle, u, v);
+        const double distance = offsetVector.norm();
+        const double signedDistance = offsetVector.dot(normal) < 0.0 ? -distance : distance;
+        const double length = normal.norm();
+        if (signedDistance < target && length > 0.0) {
+          const Eigen::Vector3d result = q + (target / length) * normal;
+          for (int k = 0; k < 3; ++k) {
+            points[3 * item + static_cast<std::size_t>(k)] = static_cast<float>(result[k]);
+          }
+          ++count;
+        }
+      }
+      if (moved != nullptr) {
+        moved[f] = count;
+      }
+    });
+  }
+
  private:
   correction::CandidateSearch mSearch;
+  correction::FeatureTables mFeatures;
   correction::CandidateTable mCandidates;
 };
 

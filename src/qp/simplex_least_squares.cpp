@@ -31,6 +31,34 @@ namespace {
 constexpr double kSumLimit = 1e-9;
 constexpr double kBoundLimit = 1e-9;
 constexpr double kKktLimit = 1e-6;
+/// How far sum(lower) may exceed 1, or sum(upper) fall short of it: rounding of the previous
+/// frame's weights (their sum is checked against kSumLimit).
+constexpr double kBoxSumSlack = kSumLimit;
+/// A box whose lower corner sums to at least 1 - kPinnedSlack (or upper corner to at most
+/// 1 + kPinnedSlack) is treated as the single point it admits.
+constexpr double kPinnedSlack = 1e-12;
+
+/// The preconditions of the bounded solve (see qp.h); a violation is a caller's bug.
+void checkBounds(int k, const Eigen::Ref<const Eigen::VectorXd>& lower,
+                 const Eigen::Ref<const Eigen::VectorXd>& upper) {
+  if (lower.size() != k || upper.size() != k) {
+    DS_THROW(kInternal, "constrained blend weights: bounds of ", lower.size(), " and ",
+             upper.size(), " entries; ", k, " expected for ", k, " shapes");
+  }
+  for (int i = 0; i < k; ++i) {
+    // Written so that NaN fails too.
+    if (!(lower(i) >= 0.0 && lower(i) <= upper(i) && upper(i) <= 1.0)) {
+      DS_THROW(kInternal, "constrained blend weights: bounds of shape ", i, " are [", lower(i),
+               ", ", upper(i), "]; 0 <= lower <= upper <= 1 is required");
+    }
+  }
+  const double lowSum = lower.sum();
+  const double highSum = upper.sum();
+  if (!(lowSum <= 1.0 + kBoxSumSlack && highSum >= 1.0 - kBoxSumSlack)) {
+    DS_THROW(kInternal, "constrained blend weights: the bounds admit no weights summing to 1 ",
+             "(sum of lower bounds ", lowSum, ", of upper bounds ", highSum, ")");
+  }
+}
 
 }  // namespace
 
@@ -62,7 +90,6 @@ SimplexLeastSquares::SimplexLeastSquares(const Eigen::Ref<const Eigen::MatrixXd>
     mBasis.resize(n, 0);
     mR.resize(0, 0);
     mC.resize(0, 0);
-    mCBound.resize(0);
     return;
   }
 
@@ -97,22 +124,28 @@ SimplexLeastSquares::SimplexLeastSquares(const Eigen::Ref<const Eigen::MatrixXd>
   mR = qr.matrixQR().topRows(k - 1).triangularView<Eigen::Upper>();
 
   mC.resize(k - 1, 2 * k);
-  mCBound.resize(2 * k);
   for (int i = 0; i < k; ++i) {
     mC.col(i) = mZ.row(i).transpose();
     mC.col(k + i) = -mZ.row(i).transpose();
-    mCBound(i) = -1.0 / k;
-    mCBound(k + i) = 1.0 / k - 1.0;
   }
 }
 
 SimplexSolution SimplexLeastSquares::solveProjected(const Eigen::Ref<const Eigen::VectorXd>& p,
                                                     double rr, double bb) const {
   const int k = mShapeCount;
+  return solveProjected(p, rr, bb, Eigen::VectorXd::Zero(k), Eigen::VectorXd::Ones(k));
+}
+
+SimplexSolution SimplexLeastSquares::solveProjected(
+    const Eigen::Ref<const Eigen::VectorXd>& p, double rr, double bb,
+    const Eigen::Ref<const Eigen::VectorXd>& lower,
+    const Eigen::Ref<const Eigen::VectorXd>& upper) const {
+  const int k = mShapeCount;
   if (p.size() != k - 1) {
     DS_THROW(kInternal, "constrained blend weights: the projection has ", p.size(), " entries; ",
              k - 1, " expected for ", k, " shapes");
   }
+  checkBounds(k, lower, upper);
   for (int i = 0; i < p.size(); ++i) {
     if (!std::isfinite(p(i))) {
       DS_THROW(kNumerical, "constrained blend weights: projection entry ", i, " is ", p(i),
@@ -133,63 +166,103 @@ SimplexSolution SimplexLeastSquares::solveProjected(const Eigen::Ref<const Eigen
     return solution;
   }
 
-  const Eigen::MatrixXd noEqualities(k - 1, 0);
-  const Eigen::VectorXd noBounds(0);
-  const QpResult qp = detail::solveGoldfarbIdnani(mR, -p, noEqualities, noBounds, mC, mCBound);
-  if (!qp.feasible) {
-    // Cannot happen in exact arithmetic: the uniform weights are feasible.
-    DS_THROW(kNumerical,
-             "constrained blend weights: the QP solver reported the simplex "
-             "constraints infeasible for ",
-             k, " shapes (after ", qp.iterations, " iterations)");
+  // A box whose lower (or upper) corner already sums to 1 admits that corner alone. The QP
+  // would meet k tight, dependent bounds there, which rounding can make look inconsistent.
+  const bool pinnedLow = lower.sum() >= 1.0 - kPinnedSlack;
+  const bool pinnedHigh = upper.sum() <= 1.0 + kPinnedSlack;
+  Eigen::VectorXd w(k);
+  QpResult qp;
+  if (pinnedLow || pinnedHigh) {
+    w = pinnedLow ? lower : upper;
+  } else {
+    // Same constraint normals as [0, 1], other right-hand sides: Z_i y >= l_i - 1/k and
+    // -Z_i y >= 1/k - u_i. (For l = 0, u = 1: -1/k and 1/k - 1.)
+    Eigen::VectorXd bounds(2 * k);
+    for (int i = 0; i < k; ++i) {
+      bounds(i) = lower(i) - 1.0 / k;
+      bounds(k + i) = 1.0 / k - upper(i);
+    }
+    const Eigen::MatrixXd noEqualities(k - 1, 0);
+    const Eigen::VectorXd noBounds(0);
+    qp = detail::solveGoldfarbIdnani(mR, -p, noEqualities, noBounds, mC, bounds);
+    if (!qp.feasible) {
+      // Cannot happen in exact arithmetic: the preconditions make the box meet the simplex.
+      DS_THROW(kNumerical,
+               "constrained blend weights: the QP solver reported the bound constraints "
+               "infeasible for ",
+               k, " shapes (after ", qp.iterations, " iterations)");
+    }
+    solution.iterations = qp.iterations;
+    w = (mZ * qp.x).array() + 1.0 / k;
   }
-  solution.iterations = qp.iterations;
-
-  Eigen::VectorXd w = (mZ * qp.x).array() + 1.0 / k;
-  solution.boundViolation = std::max({0.0, -w.minCoeff(), w.maxCoeff() - 1.0});
+  for (int i = 0; i < k; ++i) {
+    solution.boundViolation = std::max({solution.boundViolation, lower(i) - w(i), w(i) - upper(i)});
+  }
 
   // Clean-up. The QP keeps only an independent subset of the tight bounds active, so:
-  //  * a weight whose upper bound is active, or the one weight left when k-1 lower bounds are
-  //    active, is 1 and all others are 0 exactly (one-hot);
-  //  * otherwise weights with an active lower bound are set to 0, the others clamped to
-  //    [0, 1] (a clamp moves a weight by at most the bound violation, which is rounding), and
-  //    the free weights are divided by their sum. That re-normalisation keeps every weight in
-  //    [0, 1] exactly (each is at most the sum) and leaves |sum - 1| at a few ulps; it moves a
-  //    weight by at most |sum - 1| before it, which the checks below bound by kSumLimit.
-  std::vector<char> lower(k, 0);
-  std::vector<char> upper(k, 0);
-  for (const int id : qp.active) {
-    (id < k ? lower[id] : upper[id - k]) = 1;
-  }
-  int oneHot = -1;
-  const int lowerCount = static_cast<int>(std::count(lower.begin(), lower.end(), 1));
-  for (int i = 0; i < k && oneHot < 0; ++i) {
-    if (upper[i] || (lowerCount == k - 1 && !lower[i])) {
-      oneHot = i;
+  //  * weights with an active bound are set to that bound exactly; the others are clamped to
+  //    their box (a clamp moves a weight by at most the bound violation, which is rounding),
+  //    and those that reach their upper bound are held there too;
+  //  * the free weights then share what the held ones leave of the sum, T = 1 - sum(held) -
+  //    sum(lower of free). T <= 0 puts them all at their lower bound (with [0, 1] bounds: one
+  //    weight at 1, all others 0); T >= the total width of their boxes puts them all at their
+  //    upper bound (with [0, 1]: the one weight left when k-1 are at 0 is 1); otherwise their
+  //    excess over the lower bound is divided by (its sum / T). With [0, 1] that is the plain
+  //    division by the sum, which keeps every weight in [0, 1] exactly (each is at most the
+  //    sum) and leaves |sum - 1| at a few ulps; in general a weight can overshoot its upper
+  //    bound by rounding and is clamped back. The division moves a weight by at most
+  //    |sum - 1| before it, which the checks below bound by kSumLimit.
+  std::vector<char> held(k, 0);
+  if (!pinnedLow && !pinnedHigh) {
+    std::vector<char> atLower(k, 0);
+    std::vector<char> atUpper(k, 0);
+    for (const int id : qp.active) {
+      (id < k ? atLower[id] : atUpper[id - k]) = 1;
     }
-  }
-  if (oneHot < 0) {
     for (int i = 0; i < k; ++i) {
-      w(i) = lower[i] ? 0.0 : std::clamp(w(i), 0.0, 1.0);
+      if (atUpper[i]) {
+        w(i) = upper(i);
+      } else if (atLower[i]) {
+        w(i) = lower(i);
+      } else {
+        w(i) = std::clamp(w(i), lower(i), upper(i));
+      }
+      held[i] = atLower[i] || atUpper[i] || w(i) >= upper(i);
     }
-    Eigen::Index largest = 0;
-    if (w.maxCoeff(&largest) >= 1.0) {
-      oneHot = static_cast<int>(largest);
+    // base: the held weights and the lower bounds of the free ones; excess: the free weights
+    // above their lower bound.
+    Eigen::VectorXd base(k);
+    Eigen::VectorXd excess(k);
+    double width = 0.0;
+    for (int i = 0; i < k; ++i) {
+      base(i) = held[i] ? w(i) : lower(i);
+      excess(i) = held[i] ? 0.0 : w(i) - lower(i);
+      width += held[i] ? 0.0 : upper(i) - lower(i);
     }
-  }
-  if (oneHot >= 0) {
-    w.setZero();
-    w(oneHot) = 1.0;
-  } else {
-    const double sum = w.sum();
-    if (sum > 0.0 && std::abs(sum - 1.0) <= kSumLimit) {
-      w /= sum;
+    const double target = 1.0 - base.sum();
+    const bool anyFree = std::find(held.begin(), held.end(), 0) != held.end();
+    if (anyFree && target <= 0.0) {
+      excess.setZero();
+    } else if (anyFree && target >= width) {
+      for (int i = 0; i < k; ++i) {
+        excess(i) = held[i] ? 0.0 : upper(i) - lower(i);
+      }
+    } else if (anyFree) {
+      const double sum = excess.sum();
+      if (sum > 0.0 && std::abs(sum - target) <= kSumLimit) {
+        excess /= sum / target;
+      }
+    }
+    for (int i = 0; i < k; ++i) {
+      if (!held[i]) {
+        w(i) = std::min(lower(i) + excess(i), upper(i));
+      }
     }
   }
   for (int i = 0; i < k; ++i) {
-    if (w(i) == 0.0) {
+    if (w(i) == lower(i)) {
       solution.atZero.push_back(i);
-    } else if (w(i) == 1.0) {
+    } else if (w(i) == upper(i)) {
       solution.atOne.push_back(i);
     }
   }
@@ -208,18 +281,21 @@ SimplexSolution SimplexLeastSquares::solveProjected(const Eigen::Ref<const Eigen
   // active bounds with u_j >= 0. The residual is taken back to w-space (Z times it; the
   // component along 1 belongs to the multiplier of the sum) and measured in the max norm,
   // together with any negative multiplier, relative to max(trace(M^T M), |p|_inf): the sizes
-  // of the two terms of the gradient (|M^T M| <= trace, |y| < 1).
-  Eigen::VectorXd stationarity = mR.triangularView<Eigen::Upper>().transpose() * Ry;
-  stationarity -= mLambda * y + p;
-  double dualViolation = 0.0;
-  for (std::size_t j = 0; j < qp.active.size(); ++j) {
-    stationarity -= qp.multipliers(static_cast<Eigen::Index>(j)) * mC.col(qp.active[j]);
-    dualViolation = std::max(dualViolation, -qp.multipliers(static_cast<Eigen::Index>(j)));
+  // of the two terms of the gradient (|M^T M| <= trace, |y| < 1). A pinned box has a single
+  // feasible point, where every gradient is balanced by the bounds' multipliers: residual 0.
+  if (!pinnedLow && !pinnedHigh) {
+    Eigen::VectorXd stationarity = mR.triangularView<Eigen::Upper>().transpose() * Ry;
+    stationarity -= mLambda * y + p;
+    double dualViolation = 0.0;
+    for (std::size_t j = 0; j < qp.active.size(); ++j) {
+      stationarity -= qp.multipliers(static_cast<Eigen::Index>(j)) * mC.col(qp.active[j]);
+      dualViolation = std::max(dualViolation, -qp.multipliers(static_cast<Eigen::Index>(j)));
+    }
+    const double gramTrace = std::max(mR.squaredNorm() - mLambda * (k - 1), 0.0);  // trace(M^T M)
+    const double kktScale = std::max(gramTrace, p.cwiseAbs().maxCoeff());
+    const double kktAbsolute = std::max((mZ * stationarity).cwiseAbs().maxCoeff(), dualViolation);
+    solution.kktResidual = kktScale > 0.0 ? kktAbsolute / kktScale : kktAbsolute;
   }
-  const double gramTrace = std::max(mR.squaredNorm() - mLambda * (k - 1), 0.0);  // trace(M^T M)
-  const double kktScale = std::max(gramTrace, p.cwiseAbs().maxCoeff());
-  const double kktAbsolute = std::max((mZ * stationarity).cwiseAbs().maxCoeff(), dualViolation);
-  solution.kktResidual = kktScale > 0.0 ? kktAbsolute / kktScale : kktAbsolute;
 
   if (solution.sumError > kSumLimit || solution.boundViolation > kBoundLimit ||
       !(solution.kktResidual <= kKktLimit)) {

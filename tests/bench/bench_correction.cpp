@@ -4,14 +4,19 @@
 // test: run it by hand.
 //
 //   bench_correction [--frames 100] [--chunk 100] [--vertices 5000] [--points 5000]
-//                    [--repeat 5] [--threads 0] [--device NAME]
+//                    [--repeat 5] [--threads 0] [--device NAME] [--single 0|1]
+//                    [--host 0|1] [--candidates 0|1]
 //
 // The scene is an arm-like tube of about --vertices driver vertices (quads, fan triangulated)
 // bending a little more every frame, and a looser tube of about --points cloth points around
 // it. Each measurement is one pass over all frames (every chunk, results read back, the queue
 // finished inside the timed region), after one warm-up pass; it reports min and median over
-// --repeat passes and frames per second from the median. "candidates" is the host FLANN search
-// alone (shared by both backends), so closest minus candidates is the exact step.
+// --repeat passes and frames per second from the median, and the CPU time of the whole process
+// per pass (median; all threads, PoCL's included), which is the fairer figure on a shared
+// machine. "candidates" is the host FLANN search alone (the host backend's first step, and the
+// OpenCL backend's with DeviceSearch::kCandidates), so closest minus candidates is the exact
+// step. The OpenCL backend runs twice: with its default BVH search and with the host
+// candidate lists (DeviceSearch::kCandidates), to compare the schemes in one run.
 
 #include <algorithm>
 #include <chrono>
@@ -23,6 +28,8 @@
 #include <random>
 #include <string>
 #include <vector>
+
+#include <sys/resource.h>
 
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
@@ -44,6 +51,9 @@ struct Options {
   int repeat = 5;
   int threads = 0;
   std::string device;
+  bool single = false;
+  bool host = true;        ///< also run the host backend (and the FLANN candidate search)
+  bool candidates = true;  ///< also run OpenCL with DeviceSearch::kCandidates
 };
 
 Options parse(int argc, char** argv) {
@@ -59,6 +69,12 @@ Options parse(int argc, char** argv) {
       continue;
     }
     const int number = std::atoi(value);
+    if (flag == "--single" || flag == "--host" || flag == "--candidates") {
+      (flag == "--single" ? options.single
+       : flag == "--host" ? options.host
+                          : options.candidates) = number != 0;
+      continue;
+    }
     if (number < 0 || (number == 0 && flag != "--threads")) {
       DS_THROW(kUsage, flag, " needs a positive number, got '", value, "'");
     }
@@ -131,19 +147,31 @@ void bend(const float* in, int count, float angle, float* out) {
 struct Timing {
   double minMs = 0.0;
   double medianMs = 0.0;
+  double cpuMs = 0.0;  ///< median process CPU time (user + system) per pass
 };
+
+double processCpuMs() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return 1e3 * static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-3 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
 
 Timing measure(int repeat, const std::function<void()>& pass) {
   pass();  // warm-up: first-use allocations, caches, lazy compilation
   std::vector<double> ms;
+  std::vector<double> cpu;
   for (int r = 0; r < repeat; ++r) {
+    const double cpuStart = processCpuMs();
     const auto start = std::chrono::steady_clock::now();
     pass();
     const auto stop = std::chrono::steady_clock::now();
+    cpu.push_back(processCpuMs() - cpuStart);
     ms.push_back(std::chrono::duration<double, std::milli>(stop - start).count());
   }
   std::sort(ms.begin(), ms.end());
-  return {ms.front(), ms[ms.size() / 2]};
+  std::sort(cpu.begin(), cpu.end());
+  return {ms.front(), ms[ms.size() / 2], cpu[cpu.size() / 2]};
 }
 
 int run(const Options& options) {
@@ -199,9 +227,14 @@ int run(const Options& options) {
 
   drivenshape::ClosestOptions closestOptions;
   closestOptions.threads = options.threads;
+  closestOptions.forceSinglePrecision = options.single;
+  drivenshape::ClosestOptions candidateOptions = closestOptions;
+  candidateOptions.deviceSearch = drivenshape::ClosestOptions::DeviceSearch::kCandidates;
   std::unique_ptr<ClosestBackend> backends[] = {
       drivenshape::makeHostClosest(closestOptions),
+      drivenshape::makeClClosest(context, device, queue, candidateOptions),
       drivenshape::makeClClosest(context, device, queue, closestOptions)};
+  const char* labels[] = {"host", "OpenCL, host candidates", "OpenCL, BVH"};
   const BindingMask mask = BindingMask::all(vd);
   std::printf(
       "bench_correction: driver %d vertices / %d triangles, %d cloth points, %d frames in chunks "
@@ -228,41 +261,82 @@ int run(const Options& options) {
   search.setSurface(driver, mask);
   drivenshape::correction::CandidateTable table;
   std::size_t candidates = 0;
-  rows.push_back({"candidates", "host (shared)", measure(options.repeat, [&] {
-                    candidates = 0;
-                    chunks([&](std::size_t first, int count) {
-                      search.find(count, blended.data() + first * 3 * vp,
-                                  cloth.data() + first * 3 * vd, table);
-                      candidates += table.triangles.size();
-                    });
-                  })});
-
-  for (auto& backend : backends) {
-    backend->setSurface(driver, mask);
-    rows.push_back({"closest", backend->name(), measure(options.repeat, [&] {
+  if (options.host || options.candidates) {
+    rows.push_back({"candidates", "host FLANN", measure(options.repeat, [&] {
+                      candidates = 0;
                       chunks([&](std::size_t first, int count) {
-                        backend->closest(count, blended.data() + first * 3 * vp,
-                                         cloth.data() + first * 3 * vd, hits.data() + first * vd);
+                        search.find(count, blended.data() + first * 3 * vp,
+                                    cloth.data() + first * 3 * vd, table);
+                        candidates += table.triangles.size();
                       });
                     })});
-    rows.push_back({"transfer", backend->name(), measure(options.repeat, [&] {
+  }
+
+  std::vector<float> local(frames * 3 * vd);
+  std::vector<float> resolved(frames * 3 * vd);
+  std::vector<int> moved(frames);
+  std::vector<SurfaceHit> reference;
+  for (int b = 0; b < 3; ++b) {
+    if ((b == 0 && !options.host) || (b == 1 && !options.candidates)) {
+      continue;
+    }
+    ClosestBackend& backend = *backends[b];
+    const std::string label = labels[b];
+    backend.setSurface(driver, mask);
+    rows.push_back({"closest", label, measure(options.repeat, [&] {
                       chunks([&](std::size_t first, int count) {
-                        backend->transfer(
+                        backend.closest(count, blended.data() + first * 3 * vp,
+                                        cloth.data() + first * 3 * vd, hits.data() + first * vd);
+                      });
+                    })});
+    // Every backend must give the host's triangles (ties aside, which the tie band makes rare).
+    if (reference.empty()) {
+      reference = hits;
+    } else {
+      std::size_t differ = 0;
+      for (std::size_t k = 0; k < hits.size(); ++k) {
+        differ += hits[k].triangle != reference[k].triangle;
+      }
+      std::printf("%s: %zu of %zu hits on another triangle than the %s's\n", label.c_str(), differ,
+                  hits.size(), options.host ? "host" : "OpenCL candidates");
+    }
+    if (b == 1) {
+      continue;  // transfer, rebuild and resolve do not depend on the search
+    }
+    rows.push_back({"transfer", label, measure(options.repeat, [&] {
+                      chunks([&](std::size_t first, int count) {
+                        backend.transfer(
                             count, hits.data() + first * vd, blended.data() + first * 3 * vp,
                             shot.data() + first * 3 * vp, cloth.data() + first * 3 * vd,
                             corrected.data() + first * 3 * vd);
+                      });
+                    })});
+    rows.push_back({"rebuild", label, measure(options.repeat, [&] {
+                      chunks([&](std::size_t first, int count) {
+                        backend.rebuild(count, hits.data(), shot.data() + first * 3 * vp,
+                                        cloth.data() + first * 3 * vd,
+                                        local.data() + first * 3 * vd);
+                      });
+                    })});
+    rows.push_back({"resolve", label, measure(options.repeat, [&] {
+                      resolved = cloth;
+                      chunks([&](std::size_t first, int count) {
+                        backend.resolve(count, blended.data() + first * 3 * vp,
+                                        hits.data() + first * vd, 0.002f,
+                                        resolved.data() + first * 3 * vd, moved.data() + first);
                       });
                     })});
   }
 
   std::printf("candidates per point: %.1f\n",
               static_cast<double>(candidates) / (static_cast<double>(frames) * vd));
-  std::printf("%-11s %-40s %10s %10s %10s\n", "stage", "backend", "min ms", "median ms",
-              "frames/s");
+  std::printf("%-11s %-24s %10s %10s %10s %12s %12s\n", "stage", "backend", "min ms", "median ms",
+              "frames/s", "CPU ms", "CPU ms/frame");
   for (const Row& row : rows) {
-    std::printf("%-11s %-40s %10.2f %10.2f %10.1f\n", row.stage.c_str(), row.backend.c_str(),
-                row.timing.minMs, row.timing.medianMs,
-                1000.0 * static_cast<double>(frames) / row.timing.medianMs);
+    std::printf("%-11s %-24s %10.2f %10.2f %10.1f %12.1f %12.3f\n", row.stage.c_str(),
+                row.backend.c_str(), row.timing.minMs, row.timing.medianMs,
+                1000.0 * static_cast<double>(frames) / row.timing.medianMs, row.timing.cpuMs,
+                row.timing.cpuMs / static_cast<double>(frames));
   }
   return 0;
 }

@@ -430,5 +430,285 @@ TEST(SimplexLeastSquares, BadInputThrows) {
       ErrorCode::kNumerical, "|b - m|^2");
 }
 
+// ---- Per-shape bounds (temporal stability): lower_i <= w_i <= upper_i. ----
+
+/// The box version of enumeratePatterns: each weight is free, at its lower or at its upper
+/// bound (3^k patterns). For the held weights H and free weights F = {f_1..f_m}, with
+/// s = 1 - sum(w_H):
+///
+///     w_F = s e_{f_m} + sum_{i<m} v_i (e_{f_i} - e_{f_m})
+///     A w - b = B v - (b - A_H w_H - s a_{f_m}),   B = [a_{f_i} - a_{f_m}]
+///
+/// solved with a complete orthogonal decomposition as above; patterns whose weights leave the
+/// box are dropped, and an empty F counts only when the held weights sum to 1. As for [0, 1],
+/// an optimum reached by a rank-deficient F is also reached by a smaller F (move along the null
+/// direction until a weight meets a bound), so the minimum-norm choice loses nothing.
+Reference enumerateBoxPatterns(const Eigen::MatrixXd& A, const Eigen::VectorXd& b,
+                               const Eigen::VectorXd& lower, const Eigen::VectorXd& upper) {
+  constexpr double kFeasibleSlack = 1e-10;
+  const auto k = static_cast<int>(A.cols());
+  int patterns = 1;
+  for (int i = 0; i < k; ++i) {
+    patterns *= 3;
+  }
+  Reference best;
+  for (int code = 0; code < patterns; ++code) {
+    std::vector<int> free;
+    Eigen::VectorXd w = Eigen::VectorXd::Zero(k);
+    double heldSum = 0.0;
+    for (int i = 0, rest = code; i < k; ++i, rest /= 3) {
+      if (rest % 3 == 0) {
+        free.push_back(i);
+      } else {
+        w(i) = rest % 3 == 1 ? lower(i) : upper(i);
+        heldSum += w(i);
+      }
+    }
+    const double share = 1.0 - heldSum;
+    if (free.empty()) {
+      if (std::abs(share) > kFeasibleSlack) {
+        continue;
+      }
+    } else {
+      const int last = free.back();
+      const auto m = static_cast<int>(free.size());
+      Eigen::MatrixXd B(A.rows(), m - 1);
+      for (int i = 0; i + 1 < m; ++i) {
+        B.col(i) = A.col(free[i]) - A.col(last);
+      }
+      const Eigen::VectorXd target = b - A * w - share * A.col(last);
+      Eigen::VectorXd v = Eigen::VectorXd::Zero(m - 1);
+      if (m > 1) {
+        v = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(B).solve(target);
+      }
+      w(last) = share - v.sum();
+      for (int i = 0; i + 1 < m; ++i) {
+        w(free[i]) = v(i);
+      }
+    }
+    if ((w - lower).minCoeff() < -kFeasibleSlack || (upper - w).minCoeff() < -kFeasibleSlack) {
+      continue;
+    }
+    const double objective = (A * w - b).squaredNorm();
+    if (objective < best.objective) {
+      best.objective = objective;
+      best.weights = w;
+    }
+  }
+  return best;
+}
+
+struct Box {
+  Eigen::VectorXd lower;
+  Eigen::VectorXd upper;
+};
+
+/// A box around a random point of the simplex (the previous frame's weights): per shape a
+/// half-width below and above drawn from {0, tiny, small, medium, large} (0 fixes the weight),
+/// intersected with [0, 1]. The centre is inside, so the preconditions hold.
+Box randomBox(Rng& rng, int k) {
+  const Eigen::VectorXd centre = simplexPoint(rng, k, uniformInt(rng, 0, 1) == 1);
+  const double widths[] = {0.0, 1e-9, 0.02, 0.1, 0.4, 2.0};
+  const bool uniform = uniformInt(rng, 0, 1) == 1;  // one tau for all (the bake's use)
+  const double tau = widths[uniformInt(rng, 1, 5)];
+  Box box{Eigen::VectorXd(k), Eigen::VectorXd(k)};
+  for (int i = 0; i < k; ++i) {
+    const double below = uniform ? tau : widths[uniformInt(rng, 0, 5)];
+    const double above = uniform ? tau : widths[uniformInt(rng, 0, 5)];
+    box.lower(i) = std::max(0.0, centre(i) - below);
+    box.upper(i) = std::min(1.0, centre(i) + above);
+  }
+  return box;
+}
+
+TEST(SimplexLeastSquaresBounded, AgreesWithEnumeration) {
+  const std::uint32_t seed = testSeed();
+  Rng rng(seed);
+  int problems = 0;
+  double worstObjective = 0.0, worstSum = 0.0, worstBound = 0.0, worstKkt = 0.0;
+  int heldAtLower = 0, heldAtUpper = 0, fixedWeights = 0;
+  for (int i = 0; i < 900; ++i) {
+    const int k = uniformInt(rng, 1, 7);
+    Eigen::MatrixXd A = gaussian(rng, uniformInt(rng, 3, 40), k);
+    const int kind = i % 4;
+    if (kind == 1 && k > 1) {
+      duplicateColumns(rng, A);
+    } else if (kind == 2) {
+      A.array() += 1000.0;  // world positions far from the origin
+    }
+    const Eigen::VectorXd b =
+        kind == 3 ? Eigen::VectorXd(gaussian(rng, A.rows(), 1, 1e3)) : randomTarget(rng, A);
+    const Box box = randomBox(rng, k);
+    const std::string where = "bounded problem " + std::to_string(i) +
+                              " (n = " + std::to_string(A.rows()) + ", k = " + std::to_string(k) +
+                              ")";
+    const SimplexLeastSquares solver(A);
+    const Eigen::VectorXd r = b - solver.center();
+    const SimplexSolution s = solver.solveProjected(solver.basis().transpose() * r, r.squaredNorm(),
+                                                    b.squaredNorm(), box.lower, box.upper);
+    const Reference reference = enumerateBoxPatterns(A, b, box.lower, box.upper);
+    ASSERT_TRUE(std::isfinite(reference.objective)) << where << ": no feasible pattern";
+    const Eigen::VectorXd& w = s.weights;
+    ASSERT_EQ(w.size(), k) << where;
+    const double scale = std::max(b.squaredNorm(), std::numeric_limits<double>::min());
+    const double objectiveError = std::abs(s.objective - reference.objective) / scale;
+    const double directError = std::abs((A * w - b).squaredNorm() - s.objective) / scale;
+    const double sumError = std::abs(w.sum() - 1.0);
+    const double boundError =
+        std::max({0.0, (box.lower - w).maxCoeff(), (w - box.upper).maxCoeff()});
+    worstObjective = std::max({worstObjective, objectiveError, directError});
+    worstSum = std::max(worstSum, sumError);
+    worstBound = std::max(worstBound, boundError);
+    worstKkt = std::max(worstKkt, s.kktResidual);
+    EXPECT_LE(objectiveError, kQpObjectiveRelTol)
+        << where << ": objective " << s.objective << ", reference " << reference.objective
+        << "\nweights   " << w.transpose() << "\nreference " << reference.weights.transpose()
+        << "\nlower     " << box.lower.transpose() << "\nupper     " << box.upper.transpose();
+    EXPECT_LE(directError, kQpObjectiveRelTol) << where;
+    EXPECT_LE(sumError, kQpConstraintTol) << where;
+    EXPECT_LE(boundError, kQpConstraintTol) << where;
+    for (const int j : s.atZero) {
+      EXPECT_EQ(w(j), box.lower(j)) << where << ", shape " << j;
+    }
+    for (const int j : s.atOne) {
+      EXPECT_EQ(w(j), box.upper(j)) << where << ", shape " << j;
+    }
+    for (int j = 0; j < k; ++j) {
+      if (box.lower(j) == box.upper(j)) {
+        EXPECT_EQ(w(j), box.lower(j)) << where << ": shape " << j << " is fixed by its box";
+        ++fixedWeights;
+      }
+    }
+    heldAtLower += static_cast<int>(s.atZero.size());
+    heldAtUpper += static_cast<int>(s.atOne.size());
+    ++problems;
+  }
+  std::printf(
+      "[ measured ] %d bounded problems (%d weights fixed by their box, %d held at lower, %d at "
+      "upper): worst objective error / |b|^2 = %.3g (tolerance %.3g), worst |sum w - 1| = %.3g, "
+      "worst box violation = %.3g (tolerance %.3g), worst relative KKT residual %.3g\n",
+      problems, fixedWeights, heldAtLower, heldAtUpper, worstObjective, kQpObjectiveRelTol,
+      worstSum, worstBound, kQpConstraintTol, worstKkt);
+  // The generator must reach the cases that matter: weights pinned and held at both bounds.
+  EXPECT_GT(fixedWeights, 50);
+  EXPECT_GT(heldAtUpper, 100);
+}
+
+TEST(SimplexLeastSquaresBounded, UnitBoxIsBitwiseTheUnboundedSolve) {
+  Rng rng(testSeed());
+  int problems = 0;
+  for (int i = 0; i < 600; ++i) {
+    const int k = uniformInt(rng, 1, 12);
+    Eigen::MatrixXd A = gaussian(rng, uniformInt(rng, 3, 60), k);
+    if (i % 3 == 1 && k > 1) {
+      duplicateColumns(rng, A);
+    } else if (i % 3 == 2) {
+      A.array() += 1000.0;
+    }
+    const Eigen::VectorXd b = randomTarget(rng, A);
+    const SimplexLeastSquares solver(A);
+    const Eigen::VectorXd r = b - solver.center();
+    const Eigen::VectorXd p = solver.basis().transpose() * r;
+    const SimplexSolution plain = solver.solveProjected(p, r.squaredNorm(), b.squaredNorm());
+    const SimplexSolution boxed = solver.solveProjected(
+        p, r.squaredNorm(), b.squaredNorm(), Eigen::VectorXd::Zero(k), Eigen::VectorXd::Ones(k));
+    ASSERT_EQ(plain.weights.size(), boxed.weights.size());
+    for (int j = 0; j < k; ++j) {
+      // Bitwise: the same doubles, not merely close.
+      EXPECT_EQ(plain.weights(j), boxed.weights(j)) << "problem " << i << ", shape " << j;
+    }
+    EXPECT_EQ(plain.atZero, boxed.atZero) << "problem " << i;
+    EXPECT_EQ(plain.atOne, boxed.atOne) << "problem " << i;
+    EXPECT_EQ(plain.objective, boxed.objective) << "problem " << i;
+    EXPECT_EQ(plain.kktResidual, boxed.kktResidual) << "problem " << i;
+    EXPECT_EQ(plain.iterations, boxed.iterations) << "problem " << i;
+    ++problems;
+  }
+  std::printf("[ measured ] %d problems: [0, 1] boxes bitwise equal to the plain solve\n",
+              problems);
+}
+
+TEST(SimplexLeastSquaresBounded, PinnedBoxReturnsItsCorner) {
+  Rng rng(testSeed());
+  const Eigen::MatrixXd A = gaussian(rng, 30, 6);
+  const SimplexLeastSquares solver(A);
+  const Eigen::VectorXd b = gaussian(rng, 30, 1);
+  const Eigen::VectorXd r = b - solver.center();
+  const Eigen::VectorXd p = solver.basis().transpose() * r;
+  // tau = 0: the previous weights themselves.
+  const Eigen::VectorXd previous = simplexPoint(rng, 6, true);
+  const SimplexSolution s =
+      solver.solveProjected(p, r.squaredNorm(), b.squaredNorm(), previous, previous);
+  EXPECT_EQ(s.weights, previous);
+  EXPECT_EQ(s.kktResidual, 0.0);
+  EXPECT_NEAR(s.objective, (A * previous - b).squaredNorm(), kQpObjectiveRelTol * b.squaredNorm());
+  // Upper corner summing to 1 with the lower bounds below it.
+  const SimplexSolution high = solver.solveProjected(p, r.squaredNorm(), b.squaredNorm(),
+                                                     Eigen::VectorXd::Zero(6), previous);
+  EXPECT_EQ(high.weights, previous);
+}
+
+TEST(SimplexLeastSquaresBounded, ConsecutiveFramesStayWithinTau) {
+  // The use in a bake: each frame's weights within tau of the previous frame's. A pose that
+  // jumps from near shape 0 to near shape 3 makes the free weights jump; the bounded ones move
+  // at most tau per frame and reach the free optimum after a few frames.
+  Rng rng(testSeed());
+  const int k = 5;
+  const Eigen::MatrixXd A = gaussian(rng, 45, k);
+  const SimplexLeastSquares solver(A);
+  const double tau = 0.1;
+  Eigen::VectorXd previous = solver.solve(A.col(0)).weights;
+  const Eigen::VectorXd b = A.col(3);
+  const SimplexSolution free = solver.solve(b);
+  const Eigen::VectorXd r = b - solver.center();
+  const Eigen::VectorXd p = solver.basis().transpose() * r;
+  int frames = 0;
+  while ((previous - free.weights).cwiseAbs().maxCoeff() > 1e-9 && frames < 100) {
+    const Eigen::VectorXd lower = (previous.array() - tau).max(0.0);
+    const Eigen::VectorXd upper = (previous.array() + tau).min(1.0);
+    const SimplexSolution s =
+        solver.solveProjected(p, r.squaredNorm(), b.squaredNorm(), lower, upper);
+    EXPECT_LE((s.weights - previous).cwiseAbs().maxCoeff(), tau + kQpConstraintTol)
+        << "frame " << frames;
+    EXPECT_GE(s.objective, free.objective * (1.0 - kQpObjectiveRelTol) - kQpObjectiveRelTol);
+    previous = s.weights;
+    ++frames;
+  }
+  // Weight 0 goes from 1 to 0 and weight 3 from 0 to 1: at least 1 / tau frames.
+  EXPECT_GE(frames, 10);
+  EXPECT_LT(frames, 100) << "the bounded weights never reached the free optimum";
+  EXPECT_NEAR(solver
+                  .solveProjected(p, r.squaredNorm(), b.squaredNorm(),
+                                  (previous.array() - tau).max(0.0).matrix(),
+                                  (previous.array() + tau).min(1.0).matrix())
+                  .objective,
+              free.objective, kQpObjectiveRelTol * b.squaredNorm());
+}
+
+TEST(SimplexLeastSquaresBounded, BadBoundsThrowInternal) {
+  const Eigen::MatrixXd A =
+      (Eigen::MatrixXd(6, 3) << 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 0, 0, 1, 1, 2, 0, 1).finished();
+  const SimplexLeastSquares solver(A);
+  const Eigen::VectorXd p = Eigen::VectorXd::Zero(2);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(3);
+  const Eigen::VectorXd one = Eigen::VectorXd::Ones(3);
+  auto call = [&](const Eigen::VectorXd& lower, const Eigen::VectorXd& upper) {
+    return [&solver, &p, lower, upper] { solver.solveProjected(p, 1.0, 1.0, lower, upper); };
+  };
+  expectError(call(Eigen::VectorXd::Zero(2), one), ErrorCode::kInternal, "3 expected");
+  expectError(call(zero, Eigen::VectorXd::Ones(4)), ErrorCode::kInternal, "3 expected");
+  expectError(call(Eigen::Vector3d(-0.1, 0, 0), one), ErrorCode::kInternal, "shape 0");
+  expectError(call(zero, Eigen::Vector3d(1, 1.5, 1)), ErrorCode::kInternal, "shape 1");
+  expectError(call(Eigen::Vector3d(0, 0, 0.6), Eigen::Vector3d(1, 1, 0.5)), ErrorCode::kInternal,
+              "shape 2");
+  expectError(call(Eigen::Vector3d(0, std::numeric_limits<double>::quiet_NaN(), 0), one),
+              ErrorCode::kInternal, "shape 1");
+  expectError(call(Eigen::Vector3d(0.5, 0.5, 0.5), one), ErrorCode::kInternal, "no weights");
+  expectError(call(zero, Eigen::Vector3d(0.3, 0.3, 0.3)), ErrorCode::kInternal, "no weights");
+  // The projection is still checked first.
+  expectError([&] { solver.solveProjected(Eigen::VectorXd::Zero(3), 1.0, 1.0, zero, one); },
+              ErrorCode::kInternal, "2 expected");
+}
+
 }  // namespace
 }  // namespace drivenshape

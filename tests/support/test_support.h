@@ -71,8 +71,66 @@ inline constexpr double kHitPointRelTol = 1e-6;
 /// Transfer results vs their expected positions (identity, rigid motion), as a fraction of the
 /// scene scale: float outputs of a double computation.
 inline constexpr double kTransferRelTol = 1e-6;
+/// Penetration resolution: a moved point's distance to the driver vs the offset it was moved
+/// to, as a fraction of the scene scale. The point q + offset N is a double computation
+/// rounded to float (2^-24 of the coordinates, 6e-8 S per axis), and the closest point q
+/// carries the float rounding of the stored (u, v) (kHitPointRelTol's 1.2e-7 S).
+inline constexpr double kResolveRelTol = 1e-6;
 /// Barycentric range of a hit: u >= -tol, v >= -tol, u + v <= 1 + tol (float rounding).
 inline constexpr double kBarycentricTol = 1e-6;
+
+// ---- Tolerances of `drivenshape eval` (tests/cli/test_eval.cpp) ----
+
+/// Error and jump figures (mean, RMS, max distance) vs a brute-force double computation over
+/// the same float positions: the sums differ only in their order, ~1e-16 relative per term.
+inline constexpr double kEvalErrorRelTol = 1e-12;
+/// Penetration depth vs the analytic depth inside a moved cube, as a fraction of the scene
+/// scale S: float world positions (6e-8 of coordinates up to S) and the closest point's float
+/// (u, v) (kHitPointRelTol's 1.2e-7 S) make a few 1e-7 S.
+inline constexpr double kEvalDepthRelTol = 1e-6;
+
+// ---- Tolerances of the layer quantities (tests/layers) ----
+
+/// Mix of two positions w a + (1 - w) b in float vs the same formula in double, as a fraction
+/// of max(|a|, |b|): two products, one difference and one sum, each rounded once (2^-24),
+/// so 4 * 2^-24.
+inline constexpr double kMixRelTol = 4.0 / 16777216.0;
+/// Wind displacement, OpenCL vs the host reference, as a fraction of the wind amplitude. Both
+/// run the same float operations (kernels/layer_types.h, FP_CONTRACT off); only sqrt, the
+/// division and tanh of the clearance limit may differ by a few ulps (OpenCL allows 3-5 ulp),
+/// so 1e-5 leaves a wide margin while an indexing or noise bug shows as errors of order 1.
+/// Compared on positions, one ulp of the position the displacement is added to comes on top.
+inline constexpr double kWindDeviceVsHostRelTol = 1e-5;
+/// Float rounding of one wind displacement, as a fraction of the amplitude (a frame-to-frame
+/// difference gets twice this on top of its analytic bound). The lattice coordinates stay below
+/// 512 cells, where float rounds to 2^-16; through the noise slope (3.75 per axis, 3 axes) that
+/// is 11.25 * 2^-16 = 1.7e-4 per channel, sqrt(3) of it for the vector: 3e-4. The ~30 roundings
+/// of the lerps and octave sums (2e-6) are noise on top.
+inline constexpr double kWindRoundingRelTol = 3e-4;
+
+// ---- Tolerances of the fidelity stages (issue 4) ----
+
+/// Rigid alignment recovering a known motion of float positions: entries of R and t/S (S the
+/// bounding-box diagonal) vs the truth. Inputs carry float rounding (6e-8 of the coordinates,
+/// which sit up to several S from the origin once moved); a well-spread selection keeps the
+/// fit's conditioning near 1, so 1e-5 leaves two orders of margin.
+inline constexpr double kAlignTol = 1e-5;
+/// Rigidity-weighted fit (RigidAligner::weightByRigidity, default options) of a rigid part
+/// while the rest of the mesh bends by 10-100 degrees, as the worst distance of the aligned
+/// rigid part from its rest (fraction of the diagonal). The bending vertices keep a robust
+/// weight area tau^2 / (r^2 + tau^2) (tau = 0.01 of the diagonal): a bias of order tau^2 that
+/// the vertices next to the joint (small r) dominate, 2.6e-3 measured; 5e-3 keeps 2x margin
+/// while the plain area fit is off by 0.13.
+inline constexpr double kRigidityAlignTol = 5e-3;
+/// World-space invariance of a whole bake: the acceptance bound of issue 4, as a fraction of
+/// the bounding-box diagonal of the frame.
+inline constexpr double kWorldInvarianceRelTol = 1e-4;
+/// Region falloff: |sum_r phi_r - 1| per vertex; each phi is a double quotient rounded once to
+/// float (2^-24), summed over a handful of regions.
+inline constexpr double kPartitionOfUnityTol = 1e-6;
+/// Temporal bound |w_t - w_{t-1}| <= tau: the QP keeps bounds exactly up to double rounding of
+/// the box edges (prev +- tau).
+inline constexpr double kWeightBoundTol = 1e-12;
 
 // ---- Random seeds: printed, overridable with DS_SEED=N. ----
 

@@ -100,13 +100,20 @@ struct ClosestOptions {
   /// (devices without it always use float). Float is exact to about 1e-5 of the scene scale
   /// on well-shaped triangles but loses digits on needle-like slivers.
   bool forceSinglePrecision = false;
+  /// OpenCL only: how the device finds the exact closest triangle. kBvh (the default) refits a
+  /// bounding-volume hierarchy per frame on the device and walks it from a FLANN warm start
+  /// (src/correction/bvh.cpp); kCandidates reduces the host FLANN candidate lists of the host
+  /// backend (src/correction/candidates.cpp) on the device. Both are exact; kBvh is faster.
+  enum class DeviceSearch { kBvh, kCandidates };
+  DeviceSearch deviceSearch = DeviceSearch::kBvh;
 };
 
 /// The correction stage for chunks of F frames. Two implementations share this contract:
 /// OpenCL kernels (makeClClosest) and the plain C++ host reference (makeHostClosest). Both
-/// take their candidate triangles from the same host search (FLANN KD-trees over triangle
-/// centroids with a bound that provably keeps the closest triangle; see
-/// src/correction/candidates.cpp). Frame blocks are frame-major, float32:
+/// get their candidates from FLANN: the host backend from KD-trees over triangle centroids with
+/// a bound that provably keeps the closest triangle (src/correction/candidates.cpp); the OpenCL
+/// backend from a FLANN warm start refined by a walk of per-frame refitted bounding-volume
+/// hierarchies (src/correction/bvh.cpp). Frame blocks are frame-major, float32:
 ///
 ///   poses   F x 3Vp   driver vertex v of frame f, axis a at [f * 3Vp + 3v + a]
 ///   points  F x 3Vd   driven point i of frame f at [f * 3Vd + 3i]
@@ -147,7 +154,34 @@ class ClosestBackend {
   /// Error(kInput) on a hit whose triangle is out of range.
   virtual void transfer(int frameCount, const SurfaceHit* hits, const float* fromPoses,
                         const float* toPoses, const float* points, float* out) = 0;
+
+  /// The second half of transfer, for bindings made once (local-frame blending): point i of
+  /// frame f is rebuilt from its local coordinates local[f * 3Vd + 3i + (0, 1, 2)] = (along e1,
+  /// along e2, along n) in the frame of hits[i] on toPoses[f] (same frame construction and the
+  /// same degenerate-frame rule as transfer: where the frame is degenerate the local
+  /// coordinates are a world-axes offset from q). `hits` is Vd long and shared by every frame.
+  ///   hits  Vd;  toPoses  F x 3Vp;  local, out  F x 3Vd (`out` may alias `local`)
+  /// Throws as transfer does.
+  virtual void rebuild(int frameCount, const SurfaceHit* hits, const float* toPoses,
+                       const float* local, float* out) = 0;
+
+  /// Penetration resolution. `hits` are the exact closest points of `points` on `poses` over
+  /// every driver triangle (a search with BindingMask::all). A point whose signed distance
+  /// (InsideAudit's angle-weighted pseudo-normal sign) is below `offset` moves to
+  /// q + offset * N, with q its closest point and N the unit pseudo-normal at q (face normal,
+  /// edge normal or angle-weighted vertex normal); other points are left untouched. Points
+  /// are updated in place; moved[f] receives how many points of frame f moved (may be null).
+  ///   poses  F x 3Vp;  hits  F x Vd;  points  F x 3Vd;  moved  F
+  /// offset >= 0 in scene units. Throws Error(kNumerical) on NaN/infinite input.
+  virtual void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
+                       float* points, int* moved) = 0;
 };
+
+/// Host-side encoding for local-frame blending (the inverse of ClosestBackend::rebuild, in
+/// double arithmetic): the local coordinates of `count` points (count x 3) with their hits on
+/// one pose (Vp x 3) of `driver`'s topology, written to local (count x 3).
+void encodeLocal(const Mesh& driver, const float* pose, int count, const float* points,
+                 const SurfaceHit* hits, float* local);
 
 /// The host reference implementation (plain C++, double arithmetic).
 std::unique_ptr<ClosestBackend> makeHostClosest(const ClosestOptions& options = {});

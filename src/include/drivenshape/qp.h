@@ -91,6 +91,18 @@ class SimplexLeastSquares {
   SimplexSolution solveProjected(const Eigen::Ref<const Eigen::VectorXd>& p, double rr,
                                  double bb) const;
 
+  /// The same with per-shape bounds lower_i <= w_i <= upper_i in place of 0 <= w_i <= 1
+  /// (temporal stability: a box of half-width tau around the previous frame's weights,
+  /// intersected with [0, 1]). Requires 0 <= lower <= upper <= 1 and
+  /// sum(lower) <= 1 <= sum(upper) to within 1e-9 (always true for a box around weights that
+  /// sum to 1); throws Error(kInternal) otherwise. A box whose lower (upper) corner sums to 1
+  /// admits that corner alone, which is returned (kktResidual 0, iterations 0). atZero/atOne then
+  /// list shapes held at their lower and upper bound. With lower = 0 and upper = 1 the result is
+  /// that of the overload above.
+  SimplexSolution solveProjected(const Eigen::Ref<const Eigen::VectorXd>& p, double rr, double bb,
+                                 const Eigen::Ref<const Eigen::VectorXd>& lower,
+                                 const Eigen::Ref<const Eigen::VectorXd>& upper) const;
+
   /// Convenience for one frame: computes the projection on the host.
   SimplexSolution solve(const Eigen::Ref<const Eigen::VectorXd>& b) const;
 
@@ -102,8 +114,7 @@ class SimplexLeastSquares {
   Eigen::MatrixXd mBasis;   // n by k-1
   Eigen::VectorXd mCenter;  // n
   Eigen::MatrixXd mR;       // k-1 by k-1, upper triangular
-  Eigen::MatrixXd mC;       // k-1 by 2k: bound constraints in y
-  Eigen::VectorXd mCBound;  // 2k
+  Eigen::MatrixXd mC;       // k-1 by 2k: normals of the bounds w_i >= l_i, -w_i >= -u_i in y
 };
 
 }  // namespace drivenshape

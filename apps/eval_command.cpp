@@ -1,0 +1,348 @@
+#include "eval_command.h"
+
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/correction.h>
+#include <drivenshape/database.h>
+#include <drivenshape/error.h>
+#include <drivenshape/evaluate.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/mesh.h>
+
+#include "cli_args.h"
+#include "device_choice.h"
+
+namespace drivenshape::cli {
+namespace {
+
+/// A number for the table: `digits` significant digits, or "-" when `known` is false.
+std::string cell(double value, bool known = true, int digits = 6) {
+  if (!known) {
+    return "-";
+  }
+  std::ostringstream out;
+  out << std::setprecision(digits) << value;
+  return out.str();
+}
+
+/// The rows of the side-by-side table: one column per sequence (bake, baseline, truth).
+void printTable(const ShotEvaluation& e, std::ostream& out) {
+  std::vector<const ClothMetrics*> columns{&e.bake};
+  if (e.hasBaseline) {
+    columns.push_back(&e.baseline);
+  }
+  columns.push_back(&e.truth);
+  const bool jumps = e.frames.size() > 1;
+  auto row = [&](const std::string& label, auto&& valueOf) {
+    out << std::left << std::setw(26) << label << std::right;
+    for (const ClothMetrics* c : columns) {
+      out << std::setw(14) << valueOf(*c);
+    }
+    out << "\n";
+  };
+  row("", [](const ClothMetrics& c) { return c.name; });
+  auto isTruth = [&](const ClothMetrics& c) { return &c == &e.truth; };
+  row("error mean", [&](const ClothMetrics& c) { return cell(c.mean, !isTruth(c)); });
+  row("error rms", [&](const ClothMetrics& c) { return cell(c.rms, !isTruth(c)); });
+  row("error max", [&](const ClothMetrics& c) { return cell(c.max, !isTruth(c)); });
+  row("  at frame", [&](const ClothMetrics& c) { return cell(c.maxFrame, !isTruth(c)); });
+  if (e.penetrations) {
+    row("inside driver / frame", [](const ClothMetrics& c) { return cell(c.meanInside, true, 4); });
+    row("inside driver, max", [](const ClothMetrics& c) { return cell(c.maxInside); });
+    row("  at frame",
+        [](const ClothMetrics& c) { return cell(c.maxInsideFrame, c.maxInside > 0); });
+    row("deepest penetration", [](const ClothMetrics& c) { return cell(c.maxDepth); });
+    row("  at frame",
+        [](const ClothMetrics& c) { return cell(c.maxDepthFrame, c.maxDepth > 0.0); });
+  }
+  row("largest frame jump", [&](const ClothMetrics& c) { return cell(c.maxJump, jumps); });
+  row("  at frame", [&](const ClothMetrics& c) { return cell(c.maxJumpFrame, jumps); });
+  if (jumps && e.truth.maxJump > 0.0) {
+    row("  / truth's",
+        [&](const ClothMetrics& c) { return cell(c.maxJump / e.truth.maxJump, true, 4); });
+  }
+}
+
+void printPerFrame(const ShotEvaluation& e, std::ostream& out) {
+  out << "frame        mean         rms         max  (vertex)        jump  truth jump";
+  if (e.penetrations) {
+    out << "  inside       depth  truth inside  truth depth";
+  }
+  if (e.hasBaseline) {
+    out << "  baseline mean  baseline jump";
+    if (e.penetrations) {
+      out << "  baseline inside";
+    }
+  }
+  out << "\n";
+  for (std::size_t f = 0; f < e.frames.size(); ++f) {
+    const ClothFrameMetrics& b = e.bake.frames[f];
+    const ClothFrameMetrics& t = e.truth.frames[f];
+    out << std::setw(5) << b.frame << "  " << std::setw(10) << b.error.mean << "  " << std::setw(10)
+        << b.error.rms << "  " << std::setw(10) << b.error.max << "  (" << b.error.maxVertex
+        << ")  " << std::setw(10) << cell(b.jump, b.jump >= 0.0) << "  " << std::setw(10)
+        << cell(t.jump, t.jump >= 0.0);
+    if (e.penetrations) {
+      out << "  " << std::setw(6) << b.inside << "  " << std::setw(10) << b.maxDepth << "  "
+          << std::setw(12) << t.inside << "  " << std::setw(11) << t.maxDepth;
+    }
+    if (e.hasBaseline) {
+      const ClothFrameMetrics& l = e.baseline.frames[f];
+      out << "  " << std::setw(13) << l.error.mean << "  " << std::setw(13)
+          << cell(l.jump, l.jump >= 0.0);
+      if (e.penetrations) {
+        out << "  " << std::setw(15) << l.inside;
+      }
+    }
+    out << "\n";
+  }
+}
+
+/// JSON null for "not measured" (-1 jumps on the first frame, no driver).
+nlohmann::json orNull(double value, bool known) {
+  return known ? nlohmann::json(value) : nlohmann::json(nullptr);
+}
+
+nlohmann::json frameJson(const ClothFrameMetrics& m, bool penetrations, bool withError) {
+  nlohmann::json j;
+  if (withError) {
+    j["mean"] = m.error.mean;
+    j["rms"] = m.error.rms;
+    j["max"] = m.error.max;
+    j["max_vertex"] = m.error.maxVertex;
+  }
+  j["jump"] = orNull(m.jump, m.jump >= 0.0);
+  j["jump_vertex"] = m.jump >= 0.0 ? nlohmann::json(m.jumpVertex) : nlohmann::json(nullptr);
+  if (penetrations) {
+    j["inside"] = m.inside;
+    j["max_depth"] = m.maxDepth;
+    j["max_depth_vertex"] =
+        m.maxDepthVertex >= 0 ? nlohmann::json(m.maxDepthVertex) : nlohmann::json(nullptr);
+  }
+  return j;
+}
+
+nlohmann::json summaryJson(const ClothMetrics& c, bool penetrations, bool withError) {
+  nlohmann::json j;
+  j["source"] = c.source.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.source);
+  if (withError) {
+    j["mean"] = c.mean;
+    j["rms"] = c.rms;
+    j["max"] = c.max;
+    j["max_frame"] = c.maxFrame;
+  }
+  const bool jumps = c.maxJump >= 0.0;
+  j["max_jump"] = orNull(c.maxJump, jumps);
+  j["max_jump_frame"] = jumps ? nlohmann::json(c.maxJumpFrame) : nlohmann::json(nullptr);
+  if (penetrations) {
+    j["mean_inside"] = c.meanInside;
+    j["max_inside"] = c.maxInside;
+    j["max_inside_frame"] =
+        c.maxInside > 0 ? nlohmann::json(c.maxInsideFrame) : nlohmann::json(nullptr);
+    j["max_depth"] = c.maxDepth;
+    j["max_depth_frame"] =
+        c.maxDepth > 0.0 ? nlohmann::json(c.maxDepthFrame) : nlohmann::json(nullptr);
+  }
+  return j;
+}
+
+nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath,
+                          const std::string& device) {
+  nlohmann::json frames = nlohmann::json::array();
+  for (std::size_t f = 0; f < e.frames.size(); ++f) {
+    const ClothFrameMetrics& b = e.bake.frames[f];
+    // The bake's error stays flat on each frame (the format before the side-by-side figures).
+    nlohmann::json entry{{"frame", b.frame},
+                         {"mean", b.error.mean},
+                         {"rms", b.error.rms},
+                         {"max", b.error.max},
+                         {"max_vertex", b.error.maxVertex}};
+    entry["bake"] = frameJson(b, e.penetrations, true);
+    entry["truth"] = frameJson(e.truth.frames[f], e.penetrations, false);
+    if (e.hasBaseline) {
+      entry["baseline"] = frameJson(e.baseline.frames[f], e.penetrations, true);
+    }
+    frames.push_back(entry);
+  }
+  nlohmann::json summary{{"bake", summaryJson(e.bake, e.penetrations, true)},
+                         {"truth", summaryJson(e.truth, e.penetrations, false)}};
+  if (e.hasBaseline) {
+    summary["baseline"] = summaryJson(e.baseline, e.penetrations, true);
+  }
+  return nlohmann::json{
+      {"truth", e.truth.source},
+      {"bake", e.bake.source},
+      {"vertices", e.vertexCount},
+      {"mean", e.bake.mean},
+      {"rms", e.bake.rms},
+      {"max", e.bake.max},
+      {"max_frame", e.bake.maxFrame},
+      {"driver", driverPath.empty() ? nlohmann::json(nullptr) : nlohmann::json(driverPath)},
+      {"driver_vertices", e.driverVertexCount},
+      {"device", device},
+      {"penetrations", e.penetrations},
+      {"baseline", e.hasBaseline},
+      {"summary", summary},
+      {"frames", frames}};
+}
+
+}  // namespace
+
+int runEval(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape eval --truth CACHE --bake CACHE --frames RANGE [--driver CACHE "
+      "(--driver-mesh M.obj [--driven-mesh M.obj] | --db DB)] [--baseline]",
+      "Compares a bake with a truth cache (e.g. the simulation it replaces): mean, RMS and max "
+      "per-vertex distance, and the largest frame-to-frame jump of the bake and of the truth. "
+      "With the shot's driver: cloth vertices inside the driver per frame and the deepest one, "
+      "for the bake and the truth (exact closest triangle, angle-weighted pseudo-normal sign). "
+      "With --baseline: the same figures for the binding baseline (the rest cloth bound to the "
+      "rest driver and carried along, what `bake --weights bind --no-resolve` writes).");
+  parser.option("--truth", "CACHE", "reference cache (.pc2 or name.####.exr)", "", true)
+      .option("--bake", "CACHE", "baked cache to judge", "", true)
+      .option("--frames", "RANGE", "frames to compare (jumps follow this order)", "", true)
+      .option("--json", "PATH", "also write the figures as JSON")
+      .flag("--per-frame", "print every frame, not only the summary")
+      .option("--driver", "CACHE", "the shot's driver cache: penetration figures")
+      .option("--driver-mesh", "M.obj", "the driver's rest mesh (its triangles; rest pose)")
+      .option("--driven-mesh", "M.obj", "the cloth's rest mesh (for --baseline)")
+      .option("--db", "DB", "take both rest meshes from this database instead")
+      .flag("--baseline", "add the binding baseline for the same frames (needs --driver)")
+      .option("--bind", "MAP", "binding mask (JSON) for the baseline, as in bake --bind")
+      .option("--device", "SPEC", "closest-triangle search: host, auto, cpu, gpu, index, name",
+              "host")
+      .option("--threads", "N", "host threads (0 = all cores)", "0")
+      .option("--batch", "N", "frames per closest-triangle call (bounds memory)", "16")
+      .epilog("Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device.");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
+  const bool baseline = parser.has("--baseline");
+  const bool haveDriver = parser.has("--driver");
+  if (parser.has("--db") && (parser.has("--driver-mesh") || parser.has("--driven-mesh"))) {
+    DS_THROW(kUsage,
+             "--db already gives both rest meshes; drop --driver-mesh/--driven-mesh or "
+             "--db");
+  }
+  if (!haveDriver) {
+    for (const char* flag : {"--driver-mesh", "--driven-mesh", "--db", "--bind"}) {
+      if (parser.has(flag)) {
+        DS_THROW(kUsage, flag,
+                 " is only used with --driver (penetrations, baseline); pass "
+                 "--driver CACHE too or drop ",
+                 flag);
+      }
+    }
+    if (baseline) {
+      DS_THROW(kUsage,
+               "--baseline needs the shot's driver: pass --driver CACHE with "
+               "--driver-mesh M.obj --driven-mesh M.obj or --db DB");
+    }
+  } else if (!parser.has("--driver-mesh") && !parser.has("--db")) {
+    DS_THROW(kUsage,
+             "--driver needs the driver's rest mesh for the penetration figures: pass "
+             "--driver-mesh M.obj or --db DB");
+  }
+  if (baseline && !parser.has("--driven-mesh") && !parser.has("--db")) {
+    DS_THROW(kUsage,
+             "--baseline needs the cloth's rest mesh: pass --driven-mesh M.obj or "
+             "--db DB");
+  }
+  if (parser.has("--bind") && !baseline) {
+    DS_THROW(kUsage, "--bind only shapes the baseline; add --baseline or drop --bind");
+  }
+  if (parser.has("--json")) {
+    checkOutputFolderWritable(parser.get("--json"));
+  }
+
+  const auto truth = openPointCache(parser.get("--truth"));
+  const auto baked = openPointCache(parser.get("--bake"));
+  ShotEvaluationInput input;
+  input.truth = truth.get();
+  input.bake = baked.get();
+  input.baseline = baseline;
+  input.batch = parser.getInt("--batch", 1);
+  input.threads = parser.getInt("--threads", 0);
+
+  std::unique_ptr<PointCacheReader> driver;
+  std::optional<Database> db;
+  Mesh driverMesh, drivenMesh;
+  std::optional<BindingMask> mask;
+  std::unique_ptr<ClosestBackend> closest;
+  std::optional<ClDevice> device;
+  std::string deviceName = "none";
+  if (haveDriver) {
+    if (parser.has("--db")) {
+      db = loadDatabase(parser.get("--db"));
+      input.driverMesh = &db->driverMesh;
+      input.drivenMesh = &db->drivenMesh;
+      input.driverMeshName = input.drivenMeshName = parser.get("--db");
+    } else {
+      driverMesh = readObj(parser.get("--driver-mesh"));
+      input.driverMesh = &driverMesh;
+      input.driverMeshName = parser.get("--driver-mesh");
+      if (parser.has("--driven-mesh")) {
+        drivenMesh = readObj(parser.get("--driven-mesh"));
+        input.drivenMesh = &drivenMesh;
+        input.drivenMeshName = parser.get("--driven-mesh");
+      }
+    }
+    // EXR driver caches carry a topology hash: it must be the driver mesh's.
+    driver = openPointCache(parser.get("--driver"), topologyHash(*input.driverMesh));
+    input.driver = driver.get();
+    if (parser.has("--bind")) {
+      mask = readBindingMask(parser.get("--bind"), *input.driverMesh, *input.drivenMesh);
+      input.mask = &*mask;
+    }
+    ClosestOptions search;
+    search.threads = input.threads;
+    device = chooseDevice(parser.get("--device"));
+    if (device) {
+      closest = makeClClosest(device->context, device->device, device->queue, search);
+      deviceName = device->description;
+    } else {
+      if (parser.get("--device") == "auto") {
+        std::cerr << "warning: no OpenCL device found; using the host reference path\n";
+      }
+      closest = makeHostClosest(search);
+      deviceName = "host";
+    }
+  } else {
+    closest = makeHostClosest();
+  }
+
+  const ShotEvaluation result = evaluateShot(input, frames, *closest);
+
+  std::cout << "eval: " << frames.size() << " frames (" << formatFrameRange(frames) << ") x "
+            << result.vertexCount << " cloth vertices";
+  if (result.penetrations) {
+    std::cout << "; driver " << result.driverVertexCount << " vertices; closest triangles on "
+              << deviceName;
+  }
+  std::cout << "\n";
+  std::cout << std::setprecision(6);
+  if (parser.has("--per-frame")) {
+    printPerFrame(result, std::cout);
+  }
+  printTable(result, std::cout);
+  std::cout << "overall over " << result.frames.size() << " frames x " << result.vertexCount
+            << " vertices: mean " << result.bake.mean << ", rms " << result.bake.rms << ", max "
+            << result.bake.max << " (frame " << result.bake.maxFrame << ")\n";
+  if (parser.has("--json")) {
+    const nlohmann::json report =
+        reportJson(result, haveDriver ? parser.get("--driver") : std::string(), deviceName);
+    writeFileAtomically(parser.get("--json"), report.dump(1) + "\n");
+  }
+  return 0;
+}
+
+}  // namespace drivenshape::cli

@@ -1,0 +1,126 @@
+#include "export_command.h"
+
+#include <iostream>
+#include <memory>
+#include <optional>
+
+#include <drivenshape/atomic_file.h>
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/mesh.h>
+#include <drivenshape/point_cache.h>
+
+#include "cli_args.h"
+
+namespace drivenshape::cli {
+namespace {
+
+/// PC2 holds evenly spaced samples: the frames must be ascending with one step (the rate).
+int sampleStep(const std::vector<int>& frames, const std::string& text) {
+  if (frames.size() < 2) {
+    return 1;
+  }
+  const long long step = static_cast<long long>(frames[1]) - frames[0];
+  for (std::size_t i = 1; i < frames.size(); ++i) {
+    if (static_cast<long long>(frames[i]) - frames[i - 1] != step || step <= 0) {
+      DS_THROW(kUsage, "--frames ", text,
+               ": a PC2 file holds evenly spaced frames in ascending order (e.g. 1001-1100 or "
+               "1001-1100x2); frames ",
+               frames[i - 1], " and ", frames[i], " break the step of ", step);
+    }
+  }
+  return static_cast<int>(step);
+}
+
+}  // namespace
+
+int runExport(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape export --cache CACHE --frames RANGE [--pc2 OUT.pc2] "
+      "[--obj FIRST.obj --mesh DRIVEN.obj]",
+      "Writes a baked result as guides for a cloth simulation: --pc2 writes the frames as one "
+      "PC2 point cache (little-endian; header POINTCACHE2, version 1, points, start frame, "
+      "sample rate, samples: what Blender's Mesh Cache modifier, Houdini's and Maya's PC2 "
+      "readers check) to use as goal or pin targets; --obj writes the first frame with the "
+      "faces, UVs and groups of the driven rest mesh, for an initial drape. Files are written "
+      "atomically (a temporary file renamed into place).");
+  parser.option("--cache", "CACHE", "the result to export (.pc2 or name.####.exr)", "", true)
+      .option("--frames", "RANGE",
+              "frames to export, evenly spaced for --pc2: 1001-1100 or 1001-1100x2", "", true)
+      .option("--pc2", "OUT.pc2", "write the frames as one PC2 (sample rate = the range's step)")
+      .option("--obj", "FIRST.obj", "write the first frame as OBJ (needs --mesh)")
+      .option("--mesh", "DRIVEN.obj",
+              "driven rest mesh: its faces, UVs and groups for --obj, and the topology an EXR "
+              "cache must carry")
+      .flag("--quiet", "no progress lines")
+      .epilog("Exit codes: 0 ok, 2 usage, 3 input, 4 output.");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const bool wantPc2 = parser.has("--pc2");
+  const bool wantObj = parser.has("--obj");
+  if (!wantPc2 && !wantObj) {
+    DS_THROW(kUsage, "`drivenshape export` needs --pc2 OUT.pc2 and/or --obj FIRST.obj");
+  }
+  if (wantObj && !parser.has("--mesh")) {
+    DS_THROW(kUsage, "--obj needs --mesh DRIVEN.obj (the rest mesh whose faces and UVs to keep)");
+  }
+  const std::string rangeText = parser.get("--frames");
+  const std::vector<int> frames = parseFrameRange(rangeText);
+  const int step = wantPc2 ? sampleStep(frames, rangeText) : 1;
+  if (wantPc2) {
+    checkOutputFolderWritable(parser.get("--pc2"));
+  }
+  if (wantObj) {
+    checkOutputFolderWritable(parser.get("--obj"));
+  }
+
+  std::optional<Mesh> mesh;
+  if (parser.has("--mesh")) {
+    mesh = readObj(parser.get("--mesh"));
+  }
+  const std::string cachePath = parser.get("--cache");
+  const auto cache = openPointCache(cachePath, mesh ? topologyHash(*mesh) : 0);
+  const int vertexCount = cache->vertexCount();
+  if (mesh && mesh->vertexCount() != vertexCount) {
+    DS_THROW(kInput, cachePath, " has ", vertexCount, " vertices but --mesh ", parser.get("--mesh"),
+             " has ", mesh->vertexCount(), "; pass the driven mesh the cache was baked for");
+  }
+  for (int frame : frames) {
+    if (!cache->hasFrame(frame)) {
+      DS_THROW(kInput, cachePath, ": frame ", frame, " is missing; the cache holds frames ",
+               formatFrameRange(cache->frames()));
+    }
+  }
+
+  std::vector<float> xyz(3 * static_cast<std::size_t>(vertexCount));
+  const bool quiet = parser.has("--quiet");
+  if (wantObj) {
+    cache->readFrame(frames.front(), xyz.data());
+    mesh->positions = Eigen::Map<const Positions>(xyz.data(), vertexCount, 3);
+    writeObj(parser.get("--obj"), *mesh);
+    std::cout << "wrote " << parser.get("--obj") << " (frame " << frames.front() << ", "
+              << vertexCount << " vertices, " << mesh->faceCount() << " faces"
+              << (mesh->hasUvs() ? ", UVs" : "") << ")\n";
+  }
+  if (wantPc2) {
+    const std::string out = parser.get("--pc2");
+    Pc2Writer writer(out, vertexCount, static_cast<float>(frames.front()),
+                     static_cast<int>(frames.size()), static_cast<float>(step));
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      cache->readFrame(frames[i], xyz.data());
+      writer.writeFrame(xyz.data());
+      if (!quiet && (i + 1) % 100 == 0) {
+        std::cerr << "export: " << i + 1 << " of " << frames.size() << " frames\n";
+      }
+    }
+    writer.commit();
+    std::cout << "wrote " << out << " (" << frames.size() << " frames " << formatFrameRange(frames)
+              << ", start " << frames.front() << ", sample rate " << step << ", " << vertexCount
+              << " points)\n";
+  }
+  return 0;
+}
+
+}  // namespace drivenshape::cli

@@ -1,0 +1,21 @@
+#pragma once
+
+#include <drivenshape/layers.h>
+
+#include "cli_args.h"
+
+namespace drivenshape::cli {
+
+/// Declares the layer flags (--mix, --mix-weight, --mix-falloff, --wind-*) on a command's
+/// parser, with their units and defaults in --help. A command adds layers with two lines:
+///
+///     addLayerFlags(parser);
+///     ...parse...
+///     const LayerOptions layers = readLayerFlags(parser, framesPerSecond);
+void addLayerFlags(ArgParser& parser);
+
+/// The parsed layer flags. `framesPerSecond` is the shot's rate (wind time = frame / fps).
+/// Throws Error(kUsage) naming the flag for malformed values; LayerStack checks the rest.
+LayerOptions readLayerFlags(const ArgParser& parser, double framesPerSecond);
+
+}  // namespace drivenshape::cli

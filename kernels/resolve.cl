@@ -1,0 +1,105 @@
+// Penetration resolution (contract: ClosestBackend::resolve in
+// src/include/drivenshape/correction.h; host reference: src/host/host_closest.cpp with
+// src/correction/surface_features.cpp, whose pseudoNormal() this file repeats in OpenCL C).
+//
+// Point p has its exact closest point q = a + u (b - a) + v (c - a) on triangle t. Its signed
+// distance is s = |p - q|, negated when (p - q) . N < 0, with N the angle-weighted
+// pseudo-normal at q (Baerentzen & Aanaes 2005): the face normal inside the triangle, the sum of
+// the unit normals of the triangles on the edge, or the angle-weighted sum of the unit normals
+// around the vertex (DS_FEATURE_TOL decides which). When s < offset and N is not zero, p moves
+// to q + offset N / |N| and the frame's counter moves[f] is incremented; otherwise p stays.
+//
+// Mapping: 1-D, local size DS_LOCAL_SIZE, one item per (frame f, point i), item id f * Vd + i.
+// Requires the sources of closest.cl and transfer.cl before it (dsLoadPoint).
+//
+//   poses            F x 3Vp float
+//   triangles        T x 3 int
+//   edgeStart        3T + 1 int    triangles on edge e of triangle t (e = 0 ab, 1 bc, 2 ca):
+//   edgeTriangles                  edgeTriangles[edgeStart[3t + e] .. edgeStart[3t + e + 1] - 1]
+//   vertexStart      Vp + 1 int    triangles around vertex v:
+//   vertexTriangles                vertexTriangles[vertexStart[v] .. vertexStart[v + 1] - 1]
+//   hits             F x Vd DsSurfaceHit   (triangle ids checked by the host)
+//   points           F x 3Vd float, updated in place
+//   moved            F int, incremented atomically (the host zeroes them)
+
+// Unit normal of triangle s; zero for a zero-area triangle.
+inline ds_real3 dsFaceNormal(__global const float* pose, __global const int* triangles, int s) {
+  const ds_real3 a = dsLoadPoint(pose, triangles[3 * s]);
+  const ds_real3 n = cross(dsLoadPoint(pose, triangles[3 * s + 1]) - a,
+                           dsLoadPoint(pose, triangles[3 * s + 2]) - a);
+  const ds_real length = sqrt(dot(n, n));
+  return length > 0 ? n / length : (ds_real3)(0, 0, 0);
+}
+
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResolve(
+    __global const float* poses, __global const int* triangles, __global const int* edgeStart,
+    __global const int* edgeTriangles, __global const int* vertexStart,
+    __global const int* vertexTriangles, __global const DsSurfaceHit* hits, __global float* points,
+    __global int* moved, const DsResolveParams params) {
+  const int item = (int)get_global_id(0);
+  if (item >= params.frameCount * params.pointCount) {
+    return;
+  }
+  const int frame = item / params.pointCount;
+  __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
+  const DsSurfaceHit hit = hits[item];
+  const int t = hit.triangle;
+  const ds_real u = (ds_real)hit.u;
+  const ds_real v = (ds_real)hit.v;
+  const ds_real3 a = dsLoadPoint(pose, triangles[3 * t]);
+  const ds_real3 q = a + u * (dsLoadPoint(pose, triangles[3 * t + 1]) - a) +
+                     v * (dsLoadPoint(pose, triangles[3 * t + 2]) - a);
+  const ds_real3 p = dsLoadPoint(points, item);
+  const ds_real3 offset = p - q;
+
+  const ds_real weight[3] = {1 - u - v, u, v};
+  int zeros = 0;
+  int nonZero = 0;
+  int zero = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (weight[k] <= (ds_real)DS_FEATURE_TOL) {
+      ++zeros;
+      zero = k;
+    } else {
+      nonZero = k;
+    }
+  }
+  ds_real3 normal = (ds_real3)(0, 0, 0);
+  if (zeros >= 2) {
+    const int vertex = triangles[3 * t + nonZero];
+    for (int k = vertexStart[vertex]; k < vertexStart[vertex + 1]; ++k) {
+      const int s = vertexTriangles[k];
+      int at = 0;
+      while (triangles[3 * s + at] != vertex) {
+        ++at;
+      }
+      const ds_real3 corner = dsLoadPoint(pose, triangles[3 * s + at]);
+      const ds_real3 e1 = dsLoadPoint(pose, triangles[3 * s + (at + 1) % 3]) - corner;
+      const ds_real3 e2 = dsLoadPoint(pose, triangles[3 * s + (at + 2) % 3]) - corner;
+      const ds_real lengths = sqrt(dot(e1, e1)) * sqrt(dot(e2, e2));
+      if (lengths > 0) {
+        const ds_real angle = acos(clamp(dot(e1, e2) / lengths, (ds_real)-1, (ds_real)1));
+        normal += angle * dsFaceNormal(pose, triangles, s);
+      }
+    }
+  } else if (zeros == 1) {
+    const int edge = 3 * t + (zero + 1) % 3;
+    for (int k = edgeStart[edge]; k < edgeStart[edge + 1]; ++k) {
+      normal += dsFaceNormal(pose, triangles, edgeTriangles[k]);
+    }
+  } else {
+    normal = dsFaceNormal(pose, triangles, t);
+  }
+
+  const ds_real distance = sqrt(dot(offset, offset));
+  const ds_real side = dot(offset, normal);
+  const ds_real signedDistance = side < 0 ? -distance : distance;
+  const ds_real length = sqrt(dot(normal, normal));
+  if (signedDistance < (ds_real)params.offset && length > 0) {
+    const ds_real3 result = q + ((ds_real)params.offset / length) * normal;
+    points[3 * item] = (float)result.x;
+    points[3 * item + 1] = (float)result.y;
+    points[3 * item + 2] = (float)result.z;
+    atomic_inc(&moved[frame]);
+  }
+}

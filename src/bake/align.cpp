@@ -1,0 +1,213 @@
+#include <drivenshape/align.h>
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+
+#include <drivenshape/error.h>
+
+namespace drivenshape {
+namespace {
+
+std::string knownGroups(const Mesh& mesh) {
+  std::string names;
+  for (const std::string& name : mesh.groupNames) {
+    names += (names.empty() ? "" : ", ") + name;
+  }
+  return names.empty() ? std::string("none") : names;
+}
+
+bool isIndexItem(const std::string& item) {
+  return !item.empty() && std::all_of(item.begin(), item.end(), [](char c) {
+    return std::isdigit(static_cast<unsigned char>(c)) || c == '-';
+  }) && std::isdigit(static_cast<unsigned char>(item.front()));
+}
+
+std::string trim(const std::string& text) {
+  const auto first = text.find_first_not_of(" \t");
+  if (first == std::string::npos) {
+    return "";
+  }
+  return text.substr(first, text.find_last_not_of(" \t") - first + 1);
+}
+
+}  // namespace
+
+void RigidTransform::apply(const float* in, int count, float* out) const {
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d p(in[3 * i], in[3 * i + 1], in[3 * i + 2]);
+    const Eigen::Vector3d q = rotation * p + translation;
+    for (int a = 0; a < 3; ++a) {
+      out[3 * i + a] = static_cast<float>(q(a));
+    }
+  }
+}
+
+void RigidTransform::applyInverse(const float* in, int count, float* out) const {
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d p(in[3 * i], in[3 * i + 1], in[3 * i + 2]);
+    const Eigen::Vector3d q = rotation.transpose() * (p - translation);
+    for (int a = 0; a < 3; ++a) {
+      out[3 * i + a] = static_cast<float>(q(a));
+    }
+  }
+}
+
+std::vector<int> groupVertices(const Mesh& mesh, const std::string& name,
+                               const std::string& source) {
+  const auto found = std::find(mesh.groupNames.begin(), mesh.groupNames.end(), name);
+  if (found == mesh.groupNames.end()) {
+    DS_THROW(kInput, source, ": the mesh has no group '", name,
+             "' (its groups: ", knownGroups(mesh),
+             "); name a group of the OBJ's g lines or give vertex indices");
+  }
+  const int group = static_cast<int>(found - mesh.groupNames.begin());
+  std::vector<int> vertices;
+  for (int f = 0; f < mesh.faceCount(); ++f) {
+    if (mesh.faceGroup[f] == group) {
+      vertices.insert(vertices.end(), mesh.faceVertices.begin() + mesh.faceStart[f],
+                      mesh.faceVertices.begin() + mesh.faceStart[f + 1]);
+    }
+  }
+  std::sort(vertices.begin(), vertices.end());
+  vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  if (vertices.empty()) {
+    DS_THROW(kInput, source, ": group '", name, "' has no faces, so it names no vertex");
+  }
+  return vertices;
+}
+
+std::vector<int> selectVertices(const Mesh& mesh, const std::string& spec,
+                                const std::string& source) {
+  const int count = mesh.vertexCount();
+  std::vector<int> vertices;
+  if (trim(spec).empty() || trim(spec) == "all") {
+    vertices.resize(static_cast<std::size_t>(count));
+    for (int v = 0; v < count; ++v) {
+      vertices[v] = v;
+    }
+    return vertices;
+  }
+  std::size_t start = 0;
+  while (start <= spec.size()) {
+    const std::size_t comma = std::min(spec.find(',', start), spec.size());
+    const std::string item = trim(spec.substr(start, comma - start));
+    start = comma + 1;
+    if (item.empty()) {
+      continue;
+    }
+    if (!isIndexItem(item)) {
+      const std::vector<int> group = groupVertices(mesh, item, source);
+      vertices.insert(vertices.end(), group.begin(), group.end());
+      continue;
+    }
+    const std::size_t dash = item.find('-');
+    long first = 0, last = 0;
+    try {
+      first = std::stol(item.substr(0, dash));
+      last = dash == std::string::npos ? first : std::stol(item.substr(dash + 1));
+    } catch (const std::exception&) {
+      DS_THROW(kInput, source, ": '", item, "' is not a vertex index or range (e.g. 0-99)");
+    }
+    if (last < first || first < 0 || last >= count) {
+      DS_THROW(kInput, source, ": vertex range '", item, "' is outside 0-", count - 1,
+               " (the mesh has ", count, " vertices)");
+    }
+    for (long v = first; v <= last; ++v) {
+      vertices.push_back(static_cast<int>(v));
+    }
+  }
+  std::sort(vertices.begin(), vertices.end());
+  vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  if (vertices.empty()) {
+    DS_THROW(kInput, source, ": '", spec, "' names no vertex");
+  }
+  return vertices;
+}
+
+std::vector<double> lumpedVertexAreas(const Mesh& mesh, const float* positions) {
+  std::vector<double> areas(static_cast<std::size_t>(mesh.vertexCount()), 0.0);
+  for (int t = 0; t < mesh.triangleCount(); ++t) {
+    Eigen::Vector3d corner[3];
+    for (int c = 0; c < 3; ++c) {
+      const float* p = positions + 3 * mesh.triangles(t, c);
+      corner[c] = Eigen::Vector3d(p[0], p[1], p[2]);
+    }
+    const double third = (corner[1] - corner[0]).cross(corner[2] - corner[0]).norm() / 6.0;
+    for (int c = 0; c < 3; ++c) {
+      areas[mesh.triangles(t, c)] += third;
+    }
+  }
+  return areas;
+}
+
+RigidAligner::RigidAligner(const Mesh& mesh, const float* reference, std::vector<int> vertices,
+                           const std::string& source)
+    : mVertices(std::move(vertices)) {
+  const int n = static_cast<int>(mVertices.size());
+  if (n < 3) {
+    DS_THROW(kInput, source,
+             ": a rigid fit needs at least 3 non-collinear driver vertices, the "
+             "selection has ",
+             n, "; name a larger group or more indices");
+  }
+  const std::vector<double> areas = lumpedVertexAreas(mesh, reference);
+  mWeights.resize(static_cast<std::size_t>(n));
+  double total = 0.0;
+  for (int i = 0; i < n; ++i) {
+    mWeights[i] = areas[mVertices[i]];
+    total += mWeights[i];
+  }
+  for (int i = 0; i < n; ++i) {
+    // A selection without area (isolated vertices) falls back to uniform weights.
+    mWeights[i] = total > 0.0 ? mWeights[i] / total : 1.0 / n;
+  }
+  mReference.resize(n, 3);
+  for (int i = 0; i < n; ++i) {
+    const float* p = reference + 3 * mVertices[i];
+    mReference.row(i) = Eigen::RowVector3d(p[0], p[1], p[2]);
+    mReferenceCentroid += mWeights[i] * mReference.row(i).transpose();
+  }
+  mReference.rowwise() -= mReferenceCentroid.transpose();
+  // Weighted covariance of the reference: a collinear (or single-point) selection has a
+  // second singular value of zero and leaves the rotation about that line free.
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < n; ++i) {
+    covariance += mWeights[i] * mReference.row(i).transpose() * mReference.row(i);
+  }
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(covariance);
+  const Eigen::Vector3d s = svd.singularValues();
+  if (!(s(0) > 0.0) || s(1) <= 1e-10 * s(0)) {
+    DS_THROW(kInput, source, ": the ", n,
+             " selected driver vertices are (nearly) collinear at rest, so a rigid fit is not "
+             "determined; select at least 3 vertices that span a plane");
+  }
+}
+
+RigidTransform RigidAligner::fit(const float* frame) const {
+  const int n = static_cast<int>(mVertices.size());
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int i = 0; i < n; ++i) {
+    const float* p = frame + 3 * mVertices[i];
+    centroid += mWeights[i] * Eigen::Vector3d(p[0], p[1], p[2]);
+  }
+  // H = sum_i w_i (x_i - cx)(r_i - cr)^T; R = V diag(1, 1, det(V U^T)) U^T.
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < n; ++i) {
+    const float* p = frame + 3 * mVertices[i];
+    const Eigen::Vector3d x = Eigen::Vector3d(p[0], p[1], p[2]) - centroid;
+    h += mWeights[i] * x * mReference.row(i);
+  }
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Matrix3d u = svd.matrixU();
+  const Eigen::Matrix3d v = svd.matrixV();
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (v * u.transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+  RigidTransform transform;
+  transform.rotation = v * d * u.transpose();
+  transform.translation = mReferenceCentroid - transform.rotation * centroid;
+  return transform;
+}
+
+}  // namespace drivenshape

@@ -1,0 +1,220 @@
+// The layers of one bake: settings validated, weight maps and the mix cache loaded once, then
+// mix and wind applied to every chunk after the correction.
+
+#include <drivenshape/layers.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include <layer_types.h>
+
+namespace drivenshape {
+namespace {
+
+void checkFinite(double value, const char* flag) {
+  if (!std::isfinite(value)) {
+    DS_THROW(kUsage, flag, " must be a finite number (got ", value, ")");
+  }
+}
+
+void validate(const LayerOptions& options) {
+  if (options.hasMix() && options.mixWeight.empty()) {
+    DS_THROW(kUsage, "--mix ", options.mixCache,
+             " needs --mix-weight MAP (1 keeps DrivenShape, 0 takes the mix cache)");
+  }
+  if (!options.hasMix() && !options.mixWeight.empty()) {
+    DS_THROW(kUsage, "--mix-weight needs --mix CACHE (the cache to mix with)");
+  }
+  if (options.mixFalloff < 0 || options.mixFalloff > 64) {
+    DS_THROW(kUsage, "--mix-falloff ", options.mixFalloff, " must be 0..64 edge rings");
+  }
+  if (options.windFalloff < 0 || options.windFalloff > 64) {
+    DS_THROW(kUsage, "--wind-falloff ", options.windFalloff, " must be 0..64 edge rings");
+  }
+  checkFinite(options.windAmplitude, "--wind-amplitude");
+  checkFinite(options.windFrequency, "--wind-frequency");
+  checkFinite(options.windSpeed, "--wind-speed");
+  if (options.windAmplitude < 0.0) {
+    DS_THROW(kUsage, "--wind-amplitude ", options.windAmplitude,
+             " must be >= 0 (scene units; 0 = no wind)");
+  }
+  if (!options.hasWind() && !options.windWeight.empty()) {
+    DS_THROW(kUsage, "--wind-weight needs --wind-amplitude > 0");
+  }
+  if (!(options.framesPerSecond > 0.0) || !std::isfinite(options.framesPerSecond)) {
+    DS_THROW(kUsage, "frames per second ", options.framesPerSecond, " must be positive");
+  }
+  if (!options.hasWind()) {
+    return;
+  }
+  if (!(options.windFrequency > 0.0)) {
+    DS_THROW(kUsage, "--wind-frequency ", options.windFrequency,
+             " must be > 0 (noise cells per scene unit)");
+  }
+  if (options.windSpeed < 0.0) {
+    DS_THROW(kUsage, "--wind-speed ", options.windSpeed,
+             " must be >= 0 (scene units per second; 0 = a still pattern)");
+  }
+  if (options.windOctaves < 1 || options.windOctaves > DS_WIND_MAX_OCTAVES) {
+    DS_THROW(kUsage, "--wind-octaves ", options.windOctaves, " must be 1..", DS_WIND_MAX_OCTAVES);
+  }
+  double length2 = 0.0;
+  for (double value : options.windDirection) {
+    checkFinite(value, "--wind-direction");
+    length2 += value * value;
+  }
+  if (!(length2 > 0.0)) {
+    DS_THROW(kUsage, "--wind-direction must not be 0,0,0 (give X,Y,Z, e.g. 1,0,0)");
+  }
+}
+
+/// Rest positions minus their bounding-box centre: small coordinates keep the noise precise.
+std::vector<float> centredRest(const Mesh& mesh) {
+  const int count = mesh.vertexCount();
+  const Bounds bounds = computeBounds(mesh.positions.data(), count);
+  const Eigen::Vector3f centre = 0.5f * (bounds.min + bounds.max);
+  std::vector<float> rest(3 * static_cast<std::size_t>(count));
+  for (int v = 0; v < count; ++v) {
+    for (int a = 0; a < 3; ++a) {
+      rest[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(a)] =
+          mesh.positions(v, a) - centre[a];
+    }
+  }
+  return rest;
+}
+
+void hashFloats(Hasher& hasher, const std::vector<float>& values) {
+  hasher.addValue(static_cast<std::uint64_t>(values.size()));
+  hasher.add(values.data(), values.size() * sizeof(float));
+}
+
+}  // namespace
+
+LayerStack::LayerStack(const LayerOptions& options, const Mesh& drivenMesh, LayerBackend& backend)
+    : mOptions(options), mBackend(backend) {
+  validate(mOptions);
+  mTables.vertexCount = drivenMesh.vertexCount();
+  if (empty()) {
+    return;
+  }
+  mTables.rest = centredRest(drivenMesh);
+  if (mOptions.hasMix()) {
+    mTables.mixWeights =
+        smoothWeightMap(readWeightMap(mOptions.mixWeight, drivenMesh, "--mix-weight"), drivenMesh,
+                        mOptions.mixFalloff);
+    mMixCache = openPointCache(mOptions.mixCache, topologyHash(drivenMesh));
+    if (mMixCache->vertexCount() != drivenMesh.vertexCount()) {
+      DS_THROW(kInput, "--mix ", mOptions.mixCache, ": the cache has ", mMixCache->vertexCount(),
+               " vertices but the driven mesh has ", drivenMesh.vertexCount(),
+               "; mix with a cache of the same garment (same vertex count and order)");
+    }
+  }
+  if (mOptions.hasWind()) {
+    mTables.windWeights =
+        mOptions.windWeight.empty()
+            ? std::vector<float>(static_cast<std::size_t>(drivenMesh.vertexCount()), 1.0f)
+            : smoothWeightMap(readWeightMap(mOptions.windWeight, drivenMesh, "--wind-weight"),
+                              drivenMesh, mOptions.windFalloff);
+    double length = 0.0;
+    for (double value : mOptions.windDirection) {
+      length += value * value;
+    }
+    length = std::sqrt(length);
+    mWind.amplitude = static_cast<float>(mOptions.windAmplitude);
+    mWind.frequency = static_cast<float>(mOptions.windFrequency);
+    for (std::size_t a = 0; a < 3; ++a) {
+      mWind.direction[a] = mOptions.windDirection[a] / length;
+    }
+    mWind.speed = mOptions.windSpeed;
+    mWind.octaves = mOptions.windOctaves;
+    mWind.seed = mOptions.windSeed;
+    mWind.framesPerSecond = mOptions.framesPerSecond;
+  }
+  mBackend.upload(mTables);
+}
+
+bool LayerStack::empty() const {
+  return !mOptions.hasMix() && !mOptions.hasWind();
+}
+
+void LayerStack::checkFrames(const std::vector<int>& frames) const {
+  if (!mMixCache) {
+    return;
+  }
+  for (int frame : frames) {
+    if (!mMixCache->hasFrame(frame)) {
+      const std::vector<int> has = mMixCache->frames();
+      DS_THROW(kInput, "--mix ", mOptions.mixCache, ": frame ", frame,
+               " is missing; the mix cache holds ",
+               has.empty() ? std::string("no frames") : "frames " + formatFrameRange(has),
+               "; mix with a cache that covers every baked frame");
+    }
+  }
+}
+
+void LayerStack::apply(int frameCount, const int* frames, float* positions,
+                       const float* clearance) {
+  if (empty() || frameCount <= 0) {
+    return;
+  }
+  if (mMixCache) {
+    const std::size_t floats = 3 * static_cast<std::size_t>(mTables.vertexCount);
+    mOther.resize(static_cast<std::size_t>(frameCount) * floats);
+    for (int f = 0; f < frameCount; ++f) {
+      mMixCache->readFrame(frames[f], mOther.data() + static_cast<std::size_t>(f) * floats);
+    }
+    mBackend.mix(frameCount, mOther.data(), positions);
+  }
+  if (mOptions.hasWind()) {
+    mBackend.wind(frameCount, frames, mWind, clearance, positions);
+  }
+}
+
+void LayerStack::addToHash(Hasher& hasher) const {
+  hasher.addString("drivenshape.layers.1");
+  hasher.addValue(static_cast<std::uint8_t>(mOptions.hasMix() ? 1 : 0));
+  if (mOptions.hasMix()) {
+    // The file name and the loaded weights (after the falloff); the mix cache's content is not
+    // read up front, so a rewritten cache under the same name needs a rebake by hand.
+    hasher.addString(mOptions.mixCache);
+    hashFloats(hasher, mTables.mixWeights);
+  }
+  hasher.addValue(static_cast<std::uint8_t>(mOptions.hasWind() ? 1 : 0));
+  if (mOptions.hasWind()) {
+    hasher.addValue(mWind.amplitude).addValue(mWind.frequency).addValue(mWind.speed);
+    for (double value : mWind.direction) {
+      hasher.addValue(value);
+    }
+    hasher.addValue(static_cast<std::int32_t>(mWind.octaves)).addValue(mWind.seed);
+    hasher.addValue(mWind.framesPerSecond);
+    hashFloats(hasher, mTables.windWeights);
+  }
+}
+
+std::string LayerStack::describe() const {
+  nlohmann::ordered_json json = nlohmann::ordered_json::object();
+  if (mOptions.hasMix()) {
+    json["mix"] = {{"cache", mOptions.mixCache},
+                   {"weight", mOptions.mixWeight},
+                   {"falloff", mOptions.mixFalloff}};
+  }
+  if (mOptions.hasWind()) {
+    nlohmann::ordered_json wind = {
+        {"amplitude", mOptions.windAmplitude}, {"frequency", mOptions.windFrequency},
+        {"direction", mWind.direction},        {"speed", mOptions.windSpeed},
+        {"octaves", mOptions.windOctaves},     {"seed", mOptions.windSeed}};
+    if (!mOptions.windWeight.empty()) {
+      wind["weight"] = mOptions.windWeight;
+      wind["falloff"] = mOptions.windFalloff;
+    }
+    wind["fps"] = mOptions.framesPerSecond;
+    json["wind"] = wind;
+  }
+  return json.dump();
+}
+
+}  // namespace drivenshape

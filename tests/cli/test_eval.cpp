@@ -1,0 +1,621 @@
+// drivenshape eval: the library (evaluateShot, on the host and the OpenCL closest-triangle
+// search) and the command on a closed cube that travels and turns, where every figure is known
+// analytically, and the command on the bundled sleeve (the binding baseline against a real
+// `bake --weights bind --no-resolve`, the truth against itself, the error against a brute-force
+// computation, and the error messages).
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+#include <tuple>
+
+#include <Eigen/Geometry>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/error.h>
+#include <drivenshape/evaluate.h>
+#include <drivenshape/mesh.h>
+#include <drivenshape/point_cache.h>
+
+#include "test_support.h"
+
+namespace drivenshape {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::kEvalDepthRelTol;
+using testing::kEvalErrorRelTol;
+using testing::kTransferRelTol;
+using testing::TempDir;
+
+// ---- The cube scene ----
+
+/// The closed cube [-1, 1]^3, each side split into n x n outward-facing quads.
+Mesh cubeMesh(int n) {
+  Mesh mesh;
+  std::map<std::tuple<int, int, int>, int> ids;  // lattice point (0..n per axis) -> vertex
+  std::vector<Eigen::Vector3f> points;
+  auto vertex = [&](int x, int y, int z) {
+    const auto key = std::make_tuple(x, y, z);
+    const auto found = ids.find(key);
+    if (found != ids.end()) {
+      return found->second;
+    }
+    const int id = static_cast<int>(points.size());
+    ids[key] = id;
+    points.emplace_back(2.0f * x / n - 1.0f, 2.0f * y / n - 1.0f, 2.0f * z / n - 1.0f);
+    return id;
+  };
+  mesh.faceStart.push_back(0);
+  for (int axis = 0; axis < 3; ++axis) {
+    for (int side = 0; side < 2; ++side) {
+      for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) {
+          // Corners in the side's (u, v) plane; the fixed axis is 0 or n.
+          int corner[4][3];
+          const int uv[4][2] = {{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}};
+          for (int c = 0; c < 4; ++c) {
+            corner[c][axis] = side * n;
+            corner[c][(axis + 1) % 3] = uv[c][0];
+            corner[c][(axis + 2) % 3] = uv[c][1];
+          }
+          int quad[4];
+          for (int c = 0; c < 4; ++c) {
+            quad[c] = vertex(corner[c][0], corner[c][1], corner[c][2]);
+          }
+          // (u, v, axis) is right-handed, so u x v points along +axis: reverse on side 0.
+          if (side == 0) {
+            std::swap(quad[1], quad[3]);
+          }
+          mesh.faceVertices.insert(mesh.faceVertices.end(), quad, quad + 4);
+          mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
+          mesh.faceGroup.push_back(0);
+        }
+      }
+    }
+  }
+  mesh.groupNames = {"cube"};
+  mesh.positions.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t v = 0; v < points.size(); ++v) {
+    mesh.positions.row(static_cast<Eigen::Index>(v)) = points[v].transpose();
+  }
+  mesh.triangulate();
+  return mesh;
+}
+
+/// Cloth points as a mesh of separate triangles (3 vertices each), for OBJ files.
+Mesh pointMesh(const std::vector<Eigen::Vector3d>& points) {
+  Mesh mesh;
+  mesh.faceStart.push_back(0);
+  for (std::size_t v = 0; v + 2 < points.size(); v += 3) {
+    for (int c = 0; c < 3; ++c) {
+      mesh.faceVertices.push_back(static_cast<int>(v) + c);
+    }
+    mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
+    mesh.faceGroup.push_back(0);
+  }
+  mesh.groupNames = {"cloth"};
+  mesh.positions.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t v = 0; v < points.size(); ++v) {
+    mesh.positions.row(static_cast<Eigen::Index>(v)) = points[v].cast<float>().transpose();
+  }
+  mesh.triangulate();
+  return mesh;
+}
+
+double linf(const Eigen::Vector3d& p) {
+  return p.cwiseAbs().maxCoeff();
+}
+
+/// A cube that travels and turns over frames 1..F; cloth given in the cube's own coordinates,
+/// where inside means |p|_inf < 1 and the depth of an inside point is 1 - |p|_inf.
+struct CubeScene {
+  static constexpr int kFrames = 6;
+  static constexpr int kClothVertices = 240;  // a multiple of 3 (pointMesh)
+  Mesh driver = cubeMesh(2);
+  std::vector<Eigen::Vector3d> restLocal;  // the rest cloth (frame 0: no motion)
+  std::vector<std::vector<Eigen::Vector3d>> truthLocal, bakeLocal;  // per frame
+
+  Eigen::Isometry3d motion(int frame) const {
+    Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
+    m.translate(Eigen::Vector3d(0.7 * frame, -0.3 * frame, 0.2 * frame));
+    m.rotate(Eigen::AngleAxisd(0.35 * frame, Eigen::Vector3d(1.0, 2.0, 3.0).normalized()));
+    return m;
+  }
+
+  explicit CubeScene(std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    // A point whose |p|_inf lies in [lo, hi], away from the surface.
+    auto pointAt = [&](double lo, double hi) {
+      for (;;) {
+        const Eigen::Vector3d p(unit(rng), unit(rng), unit(rng));
+        const Eigen::Vector3d q = p * (lo + (hi - lo) * (0.5 + 0.5 * unit(rng))) / linf(p);
+        if (linf(q) >= lo && linf(q) <= hi) {
+          return q;
+        }
+      }
+    };
+    auto cloth = [&](double insideShare) {
+      std::vector<Eigen::Vector3d> points;
+      std::uniform_real_distribution<double> coin(0.0, 1.0);
+      for (int v = 0; v < kClothVertices; ++v) {
+        points.push_back(coin(rng) < insideShare ? pointAt(0.3, 0.97) : pointAt(1.03, 1.6));
+      }
+      return points;
+    };
+    restLocal = cloth(0.1);
+    for (int f = 1; f <= kFrames; ++f) {
+      truthLocal.push_back(restLocal);  // the truth follows the cube rigidly
+      bakeLocal.push_back(cloth(0.05 * f));
+    }
+  }
+
+  /// F x 3V world positions (frame-major) of per-frame local points.
+  std::vector<float> world(const std::vector<std::vector<Eigen::Vector3d>>& local) const {
+    std::vector<float> out;
+    for (int f = 1; f <= kFrames; ++f) {
+      for (const Eigen::Vector3d& p : local[f - 1]) {
+        const Eigen::Vector3d x = motion(f) * p;
+        out.insert(out.end(), {float(x.x()), float(x.y()), float(x.z())});
+      }
+    }
+    return out;
+  }
+  std::vector<float> driverFrames() const {
+    std::vector<std::vector<Eigen::Vector3d>> local(kFrames);
+    for (auto& frame : local) {
+      for (Eigen::Index v = 0; v < driver.positions.rows(); ++v) {
+        frame.push_back(driver.positions.row(v).transpose().cast<double>());
+      }
+    }
+    return world(local);
+  }
+  /// Scene scale S for tolerances: the largest coordinate over all frames, at least the cube's
+  /// diagonal.
+  double scale() const {
+    double s = 2.0 * std::sqrt(3.0);
+    for (float x : driverFrames()) {
+      s = std::max(s, double(std::fabs(x)));
+    }
+    return s;
+  }
+};
+
+struct Analytic {
+  int inside = 0;
+  double depth = 0.0;
+};
+Analytic analytic(const std::vector<Eigen::Vector3d>& local) {
+  Analytic a;
+  for (const Eigen::Vector3d& p : local) {
+    if (linf(p) < 1.0) {
+      ++a.inside;
+      a.depth = std::max(a.depth, 1.0 - linf(p));
+    }
+  }
+  return a;
+}
+
+/// Brute-force error and largest move between two V x 3 float blocks, in double.
+struct Distances {
+  double mean = 0, rms = 0, max = 0;
+};
+Distances distances(const float* a, const float* b, int vertices) {
+  Distances d;
+  for (int v = 0; v < vertices; ++v) {
+    const double e = std::sqrt(std::pow(double(a[3 * v]) - b[3 * v], 2) +
+                               std::pow(double(a[3 * v + 1]) - b[3 * v + 1], 2) +
+                               std::pow(double(a[3 * v + 2]) - b[3 * v + 2], 2));
+    d.mean += e / vertices;
+    d.rms += e * e / vertices;
+    d.max = std::max(d.max, e);
+  }
+  d.rms = std::sqrt(d.rms);
+  return d;
+}
+
+void expectRel(double value, double expected, double tolerance, const std::string& what) {
+  EXPECT_LE(std::abs(value - expected), tolerance * std::max(std::abs(expected), 1e-300))
+      << what << ": " << value << " vs " << expected << " (relative tolerance " << tolerance << ")";
+}
+
+/// Files for the cube scene in `dir`: driver.obj, cloth.obj, driver.pc2, truth.pc2, bake.pc2.
+void writeCubeFiles(const CubeScene& scene, const TempDir& dir) {
+  writeObj(dir.file("driver.obj"), scene.driver);
+  writeObj(dir.file("cloth.obj"), pointMesh(scene.restLocal));
+  const std::vector<float> driver = scene.driverFrames();
+  const std::vector<float> truth = scene.world(scene.truthLocal);
+  const std::vector<float> bake = scene.world(scene.bakeLocal);
+  writePc2(dir.file("driver.pc2"), scene.driver.vertexCount(), 1.0f, CubeScene::kFrames,
+           driver.data());
+  writePc2(dir.file("truth.pc2"), CubeScene::kClothVertices, 1.0f, CubeScene::kFrames,
+           truth.data());
+  writePc2(dir.file("bake.pc2"), CubeScene::kClothVertices, 1.0f, CubeScene::kFrames, bake.data());
+}
+
+/// Checks an evaluation of the cube scene against the analytic figures and brute force.
+void checkCubeEvaluation(const CubeScene& scene, const ShotEvaluation& e) {
+  const int vd = CubeScene::kClothVertices;
+  const double S = scene.scale();
+  const std::vector<float> truth = scene.world(scene.truthLocal);
+  const std::vector<float> bake = scene.world(scene.bakeLocal);
+  ASSERT_EQ(e.bake.frames.size(), std::size_t(CubeScene::kFrames));
+  ASSERT_TRUE(e.penetrations);
+  ASSERT_TRUE(e.hasBaseline);
+  double sum = 0.0, squares = 0.0, bakeJump = -1.0, truthJump = -1.0;
+  for (int f = 0; f < CubeScene::kFrames; ++f) {
+    const std::string where = "frame " + std::to_string(f + 1);
+    const Distances error = distances(&truth[f * 3 * vd], &bake[f * 3 * vd], vd);
+    const ClothFrameMetrics& b = e.bake.frames[f];
+    const ClothFrameMetrics& t = e.truth.frames[f];
+    const ClothFrameMetrics& l = e.baseline.frames[f];
+    EXPECT_EQ(b.frame, f + 1);
+    expectRel(b.error.mean, error.mean, kEvalErrorRelTol, where + " mean");
+    expectRel(b.error.rms, error.rms, kEvalErrorRelTol, where + " rms");
+    expectRel(b.error.max, error.max, kEvalErrorRelTol, where + " max");
+    sum += error.mean * vd;
+    squares += error.rms * error.rms * vd;
+    // The truth against itself.
+    EXPECT_EQ(t.error.mean, 0.0) << where;
+    EXPECT_EQ(t.error.max, 0.0) << where;
+    // Penetrations: the analytic counts and depths.
+    const Analytic bakeInside = analytic(scene.bakeLocal[f]);
+    const Analytic truthInside = analytic(scene.truthLocal[f]);
+    EXPECT_EQ(b.inside, bakeInside.inside) << where;
+    EXPECT_NEAR(b.maxDepth, bakeInside.depth, kEvalDepthRelTol * S) << where;
+    EXPECT_EQ(t.inside, truthInside.inside) << where;
+    EXPECT_NEAR(t.maxDepth, truthInside.depth, kEvalDepthRelTol * S) << where;
+    // The baseline carries the rest cloth rigidly with the cube: it is the truth, to the
+    // transfer's float rounding, and so are its penetrations.
+    EXPECT_LE(l.error.max, kTransferRelTol * S) << where;
+    EXPECT_EQ(l.inside, truthInside.inside) << where;
+    EXPECT_NEAR(l.maxDepth, truthInside.depth, kEvalDepthRelTol * S) << where;
+    // Jumps: none on the first frame, then the brute-force largest move.
+    if (f == 0) {
+      EXPECT_EQ(b.jump, -1.0);
+      EXPECT_EQ(t.jump, -1.0);
+    } else {
+      const Distances bakeMove = distances(&bake[(f - 1) * 3 * vd], &bake[f * 3 * vd], vd);
+      const Distances truthMove = distances(&truth[(f - 1) * 3 * vd], &truth[f * 3 * vd], vd);
+      expectRel(b.jump, bakeMove.max, kEvalErrorRelTol, where + " bake jump");
+      expectRel(t.jump, truthMove.max, kEvalErrorRelTol, where + " truth jump");
+      EXPECT_NEAR(l.jump, truthMove.max, 2.0 * kTransferRelTol * S) << where;
+      bakeJump = std::max(bakeJump, bakeMove.max);
+      truthJump = std::max(truthJump, truthMove.max);
+    }
+  }
+  const double total = double(vd) * CubeScene::kFrames;
+  expectRel(e.bake.mean, sum / total, kEvalErrorRelTol, "overall mean");
+  expectRel(e.bake.rms, std::sqrt(squares / total), kEvalErrorRelTol, "overall rms");
+  expectRel(e.bake.maxJump, bakeJump, kEvalErrorRelTol, "largest bake jump");
+  expectRel(e.truth.maxJump, truthJump, kEvalErrorRelTol, "largest truth jump");
+  EXPECT_EQ(e.truth.mean, 0.0);
+  EXPECT_LE(e.baseline.max, kTransferRelTol * S);
+}
+
+/// Evaluates the cube scene from files with `closest`.
+ShotEvaluation evaluateCube(const TempDir& dir, ClosestBackend& closest, int batch) {
+  const Mesh driverMesh = readObj(dir.file("driver.obj"));
+  const Mesh drivenMesh = readObj(dir.file("cloth.obj"));
+  const auto truth = openPointCache(dir.file("truth.pc2"));
+  const auto bake = openPointCache(dir.file("bake.pc2"));
+  const auto driver = openPointCache(dir.file("driver.pc2"));
+  ShotEvaluationInput input;
+  input.truth = truth.get();
+  input.bake = bake.get();
+  input.driver = driver.get();
+  input.driverMesh = &driverMesh;
+  input.drivenMesh = &drivenMesh;
+  input.baseline = true;
+  input.batch = batch;
+  return evaluateShot(input, {1, 2, 3, 4, 5, 6}, closest);
+}
+
+TEST(EvalShot, CubeFiguresMatchTheAnalyticTruthOnTheHost) {
+  const CubeScene scene(testing::testSeed());
+  TempDir dir;
+  writeCubeFiles(scene, dir);
+  const auto host = makeHostClosest();
+  // Batches of 4 frames: the second batch's first jump crosses the batch boundary.
+  const ShotEvaluation e = evaluateCube(dir, *host, 4);
+  checkCubeEvaluation(scene, e);
+  std::printf(
+      "[ measured ] cube: bake %.1f inside/frame (deepest %.4f), truth %.1f, baseline "
+      "error max %.3g (scale %.3g)\n",
+      e.bake.meanInside, e.bake.maxDepth, e.truth.meanInside, e.baseline.max, scene.scale());
+  // The generator must produce penetrations, or the counts test nothing.
+  EXPECT_GT(e.bake.maxInside, 5);
+  EXPECT_GT(e.truth.maxInside, 5);
+}
+
+class EvalShotCl : public testing::OpenClTest {};
+
+TEST_F(EvalShotCl, CubeFiguresMatchTheAnalyticTruthOnOpenCl) {
+  const CubeScene scene(testing::testSeed());
+  TempDir dir;
+  writeCubeFiles(scene, dir);
+  const auto cl = makeClClosest(context(), device(), queue());
+  checkCubeEvaluation(scene, evaluateCube(dir, *cl, 16));
+}
+
+void expectThrows(const std::function<void()>& call, ErrorCode code, const std::string& mention) {
+  try {
+    call();
+    ADD_FAILURE() << "no exception; expected one mentioning '" << mention << "'";
+  } catch (const Error& error) {
+    EXPECT_EQ(static_cast<int>(error.code()), static_cast<int>(code)) << error.what();
+    EXPECT_NE(std::string(error.what()).find(mention), std::string::npos) << error.what();
+  }
+}
+
+TEST(EvalShot, BadInputsGiveClearErrors) {
+  const CubeScene scene(testing::testSeed());
+  TempDir dir;
+  writeCubeFiles(scene, dir);
+  const Mesh driverMesh = readObj(dir.file("driver.obj"));
+  const Mesh drivenMesh = readObj(dir.file("cloth.obj"));
+  const auto truth = openPointCache(dir.file("truth.pc2"));
+  const auto bake = openPointCache(dir.file("bake.pc2"));
+  const auto driver = openPointCache(dir.file("driver.pc2"));
+  const auto host = makeHostClosest();
+  auto base = [&] {
+    ShotEvaluationInput input;
+    input.truth = truth.get();
+    input.bake = bake.get();
+    input.driver = driver.get();
+    input.driverMesh = &driverMesh;
+    input.drivenMesh = &drivenMesh;
+    input.driverMeshName = "driver.obj";
+    input.drivenMeshName = "cloth.obj";
+    input.baseline = true;
+    return input;
+  };
+  ShotEvaluationInput input = base();
+  expectThrows([&] { evaluateShot(input, {}, *host); }, ErrorCode::kUsage, "empty");
+  expectThrows([&] { evaluateShot(input, {1, 7}, *host); }, ErrorCode::kInput, "no frame 7");
+  input.bake = driver.get();  // 26 vertices against 240
+  expectThrows([&] { evaluateShot(input, {1}, *host); }, ErrorCode::kInput, "vertices");
+  input = base();
+  input.driverMesh = &drivenMesh;  // the wrong rest mesh for the driver cache
+  expectThrows([&] { evaluateShot(input, {1}, *host); }, ErrorCode::kInput, "driver cache");
+  input = base();
+  input.drivenMesh = &driverMesh;  // the wrong rest mesh for the cloth
+  expectThrows([&] { evaluateShot(input, {1}, *host); }, ErrorCode::kInput, "cloth's rest mesh");
+  input = base();
+  input.driverMesh = nullptr;
+  expectThrows([&] { evaluateShot(input, {1}, *host); }, ErrorCode::kUsage, "--driver-mesh");
+  input = base();
+  input.drivenMesh = nullptr;
+  expectThrows([&] { evaluateShot(input, {1}, *host); }, ErrorCode::kUsage, "--driven-mesh");
+  input = base();
+  input.driver = nullptr;
+  expectThrows([&] { evaluateShot(input, {1}, *host); }, ErrorCode::kUsage, "--driver");
+}
+
+// ---- The command ----
+
+struct CliRun {
+  int code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string quote(const std::string& word) {
+  std::string quoted = "'";
+  for (char ch : word) {
+    quoted += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+  }
+  return quoted + "'";
+}
+
+CliRun runCli(const TempDir& dir, const std::vector<std::string>& args) {
+  std::string command = quote(DS_CLI_PATH);
+  for (const auto& arg : args) {
+    command += " " + quote(arg);
+  }
+  const std::string out = dir.file(".stdout"), err = dir.file(".stderr");
+  command += " >" + quote(out) + " 2>" + quote(err);
+  const int status = std::system(command.c_str());
+  CliRun result;
+  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  result.out = slurp(out);
+  result.err = slurp(err);
+  fs::remove(out);
+  fs::remove(err);
+  return result;
+}
+
+nlohmann::json readJson(const std::string& path) {
+  return nlohmann::json::parse(slurp(path));
+}
+
+std::string sample(const std::string& name) {
+  return testing::dataDir() + "/sleeve/" + name;
+}
+
+/// One error line naming `fragment`, with exit code `code`.
+void expectCliError(const CliRun& r, int code, const std::string& fragment) {
+  EXPECT_EQ(r.code, code) << r.err;
+  EXPECT_NE(r.err.find(fragment), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+}
+
+TEST(EvalCommand, CubeTableAndJsonMatchTheAnalyticTruth) {
+  const CubeScene scene(testing::testSeed());
+  TempDir dir;
+  writeCubeFiles(scene, dir);
+  const CliRun r =
+      runCli(dir, {"eval", "--truth", dir.file("truth.pc2"), "--bake", dir.file("bake.pc2"),
+                   "--frames", "1-6", "--driver", dir.file("driver.pc2"), "--driver-mesh",
+                   dir.file("driver.obj"), "--driven-mesh", dir.file("cloth.obj"), "--baseline",
+                   "--per-frame", "--json", dir.file("eval.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* row : {"error mean", "inside driver / frame", "deepest penetration",
+                          "largest frame jump", "baseline", "overall over 6 frames x 240"}) {
+    EXPECT_NE(r.out.find(row), std::string::npos) << row << "\n" << r.out;
+  }
+  const nlohmann::json j = readJson(dir.file("eval.json"));
+  const double S = scene.scale();
+  ASSERT_EQ(j["frames"].size(), std::size_t(CubeScene::kFrames));
+  const std::vector<float> truth = scene.world(scene.truthLocal);
+  const std::vector<float> bake = scene.world(scene.bakeLocal);
+  const int vd = CubeScene::kClothVertices;
+  for (int f = 0; f < CubeScene::kFrames; ++f) {
+    const nlohmann::json& frame = j["frames"][f];
+    const Distances error = distances(&truth[f * 3 * vd], &bake[f * 3 * vd], vd);
+    expectRel(frame["mean"].get<double>(), error.mean, kEvalErrorRelTol, "json mean");
+    expectRel(frame["bake"]["max"].get<double>(), error.max, kEvalErrorRelTol, "json max");
+    const Analytic bakeInside = analytic(scene.bakeLocal[f]);
+    const Analytic truthInside = analytic(scene.truthLocal[f]);
+    EXPECT_EQ(frame["bake"]["inside"].get<int>(), bakeInside.inside);
+    EXPECT_NEAR(frame["bake"]["max_depth"].get<double>(), bakeInside.depth, kEvalDepthRelTol * S);
+    EXPECT_EQ(frame["truth"]["inside"].get<int>(), truthInside.inside);
+    EXPECT_EQ(frame["baseline"]["inside"].get<int>(), truthInside.inside);
+    EXPECT_LE(frame["baseline"]["max"].get<double>(), kTransferRelTol * S);
+    EXPECT_EQ(frame["bake"]["jump"].is_null(), f == 0);
+  }
+  EXPECT_TRUE(j["penetrations"].get<bool>());
+  EXPECT_TRUE(j["baseline"].get<bool>());
+  EXPECT_EQ(j["summary"]["truth"]["mean_inside"].get<double>(),
+            j["summary"]["baseline"]["mean_inside"].get<double>());
+}
+
+TEST(EvalCommand, SleeveBaselineEqualsTheBindBakeAndTruthAgainstItself) {
+  TempDir dir;
+  const std::string db = dir.file("sleeve.dsdb");
+  CliRun r =
+      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string frames = "1-13x4";
+  fs::create_directories(dir.file("bind"));
+  r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", frames,
+                   "--weights", "bind", "--no-resolve", "--device", "host", "--quiet", "-o",
+                   dir.file("bind/sleeve.####.exr")});
+  ASSERT_EQ(r.code, 0) << r.err;
+
+  // The bind bake judged with its own baseline beside it: the two columns are one computation.
+  r = runCli(
+      dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+            dir.file("bind/sleeve.####.exr"), "--frames", frames, "--driver",
+            sample("test.driver.pc2"), "--db", db, "--baseline", "--json", dir.file("bind.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json bind = readJson(dir.file("bind.json"));
+  for (const char* key : {"mean", "rms", "max", "max_jump", "mean_inside", "max_depth"}) {
+    EXPECT_EQ(bind["summary"]["baseline"][key], bind["summary"]["bake"][key]) << key;
+  }
+  for (const nlohmann::json& frame : bind["frames"]) {
+    EXPECT_EQ(frame["baseline"], frame["bake"]) << frame.dump();
+  }
+
+  // The error against an independent brute-force computation over the files.
+  const auto truthCache = openPointCache(sample("test.driven.pc2"));
+  const auto bakeCache = openPointCache(dir.file("bind/sleeve.####.exr"));
+  const int vd = truthCache->vertexCount();
+  std::vector<float> a(3 * std::size_t(vd)), b(a.size());
+  double sum = 0.0, largest = 0.0;
+  int count = 0;
+  for (int frame : {1, 5, 9, 13}) {
+    truthCache->readFrame(frame, a.data());
+    bakeCache->readFrame(frame, b.data());
+    const Distances d = distances(a.data(), b.data(), vd);
+    sum += d.mean;
+    largest = std::max(largest, d.max);
+    ++count;
+  }
+  expectRel(bind["mean"].get<double>(), sum / count, kEvalErrorRelTol, "sleeve mean");
+  expectRel(bind["max"].get<double>(), largest, kEvalErrorRelTol, "sleeve max");
+
+  // The truth against itself: no error, the same jumps and penetrations on both sides.
+  r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+                   sample("test.driven.pc2"), "--frames", frames, "--driver",
+                   sample("test.driver.pc2"), "--db", db, "--json", dir.file("self.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json self = readJson(dir.file("self.json"));
+  EXPECT_EQ(self["mean"].get<double>(), 0.0);
+  EXPECT_EQ(self["rms"].get<double>(), 0.0);
+  EXPECT_EQ(self["max"].get<double>(), 0.0);
+  EXPECT_GT(self["summary"]["truth"]["max_jump"].get<double>(), 0.0);
+  EXPECT_EQ(self["summary"]["bake"]["max_jump"], self["summary"]["truth"]["max_jump"]);
+  for (const nlohmann::json& frame : self["frames"]) {
+    EXPECT_EQ(frame["bake"]["inside"], frame["truth"]["inside"]);
+    EXPECT_EQ(frame["bake"]["max_depth"], frame["truth"]["max_depth"]);
+    EXPECT_EQ(frame["bake"]["jump"], frame["truth"]["jump"]);
+  }
+  EXPECT_NE(r.out.find("/ truth's"), std::string::npos) << r.out;
+}
+
+TEST(EvalCommand, OldFlagsStillWork) {
+  TempDir dir;
+  const CliRun r = runCli(
+      dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake", sample("test.driven.pc2"),
+            "--frames", "1-3", "--per-frame", "--json", dir.file("eval.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("overall over 3 frames x 2244 vertices: mean 0, rms 0, max 0"),
+            std::string::npos)
+      << r.out;
+  const nlohmann::json j = readJson(dir.file("eval.json"));
+  for (const char* key : {"truth", "bake", "vertices", "mean", "rms", "max", "max_frame"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_FALSE(j["penetrations"].get<bool>());
+  EXPECT_EQ(j["frames"][0]["max_vertex"].get<int>(), 0);
+}
+
+TEST(EvalCommand, ClearErrors) {
+  TempDir dir;
+  const std::vector<std::string> common = {
+      "eval",     "--truth", sample("test.driven.pc2"), "--bake", sample("test.driven.pc2"),
+      "--frames", "1-3"};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = common;
+    args.insert(args.end(), extra.begin(), extra.end());
+    return runCli(dir, args);
+  };
+  expectCliError(with({"--driver", sample("test.driver.pc2")}), 2, "--driver-mesh");
+  expectCliError(with({"--baseline"}), 2, "--driver");
+  expectCliError(with({"--driver", sample("test.driver.pc2"), "--driver-mesh",
+                       sample("driver_rest.obj"), "--baseline"}),
+                 2, "--driven-mesh");
+  expectCliError(with({"--driver-mesh", sample("driver_rest.obj")}), 2, "--driver");
+  // The cloth's rest mesh passed as the driver's: the vertex counts differ.
+  expectCliError(
+      with({"--driver", sample("test.driver.pc2"), "--driver-mesh", sample("driven_rest.obj")}), 3,
+      "2146 vertices");
+  // The baseline's cloth mesh must be the truth's.
+  expectCliError(
+      with({"--driver", sample("test.driver.pc2"), "--driver-mesh", sample("driver_rest.obj"),
+            "--driven-mesh", sample("driver_rest.obj"), "--baseline"}),
+      3, "cloth's rest mesh");
+  // A frame the driver does not hold.
+  CliRun r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+                          sample("test.driven.pc2"), "--frames", "1-3,500", "--driver",
+                          sample("test.driver.pc2"), "--driver-mesh", sample("driver_rest.obj")});
+  expectCliError(r, 3, "no frame 500");
+  // Truth and bake of different meshes.
+  r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+                   sample("test.driver.pc2"), "--frames", "1-3"});
+  expectCliError(r, 3, "vertices");
+}
+
+}  // namespace
+}  // namespace drivenshape

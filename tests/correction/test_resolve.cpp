@@ -1,0 +1,256 @@
+// Penetration resolution on a closed cube, where the distance to the surface and the side are
+// known in closed form: which points move, where they go (at the offset, outside), that the
+// others keep their bits, the per-frame counts, OpenCL vs host, bad input.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/error.h>
+
+#include "correction_fixture.h"
+#include "correction_test_util.h"
+#include "test_support.h"
+
+namespace drivenshape::testing {
+namespace {
+
+constexpr float kOffset = 0.1f;
+
+/// Signed distance from p to the surface of the axis-aligned cube [c - 1, c + 1]^3 (negative
+/// inside), in closed form.
+double cubeSignedDistance(const float* p, const Eigen::Vector3d& centre) {
+  const Eigen::Vector3d d =
+      (Eigen::Vector3d(p[0], p[1], p[2]) - centre).cwiseAbs() - Eigen::Vector3d::Ones();
+  const double outside = d.cwiseMax(0.0).norm();
+  const double inside = std::min(d.maxCoeff(), 0.0);
+  return outside + inside;
+}
+
+/// Two frames of a subdivided cube (the second moved by `shift`) and random points around it,
+/// none within 1e-3 of the surface or of the offset surface (so the decision to move is not a
+/// rounding question), plus points exactly at an edge and a corner direction.
+struct CubeScene {
+  Mesh cube;
+  int frameCount = 2;
+  int pointCount = 0;
+  std::vector<float> poses;
+  std::vector<float> points;
+  std::vector<Eigen::Vector3d> centres;
+};
+
+CubeScene makeCubeScene() {
+  CubeScene scene;
+  scene.cube = subdividedCube(3);
+  const int vp = scene.cube.vertexCount();
+  const Eigen::Vector3d shift(0.3, -0.2, 0.15);
+  scene.centres = {Eigen::Vector3d::Zero(), shift};
+  for (const Eigen::Vector3d& centre : scene.centres) {
+    for (int v = 0; v < vp; ++v) {
+      for (int a = 0; a < 3; ++a) {
+        scene.poses.push_back(scene.cube.positions(v, a) + static_cast<float>(centre[a]));
+      }
+    }
+  }
+  std::mt19937 rng(testSeed());
+  std::uniform_real_distribution<float> box(-1.6f, 1.6f);
+  // Same points in both frames: near a corner and an edge (outside, within the offset), deep
+  // inside, then random ones.
+  std::vector<float> frame = {1.03f, 1.04f, 1.02f, 1.05f, 1.02f, 0.2f, 0.1f, -0.2f, 0.3f};
+  while (frame.size() < 3 * 2000) {
+    const float p[3] = {box(rng), box(rng), box(rng)};
+    bool clear = true;
+    for (const Eigen::Vector3d& centre : scene.centres) {
+      const double d = cubeSignedDistance(p, centre);
+      clear = clear && std::fabs(d) > 1e-3 && std::fabs(d - kOffset) > 1e-3;
+    }
+    if (clear) {
+      frame.insert(frame.end(), p, p + 3);
+    }
+  }
+  scene.pointCount = static_cast<int>(frame.size() / 3);
+  scene.points = frame;
+  scene.points.insert(scene.points.end(), frame.begin(), frame.end());
+  return scene;
+}
+
+/// Exact hits of `points` on `poses` with the host backend (every triangle allowed).
+std::vector<SurfaceHit> hostHits(ClosestBackend& host, const CubeScene& scene,
+                                 const std::vector<float>& points) {
+  host.setSurface(scene.cube, BindingMask::all(scene.pointCount));
+  std::vector<SurfaceHit> hits(static_cast<std::size_t>(scene.frameCount) * scene.pointCount);
+  host.closest(scene.frameCount, scene.poses.data(), points.data(), hits.data());
+  return hits;
+}
+
+TEST_F(CorrectionClTest, ResolveMovesInsideAndNearPointsToTheOffsetOutside) {
+  const CubeScene scene = makeCubeScene();
+  const int vp = scene.cube.vertexCount();
+  const int vd = scene.pointCount;
+  const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
+  // Independent expectation from the closed form.
+  std::vector<int> expectedMoved(static_cast<std::size_t>(scene.frameCount), 0);
+  std::vector<char> shouldMove(scene.points.size() / 3, 0);
+  for (int f = 0; f < scene.frameCount; ++f) {
+    for (int i = 0; i < vd; ++i) {
+      const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+      shouldMove[k] = cubeSignedDistance(&scene.points[3 * k], scene.centres[f]) < kOffset;
+      expectedMoved[static_cast<std::size_t>(f)] += shouldMove[k];
+    }
+  }
+  ASSERT_GT(expectedMoved[0], 100);
+  ASSERT_LT(expectedMoved[0], vd - 100);
+  ASSERT_NE(expectedMoved[0], expectedMoved[1]);
+
+  const double scale = sceneScale(scene.poses.data(), scene.frameCount * vp, scene.points.data(),
+                                  scene.frameCount * vd);
+  const InsideAudit audit(scene.cube);
+  std::vector<std::vector<float>> results;
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.cube, BindingMask::all(vd));
+    std::vector<float> points = scene.points;
+    std::vector<int> moved(static_cast<std::size_t>(scene.frameCount), -1);
+    backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), kOffset, points.data(),
+                     moved.data());
+    EXPECT_EQ(moved, expectedMoved);
+
+    // A fresh exact search on the resolved points: the moved ones sit at the offset, outside.
+    const std::vector<SurfaceHit> after = hostHits(*hostBackend(), scene, points);
+    const std::vector<double> brute = bruteForceAll(
+        scene.cube, scene.frameCount, scene.poses.data(), points.data(), BindingMask::all(vd));
+    int wrong = 0;
+    double worst = 0.0;
+    for (int f = 0; f < scene.frameCount; ++f) {
+      const float* pose = scene.poses.data() + 3L * vp * f;
+      std::vector<float> side(static_cast<std::size_t>(vd));
+      audit.signedDistances(pose, vd, points.data() + 3L * vd * f, after.data() + vd * f,
+                            side.data());
+      for (int i = 0; i < vd; ++i) {
+        const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+        const float* p = &points[3 * k];
+        bool ok;
+        if (shouldMove[k]) {
+          const double error =
+              std::max(std::fabs(brute[k] - kOffset),
+                       std::fabs(cubeSignedDistance(p, scene.centres[f]) - kOffset));
+          worst = std::max(worst, error);
+          ok = error <= kResolveRelTol * scale && side[static_cast<std::size_t>(i)] > 0.0f;
+        } else {
+          ok = std::memcmp(p, &scene.points[3 * k], 3 * sizeof(float)) == 0;
+        }
+        if (!ok && ++wrong <= 5) {
+          ADD_FAILURE() << "frame " << f << " point " << i << " (" << scene.points[3 * k] << ", "
+                        << scene.points[3 * k + 1] << ", " << scene.points[3 * k + 2] << ") -> ("
+                        << p[0] << ", " << p[1] << ", " << p[2]
+                        << "): " << (shouldMove[k] ? "should move" : "should stay")
+                        << "; brute-force distance " << brute[k] << ", audit side "
+                        << side[static_cast<std::size_t>(i)] << ", offset " << kOffset
+                        << ", tolerance " << kResolveRelTol << " x " << scale;
+        }
+      }
+    }
+    EXPECT_EQ(wrong, 0) << "of " << scene.frameCount * vd << " points";
+    std::printf("[ resolve  ] %s: worst |distance - offset| %.3g (tolerance %.3g)\n",
+                backend->name().c_str(), worst, kResolveRelTol * scale);
+    results.push_back(points);
+  }
+  // OpenCL vs host.
+  double difference = 0.0;
+  for (std::size_t k = 0; k < results[0].size(); ++k) {
+    difference =
+        std::max(difference, static_cast<double>(std::fabs(results[0][k] - results[1][k])));
+  }
+  const Bounds bounds = computeBounds(results[0].data(), static_cast<int>(results[0].size() / 3));
+  EXPECT_LE(difference, kDeviceVsHostRelTol * bounds.diagonal())
+      << "largest |cl - host| " << difference << ", tolerance " << kDeviceVsHostRelTol << " x "
+      << bounds.diagonal();
+}
+
+TEST_F(CorrectionClTest, ResolveWithZeroOffsetMovesOnlyInsidePointsOntoTheSurface) {
+  const CubeScene scene = makeCubeScene();
+  const int vd = scene.pointCount;
+  const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
+  int inside = 0;
+  for (int i = 0; i < vd; ++i) {
+    inside +=
+        cubeSignedDistance(&scene.points[3 * static_cast<std::size_t>(i)], scene.centres[0]) < 0.0;
+  }
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.cube, BindingMask::all(vd));
+    std::vector<float> points = scene.points;
+    std::vector<int> moved(2, -1);
+    backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), 0.0f, points.data(),
+                     moved.data());
+    EXPECT_EQ(moved[0], inside);
+    for (int i = 0; i < vd; ++i) {
+      const std::size_t k = 3 * static_cast<std::size_t>(i);
+      if (cubeSignedDistance(&scene.points[k], scene.centres[0]) < 0.0) {
+        EXPECT_LE(std::fabs(cubeSignedDistance(&points[k], scene.centres[0])), kResolveRelTol * 3.0)
+            << "inside point " << i << " not moved onto the surface";
+      } else {
+        EXPECT_EQ(std::memcmp(&points[k], &scene.points[k], 3 * sizeof(float)), 0)
+            << "outside point " << i << " moved";
+      }
+      if (HasFailure()) {
+        break;
+      }
+    }
+    // moved may be null.
+    std::vector<float> again = scene.points;
+    backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), 0.0f, again.data(),
+                     nullptr);
+    EXPECT_EQ(again, points);
+  }
+}
+
+TEST_F(CorrectionClTest, ResolveRejectsNonFiniteInputBadOffsetsAndForeignHits) {
+  const CubeScene scene = makeCubeScene();
+  const int vd = scene.pointCount;
+  const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
+  auto expectThrow = [](ErrorCode code, const std::string& fragment, auto&& call) {
+    try {
+      call();
+      ADD_FAILURE() << "accepted; expected an error with '" << fragment << "'";
+    } catch (const Error& error) {
+      EXPECT_EQ(error.code(), code) << error.what();
+      EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
+    }
+  };
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.cube, BindingMask::all(vd));
+    std::vector<float> points = scene.points;
+    points[3 * (static_cast<std::size_t>(vd) + 17) + 1] = std::nanf("");
+    const std::vector<float> before = points;
+    expectThrow(ErrorCode::kNumerical, "frame 1 of the chunk: driven point 17", [&] {
+      backend->resolve(2, scene.poses.data(), hits.data(), kOffset, points.data(), nullptr);
+    });
+    EXPECT_EQ(std::memcmp(points.data(), before.data(), points.size() * sizeof(float)), 0)
+        << "a rejected call must not change the points";
+    std::vector<float> poses = scene.poses;
+    poses[5] = INFINITY;
+    points = scene.points;
+    expectThrow(ErrorCode::kNumerical, "driver vertex 1", [&] {
+      backend->resolve(2, poses.data(), hits.data(), kOffset, points.data(), nullptr);
+    });
+    expectThrow(ErrorCode::kInput, "offset", [&] {
+      backend->resolve(2, scene.poses.data(), hits.data(), -0.5f, points.data(), nullptr);
+    });
+    std::vector<SurfaceHit> foreign = hits;
+    foreign[3].triangle = 100000;
+    expectThrow(ErrorCode::kInput, "hit triangle 100000", [&] {
+      backend->resolve(2, scene.poses.data(), foreign.data(), kOffset, points.data(), nullptr);
+    });
+  }
+}
+
+}  // namespace
+}  // namespace drivenshape::testing
