@@ -151,6 +151,7 @@ DeviceBackends makeBackends(const std::string& spec, std::ostream& log, int thre
     backends.stages = makeHostStages();
     backends.binding = makeHostClosest(search);
     backends.audit = makeHostClosest(search);
+    backends.layers = makeHostLayers();
     return backends;
   }
   const ClDevice& d = *backends.device;
@@ -158,6 +159,7 @@ DeviceBackends makeBackends(const std::string& spec, std::ostream& log, int thre
   backends.stages = makeClStages(d.context, d.device, d.queue);
   backends.binding = makeClClosest(d.context, d.device, d.queue, search);
   backends.audit = makeClClosest(d.context, d.device, d.queue, search);
+  backends.layers = makeClLayers(d.context, d.device, d.queue);
   return backends;
 }
 

@@ -8,6 +8,7 @@
 #include <drivenshape/bake.h>
 #include <drivenshape/cl_stages.h>
 #include <drivenshape/correction.h>
+#include <drivenshape/layers.h>
 
 namespace drivenshape::cli {
 
@@ -35,8 +36,9 @@ struct DeviceBackends {
   std::unique_ptr<StageBackend> stages;
   std::unique_ptr<ClosestBackend> binding;
   std::unique_ptr<ClosestBackend> audit;
+  std::unique_ptr<LayerBackend> layers;  ///< mix and wind (LayerStack)
 
-  BakeBackends view() const { return {stages.get(), binding.get(), audit.get()}; }
+  BakeBackends view() const { return {stages.get(), binding.get(), audit.get(), layers.get()}; }
 };
 
 /// The backends for --device SPEC (OpenCL or host); `log` gets a warning when `auto` finds no

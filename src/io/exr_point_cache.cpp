@@ -60,6 +60,45 @@ void checkExists(const std::string& path) {
   }
 }
 
+/// Extra attribute names: 1..31 bytes (OpenEXR's limit), unique, and none of the names this
+/// writer sets itself or OpenEXR requires.
+void checkStringAttributes(const std::string& path, const ExrWriteOptions& options) {
+  static const char* const kReserved[] = {kAttrVertexCount, kAttrFrame,     kAttrTopologyHash,
+                                          kAttrToolVersion, kAttrBoundsMin, kAttrBoundsMax,
+                                          kAttrSettingsHash};
+  const Imf::Header standard(1, 1);
+  for (std::size_t i = 0; i < options.stringAttributes.size(); ++i) {
+    const std::string& name = options.stringAttributes[i].first;
+    bool clash = name.empty() || name.size() > 31 || standard.find(name) != standard.end() ||
+                 name == "framesPerSecond";
+    for (const char* reserved : kReserved) {
+      clash = clash || name == reserved;
+    }
+    for (std::size_t j = 0; j < i; ++j) {
+      clash = clash || options.stringAttributes[j].first == name;
+    }
+    if (clash) {
+      DS_THROW(kUsage, "EXR attribute name '", name, "' for ", path,
+               " is empty, longer than 31 bytes, repeated or reserved by the point-cache format");
+    }
+  }
+}
+
+/// Every string attribute that is not one of ours.
+std::map<std::string, std::string> extraStrings(const Imf::Header& header) {
+  std::map<std::string, std::string> strings;
+  for (auto it = header.begin(); it != header.end(); ++it) {
+    const std::string name = it.name();
+    if (name == kAttrTopologyHash || name == kAttrToolVersion || name == kAttrSettingsHash) {
+      continue;
+    }
+    if (const auto* text = dynamic_cast<const Imf::StringAttribute*>(&it.attribute())) {
+      strings[name] = text->value();
+    }
+  }
+  return strings;
+}
+
 /// Header -> info, with every check that needs no pixels.
 ExrPointCacheInfo parseHeader(const std::string& path, const Imf::Header& header) {
   ExrPointCacheInfo info;
@@ -106,6 +145,7 @@ ExrPointCacheInfo parseHeader(const std::string& path, const Imf::Header& header
                     channels.findChannel(kNormalChannels[1]) != nullptr &&
                     channels.findChannel(kNormalChannels[2]) != nullptr;
   info.compression = fromImf(header.compression());
+  info.stringAttributes = extraStrings(header);
 
   const Imath::Box2i& window = header.dataWindow();
   const long long width = static_cast<long long>(window.max.x) - window.min.x + 1;
@@ -166,6 +206,7 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
   if (vertexCount <= 0 || xyz == nullptr) {
     DS_THROW(kInternal, "writePointCacheExr '", path, "': no vertices to write");
   }
+  checkStringAttributes(path, options);
   const std::size_t width = static_cast<std::size_t>(options.width);
   const std::size_t height = (static_cast<std::size_t>(vertexCount) + width - 1) / width;
   const std::size_t pixels = width * height;
@@ -203,6 +244,9 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
       header.insert(kAttrSettingsHash, Imf::StringAttribute(hashToHex(options.settingsHash)));
     }
     Imf::addFramesPerSecond(header, Imf::guessExactFps(options.framesPerSecond));
+    for (const auto& [name, value] : options.stringAttributes) {
+      header.insert(name, Imf::StringAttribute(value));
+    }
 
     Imf::FrameBuffer frameBuffer;
     insertXyzSlices(frameBuffer, kPositionChannels, positions.data(), width);

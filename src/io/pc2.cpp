@@ -185,15 +185,41 @@ std::unique_ptr<PointCacheReader> openPc2(const std::string& path) {
   return std::make_unique<Pc2Reader>(path);
 }
 
-void writePc2(const std::string& path, int vertexCount, float startFrame, int frameCount,
-              const float* xyz) {
-  if (vertexCount <= 0 || frameCount < 0 || (frameCount > 0 && xyz == nullptr)) {
-    DS_THROW(kInternal, "writePc2 '", path, "': bad arguments (", vertexCount, " vertices, ",
+struct Pc2Writer::State {
+  std::string path;
+  AtomicFile atomic;
+  std::FILE* file = nullptr;
+  int vertexCount = 0;
+  int frameCount = 0;
+  int written = 0;
+  std::vector<float> swapped;
+
+  explicit State(const std::string& target) : path(target), atomic(target) {}
+  ~State() {
+    if (file != nullptr) {
+      std::fclose(file);
+    }
+  }
+  [[noreturn]] void fail(int error) {
+    DS_THROW(kOutput, "cannot write '", path, "': ", std::strerror(error), "; is the disk full?");
+  }
+};
+
+Pc2Writer::Pc2Writer(const std::string& path, int vertexCount, float startFrame, int frameCount,
+                     float sampleRate) {
+  if (vertexCount <= 0 || frameCount < 0) {
+    DS_THROW(kInternal, "Pc2Writer '", path, "': bad arguments (", vertexCount, " vertices, ",
              frameCount, " frames)");
   }
-  AtomicFile atomic(path);
-  std::FILE* file = std::fopen(atomic.tempPath().c_str(), "wb");
-  if (file == nullptr) {
+  if (!(sampleRate > 0.0f) || !std::isfinite(sampleRate) || !std::isfinite(startFrame)) {
+    DS_THROW(kUsage, "PC2 '", path, "': start frame ", startFrame, " and sample rate ", sampleRate,
+             " must be finite and the rate positive");
+  }
+  mState = std::make_unique<State>(path);
+  mState->vertexCount = vertexCount;
+  mState->frameCount = frameCount;
+  mState->file = std::fopen(mState->atomic.tempPath().c_str(), "wb");
+  if (mState->file == nullptr) {
     DS_THROW(kOutput, "cannot create '", path, "': ", std::strerror(errno));
   }
   unsigned char header[kHeaderBytes];
@@ -201,28 +227,62 @@ void writePc2(const std::string& path, int vertexCount, float startFrame, int fr
   io::storeLeInt32(header + 12, 1);
   io::storeLeInt32(header + 16, vertexCount);
   io::storeLeFloat(header + 20, startFrame);
-  io::storeLeFloat(header + 24, 1.0f);
+  io::storeLeFloat(header + 24, sampleRate);
   io::storeLeInt32(header + 28, frameCount);
-  bool ok = std::fwrite(header, 1, kHeaderBytes, file) == kHeaderBytes;
-  const std::size_t frameFloats = 3 * static_cast<std::size_t>(vertexCount);
-  std::vector<float> swapped;
-  for (int f = 0; ok && f < frameCount; ++f) {
-    const float* frame = xyz + static_cast<std::size_t>(f) * frameFloats;
-    if (!io::hostIsLittleEndian()) {
-      swapped.assign(frame, frame + frameFloats);
-      io::swapWords(swapped.data(), frameFloats);
-      frame = swapped.data();
-    }
-    ok = std::fwrite(frame, sizeof(float), frameFloats, file) == frameFloats;
+  if (std::fwrite(header, 1, kHeaderBytes, mState->file) != kHeaderBytes) {
+    mState->fail(errno);
   }
-  ok = std::fflush(file) == 0 && ok;
+}
+
+Pc2Writer::~Pc2Writer() = default;
+
+void Pc2Writer::writeFrame(const float* xyz) {
+  State& state = *mState;
+  if (state.file == nullptr || state.written >= state.frameCount || xyz == nullptr) {
+    DS_THROW(kInternal, "Pc2Writer '", state.path, "': frame ", state.written + 1, " of ",
+             state.frameCount, " written after commit, past the end or from a null buffer");
+  }
+  const std::size_t floats = 3 * static_cast<std::size_t>(state.vertexCount);
+  const float* frame = xyz;
+  if (!io::hostIsLittleEndian()) {
+    state.swapped.assign(xyz, xyz + floats);
+    io::swapWords(state.swapped.data(), floats);
+    frame = state.swapped.data();
+  }
+  if (std::fwrite(frame, sizeof(float), floats, state.file) != floats) {
+    state.fail(errno);
+  }
+  ++state.written;
+}
+
+void Pc2Writer::commit() {
+  State& state = *mState;
+  if (state.written != state.frameCount || state.file == nullptr) {
+    DS_THROW(kInternal, "Pc2Writer '", state.path, "': ", state.written, " of ", state.frameCount,
+             " frames written at commit");
+  }
+  bool ok = std::fflush(state.file) == 0;
   const int writeErrno = errno;
-  ok = std::fclose(file) == 0 && ok;
+  ok = std::fclose(state.file) == 0 && ok;
+  state.file = nullptr;
   if (!ok) {
-    DS_THROW(kOutput, "cannot write '", path, "': ", std::strerror(writeErrno),
-             "; is the disk full?");
+    state.fail(writeErrno);
   }
-  atomic.commit();
+  state.atomic.commit();
+}
+
+void writePc2(const std::string& path, int vertexCount, float startFrame, int frameCount,
+              const float* xyz, float sampleRate) {
+  if (vertexCount <= 0 || frameCount < 0 || (frameCount > 0 && xyz == nullptr)) {
+    DS_THROW(kInternal, "writePc2 '", path, "': bad arguments (", vertexCount, " vertices, ",
+             frameCount, " frames)");
+  }
+  Pc2Writer writer(path, vertexCount, startFrame, frameCount, sampleRate);
+  const std::size_t frameFloats = 3 * static_cast<std::size_t>(vertexCount);
+  for (int f = 0; f < frameCount; ++f) {
+    writer.writeFrame(xyz + static_cast<std::size_t>(f) * frameFloats);
+  }
+  writer.commit();
 }
 
 }  // namespace drivenshape

@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <random>
 
 #include <drivenshape/version.h>
@@ -99,6 +100,34 @@ TEST(ExrPointCache, RoundTripIsBitwiseExactForEveryCompression) {
   const Error error = catchError([] { parseExrCompression("dwaa"); });
   EXPECT_EQ(error.code(), ErrorCode::kUsage);
   EXPECT_TRUE(contains(error.what(), "dwaa"));
+}
+
+TEST(ExrPointCache, ExtraStringAttributesRoundTrip) {
+  TempDir dir;
+  const std::vector<float> xyz = randomPositions(kVertices, testSeed());
+  ExrWriteOptions options;
+  options.topologyHash = kTopology;
+  const std::string layers = "{\"wind\":{\"amplitude\":0.02,\"seed\":7}}";
+  options.stringAttributes = {{"dsLayers", layers}, {"note", "waistband mixed"}};
+  writePointCacheExr(dir.file("a.exr"), kVertices, xyz.data(), nullptr, options);
+  const ExrPointCacheInfo info = readPointCacheExrInfo(dir.file("a.exr"));
+  EXPECT_EQ(info.stringAttributes, (std::map<std::string, std::string>{
+                                       {"dsLayers", layers}, {"note", "waistband mixed"}}));
+  Imf::InputFile raw(dir.file("a.exr").c_str());
+  const auto* attribute = raw.header().findTypedAttribute<Imf::StringAttribute>("dsLayers");
+  ASSERT_NE(attribute, nullptr);
+  EXPECT_EQ(attribute->value(), layers);
+
+  for (const std::string& bad :
+       {std::string("dsFrame"), std::string("compression"), std::string(32, 'x'), std::string()}) {
+    ExrWriteOptions clash = options;
+    clash.stringAttributes = {{bad, "v"}};
+    const Error error = catchError(
+        [&] { writePointCacheExr(dir.file("b.exr"), kVertices, xyz.data(), nullptr, clash); });
+    EXPECT_EQ(error.code(), ErrorCode::kUsage) << bad;
+    EXPECT_TRUE(contains(error.what(), "reserved")) << bad;
+  }
+  EXPECT_EQ(listFolder(dir.path()), std::vector<std::string>{"a.exr"});
 }
 
 TEST(ExrPointCache, LayoutChannelsAndAttributes) {

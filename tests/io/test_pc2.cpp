@@ -129,6 +129,26 @@ TEST(Pc2, WriteThenReadIsBitwiseExact) {
   expectBitwiseEqual(all.data(), xyz.data(), xyz.size());
 }
 
+TEST(Pc2, WrittenSampleRateIsInTheHeaderAndReadBack) {
+  TempDir dir;
+  const std::string path = dir.file("every_other.pc2");
+  constexpr int kPoints = 4;
+  constexpr int kFrames = 3;
+  const std::vector<float> xyz = randomFloats(kPoints * 3 * kFrames, testSeed() + 2);
+  writePc2(path, kPoints, 1001.0f, kFrames, xyz.data(), 2.0f);
+  const std::vector<unsigned char> bytes = readBytes(path);
+  EXPECT_EQ(getF32(bytes, 20), 1001.0f);
+  EXPECT_EQ(getF32(bytes, 24), 2.0f);
+  EXPECT_EQ(getU32(bytes, 28), static_cast<std::uint32_t>(kFrames));
+  const auto cache = openPointCache(path);
+  EXPECT_EQ(cache->frames(), (std::vector<int>{1001, 1003, 1005}));
+  std::vector<float> frame(kPoints * 3);
+  cache->readFrame(1005, frame.data());
+  expectBitwiseEqual(frame.data(), xyz.data() + 2 * kPoints * 3, frame.size());
+  EXPECT_EQ(catchError([&] { writePc2(path, kPoints, 1.0f, kFrames, xyz.data(), 0.0f); }).code(),
+            ErrorCode::kUsage);
+}
+
 TEST(Pc2, StartFrameAndFractionalSamples) {
   TempDir dir;
   const std::string path = dir.file("half.pc2");

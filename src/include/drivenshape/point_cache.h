@@ -1,8 +1,10 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <drivenshape/mesh.h>
@@ -50,10 +52,32 @@ struct Pc2Header {
 /// is refused with the byte counts in the message).
 std::unique_ptr<PointCacheReader> openPc2(const std::string& path);
 
-/// Writes frames (F by 3V floats, frame-major) as PC2 starting at `startFrame`, rate 1,
-/// atomically. Frames must be consecutive: the caller passes what it baked in order.
+/// Writes frames (F by 3V floats, frame-major) as PC2 starting at `startFrame`, one sample every
+/// `sampleRate` frames (1 = consecutive frames; 2 for 1001-1100x2), atomically. The header is
+/// what Blender's, Houdini's and Maya's PC2 readers check: "POINTCACHE2\0", version 1, points,
+/// start frame, sample rate, sample count. Throws Error(kUsage) for a rate that is not positive.
 void writePc2(const std::string& path, int vertexCount, float startFrame, int frameCount,
-              const float* xyz);
+              const float* xyz, float sampleRate = 1.0f);
+
+/// Streams a PC2 file frame by frame (for caches too big to hold at once), atomically: the file
+/// appears under `path` only at commit(), after exactly `frameCount` frames were written.
+class Pc2Writer {
+ public:
+  /// Throws Error(kOutput) when the file cannot be created, Error(kUsage) for a bad rate.
+  Pc2Writer(const std::string& path, int vertexCount, float startFrame, int frameCount,
+            float sampleRate = 1.0f);
+  ~Pc2Writer();
+  Pc2Writer(const Pc2Writer&) = delete;
+  Pc2Writer& operator=(const Pc2Writer&) = delete;
+  /// Appends one frame of vertexCount * 3 floats.
+  void writeFrame(const float* xyz);
+  /// Flushes and renames into place; throws unless every promised frame was written.
+  void commit();
+
+ private:
+  struct State;
+  std::unique_ptr<State> mState;
+};
 
 // ---------------------------------------------------------------------------------------
 // Point-cache EXR: one file per frame. Vertex v is pixel (v mod W, v div W); H = ceil(V/W).
@@ -79,6 +103,9 @@ struct ExrWriteOptions {
   std::uint64_t topologyHash = 0;
   std::uint64_t settingsHash = 0;  ///< 0: attribute not written
   double framesPerSecond = 24.0;
+  /// Extra string attributes (name, value), e.g. {"dsLayers", LayerStack::describe()}. Names
+  /// are at most 31 bytes and must not be one of the attributes above (Error(kUsage)).
+  std::vector<std::pair<std::string, std::string>> stringAttributes;
 };
 
 /// Writes one point-cache EXR frame atomically (temp file + rename). `normals` may be null.
@@ -96,6 +123,8 @@ struct ExrPointCacheInfo {
   Bounds bounds;
   bool hasNormals = false;
   ExrCompression compression = ExrCompression::kZip;
+  /// String attributes other than the ones above (ExrWriteOptions::stringAttributes), by name.
+  std::map<std::string, std::string> stringAttributes;
 };
 
 /// Reads only the header. Throws Error(kInput) if the file is not a point-cache EXR.
