@@ -30,6 +30,24 @@ namespace fs = std::filesystem;
 
 namespace {
 
+/// Resets the kernel's peak-RSS mark of this process (Linux >= 4.0), so the next peakRssMiB()
+/// reads the peak of what ran in between.
+void resetPeakRss() {
+  std::ofstream("/proc/self/clear_refs") << "5";
+}
+
+/// The process's peak resident set size (VmHWM) in MiB, or -1 where /proc does not tell.
+double peakRssMiB() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) {
+      return std::stod(line.substr(6)) / 1024.0;  // kB
+    }
+  }
+  return -1.0;
+}
+
 /// A tube of `rings` x `segments` quads around the z axis, radius r, length 1.
 ds::Mesh tube(int rings, int segments, float radius) {
   ds::Mesh mesh;
@@ -88,22 +106,18 @@ Workload workload(const std::string& name) {
   DS_THROW(kUsage, "--workload takes W1 or W2 (got '", name, "')");
 }
 
-nlohmann::json timesJson(const ds::BakeResult& r) {
-  return {{"read", r.times.read},
-          {"project", r.times.project},
-          {"weights", r.times.weights},
-          {"blend", r.times.blend},
-          {"correct", r.times.correct},
-          {"audit", r.times.audit},
-          {"write", r.times.write},
-          {"total", r.times.total},
-          {"frames_per_second", r.baked / r.times.total}};
+nlohmann::json timesJson(const ds::BakeResult& r, double rssMiB) {
+  return {{"peak_rss_mib", rssMiB},     {"read", r.times.read},
+          {"project", r.times.project}, {"weights", r.times.weights},
+          {"blend", r.times.blend},     {"correct", r.times.correct},
+          {"audit", r.times.audit},     {"write", r.times.write},
+          {"total", r.times.total},     {"frames_per_second", r.baked / r.times.total}};
 }
 
-void printRow(const std::string& name, const ds::BakeResult& r) {
-  std::printf("%-28s %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f %8.3f %9.1f\n", name.c_str(),
+void printRow(const std::string& name, const ds::BakeResult& r, double rssMiB) {
+  std::printf("%-28s %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f %8.3f %9.1f %8.0f\n", name.c_str(),
               r.times.read, r.times.project, r.times.weights, r.times.blend, r.times.correct,
-              r.times.audit, r.times.write, r.times.total, r.baked / r.times.total);
+              r.times.audit, r.times.write, r.times.total, r.baked / r.times.total, rssMiB);
 }
 
 int runBench(const std::vector<std::string>& args) {
@@ -188,8 +202,9 @@ int runBench(const std::vector<std::string>& args) {
       w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(), w.frames,
       options.chunkSize, parser.get("--compression").c_str(), options.correct ? "on" : "off",
       options.audit ? "on" : "off");
-  std::printf("%-28s %7s %7s %7s %7s %7s %7s %7s %8s %9s\n", "path (seconds per stage)", "read",
-              "project", "weights", "blend", "correct", "audit", "write", "total", "frames/s");
+  std::printf("%-28s %7s %7s %7s %7s %7s %7s %7s %8s %9s %8s\n", "path (seconds per stage)", "read",
+              "project", "weights", "blend", "correct", "audit", "write", "total", "frames/s",
+              "RSS MiB");
 
   nlohmann::json report{{"workload", w.name},
                         {"driver_vertices", driver.vertexCount()},
@@ -207,16 +222,20 @@ int runBench(const std::vector<std::string>& args) {
     ds::bake(db, *shotCache, clBackends.view(), warm);
   }
   options.outputPattern = (root / "cl" / "shot.####.exr").string();
+  resetPeakRss();
   const ds::BakeResult cl = ds::bake(db, *shotCache, clBackends.view(), options);
-  printRow("OpenCL: " + clName.substr(0, 20), cl);
-  report["opencl"] = timesJson(cl);
+  const double clRss = peakRssMiB();
+  printRow("OpenCL: " + clName.substr(0, 20), cl, clRss);
+  report["opencl"] = timesJson(cl, clRss);
   report["opencl"]["device"] = clName;
   if (!parser.has("--no-host")) {
     const ds::cli::DeviceBackends host = ds::cli::makeBackends("host", std::cerr);
     options.outputPattern = (root / "host" / "shot.####.exr").string();
+    resetPeakRss();
     const ds::BakeResult hr = ds::bake(db, *shotCache, host.view(), options);
-    printRow("host reference", hr);
-    report["host"] = timesJson(hr);
+    const double hostRss = peakRssMiB();
+    printRow("host reference", hr, hostRss);
+    report["host"] = timesJson(hr, hostRss);
     std::printf("OpenCL / host speed-up: whole bake %.2fx, project %.2fx, blend %.2fx\n",
                 hr.times.total / cl.times.total, hr.times.project / cl.times.project,
                 hr.times.blend / cl.times.blend);

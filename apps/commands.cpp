@@ -9,6 +9,7 @@
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <sstream>
 #include <tuple>
 
@@ -24,6 +25,7 @@
 
 #include "cli_args.h"
 #include "device_choice.h"
+#include "layer_args.h"
 
 namespace drivenshape::cli {
 namespace {
@@ -352,11 +354,45 @@ int runBake(const std::vector<std::string>& args) {
       .flag("--skip-existing", "keep outputs that are complete and match this bake")
       .option("--bind", "MAP", "binding mask (JSON): which driver groups each cloth group binds to")
       .flag("--no-correct", "skip the collision correction (blend only)")
+      .option("--align", "MODE",
+              "none (the talk: weights compare world positions), rigid (each shot frame and "
+              "each database shape is rigidly fitted to the rest driver first, so shots that "
+              "travel and turn still match; the fit is weighted by how rigidly each vertex "
+              "moves across the database, so it follows the pelvis, not the legs) or rigid-all "
+              "(the same fit, every vertex weighted by its area alone)",
+              "rigid")
+      .option("--align-group", "LIST",
+              "driver vertices of the rigid fit: comma-separated OBJ group names and/or vertex "
+              "indices and ranges (0-99,250)",
+              "all")
+      .option("--blend", "MODE",
+              "world (blend world positions, then correct) or local (bind every cloth vertex "
+              "once at rest, blend the shapes' offsets in those local frames, rebuild them on "
+              "the shot's driver)",
+              "local")
+      .option("--skin-offset", "D",
+              "penetration resolution: cloth closer to the driver than D scene units (or "
+              "inside it) moves out to D along the surface normal (0.002 = 2 mm in metre "
+              "scenes)",
+              "0.002")
+      .flag("--no-resolve", "skip the penetration resolution")
+      .option("--regions", "FILE.json",
+              "region-local weights: one QP per region (driver groups) mixed over the matching "
+              "driven groups with a smooth falloff; see the README for the format")
+      .option("--max-weight-change", "TAU",
+              "temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order "
+              "within each --batch (0 = off)",
+              "0")
+      .option("--temporal-warmup", "N",
+              "with --max-weight-change: driver-cache frames solved, not written, before each "
+              "batch; results depend on N and --batch, not on --threads",
+              "8")
       .flag("--no-audit", "skip the per-frame penetration/popping audit (faster)")
       .flag("--quiet", "no progress or per-frame lines")
       .epilog(
           "Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical, "
           "7 interrupted.");
+  addLayerFlags(parser);
   if (!parser.parse(args)) {
     std::cout << parser.help();
     return 0;
@@ -381,6 +417,7 @@ int runBake(const std::vector<std::string>& args) {
   options.compression = parseExrCompression(parser.get("--compression"));
   options.exrWidth = parser.getInt("--exr-width", 1);
   options.framesPerSecond = parser.getDouble("--fps", 1e-3);
+  options.layers = readLayerFlags(parser, options.framesPerSecond);
   options.skipExisting = parser.has("--skip-existing");
   options.correct = !parser.has("--no-correct");
   options.audit = !parser.has("--no-audit");
@@ -389,6 +426,51 @@ int runBake(const std::vector<std::string>& args) {
       DS_THROW(kUsage, "--bind has no effect with --no-correct; drop one of them");
     }
     options.bindingMaskPath = parser.get("--bind");
+  }
+  const std::string align = parser.get("--align");
+  if (align == "rigid") {
+    options.align = AlignMode::kRigid;
+  } else if (align == "rigid-all") {
+    options.align = AlignMode::kRigidAll;
+  } else if (align == "none") {
+    options.align = AlignMode::kNone;
+  } else {
+    DS_THROW(kUsage, "--align takes none, rigid or rigid-all (got '", align, "')");
+  }
+  if (parser.has("--align-group")) {
+    if (options.align == AlignMode::kNone) {
+      DS_THROW(kUsage, "--align-group has no effect with --align none; drop one of them");
+    }
+    options.alignGroup = parser.get("--align-group");
+  }
+  const std::string blend = parser.get("--blend");
+  if (blend == "world") {
+    options.blend = BlendMode::kWorld;
+  } else if (blend == "local") {
+    options.blend = BlendMode::kLocal;
+  } else {
+    DS_THROW(kUsage, "--blend takes world or local (got '", blend, "')");
+  }
+  if (!options.correct && parser.has("--blend") && options.blend == BlendMode::kLocal) {
+    DS_THROW(kUsage,
+             "--blend local rebuilds the blended offsets on the shot's driver, which is the "
+             "correction; it cannot run with --no-correct (which blends world positions)");
+  }
+  options.resolve = !parser.has("--no-resolve");
+  options.skinOffset = parser.getDouble("--skin-offset", 0.0);
+  if (parser.has("--regions")) {
+    options.regionsPath = parser.get("--regions");
+  }
+  options.maxWeightChange = parser.getDouble("--max-weight-change", 0.0);
+  options.temporalWarmup = parser.getInt("--temporal-warmup", 0);
+  if (options.maxWeightChange > 0 && parser.has("--chunk-size")) {
+    const int farmChunk = parser.getInt("--chunk-size", 1);
+    if (farmChunk % options.chunkSize != 0) {
+      DS_THROW(kUsage, "with --max-weight-change, --chunk-size (", farmChunk,
+               ") must be a multiple of --batch (", options.chunkSize,
+               ") so that every farm chunk reproduces the single bake; e.g. pass --batch ",
+               std::gcd(farmChunk, options.chunkSize), " to both");
+    }
   }
   const std::string mode = parser.get("--weights");
   if (mode == "qp") {
@@ -465,71 +547,24 @@ int runBake(const std::vector<std::string>& args) {
     std::cout << "report:  " << absolute(options.reportPath) << "\n";
   }
   if (options.audit && result.baked > 0) {
-    long before = 0, after = 0, switches = 0;
+    long before = 0, corrected = 0, after = 0, switches = 0;
     double jump = 0;
     for (const FrameRecord& record : result.frames) {
       if (!record.skipped) {
-        before += record.insideBefore;
+        before += std::max(record.insideBefore, 0);
+        corrected += std::max(record.insideCorrected, 0);
         after += record.insideAfter;
         switches += std::max(record.bindingSwitches, 0);
         jump = std::max(jump, record.maxJump);
       }
     }
     std::cout << "audit:   cloth vertices inside the driver per frame: " << std::setprecision(1)
-              << double(before) / result.baked << " blended, " << double(after) / result.baked
-              << (options.correct ? " corrected" : " (no correction)") << "; binding switches "
+              << double(before) / result.baked << " blended, " << double(corrected) / result.baked
+              << (options.correct ? " corrected" : " (no correction)") << ", "
+              << double(after) / result.baked
+              << (options.resolve ? " after resolution" : " written") << "; binding switches "
               << switches << "; largest frame-to-frame jump " << std::setprecision(4) << jump
               << "\n";
-  }
-  return 0;
-}
-
-int runEval(const std::vector<std::string>& args) {
-  ArgParser parser("drivenshape eval --truth CACHE --bake CACHE --frames RANGE",
-                   "Compares a bake with a truth cache (e.g. the simulation it replaces): mean, "
-                   "RMS and max per-vertex distance per frame and overall.");
-  parser.option("--truth", "CACHE", "reference cache (.pc2 or name.####.exr)", "", true)
-      .option("--bake", "CACHE", "baked cache to judge", "", true)
-      .option("--frames", "RANGE", "frames to compare", "", true)
-      .option("--json", "PATH", "also write the figures as JSON")
-      .flag("--per-frame", "print every frame, not only the summary");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
-  const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
-  if (parser.has("--json")) {
-    checkOutputFolderWritable(parser.get("--json"));
-  }
-  const auto truth = openPointCache(parser.get("--truth"));
-  const auto baked = openPointCache(parser.get("--bake"));
-  const EvaluationResult result = evaluateCaches(*truth, *baked, frames);
-  std::cout << std::setprecision(6);
-  if (parser.has("--per-frame")) {
-    std::cout << "frame        mean         rms         max  (vertex)\n";
-    for (const FrameError& e : result.frames) {
-      std::cout << std::setw(5) << e.frame << "  " << std::setw(10) << e.mean << "  "
-                << std::setw(10) << e.rms << "  " << std::setw(10) << e.max << "  (" << e.maxVertex
-                << ")\n";
-    }
-  }
-  std::cout << "overall over " << result.frames.size() << " frames x " << result.vertexCount
-            << " vertices: mean " << result.mean << ", rms " << result.rms << ", max " << result.max
-            << " (frame " << result.maxFrame << ")\n";
-  if (parser.has("--json")) {
-    nlohmann::json frameList = nlohmann::json::array();
-    for (const FrameError& e : result.frames) {
-      frameList.push_back({{"frame", e.frame},
-                           {"mean", e.mean},
-                           {"rms", e.rms},
-                           {"max", e.max},
-                           {"max_vertex", e.maxVertex}});
-    }
-    const nlohmann::json report{
-        {"truth", truth->path()},       {"bake", baked->path()}, {"vertices", result.vertexCount},
-        {"mean", result.mean},          {"rms", result.rms},     {"max", result.max},
-        {"max_frame", result.maxFrame}, {"frames", frameList}};
-    writeFileAtomically(parser.get("--json"), report.dump(1) + "\n");
   }
   return 0;
 }

@@ -11,6 +11,5 @@ int runDevices(const std::vector<std::string>& args);
 int runInfo(const std::vector<std::string>& args);
 int runDbBuild(const std::vector<std::string>& args);
 int runBake(const std::vector<std::string>& args);
-int runEval(const std::vector<std::string>& args);
 
 }  // namespace drivenshape::cli

@@ -12,6 +12,8 @@
 #include <drivenshape/version.h>
 
 #include "commands.h"
+#include "eval_command.h"
+#include "export_command.h"
 #include "farm_command.h"
 #include "posmap_command.h"
 
@@ -28,6 +30,7 @@ constexpr const char* kUsage =
     "  eval        compare a bake with a truth cache\n"
     "  posmap      write UV-space position maps (P, A, N) for compositing\n"
     "  farm        write Slurm array scripts or Open Job Description templates for a shot\n"
+    "  export      write a result as PC2 and/or a first-frame OBJ (guides for simulation)\n"
     "  version     print the version\n";
 
 int dispatch(const std::vector<std::string>& words) {
@@ -59,6 +62,9 @@ int dispatch(const std::vector<std::string>& words) {
   }
   if (command == "farm") {
     return runFarm(rest);
+  }
+  if (command == "export") {
+    return runExport(rest);
   }
   if (command == "db") {
     if (!rest.empty() && rest[0] == "build") {

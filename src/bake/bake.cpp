@@ -1,19 +1,24 @@
 #include <drivenshape/bake.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <future>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 
+#include <drivenshape/align.h>
 #include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/parallel.h>
 #include <drivenshape/qp.h>
+#include <drivenshape/regions.h>
 #include <drivenshape/version.h>
 
 namespace drivenshape {
@@ -25,17 +30,35 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-Eigen::MatrixXd driverMatrix(const Database& db) {
-  const int k = db.shapeCount();
-  const Eigen::Index n = static_cast<Eigen::Index>(db.driverVertexCount()) * 3;
-  Eigen::MatrixXd a(n, k);
+/// The database driver shapes (k x 3Vp, flat) as an n x k matrix of the rows of `vertices`
+/// (every vertex when empty).
+Eigen::MatrixXd driverMatrix(const std::vector<float>& shapes, int k, int vertexCount,
+                             const std::vector<int>& vertices) {
+  const Eigen::Index n = static_cast<Eigen::Index>(vertexCount) * 3;
+  if (vertices.empty()) {
+    Eigen::MatrixXd a(n, k);
+    for (int i = 0; i < k; ++i) {
+      a.col(i) = Eigen::Map<const Eigen::VectorXf>(&shapes[i * n], n).cast<double>();
+    }
+    return a;
+  }
+  Eigen::MatrixXd a(static_cast<Eigen::Index>(vertices.size()) * 3, k);
   for (int i = 0; i < k; ++i) {
-    a.col(i) = Eigen::Map<const Eigen::VectorXf>(&db.driverShapes[i * n], n).cast<double>();
+    for (std::size_t j = 0; j < vertices.size(); ++j) {
+      for (int c = 0; c < 3; ++c) {
+        a(static_cast<Eigen::Index>(3 * j + c), i) = shapes[i * n + 3 * vertices[j] + c];
+      }
+    }
   }
   return a;
 }
 
-ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver) {
+Eigen::MatrixXd driverMatrix(const Database& db) {
+  return driverMatrix(db.driverShapes, db.shapeCount(), db.driverVertexCount(), {});
+}
+
+ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
+                       std::vector<float> driverShapes, std::vector<float> drivenShapes) {
   ShapeTables tables;
   tables.driverVertexCount = db.driverVertexCount();
   tables.drivenVertexCount = db.drivenVertexCount();
@@ -52,8 +75,8 @@ ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver) {
   for (Eigen::Index j = 0; j < n; ++j) {
     tables.center[j] = static_cast<float>(solver.center()(j));
   }
-  tables.driverShapes = db.driverShapes;
-  tables.drivenShapes = db.drivenShapes;
+  tables.driverShapes = std::move(driverShapes);
+  tables.drivenShapes = std::move(drivenShapes);
   return tables;
 }
 
@@ -61,8 +84,53 @@ int hardwareThreads() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
+/// One weight problem per frame: the QP on the driver rows of a region (or all rows).
+/// The driver frames of one launch batch: the temporal warm-up frames (solved, not written),
+/// then the batch's own frames.
+struct BatchInput {
+  std::vector<int> solveFrames;
+  int warm = 0;
+  std::vector<float> driverAll;  ///< solveFrames.size() x 3Vp
+  double seconds = 0;            ///< time spent reading them
+};
+
+/// Frames per launch batch: options.chunkSize, lowered (never below 1) so that one batch's
+/// frame blocks stay within kBatchMemoryBudget. The temporal bound restarts at every batch, so
+/// with it on the batch is exactly options.chunkSize (results depend on it).
+int batchFrames(const BakeOptions& options, int vp, int vd) {
+  if (options.maxWeightChange > 0) {
+    return options.chunkSize;
+  }
+  // Per frame: driver frames (read, aligned, blended) and the pipeline's cloth blocks (blend,
+  // two output blocks) in float, plus two hit arrays.
+  const std::size_t bytes = sizeof(float) * 3 * (3 * std::size_t(vp) + 3 * std::size_t(vd)) +
+                            2 * sizeof(SurfaceHit) * std::size_t(vd);
+  const std::size_t fit =
+      std::max<std::size_t>(1, kBatchMemoryBudget / std::max<std::size_t>(1, bytes));
+  return static_cast<int>(std::min<std::size_t>(options.chunkSize, fit));
+}
+
+struct WeightProblem {
+  std::string name;
+  std::vector<int> rows;  ///< driver vertices; empty = every row (projected by the backend)
+  std::unique_ptr<SimplexLeastSquares> solver;
+};
+
+/// What a bake precomputes from the database and its settings, once.
+struct Prepared {
+  std::vector<float> driverShapes;  ///< k x 3Vp, rigidly aligned to the rest driver if asked
+  std::vector<float> drivenShapes;  ///< k x 3Vd, the same motion per shape
+  std::unique_ptr<RigidAligner> aligner;
+  std::vector<int> alignVertices;
+  bool hasRegions = false;
+  RegionSet regions;
+  std::vector<WeightProblem> problems;  ///< 1 without regions
+  std::vector<SurfaceHit> restHits;     ///< local blending: Vd hits on the rest driver
+  std::vector<float> localShapes;       ///< local blending: k x 3Vd offsets
+};
+
 std::uint64_t settingsHashOf(const Database& db, const BakeOptions& options,
-                             const BindingMask& mask) {
+                             const BindingMask& mask, const Prepared& prepared) {
   Hasher hasher;
   hasher.addValue(db.contentHash());
   hasher.addValue(static_cast<int>(options.weightMode));
@@ -72,6 +140,28 @@ std::uint64_t settingsHashOf(const Database& db, const BakeOptions& options,
     hasher.add(mask.classTriangles(c).data(), mask.classTriangles(c).size() * sizeof(int));
   }
   hasher.add(mask.vertexClasses().data(), mask.vertexClasses().size() * sizeof(int));
+  hasher.addValue(static_cast<int>(options.align));
+  hasher.add(prepared.alignVertices.data(), prepared.alignVertices.size() * sizeof(int));
+  if (prepared.aligner) {
+    hasher.add(prepared.aligner->weights().data(),
+               prepared.aligner->weights().size() * sizeof(double));
+  }
+  hasher.addValue(blendsLocally(options));
+  hasher.addValue(options.resolve);
+  hasher.addValue(options.resolve ? options.skinOffset : 0.0);
+  hasher.addValue(prepared.hasRegions);
+  if (prepared.hasRegions) {
+    hasher.addValue(prepared.regions.falloff);
+    for (const Region& region : prepared.regions.regions) {
+      hasher.add(region.driverVertices.data(), region.driverVertices.size() * sizeof(int));
+      hasher.add(region.drivenVertices.data(), region.drivenVertices.size() * sizeof(int));
+    }
+  }
+  hasher.addValue(options.maxWeightChange);
+  if (options.maxWeightChange > 0) {
+    hasher.addValue(options.temporalWarmup);
+    hasher.addValue(options.chunkSize);
+  }
   hasher.addString(kVersion);
   return hasher.value();
 }
@@ -92,8 +182,11 @@ bool isReusableOutput(const std::string& path, std::uint64_t topology, std::uint
 
 void validate(const Database& db, const PointCacheReader& driver, const BakeBackends& backends,
               const BakeOptions& options) {
-  if (backends.stages == nullptr || (options.correct && backends.binding == nullptr) ||
-      (options.audit && backends.audit == nullptr)) {
+  if (backends.stages == nullptr ||
+      ((options.correct || blendsLocally(options)) && backends.binding == nullptr) ||
+      ((options.audit || options.resolve || options.layers.hasWind()) &&
+       backends.audit == nullptr) ||
+      ((options.layers.hasMix() || options.layers.hasWind()) && backends.layers == nullptr)) {
     DS_THROW(kInternal, "bake called without the backends its options need");
   }
   if (options.frames.empty()) {
@@ -103,6 +196,24 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeBack
     DS_THROW(kUsage,
              "the bind baseline is the correction applied to the rest shapes; it cannot "
              "run with --no-correct");
+  }
+  if (options.weightMode != WeightMode::kQp &&
+      (!options.regionsPath.empty() || options.maxWeightChange > 0)) {
+    DS_THROW(kUsage,
+             "--regions and --max-weight-change apply to the QP weights only "
+             "(--weights qp)");
+  }
+  if (!std::isfinite(options.skinOffset) || options.skinOffset < 0) {
+    DS_THROW(kUsage, "--skin-offset must be a distance >= 0 in scene units (got ",
+             options.skinOffset, ")");
+  }
+  if (!std::isfinite(options.maxWeightChange) || options.maxWeightChange < 0 ||
+      options.maxWeightChange > 1) {
+    DS_THROW(kUsage, "--max-weight-change must be in [0, 1] (0 = off; got ",
+             options.maxWeightChange, ")");
+  }
+  if (options.temporalWarmup < 0) {
+    DS_THROW(kUsage, "--temporal-warmup must be >= 0 (got ", options.temporalWarmup, ")");
   }
   if (options.chunkSize < 1) {
     DS_THROW(kUsage, "--batch must be at least 1 (got ", options.chunkSize, ")");
@@ -131,8 +242,15 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeBack
 }
 
 void writeReport(const std::string& path, const Database& db, const PointCacheReader& driver,
-                 const BakeOptions& options, const BakeResult& result) {
+                 const BakeOptions& options, const Prepared& prepared, const std::string& layers,
+                 const BakeResult& result) {
   using nlohmann::json;
+  json regions = json::array();
+  for (const Region& region : prepared.regions.regions) {
+    regions.push_back({{"name", region.name},
+                       {"driver_vertices", region.driverVertices.size()},
+                       {"driven_vertices", region.drivenVertices.size()}});
+  }
   json frames = json::array();
   for (const FrameRecord& record : result.frames) {
     json entry{{"frame", record.frame}, {"output", record.output}, {"skipped", record.skipped}};
@@ -143,9 +261,30 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
       entry["active_at_zero"] = record.atZero;
       entry["active_at_one"] = record.atOne;
       entry["weights"] = record.weights;
-      if (record.insideAfter >= 0) {
+      if (record.weights.size() > static_cast<std::size_t>(db.shapeCount())) {
+        // Regions: one weight vector per region, in the order of settings.regions.
+        json perRegion = json::array();
+        for (std::size_t r = 0; r < record.weights.size(); r += db.shapeCount()) {
+          perRegion.push_back(std::vector<double>(record.weights.begin() + r,
+                                                  record.weights.begin() + r + db.shapeCount()));
+        }
+        entry["weights"] = perRegion;
+      }
+      if (!record.alignRotation.empty()) {
+        entry["align_rotation"] = record.alignRotation;
+        entry["align_translation"] = record.alignTranslation;
+      }
+      if (record.insideBefore >= 0) {
         entry["inside_before"] = record.insideBefore;
+      }
+      if (record.insideCorrected >= 0) {
+        entry["inside_corrected"] = record.insideCorrected;
+      }
+      if (record.insideAfter >= 0) {
         entry["inside_after"] = record.insideAfter;
+      }
+      if (record.resolved >= 0) {
+        entry["resolved"] = record.resolved;
       }
       if (record.bindingSwitches >= 0) {
         entry["binding_switches"] = record.bindingSwitches;
@@ -175,19 +314,36 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
         {"correct", options.correct},
         {"binding_mask", options.bindingMaskPath},
         {"audit", options.audit},
+        {"align", alignModeName(options.align)},
+        {"align_group", options.alignGroup.empty() ? std::string("all") : options.alignGroup},
+        {"align_vertices", prepared.alignVertices.size()},
+        {"blend", blendsLocally(options) ? "local" : "world"},
+        {"resolve", options.resolve},
+        {"skin_offset", options.skinOffset},
+        {"regions_file", options.regionsPath},
+        {"regions", regions},
+        {"region_falloff", prepared.hasRegions ? prepared.regions.falloff : 0},
+        {"max_weight_change", options.maxWeightChange},
+        {"temporal_warmup", options.maxWeightChange > 0 ? options.temporalWarmup : 0},
         {"batch", options.chunkSize},
+        {"layers", nlohmann::json::parse(layers)},
         {"compression", exrCompressionName(options.compression)},
         {"exr_width", options.exrWidth}}},
       {"baked", result.baked},
       {"skipped", result.skipped},
       {"seconds",
        {{"read", result.times.read},
+        {"align", result.times.align},
         {"project", result.times.project},
         {"weights", result.times.weights},
         {"blend", result.times.blend},
         {"correct", result.times.correct},
+        {"resolve", result.times.resolve},
+        {"layers", result.times.layers},
         {"audit", result.times.audit},
         {"write", result.times.write},
+        {"read_wait", result.times.readWait},
+        {"write_wait", result.times.writeWait},
         {"total", result.times.total}}},
       {"frames", frames},
   };
@@ -197,8 +353,71 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
 }  // namespace
 
 ShapeTables makeShapeTables(const Database& database) {
-  return tablesFrom(database, SimplexLeastSquares(driverMatrix(database)));
+  return tablesFrom(database, SimplexLeastSquares(driverMatrix(database)), database.driverShapes,
+                    database.drivenShapes);
 }
+
+namespace {
+
+Prepared prepare(const Database& db, const BakeOptions& options, const BakeBackends& backends) {
+  Prepared prepared;
+  const int k = db.shapeCount();
+  const std::size_t driverValues = static_cast<std::size_t>(db.driverVertexCount()) * 3;
+  const std::size_t drivenValues = static_cast<std::size_t>(db.drivenVertexCount()) * 3;
+  prepared.driverShapes = db.driverShapes;
+  prepared.drivenShapes = db.drivenShapes;
+  const bool weighted = options.weightMode != WeightMode::kBind;
+  if (weighted && options.align != AlignMode::kNone) {
+    const std::string source =
+        "--align-group '" + (options.alignGroup.empty() ? std::string("all") : options.alignGroup) +
+        "' (driver mesh)";
+    prepared.alignVertices = selectVertices(db.driverMesh, options.alignGroup, source);
+    prepared.aligner = std::make_unique<RigidAligner>(db.driverMesh, db.driverMesh.positions.data(),
+                                                      prepared.alignVertices, source);
+    if (options.align == AlignMode::kRigid) {
+      // Lock onto the part that moves rigidly across the database (the pelvis, not the legs).
+      prepared.aligner->weightByRigidity(db.driverShapes.data(), k);
+    }
+    // The database in the same frame as the shots: each shape pair moves with the motion
+    // that fits its driver shape to the rest driver.
+    for (int i = 0; i < k; ++i) {
+      const RigidTransform motion = prepared.aligner->fit(&db.driverShapes[i * driverValues]);
+      motion.apply(&db.driverShapes[i * driverValues], db.driverVertexCount(),
+                   &prepared.driverShapes[i * driverValues]);
+      motion.apply(&db.drivenShapes[i * drivenValues], db.drivenVertexCount(),
+                   &prepared.drivenShapes[i * drivenValues]);
+    }
+  }
+  if (weighted && !options.regionsPath.empty()) {
+    prepared.hasRegions = true;
+    prepared.regions = readRegions(options.regionsPath, db.driverMesh, db.drivenMesh);
+    for (const Region& region : prepared.regions.regions) {
+      prepared.problems.push_back({region.name, region.driverVertices, nullptr});
+    }
+  } else {
+    prepared.problems.push_back({"all", {}, nullptr});
+  }
+  for (WeightProblem& problem : prepared.problems) {
+    problem.solver = std::make_unique<SimplexLeastSquares>(
+        driverMatrix(prepared.driverShapes, k, db.driverVertexCount(), problem.rows));
+  }
+  if (blendsLocally(options)) {
+    // Bind once at rest (mask respected), then store every shape as offsets in the local
+    // frames of the same triangles at the same barycentric points.
+    prepared.restHits.resize(static_cast<std::size_t>(db.drivenVertexCount()));
+    backends.binding->closest(1, db.driverMesh.positions.data(), db.drivenMesh.positions.data(),
+                              prepared.restHits.data());
+    prepared.localShapes.resize(db.drivenShapes.size());
+    for (int i = 0; i < k; ++i) {
+      encodeLocal(db.driverMesh, &db.driverShapes[i * driverValues], db.drivenVertexCount(),
+                  &db.drivenShapes[i * drivenValues], prepared.restHits.data(),
+                  &prepared.localShapes[i * drivenValues]);
+    }
+  }
+  return prepared;
+}
+
+}  // namespace
 
 BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBackends& backends,
                 const BakeOptions& options, BakeObserver* observer) {
@@ -211,23 +430,49 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
           : readBindingMask(options.bindingMaskPath, db.driverMesh, db.drivenMesh);
   const int threads = options.threads > 0 ? options.threads : hardwareThreads();
   const int k = db.shapeCount();
-  const std::size_t driverValues = static_cast<std::size_t>(db.driverVertexCount()) * 3;
-  const std::size_t drivenValues = static_cast<std::size_t>(db.drivenVertexCount()) * 3;
+  const int vp = db.driverVertexCount();
+  const int vd = db.drivenVertexCount();
+  const std::size_t driverValues = static_cast<std::size_t>(vp) * 3;
+  const std::size_t drivenValues = static_cast<std::size_t>(vd) * 3;
   const std::uint64_t topology = topologyHash(db.drivenMesh);
+  const bool local = blendsLocally(options);
+  const bool temporal = options.maxWeightChange > 0;
 
   BakeResult result;
   result.device = stages.name();
-  result.settingsHash = settingsHashOf(db, options, mask);
-
-  const Eigen::MatrixXd shapes = driverMatrix(db);
-  const SimplexLeastSquares solver(shapes);
-  stages.upload(tablesFrom(db, solver));
-  if (options.correct) {
+  if (options.correct || local) {
     backends.binding->setSurface(db.driverMesh, mask);
   }
+  const Prepared prepared = prepare(db, options, backends);
+  result.settingsHash = settingsHashOf(db, options, mask, prepared);
+  // Layers (mix, wind) after the correction; their settings join the hash and the EXR header.
+  std::optional<LayerStack> layerStack;
+  if (options.layers.hasMix() || options.layers.hasWind()) {
+    LayerOptions layers = options.layers;
+    layers.framesPerSecond = options.framesPerSecond;
+    layerStack.emplace(layers, db.drivenMesh, *backends.layers);
+    layerStack->checkFrames(options.frames);
+    Hasher hasher;
+    hasher.addValue(result.settingsHash);
+    layerStack->addToHash(hasher);
+    result.settingsHash = hasher.value();
+  }
+  const int regionCount = static_cast<int>(prepared.problems.size());
+  const bool deviceProjection = !prepared.hasRegions;
+
+  {
+    // The backend's projection tables are those of the one QP on every (aligned) row.
+    const SimplexLeastSquares& full =
+        deviceProjection ? *prepared.problems.front().solver
+                         : SimplexLeastSquares(driverMatrix(prepared.driverShapes, k, vp, {}));
+    stages.upload(tablesFrom(db, full, prepared.driverShapes,
+                             local ? prepared.localShapes : prepared.drivenShapes));
+  }
   std::unique_ptr<InsideAudit> inside;
-  if (options.audit) {
+  if (options.audit || options.resolve || options.layers.hasWind()) {
     backends.audit->setSurface(db.driverMesh, BindingMask::all(db.drivenVertexCount()));
+  }
+  if (options.audit) {
     inside = std::make_unique<InsideAudit>(db.driverMesh);
   }
   // The previous baked frame, for binding switches and jumps across chunk boundaries.
@@ -256,24 +501,42 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
   exr.topologyHash = topology;
   exr.settingsHash = result.settingsHash;
   exr.framesPerSecond = options.framesPerSecond;
+  if (layerStack) {
+    exr.stringAttributes.emplace_back("dsLayers", layerStack->describe());
+  }
 
-  const int chunk = options.chunkSize;
-  std::vector<float> driverBlock, projections, norms, weights, driven, blendedDriver, output;
-  std::vector<SurfaceHit> hits, auditHits;
-  for (std::size_t begin = 0; begin < todo.size(); begin += static_cast<std::size_t>(chunk)) {
-    if (observer != nullptr && observer->stopRequested()) {
-      DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
-               " frames; finished frames are complete, rerun with --skip-existing to resume");
+  const int chunk = batchFrames(options, vp, vd);
+  // The pipeline: while batch n runs its stages on the bake thread, the driver frames of batch
+  // n + 1 are read on an I/O task and the EXRs of batch n - 1 are written on another (double
+  // buffering: two output blocks take turns). Observer callbacks stay on the bake thread, in
+  // frame order, after a batch's files are complete.
+  std::vector<int> todoFrames;
+  for (int index : todo) {
+    todoFrames.push_back(result.frames[index].frame);
+  }
+  auto readBatch = [&driver, &todoFrames, &options, temporal, chunk, threads,
+                    driverValues](std::size_t begin) {
+    const auto readStart = Clock::now();
+    BatchInput in;
+    const int count = static_cast<int>(std::min<std::size_t>(chunk, todoFrames.size() - begin));
+    // Frames solved for this batch: the temporal warm-up (driver-cache frames just before the
+    // batch, solved but not written), then the batch itself.
+    if (temporal) {
+      const int first = todoFrames[begin];
+      for (int f = first - options.temporalWarmup; f < first; ++f) {
+        if (driver.hasFrame(f)) {
+          in.solveFrames.push_back(f);
+        }
+      }
     }
-    const int count = static_cast<int>(std::min<std::size_t>(chunk, todo.size() - begin));
-    auto frameRecord = [&](int i) -> FrameRecord& { return result.frames[todo[begin + i]]; };
-    const auto chunkStart = Clock::now();
-
-    auto start = Clock::now();
-    driverBlock.resize(count * driverValues);
-    parallelFor(count, threads, [&](int i) {
-      const int frame = frameRecord(i).frame;
-      float* xyz = &driverBlock[i * driverValues];
+    in.warm = static_cast<int>(in.solveFrames.size());
+    in.solveFrames.insert(in.solveFrames.end(), todoFrames.begin() + begin,
+                          todoFrames.begin() + begin + count);
+    const int n = static_cast<int>(in.solveFrames.size());
+    in.driverAll.resize(n * driverValues);
+    parallelFor(n, threads, [&](int i) {
+      const int frame = in.solveFrames[i];
+      float* xyz = &in.driverAll[i * driverValues];
       driver.readFrame(frame, xyz);
       for (std::size_t j = 0; j < driverValues; ++j) {
         if (!std::isfinite(xyz[j])) {
@@ -282,38 +545,207 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
         }
       }
     });
-    result.times.read += secondsSince(start);
+    in.seconds = secondsSince(readStart);
+    return in;
+  };
+  std::future<BatchInput> nextInput;
+  std::array<std::vector<float>, 2> outputBlocks;
+  struct PendingWrite {
+    std::future<double> seconds;
+    std::size_t begin = 0;
+    int count = 0;
+    const float* positions = nullptr;
+    Clock::time_point started;
+  };
+  std::optional<PendingWrite> pendingWrite;
+  // Waits for the batch being written (rethrowing its error) and reports its frames.
+  auto finishWrite = [&]() {
+    if (!pendingWrite) {
+      return;
+    }
+    PendingWrite done = std::move(*pendingWrite);
+    pendingWrite.reset();
+    result.times.write += done.seconds.get();
+    std::vector<const FrameRecord*> records;
+    for (int i = 0; i < done.count; ++i) {
+      records.push_back(&result.frames[todo[done.begin + i]]);
+    }
+    if (observer != nullptr) {
+      observer->batchBaked(records, done.positions);
+    }
+    const double perFrame = secondsSince(done.started) / done.count;
+    for (const FrameRecord* record : records) {
+      ++result.baked;
+      if (observer != nullptr) {
+        observer->frameDone(*record, perFrame);
+      }
+    }
+  };
 
+  std::vector<float> alignedAll, projections, norms, weights, blendedRegions, blendedDriverRegions,
+      driven, blendedDriver;
+  std::vector<SurfaceHit> hits, auditHits;
+  std::vector<RigidTransform> motions;
+  std::vector<SimplexSolution> solutions;
+  std::vector<int> moved;
+  const Eigen::MatrixXd shapes = options.weightMode == WeightMode::kNearest
+                                     ? driverMatrix(prepared.driverShapes, k, vp, {})
+                                     : Eigen::MatrixXd();
+  std::size_t batchIndex = 0;
+  for (std::size_t begin = 0; begin < todo.size();
+       begin += static_cast<std::size_t>(chunk), ++batchIndex) {
+    if (observer != nullptr && observer->stopRequested()) {
+      finishWrite();
+      DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
+               " frames; finished frames are complete, rerun with --skip-existing to resume");
+    }
+    const int count = static_cast<int>(std::min<std::size_t>(chunk, todo.size() - begin));
+    auto frameRecord = [&](int i) -> FrameRecord& { return result.frames[todo[begin + i]]; };
+    const auto chunkStart = Clock::now();
+
+    // This batch's driver frames (read ahead during the previous batch), and the read-ahead
+    // of the next one.
+    auto start = Clock::now();
+    BatchInput input = nextInput.valid() ? nextInput.get() : readBatch(begin);
+    const double waited = secondsSince(start);
+    if (begin + chunk < todo.size()) {
+      nextInput = std::async(std::launch::async, readBatch, begin + chunk);
+    }
+    result.times.read += input.seconds;
+    result.times.readWait += waited;
+    const std::vector<int>& solveFrames = input.solveFrames;
+    const std::vector<float>& driverAll = input.driverAll;
+    const int warm = input.warm;
+    const int n = warm + count;
+    const float* driverBlock = &driverAll[warm * driverValues];
+
+    // Rigid alignment to the rest driver (the weights and the blend live in that frame).
     start = Clock::now();
-    projections.resize(static_cast<std::size_t>(count) * (k - 1));
-    norms.resize(static_cast<std::size_t>(count) * 2);
+    const float* alignedFrames = driverAll.data();
+    if (prepared.aligner) {
+      alignedAll.resize(driverAll.size());
+      motions.resize(n);
+      parallelFor(n, threads, [&](int i) {
+        motions[i] = prepared.aligner->fit(&driverAll[i * driverValues]);
+        motions[i].apply(&driverAll[i * driverValues], vp, &alignedAll[i * driverValues]);
+      });
+      alignedFrames = alignedAll.data();
+      for (int i = 0; i < count; ++i) {
+        const RigidTransform& motion = motions[warm + i];
+        FrameRecord& record = frameRecord(i);
+        record.alignRotation.clear();
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) {
+            record.alignRotation.push_back(motion.rotation(r, c));
+          }
+        }
+        record.alignTranslation.assign(motion.translation.data(), motion.translation.data() + 3);
+      }
+    }
+    const float* alignedBlock = alignedFrames + warm * driverValues;
+    result.times.align += secondsSince(start);
+
+    // Projections p = M^T (b - m) per frame and weight problem: one device launch for the
+    // whole-driver QP, the host for region rows.
+    start = Clock::now();
+    projections.assign(static_cast<std::size_t>(n) * regionCount * (k - 1), 0.0f);
+    norms.assign(static_cast<std::size_t>(n) * regionCount * 2, 0.0f);
+    std::vector<double> hostProjections;
     if (options.weightMode == WeightMode::kQp) {
-      stages.project(count, driverBlock.data(), projections.data(), norms.data());
+      if (deviceProjection) {
+        stages.project(n, alignedFrames, projections.data(), norms.data());
+      } else {
+        hostProjections.assign(static_cast<std::size_t>(n) * regionCount * (k + 1), 0.0);
+        parallelFor(n * regionCount, threads, [&](int item) {
+          const int i = item / regionCount, r = item % regionCount;
+          const WeightProblem& problem = prepared.problems[r];
+          const float* frame = alignedFrames + i * driverValues;
+          Eigen::VectorXd b(static_cast<Eigen::Index>(problem.rows.size()) * 3);
+          for (std::size_t j = 0; j < problem.rows.size(); ++j) {
+            for (int c = 0; c < 3; ++c) {
+              b(static_cast<Eigen::Index>(3 * j + c)) = frame[3 * problem.rows[j] + c];
+            }
+          }
+          const Eigen::VectorXd d = b - problem.solver->center();
+          double* out = &hostProjections[static_cast<std::size_t>(item) * (k + 1)];
+          Eigen::Map<Eigen::VectorXd>(out, k - 1) = problem.solver->basis().transpose() * d;
+          out[k - 1] = d.squaredNorm();
+          out[k] = b.squaredNorm();
+        });
+      }
     }
     result.times.project += secondsSince(start);
 
     start = Clock::now();
-    weights.assign(static_cast<std::size_t>(count) * k, 0.0f);
+    solutions.assign(static_cast<std::size_t>(n) * regionCount, SimplexSolution{});
+    auto solveOne = [&](int i, int r) {
+      const int item = i * regionCount + r;
+      Eigen::VectorXd p(k - 1);
+      double rr = 0, bb = 0;
+      if (deviceProjection) {
+        p = Eigen::Map<const Eigen::VectorXf>(&projections[i * (k - 1)], k - 1).cast<double>();
+        rr = norms[2 * i];
+        bb = norms[2 * i + 1];
+      } else {
+        const double* in = &hostProjections[static_cast<std::size_t>(item) * (k + 1)];
+        p = Eigen::Map<const Eigen::VectorXd>(in, k - 1);
+        rr = in[k - 1];
+        bb = in[k];
+      }
+      const SimplexLeastSquares& solver = *prepared.problems[r].solver;
+      try {
+        if (temporal && i > 0) {
+          const Eigen::VectorXd& previous = solutions[item - regionCount].weights;
+          const Eigen::VectorXd lower =
+              (previous.array() - options.maxWeightChange).cwiseMax(0.0).matrix();
+          const Eigen::VectorXd upper =
+              (previous.array() + options.maxWeightChange).cwiseMin(1.0).matrix();
+          solutions[item] = solver.solveProjected(p, rr, bb, lower, upper);
+        } else {
+          solutions[item] = solver.solveProjected(p, rr, bb);
+        }
+      } catch (const Error& error) {
+        DS_THROW(kNumerical, "frame ", solveFrames[i],
+                 regionCount > 1 ? " region '" + prepared.problems[r].name + "'" : std::string(),
+                 ": ", error.what());
+      }
+    };
+    if (options.weightMode == WeightMode::kQp) {
+      if (temporal) {
+        // Each frame's bounds come from the frame before it: in order within the batch.
+        for (int i = 0; i < n; ++i) {
+          parallelFor(regionCount, std::min(threads, regionCount), [&](int r) { solveOne(i, r); });
+        }
+      } else {
+        parallelFor(n * regionCount, threads,
+                    [&](int item) { solveOne(item / regionCount, item % regionCount); });
+      }
+    }
+    weights.assign(static_cast<std::size_t>(count) * regionCount * k, 0.0f);
     parallelFor(options.weightMode == WeightMode::kBind ? 0 : count, threads, [&](int i) {
       FrameRecord& record = frameRecord(i);
+      record.weights.clear();
+      record.atZero.clear();
+      record.atOne.clear();
+      record.relativeResidual = record.kktResidual = 0.0;
+      record.iterations = 0;
       if (options.weightMode == WeightMode::kQp) {
-        const Eigen::VectorXd p =
-            Eigen::Map<const Eigen::VectorXf>(&projections[i * (k - 1)], k - 1).cast<double>();
-        SimplexSolution s;
-        try {
-          s = solver.solveProjected(p, norms[2 * i], norms[2 * i + 1]);
-        } catch (const Error& error) {
-          DS_THROW(kNumerical, "frame ", record.frame, ": ", error.what());
+        for (int r = 0; r < regionCount; ++r) {
+          const SimplexSolution& s = solutions[(warm + i) * regionCount + r];
+          record.weights.insert(record.weights.end(), s.weights.data(), s.weights.data() + k);
+          for (int z : s.atZero) {
+            record.atZero.push_back(r * k + z);
+          }
+          for (int o : s.atOne) {
+            record.atOne.push_back(r * k + o);
+          }
+          record.relativeResidual = std::max(record.relativeResidual, s.relativeResidual);
+          record.kktResidual = std::max(record.kktResidual, s.kktResidual);
+          record.iterations += s.iterations;
         }
-        record.weights.assign(s.weights.data(), s.weights.data() + k);
-        record.atZero = s.atZero;
-        record.atOne = s.atOne;
-        record.relativeResidual = s.relativeResidual;
-        record.kktResidual = s.kktResidual;
-        record.iterations = s.iterations;
       } else {
         const Eigen::VectorXd b =
-            Eigen::Map<const Eigen::VectorXf>(&driverBlock[i * driverValues], driverValues)
+            Eigen::Map<const Eigen::VectorXf>(alignedBlock + i * driverValues, driverValues)
                 .cast<double>();
         Eigen::Index best = 0;
         const double distance = (shapes.colwise() - b).colwise().squaredNorm().minCoeff(&best);
@@ -321,15 +753,17 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
         record.weights[best] = 1.0;
         record.relativeResidual = b.norm() > 0 ? std::sqrt(distance) / b.norm() : 0.0;
       }
-      for (int s = 0; s < k; ++s) {
-        weights[i * k + s] = static_cast<float>(record.weights[s]);
+      for (std::size_t s = 0; s < record.weights.size(); ++s) {
+        weights[i * regionCount * k + s] = static_cast<float>(record.weights[s]);
       }
     });
     result.times.weights += secondsSince(start);
 
+    // Blend (per region), then mix the regions per vertex with their partition of unity.
     start = Clock::now();
+    const bool needDriver = !local && options.correct;
     driven.resize(count * drivenValues);
-    blendedDriver.resize(options.correct ? count * driverValues : 0);
+    blendedDriver.resize(needDriver ? count * driverValues : 0);
     if (options.weightMode == WeightMode::kBind) {
       // The rest shapes stand in for the blend: every frame binds the rest cloth to the rest
       // driver and carries it to the shot's pose.
@@ -337,44 +771,133 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
         std::copy_n(db.drivenMesh.positions.data(), drivenValues, &driven[i * drivenValues]);
         std::copy_n(db.driverMesh.positions.data(), driverValues, &blendedDriver[i * driverValues]);
       }
-    } else {
+    } else if (regionCount == 1) {
       stages.blend(count, weights.data(), driven.data(),
-                   options.correct ? blendedDriver.data() : nullptr);
+                   needDriver ? blendedDriver.data() : nullptr);
+    } else {
+      blendedRegions.resize(static_cast<std::size_t>(count) * regionCount * drivenValues);
+      blendedDriverRegions.resize(needDriver ? blendedRegions.size() / drivenValues * driverValues
+                                             : 0);
+      stages.blend(count * regionCount, weights.data(), blendedRegions.data(),
+                   needDriver ? blendedDriverRegions.data() : nullptr);
+      auto mix = [&](const std::vector<float>& perRegion, const std::vector<float>& weightsOf,
+                     int vertices, std::vector<float>& out) {
+        const std::size_t values = static_cast<std::size_t>(vertices) * 3;
+        parallelFor(count, threads, [&](int i) {
+          for (int v = 0; v < vertices; ++v) {
+            double sum[3] = {0, 0, 0};
+            for (int r = 0; r < regionCount; ++r) {
+              const float phi = weightsOf[static_cast<std::size_t>(r) * vertices + v];
+              const float* x =
+                  &perRegion[(static_cast<std::size_t>(i) * regionCount + r) * values + 3 * v];
+              for (int c = 0; c < 3; ++c) {
+                sum[c] += double(phi) * x[c];
+              }
+            }
+            for (int c = 0; c < 3; ++c) {
+              out[i * values + 3 * v + c] = static_cast<float>(sum[c]);
+            }
+          }
+        });
+      };
+      mix(blendedRegions, prepared.regions.drivenMix, vd, driven);
+      if (needDriver) {
+        mix(blendedDriverRegions, prepared.regions.driverMix, vp, blendedDriver);
+      }
     }
     result.times.blend += secondsSince(start);
 
-    // Correction: bind D~ to P~ (exact closest triangles), carry it to P_new.
+    // Correction: bind D~ to P~ (exact closest triangles) and carry it to the shot's driver;
+    // local blending rebuilds the blended offsets on the shot's driver instead.
     start = Clock::now();
-    const std::size_t points = static_cast<std::size_t>(count) * db.drivenVertexCount();
-    const float* final = driven.data();
-    if (options.correct) {
+    const std::size_t points = static_cast<std::size_t>(count) * vd;
+    std::vector<float>& output = outputBlocks[batchIndex % 2];
+    output.resize(count * drivenValues);
+    if (local) {
+      backends.binding->rebuild(count, prepared.restHits.data(), driverBlock, driven.data(),
+                                output.data());
+    } else if (options.correct) {
       hits.resize(points);
-      output.resize(count * drivenValues);
       backends.binding->closest(count, blendedDriver.data(), driven.data(), hits.data());
-      backends.binding->transfer(count, hits.data(), blendedDriver.data(), driverBlock.data(),
+      // P~ is in the aligned frame, the shot's driver in world space: the transfer carries the
+      // cloth through the inverse alignment too.
+      backends.binding->transfer(count, hits.data(), blendedDriver.data(), driverBlock,
                                  driven.data(), output.data());
-      final = output.data();
+    } else if (prepared.aligner) {
+      parallelFor(count, threads, [&](int i) {
+        motions[warm + i].applyInverse(&driven[i * drivenValues], vd, &output[i * drivenValues]);
+      });
+    } else {
+      std::copy(driven.begin(), driven.end(), output.begin());
     }
+    const float* final = output.data();
     result.times.correct += secondsSince(start);
+
+    // Audit of the blend (before any correction), in the frame it was blended in.
+    start = Clock::now();
+    auditHits.resize(points);
+    auto countInside = [&](const float* poses, const float* cloth, int FrameRecord::*field) {
+      backends.audit->closest(count, poses, cloth, auditHits.data());
+      parallelFor(count, threads, [&](int i) {
+        frameRecord(i).*field = inside->countInside(poses + i * driverValues, vd,
+                                                    cloth + i * drivenValues, &auditHits[i * vd]);
+      });
+    };
+    if (options.audit && !local) {
+      countInside(alignedBlock, driven.data(), &FrameRecord::insideBefore);
+    }
+    result.times.audit += secondsSince(start);
+
+    // Penetration resolution on the shot's driver (every triangle), with counts around it.
+    start = Clock::now();
+    if (options.resolve) {
+      if (options.audit) {
+        countInside(driverBlock, final, &FrameRecord::insideCorrected);
+      } else {
+        backends.audit->closest(count, driverBlock, final, auditHits.data());
+      }
+      moved.assign(count, 0);
+      backends.audit->resolve(count, driverBlock, auditHits.data(),
+                              static_cast<float>(options.skinOffset), output.data(), moved.data());
+      for (int i = 0; i < count; ++i) {
+        frameRecord(i).resolved = moved[i];
+      }
+    }
+    result.times.resolve += secondsSince(start);
+
+    // Layers: the mix with another cache, then wind limited by each vertex's clearance from
+    // the shot's driver (exact closest points, every triangle).
+    start = Clock::now();
+    if (layerStack) {
+      std::vector<float> clearance;
+      if (options.layers.hasWind()) {
+        backends.audit->closest(count, driverBlock, output.data(), auditHits.data());
+        clearance.resize(points);
+        for (std::size_t i = 0; i < points; ++i) {
+          clearance[i] = std::sqrt(auditHits[i].distance2);
+        }
+      }
+      layerStack->apply(count, &todoFrames[begin], output.data(),
+                        clearance.empty() ? nullptr : clearance.data());
+    }
+    result.times.layers += secondsSince(start);
 
     start = Clock::now();
     if (options.audit) {
-      auditHits.resize(points);
-      const int vd = db.drivenVertexCount();
-      auto countInside = [&](const float* cloth, bool after) {
-        backends.audit->closest(count, driverBlock.data(), cloth, auditHits.data());
-        parallelFor(count, threads, [&](int i) {
-          const int inside_count = inside->countInside(
-              &driverBlock[i * driverValues], vd, cloth + i * drivenValues, &auditHits[i * vd]);
-          (after ? frameRecord(i).insideAfter : frameRecord(i).insideBefore) = inside_count;
-        });
-      };
-      countInside(driven.data(), false);
-      if (options.correct) {
-        countInside(final, true);
-      } else {
-        for (int i = 0; i < count; ++i) {
-          frameRecord(i).insideAfter = frameRecord(i).insideBefore;
+      // Recount after the resolution when it moved something or layers changed the cloth.
+      const bool anyMoved = (options.resolve && std::any_of(moved.begin(), moved.end(),
+                                                            [](int m) { return m > 0; })) ||
+                            layerStack.has_value();
+      if (!options.resolve || anyMoved) {
+        countInside(driverBlock, final, &FrameRecord::insideAfter);
+      }
+      for (int i = 0; i < count; ++i) {
+        FrameRecord& record = frameRecord(i);
+        if (options.resolve && !anyMoved) {
+          record.insideAfter = record.insideCorrected;
+        }
+        if (!options.resolve) {
+          record.insideCorrected = record.insideAfter;
         }
       }
       // Switches and jumps against the previous baked frame, in bake order.
@@ -396,7 +919,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
             }
           }
         }
-        if (options.correct) {
+        if (options.correct && !local) {
           const SurfaceHit* nowHits = &hits[i * vd];
           const SurfaceHit* beforeHits = i > 0                  ? &hits[(i - 1) * vd]
                                          : previousHits.empty() ? nullptr
@@ -410,40 +933,41 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
         }
       }
       previousOutput.assign(final + (count - 1) * drivenValues, final + count * drivenValues);
-      if (options.correct) {
+      if (options.correct && !local) {
         previousHits.assign(hits.end() - vd, hits.end());
       }
     }
     result.times.audit += secondsSince(start);
 
+    // Hand the batch to the writer once the previous one is on disk; its buffer (the other
+    // output block) is then free for the next batch.
     start = Clock::now();
-    parallelFor(count, threads, [&](int i) {
-      FrameRecord& record = frameRecord(i);
-      ExrWriteOptions frameExr = exr;
-      frameExr.frame = record.frame;
-      writePointCacheExr(record.output, db.drivenVertexCount(), final + i * drivenValues, nullptr,
-                         frameExr);
-    });
-    result.times.write += secondsSince(start);
-
-    if (observer != nullptr) {
-      std::vector<const FrameRecord*> records;
-      for (int i = 0; i < count; ++i) {
-        records.push_back(&frameRecord(i));
-      }
-      observer->batchBaked(records, final);
-    }
-    const double perFrame = secondsSince(chunkStart) / count;
+    finishWrite();
+    result.times.writeWait += secondsSince(start);
+    std::vector<std::string> paths;
+    std::vector<int> frameNumbers;
     for (int i = 0; i < count; ++i) {
-      ++result.baked;
-      if (observer != nullptr) {
-        observer->frameDone(frameRecord(i), perFrame);
-      }
+      paths.push_back(frameRecord(i).output);
+      frameNumbers.push_back(frameRecord(i).frame);
     }
+    auto writeBatch = [paths = std::move(paths), frameNumbers = std::move(frameNumbers), final, exr,
+                       threads, vd, drivenValues]() {
+      const auto writeStart = Clock::now();
+      parallelFor(static_cast<int>(paths.size()), threads, [&](int i) {
+        ExrWriteOptions frameExr = exr;
+        frameExr.frame = frameNumbers[i];
+        writePointCacheExr(paths[i], vd, final + i * drivenValues, nullptr, frameExr);
+      });
+      return secondsSince(writeStart);
+    };
+    pendingWrite = PendingWrite{std::async(std::launch::async, std::move(writeBatch)), begin, count,
+                                final, chunkStart};
   }
+  finishWrite();
   result.times.total = secondsSince(bakeStart);
   if (!options.reportPath.empty()) {
-    writeReport(options.reportPath, db, driver, options, result);
+    writeReport(options.reportPath, db, driver, options, prepared,
+                layerStack ? layerStack->describe() : std::string("{}"), result);
   }
   return result;
 }

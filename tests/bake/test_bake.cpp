@@ -150,6 +150,7 @@ TEST_F(BakeTest, CorrectionReducesPenetrationsAndErrorOnTheSample) {
   const auto truth = openPointCache(sample("test.driven.pc2"));
   TempDir dir;
   BakeOptions options;
+  options.blend = BlendMode::kWorld;  // the correction of the talk's world-space blend
   options.frames = driver->frames();
   const Backends cl = clBackends();
   options.outputPattern = dir.file("corrected.####.exr");

@@ -177,6 +177,60 @@ TEST(Cli, EndToEndBuildBakeEvalInfo) {
   EXPECT_NE(r.out.find("2244 vertices"), std::string::npos) << r.out;
 }
 
+TEST(Cli, BakeFidelityFlagsAreDocumentedAndBadGroupsAreInputErrors) {
+  TempDir dir;
+  CliRun r = runCli(dir, {"bake", "--help"});
+  ASSERT_EQ(r.code, 0);
+  for (const char* flag : {"--align", "--align-group", "--blend", "--skin-offset", "--no-resolve",
+                           "--regions", "--max-weight-change", "--temporal-warmup"}) {
+    EXPECT_NE(r.out.find(flag), std::string::npos) << flag;
+  }
+  const std::string db = buildDb(dir);
+  const std::vector<std::string> bake = {"bake",
+                                         "--db",
+                                         db,
+                                         "--driver",
+                                         sample("test.driver.pc2"),
+                                         "--frames",
+                                         "1-6",
+                                         "-o",
+                                         dir.file("out.####.exr")};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = bake;
+    args.insert(args.end(), extra.begin(), extra.end());
+    return runCli(dir, args);
+  };
+  // Unknown group, too few vertices: input errors (3) naming the flag; nothing written.
+  expectError(with({"--align-group", "left_leg"}), 3, "no group 'left_leg' (its groups: arm)");
+  expectError(with({"--align-group", "0,1"}), 3, "at least 3 non-collinear");
+  std::ofstream(dir.file("bad.json"))
+      << R"({"regions": [{"name": "left", "driver": ["left_leg"], "driven": "sleeve"}]})";
+  expectError(with({"--regions", dir.file("bad.json")}), 3, "regions[0].driver");
+  expectError(with({"--regions", dir.file("missing.json")}), 3, "missing.json");
+  EXPECT_TRUE(filesIn(dir.path()).size() == 2u) << "outputs left behind";  // db + bad.json
+  // Usage errors (2).
+  expectError(with({"--align", "sideways"}), 2, "--align");
+  expectError(with({"--blend", "local", "--no-correct"}), 2, "--blend local");
+  expectError(with({"--max-weight-change", "0.1", "--chunk-size", "5", "--chunk-index", "0",
+                    "--batch", "3"}),
+              2, "multiple of --batch");
+  // Everything together works and lands in the report.
+  std::ofstream(dir.file("regions.json"))
+      << R"({"falloff": 2, "regions": [{"name": "top", "driver": {"vertices": ["0-999"]},
+             "driven": {"vertices": ["0-1099"]}}]})";
+  r = with({"--align-group", "arm", "--blend", "local", "--regions", dir.file("regions.json"),
+            "--max-weight-change", "0.1", "--temporal-warmup", "2", "--skin-offset", "0.001",
+            "--report", dir.file("report.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("after resolution"), std::string::npos) << r.out;
+  const std::string report = slurp(dir.file("report.json"));
+  for (const char* key :
+       {"\"align\": \"rigid\"", "\"blend\": \"local\"", "\"max_weight_change\": 0.1",
+        "\"skin_offset\": 0.001", "\"name\": \"rest\"", "\"inside_corrected\""}) {
+    EXPECT_NE(report.find(key), std::string::npos) << key;
+  }
+}
+
 TEST(Cli, TruncatedPc2IsAnInputError) {
   TempDir dir;
   const std::string db = buildDb(dir);

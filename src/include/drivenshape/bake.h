@@ -1,6 +1,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -8,6 +9,7 @@
 
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
+#include <drivenshape/layers.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/stages.h>
 
@@ -21,11 +23,42 @@ enum class WeightMode {
              ///< every frame by the correction (what Houdini's Point Deform does)
 };
 
+/// Whether shot frames are rigidly aligned to the database before the weights are solved.
+enum class AlignMode {
+  kNone,     ///< the talk: weights compare world positions
+  kRigid,    ///< each shot frame (and each database shape) is fitted to the rest driver first,
+             ///< weighted by how rigidly each vertex moves across the database's driver shapes
+             ///< (RigidAligner::weightByRigidity): the fit follows the pelvis, not the legs
+  kRigidAll  ///< the same fit weighted by area only: every selected vertex counts alike
+};
+
+/// The `--align` spelling of a mode, as written in the bake report.
+inline const char* alignModeName(AlignMode mode) {
+  switch (mode) {
+    case AlignMode::kNone:
+      return "none";
+    case AlignMode::kRigid:
+      return "rigid";
+    case AlignMode::kRigidAll:
+      return "rigid-all";
+  }
+  return "?";
+}
+
+/// Where the database shapes are blended.
+enum class BlendMode {
+  kWorld,  ///< the talk: blend world positions D~ = sum w_i D_i, then correct onto the shot
+  kLocal   ///< bind each driven vertex once to the rest driver, blend every shape's offsets in
+           ///< those local frames and rebuild them on the shot's driver
+};
+
 struct BakeOptions {
   std::vector<int> frames;    ///< frames of the driver cache to bake
   std::string outputPattern;  ///< EXR sequence with a frame token, e.g. out/cloth.####.exr
   std::string reportPath;     ///< per-bake JSON report; empty = none
-  int chunkSize = 64;         ///< frames per kernel launch (`--batch`)
+  /// Frames per kernel launch (`--batch`); lowered for large meshes so that a batch's buffers
+  /// stay within kBatchMemoryBudget, except with the temporal bound (which depends on it).
+  int chunkSize = 64;
   int threads = 0;            ///< host threads (QP, EXR); 0 = all cores
   bool skipExisting = false;  ///< keep complete outputs of this database and settings
   WeightMode weightMode = WeightMode::kQp;
@@ -40,42 +73,101 @@ struct BakeOptions {
   /// Per-frame audit: cloth vertices inside the shot's driver before and after correction,
   /// binding switches, the largest frame-to-frame jump.
   bool audit = true;
+
+  // ---- Fidelity (issue 4); see the README's "Fidelity" section for the measured defaults. ----
+
+  /// Rigid alignment: each shot driver frame is fitted (Kabsch, no scale; weighted by
+  /// rigidity (kRigid) or area (kRigidAll)) to the database's rest driver on the vertices
+  /// named by `alignGroup`; so is every database shape (at bake start, driver and driven with
+  /// the same motion, so databases built by earlier versions keep working). Weights and blends are
+  /// computed in that frame and the result goes back through the inverse motion (the correction
+  /// rebuilds directly on the shot's world-space driver).
+  AlignMode align = AlignMode::kRigid;
+  /// Driver vertices of the fit: comma-separated `g` group names and/or vertex indices and
+  /// ranges ("0-99,250"); empty or "all" = every vertex (see selectVertices).
+  std::string alignGroup;
+  /// Where the shapes are blended. Local blending rebuilds the offsets on the shot's driver,
+  /// which is the correction: with `correct` off (blend only) or the bind baseline the bake
+  /// blends world positions whatever this says (see blendsLocally).
+  BlendMode blend = BlendMode::kLocal;
+  /// Penetration resolution after the correction: cloth vertices inside the shot's driver or
+  /// closer than `skinOffset` (scene units) move to skinOffset along the pseudo-normal at
+  /// their exact closest point on the driver (every triangle, no mask).
+  bool resolve = true;
+  double skinOffset = 0.002;
+  /// Region file (see readRegions); empty = one QP on every driver row.
+  std::string regionsPath;
+  /// Temporal stability: |w_t - w_{t-1}| <= maxWeightChange per shape (0 = off). Frames are
+  /// solved in order within each launch batch (`chunkSize` frames); before each batch,
+  /// `temporalWarmup` driver-cache frames preceding its first frame are solved (the first of
+  /// them without the bound) but not written. The output therefore depends on chunkSize and
+  /// temporalWarmup, never on the thread count, and a farm chunk whose size is a multiple of
+  /// chunkSize reproduces the single bake exactly.
+  double maxWeightChange = 0.0;
+  int temporalWarmup = 8;
+  /// Layers after the correction and resolution (DESIGN.md section 3 step 7): a mix with
+  /// another cache of the cloth, procedural wind. Off by default; needs BakeBackends::layers
+  /// when on. Recorded in the settings hash, the report and the EXR header (`dsLayers`).
+  LayerOptions layers;
 };
+
+/// Whether a bake with these options blends in local frames: BlendMode::kLocal with the
+/// correction on and the DrivenShape weights (not the bind baseline).
+inline bool blendsLocally(const BakeOptions& options) {
+  return options.blend == BlendMode::kLocal && options.correct &&
+         options.weightMode != WeightMode::kBind;
+}
 
 /// The backends a bake runs on, all on one device (or all host): the per-frame stages, the
 /// closest-triangle search used for binding (the mask is applied to it), and a second one for
-/// the inside/outside audit (always against every triangle). The last two may be null when
-/// options.correct and options.audit are off.
+/// the inside/outside audit and the penetration resolution (always against every triangle).
+/// `binding` may be null when options.correct is off, `audit` when options.audit and
+/// options.resolve are off.
 struct BakeBackends {
   StageBackend* stages = nullptr;
   ClosestBackend* binding = nullptr;
   ClosestBackend* audit = nullptr;
+  LayerBackend* layers = nullptr;  ///< needed only when options.layers has a layer
 };
 
 /// What happened to one frame.
 struct FrameRecord {
   int frame = 0;
   bool skipped = false;         ///< an existing complete output was kept
-  std::vector<double> weights;  ///< k
+  std::vector<double> weights;  ///< k per region, region-major (k without regions)
   std::vector<int> atZero;      ///< shapes held at weight 0 (active bounds)
   std::vector<int> atOne;
-  double relativeResidual = 0.0;  ///< ||A w - b|| / ||b||
+  double relativeResidual = 0.0;  ///< ||A w - b|| / ||b|| (the largest over regions)
   double kktResidual = 0.0;
   int iterations = 0;
   std::string output;
+  /// Rigid alignment of this frame (AlignMode::kRigid): x -> R x + t maps the shot's driver
+  /// onto the rest driver. R row-major.
+  std::vector<double> alignRotation;
+  std::vector<double> alignTranslation;
   // Audit (-1 where not measured).
-  int insideBefore = -1;     ///< blended cloth vertices inside the shot's driver
-  int insideAfter = -1;      ///< the same after correction (= before without correction)
+  int insideBefore = -1;     ///< blended cloth inside the (aligned) shot driver (world blend)
+  int insideCorrected = -1;  ///< after the correction (or rebuild), before resolution
+  int insideAfter = -1;      ///< in the written cloth (after resolution when it runs)
+  int resolved = -1;         ///< vertices moved out by the penetration resolution
   int bindingSwitches = -1;  ///< vertices bound to another triangle than the previous frame
   double maxJump = -1.0;     ///< largest vertex move since the previous baked frame
   int maxJumpVertex = -1;
 };
 
-/// Seconds spent per stage, summed over chunks.
+/// Seconds spent per stage, summed over batches. Reading and writing run on I/O tasks beside
+/// the other stages (the bake is pipelined), so the stages can add up to more than `total`;
+/// readWait and writeWait are the time the bake thread waited for them.
 struct StageTimes {
-  double read = 0, project = 0, weights = 0, blend = 0, correct = 0, audit = 0, write = 0,
-         total = 0;
+  double read = 0, align = 0, project = 0, weights = 0, blend = 0, correct = 0, resolve = 0,
+         audit = 0, write = 0, total = 0;
+  double layers = 0;
+  double readWait = 0, writeWait = 0;
 };
+
+/// Memory that one launch batch's frame blocks may take; larger meshes get smaller batches
+/// (see BakeOptions::chunkSize).
+inline constexpr std::size_t kBatchMemoryBudget = std::size_t(768) << 20;
 
 struct BakeResult {
   std::vector<FrameRecord> frames;

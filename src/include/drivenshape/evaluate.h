@@ -3,6 +3,8 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/correction.h>
+#include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
 namespace drivenshape {
@@ -25,5 +27,79 @@ struct EvaluationResult {
 /// frame is missing from either.
 EvaluationResult evaluateCaches(const PointCacheReader& truth, const PointCacheReader& baked,
                                 const std::vector<int>& frames);
+
+// ---- Whole-shot evaluation (`drivenshape eval`): bake, truth and binding baseline ----
+
+/// One cloth sequence's figures for one frame.
+struct ClothFrameMetrics {
+  int frame = 0;
+  FrameError error;         ///< against the truth (all 0 for the truth itself)
+  double jump = -1.0;       ///< largest vertex move since the previous frame of the list (scene
+                            ///< units); -1 on the first frame
+  int jumpVertex = -1;      ///< where `jump` occurs
+  int inside = -1;          ///< vertices inside the shot's driver (signed distance < 0);
+                            ///< -1 when not measured (no driver)
+  double maxDepth = 0.0;    ///< the deepest of them (>= 0, scene units; 0 when none)
+  int maxDepthVertex = -1;  ///< where `maxDepth` occurs (-1 when none is inside)
+};
+
+/// One cloth sequence over the whole frame list.
+struct ClothMetrics {
+  std::string name;    ///< "bake", "truth" or "baseline"
+  std::string source;  ///< the cache it was read from; empty for the baseline
+  std::vector<ClothFrameMetrics> frames;
+  double mean = 0, rms = 0, max = 0;  ///< error against the truth over all vertices and frames
+  int maxFrame = 0;                   ///< frame of `max`
+  double maxJump = -1.0;              ///< largest `jump` over the list (-1 with one frame)
+  int maxJumpFrame = 0;               ///< the frame it leads to
+  double meanInside = -1.0;           ///< `inside` averaged over the frames (-1: not measured)
+  int maxInside = -1;                 ///< largest `inside` of a frame
+  int maxInsideFrame = 0;
+  double maxDepth = 0.0;  ///< deepest penetration over the list
+  int maxDepthFrame = 0;
+};
+
+/// What evaluateShot reads. The truth and the bake are required; the rest turns on metrics:
+///
+///   driver + driverMesh                 penetrations of every sequence
+///   driver + driverMesh + drivenMesh    and, with `baseline`, the binding baseline
+///
+/// The binding baseline is what `bake --weights bind --no-resolve` computes: the rest cloth
+/// (drivenMesh positions) bound to the rest driver (driverMesh positions) at its exact closest
+/// triangles (those `mask` allows; every triangle without a mask), carried to each frame's
+/// driver by ClosestBackend::transfer.
+struct ShotEvaluationInput {
+  const PointCacheReader* truth = nullptr;
+  const PointCacheReader* bake = nullptr;
+  const PointCacheReader* driver = nullptr;  ///< the shot's driver cache
+  const Mesh* driverMesh = nullptr;          ///< rest driver: topology, rest pose
+  const Mesh* drivenMesh = nullptr;          ///< rest cloth (baseline only)
+  std::string driverMeshName;                ///< where the meshes came from, for messages
+  std::string drivenMeshName;
+  bool baseline = false;
+  const BindingMask* mask = nullptr;  ///< baseline binding mask; null = any triangle
+  int batch = 16;                     ///< frames per backend call
+  int threads = 0;                    ///< host threads for the inside test; 0 = all cores
+};
+
+struct ShotEvaluation {
+  std::vector<int> frames;    ///< in the order given (jumps follow this order)
+  int vertexCount = 0;        ///< cloth vertices
+  int driverVertexCount = 0;  ///< 0 without a driver
+  bool penetrations = false;  ///< whether `inside` and depths were measured
+  bool hasBaseline = false;
+  ClothMetrics bake;
+  ClothMetrics truth;
+  ClothMetrics baseline;  ///< valid when hasBaseline
+};
+
+/// Evaluates a shot: per frame, the bake's (and the baseline's) error against the truth, the
+/// largest frame-to-frame jump of every sequence, and with a driver the vertices of every
+/// sequence inside it with the deepest one (exact closest triangle over every triangle, then
+/// InsideAudit's signed distance). `closest` is any ClosestBackend (host or OpenCL); its surface
+/// is set here. Throws Error(kUsage) for an empty frame list or a metric without the inputs it
+/// needs, and Error(kInput) for mismatched vertex counts, missing frames or non-finite positions.
+ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
+                            ClosestBackend& closest);
 
 }  // namespace drivenshape
