@@ -388,6 +388,9 @@ int runBake(const std::vector<std::string>& args) {
               "batch; results depend on N and --batch, not on --threads",
               "8")
       .flag("--no-audit", "skip the per-frame penetration/popping audit (faster)")
+      .flag("--sync",
+            "fsync every output before its atomic rename (survives a power loss; costs a disk "
+            "or NFS round trip per frame)")
       .flag("--quiet", "no progress or per-frame lines")
       .epilog(
           "Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical, "
@@ -421,6 +424,7 @@ int runBake(const std::vector<std::string>& args) {
   options.skipExisting = parser.has("--skip-existing");
   options.correct = !parser.has("--no-correct");
   options.audit = !parser.has("--no-audit");
+  options.syncOutputs = parser.has("--sync");
   if (parser.has("--bind")) {
     if (!options.correct) {
       DS_THROW(kUsage, "--bind has no effect with --no-correct; drop one of them");

@@ -86,7 +86,7 @@ json.dump({"comment": f"derived by measure_accuracy.sh: axis {axis} at {middle:.
            "falloff": 3, "regions": regions}, open(path, "w"))
 PY
   for entry in "${all_modes[@]}"; do
-    IFS='|' read -r key label flags <<<"$entry"
+    IFS='|' read -r key _ flags <<<"$entry"
     if [[ -n "$wanted" && " $wanted " != *" $key "* ]]; then
       continue
     fi

@@ -501,6 +501,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
   exr.topologyHash = topology;
   exr.settingsHash = result.settingsHash;
   exr.framesPerSecond = options.framesPerSecond;
+  exr.syncToDisk = options.syncOutputs;
   if (layerStack) {
     exr.stringAttributes.emplace_back("dsLayers", layerStack->describe());
   }

@@ -140,13 +140,27 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
     }
   };
 
-  // Seeds: the artist's frames (in the order given), else the first candidate frame.
+  // Seeds: the artist's frames (in the order given), else the settled rest pose: the candidate
+  // whose driver is closest to the rest driver, and among those within the duplicate tolerance
+  // of it the latest. Reference clips usually open with a hold at rest while the simulation
+  // drapes the cloth, so the first frame's cloth is undraped; the end of the hold is not.
   const std::size_t addedCount = [&] {
     std::set<int> unique(options.addFrames.begin(), options.addFrames.end());
     return unique.size();
   }();
   if (addedCount == 0) {
-    take(0, PickReason::kSeed);
+    std::vector<double> toRest(n);
+    for (std::size_t c = 0; c < n; ++c) {
+      toRest[c] = rmsDistance(&shapes[c * driverValues], driverMesh.positions.data(), driverValues);
+    }
+    const double nearest = *std::min_element(toRest.begin(), toRest.end());
+    std::size_t seed = n;
+    for (std::size_t c = 0; c < n; ++c) {
+      if (toRest[c] <= nearest + tolerance && (seed == n || candidates[c] > candidates[seed])) {
+        seed = c;
+      }
+    }
+    take(seed, PickReason::kSeed);
   }
   for (std::size_t c = 0; c < addedCount; ++c) {
     if (!picks.empty() && minDistance[c] < tolerance) {

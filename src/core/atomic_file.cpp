@@ -53,7 +53,20 @@ AtomicFile::~AtomicFile() {
   }
 }
 
-void AtomicFile::commit() {
+void AtomicFile::commit(bool syncToDisk) {
+  if (syncToDisk) {
+    sync();
+  }
+  if (std::rename(mTempPath.c_str(), mFinalPath.c_str()) != 0) {
+    const int renameErrno = errno;
+    std::remove(mTempPath.c_str());
+    DS_THROW(kOutput, "cannot move the finished file into place at '", mFinalPath,
+             "': ", std::strerror(renameErrno));
+  }
+  mCommitted = true;
+}
+
+void AtomicFile::sync() {
   const int fd = ::open(mTempPath.c_str(), O_RDONLY);
   if (fd < 0) {
     DS_THROW(kOutput, "cannot reopen temporary file '", mTempPath, "' for ", mFinalPath, ": ",
@@ -66,13 +79,6 @@ void AtomicFile::commit() {
     std::remove(mTempPath.c_str());
     DS_THROW(kOutput, "cannot flush '", mFinalPath, "' to disk: ", std::strerror(syncErrno));
   }
-  if (std::rename(mTempPath.c_str(), mFinalPath.c_str()) != 0) {
-    const int renameErrno = errno;
-    std::remove(mTempPath.c_str());
-    DS_THROW(kOutput, "cannot move the finished file into place at '", mFinalPath,
-             "': ", std::strerror(renameErrno));
-  }
-  mCommitted = true;
 }
 
 void writeFileAtomically(const std::string& path, const std::string& bytes) {

@@ -35,7 +35,8 @@ void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], 
 }
 
 void writeExrAtomically(const std::string& path, const char* kind,
-                        const std::function<void(const std::string& tempPath)>& body) {
+                        const std::function<void(const std::string& tempPath)>& body,
+                        bool syncToDisk) {
   AtomicFile atomic(path);
   try {
     body(atomic.tempPath());
@@ -44,7 +45,7 @@ void writeExrAtomically(const std::string& path, const char* kind,
   } catch (const std::exception& e) {
     DS_THROW(kOutput, "cannot write ", kind, " EXR '", path, "': ", e.what());
   }
-  atomic.commit();
+  atomic.commit(syncToDisk);
 }
 
 void writeScanlines(const std::string& path, const std::string& tempPath, const Imf::Header& header,

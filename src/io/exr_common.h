@@ -36,8 +36,10 @@ void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], 
 /// Writes `path` atomically: `body` writes the file at the temporary path it is given (with
 /// writeScanlines) and the file is renamed into place once `body` returns. drivenshape::Error
 /// passes through; any other exception becomes Error(kOutput) "cannot write <kind> EXR '<path>'".
+/// `syncToDisk`: fsync before the rename (AtomicFile::commit).
 void writeExrAtomically(const std::string& path, const char* kind,
-                        const std::function<void(const std::string& tempPath)>& body);
+                        const std::function<void(const std::string& tempPath)>& body,
+                        bool syncToDisk = true);
 
 /// Writes the `height` scan lines of `frameBuffer` with `header` to `tempPath` (the temporary
 /// file of `path`) through our own stream, so that a failure while OpenEXR's destructor writes

@@ -211,54 +211,57 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
   const std::size_t height = (static_cast<std::size_t>(vertexCount) + width - 1) / width;
   const std::size_t pixels = width * height;
 
-  writeExrAtomically(path, "point-cache", [&](const std::string& tempPath) {
-    std::vector<float> positions = paddedXyz(xyz, vertexCount, pixels);
-    std::vector<float> normalData;
-    if (normals != nullptr) {
-      normalData = paddedXyz(normals, vertexCount, pixels);
-    }
-    std::vector<float> coverage(pixels, 0.0f);
-    std::fill(coverage.begin(), coverage.begin() + vertexCount, 1.0f);
+  writeExrAtomically(
+      path, "point-cache",
+      [&](const std::string& tempPath) {
+        std::vector<float> positions = paddedXyz(xyz, vertexCount, pixels);
+        std::vector<float> normalData;
+        if (normals != nullptr) {
+          normalData = paddedXyz(normals, vertexCount, pixels);
+        }
+        std::vector<float> coverage(pixels, 0.0f);
+        std::fill(coverage.begin(), coverage.begin() + vertexCount, 1.0f);
 
-    Imf::Header header(options.width, static_cast<int>(height));
-    header.compression() = toImf(options.compression);
-    for (const char* name : kPositionChannels) {
-      header.channels().insert(name, Imf::Channel(Imf::FLOAT));
-    }
-    header.channels().insert(kCoverageChannel, Imf::Channel(Imf::FLOAT));
-    if (normals != nullptr) {
-      for (const char* name : kNormalChannels) {
-        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
-      }
-    }
-    const Bounds bounds = computeBounds(xyz, vertexCount);
-    header.insert(kAttrVertexCount, Imf::IntAttribute(vertexCount));
-    header.insert(kAttrFrame, Imf::IntAttribute(options.frame));
-    header.insert(kAttrTopologyHash, Imf::StringAttribute(hashToHex(options.topologyHash)));
-    header.insert(kAttrToolVersion, Imf::StringAttribute(kVersion));
-    header.insert(kAttrBoundsMin,
-                  Imf::V3fAttribute(Imath::V3f(bounds.min.x(), bounds.min.y(), bounds.min.z())));
-    header.insert(kAttrBoundsMax,
-                  Imf::V3fAttribute(Imath::V3f(bounds.max.x(), bounds.max.y(), bounds.max.z())));
-    if (options.settingsHash != 0) {
-      header.insert(kAttrSettingsHash, Imf::StringAttribute(hashToHex(options.settingsHash)));
-    }
-    Imf::addFramesPerSecond(header, Imf::guessExactFps(options.framesPerSecond));
-    for (const auto& [name, value] : options.stringAttributes) {
-      header.insert(name, Imf::StringAttribute(value));
-    }
+        Imf::Header header(options.width, static_cast<int>(height));
+        header.compression() = toImf(options.compression);
+        for (const char* name : kPositionChannels) {
+          header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+        }
+        header.channels().insert(kCoverageChannel, Imf::Channel(Imf::FLOAT));
+        if (normals != nullptr) {
+          for (const char* name : kNormalChannels) {
+            header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+          }
+        }
+        const Bounds bounds = computeBounds(xyz, vertexCount);
+        header.insert(kAttrVertexCount, Imf::IntAttribute(vertexCount));
+        header.insert(kAttrFrame, Imf::IntAttribute(options.frame));
+        header.insert(kAttrTopologyHash, Imf::StringAttribute(hashToHex(options.topologyHash)));
+        header.insert(kAttrToolVersion, Imf::StringAttribute(kVersion));
+        header.insert(kAttrBoundsMin, Imf::V3fAttribute(Imath::V3f(bounds.min.x(), bounds.min.y(),
+                                                                   bounds.min.z())));
+        header.insert(kAttrBoundsMax, Imf::V3fAttribute(Imath::V3f(bounds.max.x(), bounds.max.y(),
+                                                                   bounds.max.z())));
+        if (options.settingsHash != 0) {
+          header.insert(kAttrSettingsHash, Imf::StringAttribute(hashToHex(options.settingsHash)));
+        }
+        Imf::addFramesPerSecond(header, Imf::guessExactFps(options.framesPerSecond));
+        for (const auto& [name, value] : options.stringAttributes) {
+          header.insert(name, Imf::StringAttribute(value));
+        }
 
-    Imf::FrameBuffer frameBuffer;
-    insertXyzSlices(frameBuffer, kPositionChannels, positions.data(), width);
-    frameBuffer.insert(kCoverageChannel,
-                       Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(coverage.data()),
-                                  sizeof(float), sizeof(float) * width));
-    if (normals != nullptr) {
-      insertXyzSlices(frameBuffer, kNormalChannels, normalData.data(), width);
-    }
+        Imf::FrameBuffer frameBuffer;
+        insertXyzSlices(frameBuffer, kPositionChannels, positions.data(), width);
+        frameBuffer.insert(kCoverageChannel,
+                           Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(coverage.data()),
+                                      sizeof(float), sizeof(float) * width));
+        if (normals != nullptr) {
+          insertXyzSlices(frameBuffer, kNormalChannels, normalData.data(), width);
+        }
 
-    writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height));
-  });
+        writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height));
+      },
+      options.syncToDisk);
 }
 
 ExrPointCacheInfo readPointCacheExrInfo(const std::string& path) {

@@ -94,6 +94,32 @@ std::vector<int> referencePicks(const std::vector<float>& shapes, std::size_t va
   return chosen;
 }
 
+TEST(Database, SeedIsTheEndOfTheOpeningHoldAtRest) {
+  // A simulated reference clip: frames 1-5 hold the rest pose while the cloth drapes (the
+  // driven shapes differ), then the character moves. The seed must be frame 5, the settled one.
+  std::mt19937 rng(testing::testSeed());
+  TempDir dir;
+  const Mesh driver = gridMesh(6, 0.0f);
+  const Mesh driven = gridMesh(5, 0.1f);
+  const int frames = 20;
+  const std::size_t values = driver.vertexCount() * 3;
+  std::vector<float> driverData =
+      writeRandomCache(dir.file("unused.pc2"), driver, frames, rng, 0.2f);
+  for (int f = 0; f < 5; ++f) {
+    std::copy_n(driver.positions.data(), values, &driverData[f * values]);
+  }
+  writePc2(dir.file("driver.pc2"), driver.vertexCount(), 1.0f, frames, driverData.data());
+  writeRandomCache(dir.file("driven.pc2"), driven, frames, rng, 0.2f);
+  const auto driverCache = openPointCache(dir.file("driver.pc2"));
+  const auto drivenCache = openPointCache(dir.file("driven.pc2"));
+  DatabaseBuildOptions options;
+  options.count = 4;
+  const Database db = buildDatabase(driver, driven, *driverCache, *drivenCache, options);
+  ASSERT_GE(db.shapeCount(), 1);
+  EXPECT_EQ(db.frames[0], 5);
+  EXPECT_EQ(db.reasons[0], PickReason::kSeed);
+}
+
 TEST(Database, GreedyFarthestPointMatchesBruteForce) {
   std::mt19937 rng(testing::testSeed());
   TempDir dir;
@@ -109,8 +135,16 @@ TEST(Database, GreedyFarthestPointMatchesBruteForce) {
   DatabaseBuildOptions options;
   options.count = 12;
   const Database db = buildDatabase(driver, driven, *driverCache, *drivenCache, options);
-  const std::vector<int> expected =
-      referencePicks(driverData, driver.vertexCount() * 3, frames, 12, 0);
+  // The seed is the frame nearest the rest driver (random frames: no two within tolerance).
+  const std::size_t values = driver.vertexCount() * 3;
+  int seed = 0;
+  for (int f = 1; f < frames; ++f) {
+    if (rms(&driverData[f * values], driver.positions.data(), values) <
+        rms(&driverData[seed * values], driver.positions.data(), values)) {
+      seed = f;
+    }
+  }
+  const std::vector<int> expected = referencePicks(driverData, values, frames, 12, seed);
   ASSERT_EQ(db.shapeCount(), 12);
   for (int i = 0; i < 12; ++i) {
     EXPECT_EQ(db.frames[i], expected[i] + 1) << "pick " << i;  // PC2 frames start at 1

@@ -11,9 +11,7 @@
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 
-#include <sys/wait.h>
 #include <unistd.h>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -21,55 +19,18 @@
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
+#include "cli_test_util.h"
 #include "test_support.h"
 
 namespace drivenshape {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::CliRun;
+using testing::runCli;
+using testing::sample;
+using testing::slurp;
 using testing::TempDir;
-
-struct CliRun {
-  int code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-std::string quote(const std::string& word) {
-  std::string quoted = "'";
-  for (char ch : word) {
-    quoted += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  }
-  return quoted + "'";
-}
-
-CliRun runCli(const TempDir& dir, const std::vector<std::string>& args) {
-  std::string command = quote(DS_CLI_PATH);
-  for (const auto& arg : args) {
-    command += " " + quote(arg);
-  }
-  const std::string out = dir.file(".stdout"), err = dir.file(".stderr");
-  command += " >" + quote(out) + " 2>" + quote(err);
-  const int status = std::system(command.c_str());
-  CliRun result;
-  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  result.out = slurp(out);
-  result.err = slurp(err);
-  fs::remove(out);
-  fs::remove(err);
-  return result;
-}
-
-std::string sample(const std::string& name) {
-  return testing::dataDir() + "/sleeve/" + name;
-}
 
 /// Builds a small database of the sample (5 shapes) in `dir`; returns its path.
 std::string buildDb(const TempDir& dir) {

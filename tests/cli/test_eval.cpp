@@ -6,17 +6,13 @@
 
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <functional>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <sstream>
 #include <tuple>
 
 #include <Eigen/Geometry>
@@ -27,15 +23,21 @@
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
+#include "cli_test_util.h"
 #include "test_support.h"
 
 namespace drivenshape {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::CliRun;
+using testing::expectThrows;
 using testing::kEvalDepthRelTol;
 using testing::kEvalErrorRelTol;
 using testing::kTransferRelTol;
+using testing::runCli;
+using testing::sample;
+using testing::slurp;
 using testing::TempDir;
 
 // ---- The cube scene ----
@@ -304,20 +306,40 @@ void checkCubeEvaluation(const CubeScene& scene, const ShotEvaluation& e) {
   EXPECT_LE(e.baseline.max, kTransferRelTol * S);
 }
 
+/// The cube scene's files in `dir` (writeCubeFiles), read back.
+struct CubeFiles {
+  explicit CubeFiles(const TempDir& dir)
+      : driverMesh(readObj(dir.file("driver.obj"))),
+        drivenMesh(readObj(dir.file("cloth.obj"))),
+        truth(openPointCache(dir.file("truth.pc2"))),
+        bake(openPointCache(dir.file("bake.pc2"))),
+        driver(openPointCache(dir.file("driver.pc2"))) {}
+  CubeFiles(const CubeFiles&) = delete;  // input() points into this object
+  CubeFiles& operator=(const CubeFiles&) = delete;
+
+  /// The evaluation of the bake against the truth with the baseline, over these files.
+  ShotEvaluationInput input() const {
+    ShotEvaluationInput in;
+    in.truth = truth.get();
+    in.bake = bake.get();
+    in.driver = driver.get();
+    in.driverMesh = &driverMesh;
+    in.drivenMesh = &drivenMesh;
+    in.baseline = true;
+    return in;
+  }
+
+  Mesh driverMesh;
+  Mesh drivenMesh;
+  std::unique_ptr<PointCacheReader> truth;
+  std::unique_ptr<PointCacheReader> bake;
+  std::unique_ptr<PointCacheReader> driver;
+};
+
 /// Evaluates the cube scene from files with `closest`.
 ShotEvaluation evaluateCube(const TempDir& dir, ClosestBackend& closest, int batch) {
-  const Mesh driverMesh = readObj(dir.file("driver.obj"));
-  const Mesh drivenMesh = readObj(dir.file("cloth.obj"));
-  const auto truth = openPointCache(dir.file("truth.pc2"));
-  const auto bake = openPointCache(dir.file("bake.pc2"));
-  const auto driver = openPointCache(dir.file("driver.pc2"));
-  ShotEvaluationInput input;
-  input.truth = truth.get();
-  input.bake = bake.get();
-  input.driver = driver.get();
-  input.driverMesh = &driverMesh;
-  input.drivenMesh = &drivenMesh;
-  input.baseline = true;
+  const CubeFiles files(dir);
+  ShotEvaluationInput input = files.input();
   input.batch = batch;
   return evaluateShot(input, {1, 2, 3, 4, 5, 6}, closest);
 }
@@ -349,42 +371,24 @@ TEST_F(EvalShotCl, CubeFiguresMatchTheAnalyticTruthOnOpenCl) {
   checkCubeEvaluation(scene, evaluateCube(dir, *cl, 16));
 }
 
-void expectThrows(const std::function<void()>& call, ErrorCode code, const std::string& mention) {
-  try {
-    call();
-    ADD_FAILURE() << "no exception; expected one mentioning '" << mention << "'";
-  } catch (const Error& error) {
-    EXPECT_EQ(static_cast<int>(error.code()), static_cast<int>(code)) << error.what();
-    EXPECT_NE(std::string(error.what()).find(mention), std::string::npos) << error.what();
-  }
-}
-
 TEST(EvalShot, BadInputsGiveClearErrors) {
   const CubeScene scene(testing::testSeed());
   TempDir dir;
   writeCubeFiles(scene, dir);
-  const Mesh driverMesh = readObj(dir.file("driver.obj"));
-  const Mesh drivenMesh = readObj(dir.file("cloth.obj"));
-  const auto truth = openPointCache(dir.file("truth.pc2"));
-  const auto bake = openPointCache(dir.file("bake.pc2"));
-  const auto driver = openPointCache(dir.file("driver.pc2"));
+  const CubeFiles files(dir);
+  const Mesh& driverMesh = files.driverMesh;
+  const Mesh& drivenMesh = files.drivenMesh;
   const auto host = makeHostClosest();
   auto base = [&] {
-    ShotEvaluationInput input;
-    input.truth = truth.get();
-    input.bake = bake.get();
-    input.driver = driver.get();
-    input.driverMesh = &driverMesh;
-    input.drivenMesh = &drivenMesh;
+    ShotEvaluationInput input = files.input();
     input.driverMeshName = "driver.obj";
     input.drivenMeshName = "cloth.obj";
-    input.baseline = true;
     return input;
   };
   ShotEvaluationInput input = base();
   expectThrows([&] { evaluateShot(input, {}, *host); }, ErrorCode::kUsage, "empty");
   expectThrows([&] { evaluateShot(input, {1, 7}, *host); }, ErrorCode::kInput, "no frame 7");
-  input.bake = driver.get();  // 26 vertices against 240
+  input.bake = files.driver.get();  // 26 vertices against 240
   expectThrows([&] { evaluateShot(input, {1}, *host); }, ErrorCode::kInput, "vertices");
   input = base();
   input.driverMesh = &drivenMesh;  // the wrong rest mesh for the driver cache
@@ -405,50 +409,8 @@ TEST(EvalShot, BadInputsGiveClearErrors) {
 
 // ---- The command ----
 
-struct CliRun {
-  int code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-std::string quote(const std::string& word) {
-  std::string quoted = "'";
-  for (char ch : word) {
-    quoted += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  }
-  return quoted + "'";
-}
-
-CliRun runCli(const TempDir& dir, const std::vector<std::string>& args) {
-  std::string command = quote(DS_CLI_PATH);
-  for (const auto& arg : args) {
-    command += " " + quote(arg);
-  }
-  const std::string out = dir.file(".stdout"), err = dir.file(".stderr");
-  command += " >" + quote(out) + " 2>" + quote(err);
-  const int status = std::system(command.c_str());
-  CliRun result;
-  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  result.out = slurp(out);
-  result.err = slurp(err);
-  fs::remove(out);
-  fs::remove(err);
-  return result;
-}
-
 nlohmann::json readJson(const std::string& path) {
   return nlohmann::json::parse(slurp(path));
-}
-
-std::string sample(const std::string& name) {
-  return testing::dataDir() + "/sleeve/" + name;
 }
 
 /// One error line naming `fragment`, with exit code `code`.

@@ -19,6 +19,29 @@ ClosestBackend* CorrectionClTest::clBackend() {
   return backend.get();
 }
 
+std::vector<std::vector<SurfaceHit>> CorrectionClTest::expectExactOnBothBackends(
+    const PosedScene& scene, const BindingMask& mask) {
+  const std::vector<double> brute =
+      bruteForceAll(scene.mesh, scene.frameCount, scene.poses.data(), scene.points.data(), mask);
+  std::vector<std::vector<SurfaceHit>> results;
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    results.push_back(closestHits(*backend, scene.mesh, mask, scene.frameCount, scene.poses.data(),
+                                  scene.points.data()));
+    expectExact(scene.mesh, scene.frameCount, scene.poses.data(), scene.points.data(), mask,
+                results.back(), brute, kClosestDistanceTol);
+  }
+  return results;
+}
+
+void expectDeviceMatchesHost(const std::vector<float>& host, const std::vector<float>& cl,
+                             double diagonal) {
+  const double error = maxPointError(host, cl);
+  EXPECT_LE(error, kDeviceVsHostRelTol * diagonal)
+      << "largest |cl - host| " << error << ", tolerance " << kDeviceVsHostRelTol << " x "
+      << diagonal;
+}
+
 std::vector<double> bruteForceAll(const Mesh& mesh, int frameCount, const float* poses,
                                   const float* points, const BindingMask& mask) {
   const int pointCount = mask.drivenVertexCount();

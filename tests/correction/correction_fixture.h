@@ -7,6 +7,7 @@
 
 #include <drivenshape/correction.h>
 
+#include "correction_test_util.h"
 #include "test_support.h"
 
 namespace drivenshape::testing {
@@ -16,7 +17,17 @@ class CorrectionClTest : public OpenClTest {
   /// Backends shared by the tests of this binary; tests call setSurface() before use.
   static ClosestBackend* hostBackend();
   static ClosestBackend* clBackend();
+
+  /// The hits of every frame of `scene` with `mask` on the host backend, then on the OpenCL one,
+  /// each checked with expectExact (kClosestDistanceTol) against the brute-force distances.
+  static std::vector<std::vector<SurfaceHit>> expectExactOnBothBackends(const PosedScene& scene,
+                                                                        const BindingMask& mask);
 };
+
+/// The same call's interleaved xyz results on the host and on OpenCL: the largest point
+/// difference must be within kDeviceVsHostRelTol x `diagonal` (a bounding-box diagonal).
+void expectDeviceMatchesHost(const std::vector<float>& host, const std::vector<float>& cl,
+                             double diagonal);
 
 /// Brute-force distances (the oracle) of frameCount x Vd points to the triangles each point's
 /// mask class allows, frame f on pose f. Multi-threaded.

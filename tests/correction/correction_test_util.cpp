@@ -283,6 +283,52 @@ Mesh subdividedCube(int n) {
   return makeMesh(welded, faces);
 }
 
+PosedScene randomSoupScene(std::uint32_t seed, int vertexCount, int triangleCount, float jitter,
+                           int frameCount, int pointCount) {
+  std::mt19937 rng(seed);
+  PosedScene scene;
+  scene.mesh = randomSoup(rng, vertexCount, triangleCount);
+  scene.frameCount = frameCount;
+  scene.pointCount = pointCount;
+  std::normal_distribution<float> move(0.0f, jitter);
+  for (int f = 0; f < frameCount; ++f) {
+    std::vector<float> pose = flatPositions(scene.mesh);
+    if (f > 0) {
+      for (float& x : pose) {
+        x += move(rng);
+      }
+    }
+    const std::vector<float> points = randomPoints(rng, scene.mesh, pose.data(), pointCount);
+    scene.poses.insert(scene.poses.end(), pose.begin(), pose.end());
+    scene.points.insert(scene.points.end(), points.begin(), points.end());
+  }
+  return scene;
+}
+
+BindingMask randomClassMask(const Mesh& mesh, int pointCount, int single, std::mt19937& rng) {
+  std::vector<std::vector<int>> classes(3);
+  std::bernoulli_distribution half(0.5);
+  for (int t = 0; t < mesh.triangleCount(); ++t) {
+    classes[half(rng) ? 0 : 1].push_back(t);
+  }
+  classes[2] = {single};
+  std::vector<int> vertexClass(static_cast<std::size_t>(pointCount));
+  for (int i = 0; i < pointCount; ++i) {
+    vertexClass[static_cast<std::size_t>(i)] = i % 4 - 1;
+  }
+  return BindingMask(vertexClass, classes);
+}
+
+DegenerateFrames degenerateFrames() {
+  DegenerateFrames out;
+  out.from = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 0, 0, 6, 0, 0};
+  out.mesh = makeMesh(out.from, {{0, 1, 1}, {0, 1, 2}, {3, 4, 4}});
+  out.to = {1, 1, 1, 1, 2, 1, 0, 1, 1, 9, 9, 9, 9, 9, 9};
+  out.points = {0.5f, 0.2f, 0.3f, 0.2f, 0.2f, 0.5f, 5.5f, 1.0f, 0.0f};
+  out.hits = {{0, 0.5f, 0.0f, 0.0f}, {1, 0.2f, 0.2f, 0.0f}, {2, 0.5f, 0.0f, 0.0f}};
+  return out;
+}
+
 SleeveData loadSleeve(const std::vector<int>& frameIndices) {
   SleeveData data;
   const std::string dir = dataDir() + "/sleeve/";
@@ -297,6 +343,54 @@ SleeveData loadSleeve(const std::vector<int>& frameIndices) {
   data.poses = readFrames(*driverCache, data.frames);
   data.points = readFrames(*drivenCache, data.frames);
   return data;
+}
+
+PosedScene restAndFrames(const SleeveData& sleeve) {
+  PosedScene scene;
+  scene.mesh = sleeve.driver;
+  scene.frameCount = 1 + static_cast<int>(sleeve.frames.size());
+  scene.pointCount = sleeve.driven.vertexCount();
+  scene.poses = flatPositions(sleeve.driver);
+  scene.points = flatPositions(sleeve.driven);
+  scene.poses.insert(scene.poses.end(), sleeve.poses.begin(), sleeve.poses.end());
+  scene.points.insert(scene.points.end(), sleeve.points.begin(), sleeve.points.end());
+  return scene;
+}
+
+std::vector<SurfaceHit> closestHits(ClosestBackend& backend, const Mesh& mesh,
+                                    const BindingMask& mask, int frameCount, const float* poses,
+                                    const float* points) {
+  backend.setSurface(mesh, mask);
+  std::vector<SurfaceHit> hits(static_cast<std::size_t>(frameCount) *
+                               static_cast<std::size_t>(mask.drivenVertexCount()));
+  backend.closest(frameCount, poses, points, hits.data());
+  return hits;
+}
+
+std::vector<float> flatPositions(const Mesh& mesh) {
+  return std::vector<float>(mesh.positions.data(), mesh.positions.data() + 3 * mesh.vertexCount());
+}
+
+std::vector<float> rigidlyMoved(const std::vector<float>& xyz, const Eigen::Matrix3d& rotation,
+                                const Eigen::Vector3d& translation) {
+  std::vector<float> out(xyz.size());
+  for (std::size_t i = 0; i < xyz.size(); i += 3) {
+    const Eigen::Vector3d p =
+        rotation * Eigen::Vector3d(xyz[i], xyz[i + 1], xyz[i + 2]) + translation;
+    out[i] = static_cast<float>(p.x());
+    out[i + 1] = static_cast<float>(p.y());
+    out[i + 2] = static_cast<float>(p.z());
+  }
+  return out;
+}
+
+double maxPointError(const std::vector<float>& a, const std::vector<float>& b) {
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.size(); i += 3) {
+    const Eigen::Vector3d d(a[i] - b[i], a[i + 1] - b[i + 1], a[i + 2] - b[i + 2]);
+    worst = std::max(worst, d.norm());
+  }
+  return worst;
 }
 
 }  // namespace drivenshape::testing

@@ -126,13 +126,8 @@ TEST(BindingMask, ReadsAFile) {
   }
   const BindingMask mask = readBindingMask(dir.file("legs.json"), legs.driver, legs.driven);
   EXPECT_EQ(mask.classCount(), 2);
-  try {
-    readBindingMask(dir.file("missing.json"), legs.driver, legs.driven);
-    ADD_FAILURE() << "missing file accepted";
-  } catch (const Error& error) {
-    EXPECT_EQ(error.code(), ErrorCode::kInput);
-    EXPECT_NE(std::string(error.what()).find("missing.json"), std::string::npos);
-  }
+  expectThrows([&] { readBindingMask(dir.file("missing.json"), legs.driver, legs.driven); },
+               ErrorCode::kInput, "missing.json");
 }
 
 TEST(BindingMask, ErrorsNameTheFileTheEntryAndTheProblem) {

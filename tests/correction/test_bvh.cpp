@@ -23,52 +23,18 @@ namespace drivenshape::testing {
 namespace {
 
 /// A triangle soup with `frameCount` jittered poses and random points per frame.
-struct Scene {
-  Mesh mesh;
-  int frameCount = 0;
-  int pointCount = 0;
-  std::vector<float> poses;
-  std::vector<float> points;
-};
-
-Scene makeScene(std::uint32_t seed, int frameCount, int pointCount) {
-  std::mt19937 rng(seed);
-  Scene scene;
-  scene.mesh = randomSoup(rng, 200, 600);
-  scene.frameCount = frameCount;
-  scene.pointCount = pointCount;
-  std::normal_distribution<float> jitter(0.0f, 0.02f);
-  const int vp = scene.mesh.vertexCount();
-  for (int f = 0; f < frameCount; ++f) {
-    std::vector<float> pose(scene.mesh.positions.data(), scene.mesh.positions.data() + 3 * vp);
-    for (float& x : pose) {
-      x += f > 0 ? jitter(rng) : 0.0f;
-    }
-    const std::vector<float> points = randomPoints(rng, scene.mesh, pose.data(), pointCount);
-    scene.poses.insert(scene.poses.end(), pose.begin(), pose.end());
-    scene.points.insert(scene.points.end(), points.begin(), points.end());
-  }
-  return scene;
+PosedScene makeScene(std::uint32_t seed, int frameCount, int pointCount) {
+  return randomSoupScene(seed, 200, 600, 0.02f, frameCount, pointCount);
 }
 
 /// Three classes (halves of the triangles and a single triangle) and a quarter unrestricted.
 BindingMask makeMask(const Mesh& mesh, int pointCount, std::mt19937& rng) {
-  std::vector<std::vector<int>> classes(3);
-  std::bernoulli_distribution half(0.5);
-  for (int t = 0; t < mesh.triangleCount(); ++t) {
-    classes[half(rng) ? 0 : 1].push_back(t);
-  }
-  classes[2] = {mesh.triangleCount() / 3};
-  std::vector<int> vertexClass(static_cast<std::size_t>(pointCount));
-  for (int i = 0; i < pointCount; ++i) {
-    vertexClass[static_cast<std::size_t>(i)] = i % 4 - 1;
-  }
-  return BindingMask(vertexClass, classes);
+  return randomClassMask(mesh, pointCount, mesh.triangleCount() / 3, rng);
 }
 
 TEST(Bvh, TreesHoldEachAllowedTriangleOnceAndAreSortedByDepth) {
   std::mt19937 rng(testSeed());
-  const Scene scene = makeScene(testSeed(), 1, 400);
+  const PosedScene scene = makeScene(testSeed(), 1, 400);
   const BindingMask mask = makeMask(scene.mesh, scene.pointCount, rng);
   for (int leafSize : {1, 4}) {
     SCOPED_TRACE(leafSize);
@@ -130,7 +96,7 @@ TEST(Bvh, TreesHoldEachAllowedTriangleOnceAndAreSortedByDepth) {
 
 TEST_F(CorrectionClTest, BvhAnswerDoesNotDependOnChunkingOrWarmStart) {
   std::mt19937 rng(testSeed() + 7);
-  const Scene scene = makeScene(testSeed() + 7, 4, 2000);
+  const PosedScene scene = makeScene(testSeed() + 7, 4, 2000);
   const BindingMask mask = makeMask(scene.mesh, scene.pointCount, rng);
   const int vp = scene.mesh.vertexCount();
   const int vd = scene.pointCount;
@@ -177,7 +143,7 @@ TEST_F(CorrectionClTest, BvhAnswerDoesNotDependOnChunkingOrWarmStart) {
 TEST_F(CorrectionClTest, BvhStaysExactWhenTheWarmStartIsFarOff) {
   // The first chunk seeds the search; the second moves every point across the scene (the
   // points of another random set, and far points), so every seed is a poor bound.
-  const Scene scene = makeScene(testSeed() + 11, 2, 3000);
+  const PosedScene scene = makeScene(testSeed() + 11, 2, 3000);
   const int vp = scene.mesh.vertexCount();
   const int vd = scene.pointCount;
   const BindingMask mask = BindingMask::all(vd);

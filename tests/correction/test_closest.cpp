@@ -20,77 +20,22 @@ namespace drivenshape::testing {
 namespace {
 
 /// Random scene: a triangle soup and `frameCount` jittered poses with their own query points.
-struct RandomScene {
-  Mesh mesh;
-  int frameCount = 0;
-  int pointCount = 0;
-  std::vector<float> poses;
-  std::vector<float> points;
-};
-
-RandomScene makeRandomScene(std::uint32_t seed, int frameCount, int pointCount) {
-  std::mt19937 rng(seed);
-  RandomScene scene;
-  scene.mesh = randomSoup(rng, 150, 400);
-  scene.frameCount = frameCount;
-  scene.pointCount = pointCount;
-  std::normal_distribution<float> jitter(0.0f, 0.01f);
-  const int vertexCount = scene.mesh.vertexCount();
-  for (int f = 0; f < frameCount; ++f) {
-    std::vector<float> pose(scene.mesh.positions.data(),
-                            scene.mesh.positions.data() + 3 * vertexCount);
-    if (f > 0) {
-      for (float& x : pose) {
-        x += jitter(rng);
-      }
-    }
-    const std::vector<float> points = randomPoints(rng, scene.mesh, pose.data(), pointCount);
-    scene.poses.insert(scene.poses.end(), pose.begin(), pose.end());
-    scene.points.insert(scene.points.end(), points.begin(), points.end());
-  }
-  return scene;
+PosedScene makeRandomScene(std::uint32_t seed, int frameCount, int pointCount) {
+  return randomSoupScene(seed, 150, 400, 0.01f, frameCount, pointCount);
 }
 
 TEST_F(CorrectionClTest, RandomSoupsWithSliversAndFarPointsAreExactOnBothBackends) {
-  const RandomScene scene = makeRandomScene(testSeed(), 3, 4000);
+  const PosedScene scene = makeRandomScene(testSeed(), 3, 4000);
   const BindingMask mask = BindingMask::all(scene.pointCount);
-  const std::vector<double> brute =
-      bruteForceAll(scene.mesh, scene.frameCount, scene.poses.data(), scene.points.data(), mask);
-  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
-    SCOPED_TRACE(backend->name());
-    backend->setSurface(scene.mesh, mask);
-    std::vector<SurfaceHit> hits(static_cast<std::size_t>(scene.frameCount * scene.pointCount));
-    backend->closest(scene.frameCount, scene.poses.data(), scene.points.data(), hits.data());
-    expectExact(scene.mesh, scene.frameCount, scene.poses.data(), scene.points.data(), mask, hits,
-                brute, kClosestDistanceTol);
-  }
+  expectExactOnBothBackends(scene, mask);
 }
 
 TEST_F(CorrectionClTest, SleeveRestAndShotFramesAreExactOnBothBackends) {
   // Rest meshes, then frames 0, 20 and 47 of the test shot (driven from the simulation).
   const SleeveData sleeve = loadSleeve({0, 20, 47});
-  const int vp = sleeve.driver.vertexCount();
-  const int vd = sleeve.driven.vertexCount();
-  std::vector<float> poses(sleeve.driver.positions.data(), sleeve.driver.positions.data() + 3 * vp);
-  std::vector<float> points(sleeve.driven.positions.data(),
-                            sleeve.driven.positions.data() + 3 * vd);
-  poses.insert(poses.end(), sleeve.poses.begin(), sleeve.poses.end());
-  points.insert(points.end(), sleeve.points.begin(), sleeve.points.end());
-  const int frameCount = 1 + static_cast<int>(sleeve.frames.size());
-  const BindingMask mask = BindingMask::all(vd);
-  const std::vector<double> brute =
-      bruteForceAll(sleeve.driver, frameCount, poses.data(), points.data(), mask);
-
-  std::vector<std::vector<SurfaceHit>> results;
-  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
-    SCOPED_TRACE(backend->name());
-    backend->setSurface(sleeve.driver, mask);
-    std::vector<SurfaceHit> hits(static_cast<std::size_t>(frameCount) * vd);
-    backend->closest(frameCount, poses.data(), points.data(), hits.data());
-    expectExact(sleeve.driver, frameCount, poses.data(), points.data(), mask, hits, brute,
-                kClosestDistanceTol);
-    results.push_back(hits);
-  }
+  const PosedScene scene = restAndFrames(sleeve);
+  const std::vector<std::vector<SurfaceHit>> results =
+      expectExactOnBothBackends(scene, BindingMask::all(scene.pointCount));
   // Same candidates, same arithmetic, same tie band: the same triangles.
   int differ = 0;
   for (std::size_t k = 0; k < results[0].size(); ++k) {
@@ -117,35 +62,13 @@ TEST_F(CorrectionClTest, SinglePrecisionDevicePathIsExactToItsTolerance) {
 
 TEST_F(CorrectionClTest, MaskRestrictsHitsAndMatchesRestrictedBruteForce) {
   const std::uint32_t seed = testSeed() + 1;
-  const RandomScene scene = makeRandomScene(seed, 2, 3000);
+  const PosedScene scene = makeRandomScene(seed, 2, 3000);
   std::mt19937 rng(seed);
   // Three classes of random triangle subsets (one of a single triangle); a quarter of the
   // points unrestricted.
-  std::vector<std::vector<int>> classes(3);
-  std::bernoulli_distribution half(0.5);
-  for (int t = 0; t < scene.mesh.triangleCount(); ++t) {
-    if (half(rng)) {
-      classes[0].push_back(t);
-    } else {
-      classes[1].push_back(t);
-    }
-  }
-  classes[2] = {scene.mesh.triangleCount() / 2};
-  std::vector<int> vertexClass(static_cast<std::size_t>(scene.pointCount));
-  for (int i = 0; i < scene.pointCount; ++i) {
-    vertexClass[static_cast<std::size_t>(i)] = i % 4 - 1;
-  }
-  const BindingMask mask(vertexClass, classes);
-  const std::vector<double> brute =
-      bruteForceAll(scene.mesh, scene.frameCount, scene.poses.data(), scene.points.data(), mask);
-  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
-    SCOPED_TRACE(backend->name());
-    backend->setSurface(scene.mesh, mask);
-    std::vector<SurfaceHit> hits(static_cast<std::size_t>(scene.frameCount * scene.pointCount));
-    backend->closest(scene.frameCount, scene.poses.data(), scene.points.data(), hits.data());
-    expectExact(scene.mesh, scene.frameCount, scene.poses.data(), scene.points.data(), mask, hits,
-                brute, kClosestDistanceTol);
-  }
+  const BindingMask mask =
+      randomClassMask(scene.mesh, scene.pointCount, scene.mesh.triangleCount() / 2, rng);
+  expectExactOnBothBackends(scene, mask);
 }
 
 TEST_F(CorrectionClTest, TiesGoToTheSmallerTriangleIndex) {
@@ -213,26 +136,12 @@ TEST_F(CorrectionClTest, NonFinitePositionsAreNumericalErrorsNamingFrameAndVerte
     backend->setSurface(mesh, BindingMask::all(1));
     std::vector<float> badPoses = poses;
     badPoses[3 * 3 + 2 * 3 + 1] = std::nanf("");  // frame 1, vertex 2, y
-    try {
-      backend->closest(2, badPoses.data(), points.data(), hits.data());
-      ADD_FAILURE() << "NaN pose accepted";
-    } catch (const Error& error) {
-      EXPECT_EQ(error.code(), ErrorCode::kNumerical);
-      EXPECT_NE(std::string(error.what()).find("frame 1 of the chunk: driver vertex 2"),
-                std::string::npos)
-          << error.what();
-    }
+    expectThrows([&] { backend->closest(2, badPoses.data(), points.data(), hits.data()); },
+                 ErrorCode::kNumerical, "frame 1 of the chunk: driver vertex 2");
     std::vector<float> badPoints = points;
     badPoints[3] = INFINITY;  // frame 1, point 0
-    try {
-      backend->closest(2, poses.data(), badPoints.data(), hits.data());
-      ADD_FAILURE() << "infinite point accepted";
-    } catch (const Error& error) {
-      EXPECT_EQ(error.code(), ErrorCode::kNumerical);
-      EXPECT_NE(std::string(error.what()).find("frame 1 of the chunk: driven point 0"),
-                std::string::npos)
-          << error.what();
-    }
+    expectThrows([&] { backend->closest(2, poses.data(), badPoints.data(), hits.data()); },
+                 ErrorCode::kNumerical, "frame 1 of the chunk: driven point 0");
   }
 }
 
@@ -248,13 +157,8 @@ TEST_F(CorrectionClTest, SurfaceErrorsAreInputErrors) {
     } catch (const Error& error) {
       EXPECT_EQ(error.code(), ErrorCode::kInput);
     }
-    try {
-      backend->setSurface(mesh, BindingMask({0}, {{1}}));
-      ADD_FAILURE() << "mask naming a missing triangle accepted";
-    } catch (const Error& error) {
-      EXPECT_EQ(error.code(), ErrorCode::kInput);
-      EXPECT_NE(std::string(error.what()).find("triangle 1"), std::string::npos) << error.what();
-    }
+    expectThrows([&] { backend->setSurface(mesh, BindingMask({0}, {{1}})); }, ErrorCode::kInput,
+                 "triangle 1");
   }
 }
 

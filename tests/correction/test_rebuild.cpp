@@ -21,16 +21,6 @@
 namespace drivenshape::testing {
 namespace {
 
-/// Largest |a_i - b_i| over interleaved xyz points.
-double maxPointError(const std::vector<float>& a, const std::vector<float>& b) {
-  double worst = 0.0;
-  for (std::size_t i = 0; i < a.size(); i += 3) {
-    const Eigen::Vector3d d(a[i] - b[i], a[i + 1] - b[i + 1], a[i + 2] - b[i + 2]);
-    worst = std::max(worst, d.norm());
-  }
-  return worst;
-}
-
 /// The sleeve with frames 5 and 30 of the shot, and the cloth bound once on the rest pose:
 /// host hits of the rest cloth on the rest driver and their local coordinates.
 struct Binding {
@@ -46,12 +36,10 @@ Binding bindOnRest(ClosestBackend& host) {
   out.sleeve = loadSleeve({5, 30});
   const Mesh& driver = out.sleeve.driver;
   const Mesh& driven = out.sleeve.driven;
-  out.restPose.assign(driver.positions.data(), driver.positions.data() + 3 * driver.vertexCount());
-  out.restPoints.assign(driven.positions.data(),
-                        driven.positions.data() + 3 * driven.vertexCount());
-  host.setSurface(driver, BindingMask::all(driven.vertexCount()));
-  out.hits.resize(static_cast<std::size_t>(driven.vertexCount()));
-  host.closest(1, out.restPose.data(), out.restPoints.data(), out.hits.data());
+  out.restPose = flatPositions(driver);
+  out.restPoints = flatPositions(driven);
+  out.hits = closestHits(host, driver, BindingMask::all(driven.vertexCount()), 1,
+                         out.restPose.data(), out.restPoints.data());
   out.local.resize(out.restPoints.size());
   encodeLocal(driver, out.restPose.data(), driven.vertexCount(), out.restPoints.data(),
               out.hits.data(), out.local.data());
@@ -101,15 +89,10 @@ TEST_F(CorrectionClTest, RebuildOnARigidlyMovedPoseMovesThePointsRigidly) {
                           Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized())
             .toRotationMatrix();
     const Eigen::Vector3d translation(normal(rng), normal(rng), normal(rng));
-    for (const std::vector<float>* block : {&binding.restPose, &binding.restPoints}) {
-      std::vector<float>& target = block == &binding.restPose ? poses : expected;
-      for (std::size_t i = 0; i < block->size(); i += 3) {
-        const Eigen::Vector3d p =
-            rotation * Eigen::Vector3d((*block)[i], (*block)[i + 1], (*block)[i + 2]) + translation;
-        target.insert(target.end(), {static_cast<float>(p.x()), static_cast<float>(p.y()),
-                                     static_cast<float>(p.z())});
-      }
-    }
+    const std::vector<float> pose = rigidlyMoved(binding.restPose, rotation, translation);
+    const std::vector<float> points = rigidlyMoved(binding.restPoints, rotation, translation);
+    poses.insert(poses.end(), pose.begin(), pose.end());
+    expected.insert(expected.end(), points.begin(), points.end());
   }
   const double scale = sceneScale(poses.data(), static_cast<int>(poses.size() / 3), expected.data(),
                                   static_cast<int>(expected.size() / 3));
@@ -139,10 +122,7 @@ TEST_F(CorrectionClTest, OpenClRebuildMatchesHostOnDeformingPoses) {
     results.push_back(out);
   }
   const Bounds bounds = computeBounds(results[0].data(), static_cast<int>(results[0].size() / 3));
-  const double error = maxPointError(results[0], results[1]);
-  EXPECT_LE(error, kDeviceVsHostRelTol * bounds.diagonal())
-      << "largest |cl - host| " << error << ", tolerance " << kDeviceVsHostRelTol << " x "
-      << bounds.diagonal();
+  expectDeviceMatchesHost(results[0], results[1], bounds.diagonal());
   // The driver moved the cloth (not an identity in disguise).
   EXPECT_GT(maxPointError(results[0], repeat(binding.restPoints, 2)), 1e-3 * bounds.diagonal());
   // `out` may alias `local`.
@@ -152,14 +132,8 @@ TEST_F(CorrectionClTest, OpenClRebuildMatchesHostOnDeformingPoses) {
 }
 
 TEST_F(CorrectionClTest, EncodeThenRebuildIsTransferIncludingDegenerateFrames) {
-  // Triangle 0 has zero area (a repeated vertex); triangle 1 is regular; triangle 2 collapses
-  // to a point on `to`. Transfer is the reference: rebuild(encode on from, to) must equal it.
-  const std::vector<float> from = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 0, 0, 6, 0, 0};
-  const Mesh mesh = makeMesh(from, {{0, 1, 1}, {0, 1, 2}, {3, 4, 4}});
-  const std::vector<float> to = {1, 1, 1, 1, 2, 1, 0, 1, 1, 9, 9, 9, 9, 9, 9};
-  const std::vector<float> points = {0.5f, 0.2f, 0.3f, 0.2f, 0.2f, 0.5f, 5.5f, 1.0f, 0.0f};
-  const std::vector<SurfaceHit> hits = {
-      {0, 0.5f, 0.0f, 0.0f}, {1, 0.2f, 0.2f, 0.0f}, {2, 0.5f, 0.0f, 0.0f}};
+  // Transfer is the reference: rebuild(encode on from, to) must equal it.
+  const auto [from, mesh, to, points, hits] = degenerateFrames();
   std::vector<float> local(points.size());
   encodeLocal(mesh, from.data(), 3, points.data(), hits.data(), local.data());
   for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
@@ -184,32 +158,23 @@ TEST_F(CorrectionClTest, RebuildAndEncodeRejectNonFiniteInputAndForeignHits) {
   badPose[4] = std::nanf("");
   std::vector<float> badLocal = local;
   badLocal[2] = INFINITY;
-  auto expectThrow = [](ErrorCode code, const std::string& fragment, auto&& call) {
-    try {
-      call();
-      ADD_FAILURE() << "accepted; expected an error with '" << fragment << "'";
-    } catch (const Error& error) {
-      EXPECT_EQ(error.code(), code) << error.what();
-      EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
-    }
-  };
   for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
     SCOPED_TRACE(backend->name());
     backend->setSurface(mesh, BindingMask::all(1));
-    expectThrow(ErrorCode::kNumerical, "vertex of the 'to' pose 1", [&] {
-      backend->rebuild(1, good.data(), badPose.data(), local.data(), out.data());
-    });
-    expectThrow(ErrorCode::kNumerical, "driven point 0", [&] {
-      backend->rebuild(1, good.data(), pose.data(), badLocal.data(), out.data());
-    });
-    expectThrow(ErrorCode::kInput, "hit triangle 7", [&] {
-      backend->rebuild(1, foreign.data(), pose.data(), local.data(), out.data());
-    });
+    expectThrows(
+        [&] { backend->rebuild(1, good.data(), badPose.data(), local.data(), out.data()); },
+        ErrorCode::kNumerical, "vertex of the 'to' pose 1");
+    expectThrows(
+        [&] { backend->rebuild(1, good.data(), pose.data(), badLocal.data(), out.data()); },
+        ErrorCode::kNumerical, "driven point 0");
+    expectThrows(
+        [&] { backend->rebuild(1, foreign.data(), pose.data(), local.data(), out.data()); },
+        ErrorCode::kInput, "hit triangle 7");
   }
-  expectThrow(ErrorCode::kNumerical, "driver vertex 1",
-              [&] { encodeLocal(mesh, badPose.data(), 1, local.data(), good.data(), out.data()); });
-  expectThrow(ErrorCode::kInput, "hit triangle 7",
-              [&] { encodeLocal(mesh, pose.data(), 1, local.data(), foreign.data(), out.data()); });
+  expectThrows([&] { encodeLocal(mesh, badPose.data(), 1, local.data(), good.data(), out.data()); },
+               ErrorCode::kNumerical, "driver vertex 1");
+  expectThrows([&] { encodeLocal(mesh, pose.data(), 1, local.data(), foreign.data(), out.data()); },
+               ErrorCode::kInput, "hit triangle 7");
 }
 
 }  // namespace

@@ -36,25 +36,21 @@ double cubeSignedDistance(const float* p, const Eigen::Vector3d& centre) {
 /// Two frames of a subdivided cube (the second moved by `shift`) and random points around it,
 /// none within 1e-3 of the surface or of the offset surface (so the decision to move is not a
 /// rounding question), plus points exactly at an edge and a corner direction.
-struct CubeScene {
-  Mesh cube;
-  int frameCount = 2;
-  int pointCount = 0;
-  std::vector<float> poses;
-  std::vector<float> points;
-  std::vector<Eigen::Vector3d> centres;
+struct CubeScene : PosedScene {
+  std::vector<Eigen::Vector3d> centres;  ///< the cube's centre in each frame
 };
 
 CubeScene makeCubeScene() {
   CubeScene scene;
-  scene.cube = subdividedCube(3);
-  const int vp = scene.cube.vertexCount();
+  scene.mesh = subdividedCube(3);
+  scene.frameCount = 2;
+  const int vp = scene.mesh.vertexCount();
   const Eigen::Vector3d shift(0.3, -0.2, 0.15);
   scene.centres = {Eigen::Vector3d::Zero(), shift};
   for (const Eigen::Vector3d& centre : scene.centres) {
     for (int v = 0; v < vp; ++v) {
       for (int a = 0; a < 3; ++a) {
-        scene.poses.push_back(scene.cube.positions(v, a) + static_cast<float>(centre[a]));
+        scene.poses.push_back(scene.mesh.positions(v, a) + static_cast<float>(centre[a]));
       }
     }
   }
@@ -83,15 +79,13 @@ CubeScene makeCubeScene() {
 /// Exact hits of `points` on `poses` with the host backend (every triangle allowed).
 std::vector<SurfaceHit> hostHits(ClosestBackend& host, const CubeScene& scene,
                                  const std::vector<float>& points) {
-  host.setSurface(scene.cube, BindingMask::all(scene.pointCount));
-  std::vector<SurfaceHit> hits(static_cast<std::size_t>(scene.frameCount) * scene.pointCount);
-  host.closest(scene.frameCount, scene.poses.data(), points.data(), hits.data());
-  return hits;
+  return closestHits(host, scene.mesh, BindingMask::all(scene.pointCount), scene.frameCount,
+                     scene.poses.data(), points.data());
 }
 
 TEST_F(CorrectionClTest, ResolveMovesInsideAndNearPointsToTheOffsetOutside) {
   const CubeScene scene = makeCubeScene();
-  const int vp = scene.cube.vertexCount();
+  const int vp = scene.mesh.vertexCount();
   const int vd = scene.pointCount;
   const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
   // Independent expectation from the closed form.
@@ -110,11 +104,11 @@ TEST_F(CorrectionClTest, ResolveMovesInsideAndNearPointsToTheOffsetOutside) {
 
   const double scale = sceneScale(scene.poses.data(), scene.frameCount * vp, scene.points.data(),
                                   scene.frameCount * vd);
-  const InsideAudit audit(scene.cube);
+  const InsideAudit audit(scene.mesh);
   std::vector<std::vector<float>> results;
   for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
     SCOPED_TRACE(backend->name());
-    backend->setSurface(scene.cube, BindingMask::all(vd));
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
     std::vector<float> points = scene.points;
     std::vector<int> moved(static_cast<std::size_t>(scene.frameCount), -1);
     backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), kOffset, points.data(),
@@ -124,7 +118,7 @@ TEST_F(CorrectionClTest, ResolveMovesInsideAndNearPointsToTheOffsetOutside) {
     // A fresh exact search on the resolved points: the moved ones sit at the offset, outside.
     const std::vector<SurfaceHit> after = hostHits(*hostBackend(), scene, points);
     const std::vector<double> brute = bruteForceAll(
-        scene.cube, scene.frameCount, scene.poses.data(), points.data(), BindingMask::all(vd));
+        scene.mesh, scene.frameCount, scene.poses.data(), points.data(), BindingMask::all(vd));
     int wrong = 0;
     double worst = 0.0;
     for (int f = 0; f < scene.frameCount; ++f) {
@@ -184,7 +178,7 @@ TEST_F(CorrectionClTest, ResolveWithZeroOffsetMovesOnlyInsidePointsOntoTheSurfac
   }
   for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
     SCOPED_TRACE(backend->name());
-    backend->setSurface(scene.cube, BindingMask::all(vd));
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
     std::vector<float> points = scene.points;
     std::vector<int> moved(2, -1);
     backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), 0.0f, points.data(),
@@ -215,40 +209,37 @@ TEST_F(CorrectionClTest, ResolveRejectsNonFiniteInputBadOffsetsAndForeignHits) {
   const CubeScene scene = makeCubeScene();
   const int vd = scene.pointCount;
   const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
-  auto expectThrow = [](ErrorCode code, const std::string& fragment, auto&& call) {
-    try {
-      call();
-      ADD_FAILURE() << "accepted; expected an error with '" << fragment << "'";
-    } catch (const Error& error) {
-      EXPECT_EQ(error.code(), code) << error.what();
-      EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
-    }
-  };
   for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
     SCOPED_TRACE(backend->name());
-    backend->setSurface(scene.cube, BindingMask::all(vd));
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
     std::vector<float> points = scene.points;
     points[3 * (static_cast<std::size_t>(vd) + 17) + 1] = std::nanf("");
     const std::vector<float> before = points;
-    expectThrow(ErrorCode::kNumerical, "frame 1 of the chunk: driven point 17", [&] {
-      backend->resolve(2, scene.poses.data(), hits.data(), kOffset, points.data(), nullptr);
-    });
+    expectThrows(
+        [&] {
+          backend->resolve(2, scene.poses.data(), hits.data(), kOffset, points.data(), nullptr);
+        },
+        ErrorCode::kNumerical, "frame 1 of the chunk: driven point 17");
     EXPECT_EQ(std::memcmp(points.data(), before.data(), points.size() * sizeof(float)), 0)
         << "a rejected call must not change the points";
     std::vector<float> poses = scene.poses;
     poses[5] = INFINITY;
     points = scene.points;
-    expectThrow(ErrorCode::kNumerical, "driver vertex 1", [&] {
-      backend->resolve(2, poses.data(), hits.data(), kOffset, points.data(), nullptr);
-    });
-    expectThrow(ErrorCode::kInput, "offset", [&] {
-      backend->resolve(2, scene.poses.data(), hits.data(), -0.5f, points.data(), nullptr);
-    });
+    expectThrows(
+        [&] { backend->resolve(2, poses.data(), hits.data(), kOffset, points.data(), nullptr); },
+        ErrorCode::kNumerical, "driver vertex 1");
+    expectThrows(
+        [&] {
+          backend->resolve(2, scene.poses.data(), hits.data(), -0.5f, points.data(), nullptr);
+        },
+        ErrorCode::kInput, "offset");
     std::vector<SurfaceHit> foreign = hits;
     foreign[3].triangle = 100000;
-    expectThrow(ErrorCode::kInput, "hit triangle 100000", [&] {
-      backend->resolve(2, scene.poses.data(), foreign.data(), kOffset, points.data(), nullptr);
-    });
+    expectThrows(
+        [&] {
+          backend->resolve(2, scene.poses.data(), foreign.data(), kOffset, points.data(), nullptr);
+        },
+        ErrorCode::kInput, "hit triangle 100000");
   }
 }
 

@@ -19,38 +19,18 @@
 namespace drivenshape::testing {
 namespace {
 
-/// Largest |a_i - b_i| over interleaved xyz points.
-double maxPointError(const std::vector<float>& a, const std::vector<float>& b) {
-  double worst = 0.0;
-  for (std::size_t i = 0; i < a.size(); i += 3) {
-    const Eigen::Vector3d d(a[i] - b[i], a[i + 1] - b[i + 1], a[i + 2] - b[i + 2]);
-    worst = std::max(worst, d.norm());
-  }
-  return worst;
-}
-
-/// The sleeve's rest pose and frames 5 and 30 of the shot, with host hits.
-struct SleeveHits {
+/// The sleeve's rest pose and frames 5 and 30 of the shot (restAndFrames), with host hits.
+struct SleeveHits : PosedScene {
   SleeveData sleeve;
-  int frameCount = 0;
-  std::vector<float> poses;
-  std::vector<float> points;
   std::vector<SurfaceHit> hits;
 };
 
 SleeveHits sleeveHits(ClosestBackend& host) {
   SleeveHits out;
   out.sleeve = loadSleeve({5, 30});
-  const Mesh& driver = out.sleeve.driver;
-  const Mesh& driven = out.sleeve.driven;
-  out.poses.assign(driver.positions.data(), driver.positions.data() + 3 * driver.vertexCount());
-  out.points.assign(driven.positions.data(), driven.positions.data() + 3 * driven.vertexCount());
-  out.poses.insert(out.poses.end(), out.sleeve.poses.begin(), out.sleeve.poses.end());
-  out.points.insert(out.points.end(), out.sleeve.points.begin(), out.sleeve.points.end());
-  out.frameCount = 3;
-  host.setSurface(driver, BindingMask::all(driven.vertexCount()));
-  out.hits.resize(static_cast<std::size_t>(out.frameCount) * driven.vertexCount());
-  host.closest(out.frameCount, out.poses.data(), out.points.data(), out.hits.data());
+  static_cast<PosedScene&>(out) = restAndFrames(out.sleeve);
+  out.hits = closestHits(host, out.mesh, BindingMask::all(out.pointCount), out.frameCount,
+                         out.poses.data(), out.points.data());
   return out;
 }
 
@@ -77,19 +57,8 @@ TEST_F(CorrectionClTest, RigidMotionOfTheDriverMovesThePointsRigidly) {
       Eigen::AngleAxisd(2.0, Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized())
           .toRotationMatrix();
   const Eigen::Vector3d translation(3.0, -7.0, 12.0);
-  auto move = [&](const std::vector<float>& xyz) {
-    std::vector<float> out(xyz.size());
-    for (std::size_t i = 0; i < xyz.size(); i += 3) {
-      const Eigen::Vector3d p =
-          rotation * Eigen::Vector3d(xyz[i], xyz[i + 1], xyz[i + 2]) + translation;
-      out[i] = static_cast<float>(p.x());
-      out[i + 1] = static_cast<float>(p.y());
-      out[i + 2] = static_cast<float>(p.z());
-    }
-    return out;
-  };
-  const std::vector<float> moved = move(data.poses);
-  const std::vector<float> expected = move(data.points);
+  const std::vector<float> moved = rigidlyMoved(data.poses, rotation, translation);
+  const std::vector<float> expected = rigidlyMoved(data.points, rotation, translation);
   const double scale = sceneScale(moved.data(), static_cast<int>(moved.size() / 3));
   for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
     SCOPED_TRACE(backend->name());
@@ -119,23 +88,13 @@ TEST_F(CorrectionClTest, OpenClTransferMatchesHostOnADeformingPose) {
     results.push_back(out);
   }
   const Bounds bounds = computeBounds(data.points.data(), static_cast<int>(data.points.size() / 3));
-  const double error = maxPointError(results[0], results[1]);
-  EXPECT_LE(error, kDeviceVsHostRelTol * bounds.diagonal())
-      << "largest |cl - host| " << error << ", tolerance " << kDeviceVsHostRelTol << " x "
-      << bounds.diagonal();
+  expectDeviceMatchesHost(results[0], results[1], bounds.diagonal());
   // The transfer really moved the points (the test is not an identity in disguise).
   EXPECT_GT(maxPointError(results[0], data.points), 1e-3 * bounds.diagonal());
 }
 
 TEST_F(CorrectionClTest, DegenerateFramesKeepTheOffsetInWorldAxes) {
-  // Triangle 0 has zero area (a repeated vertex); triangle 1 is regular.
-  const std::vector<float> from = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 0, 0, 6, 0, 0};
-  const Mesh mesh = makeMesh(from, {{0, 1, 1}, {0, 1, 2}, {3, 4, 4}});
-  // `to`: rotated by 90 degrees about z and moved; triangle 2 collapses to a point.
-  const std::vector<float> to = {1, 1, 1, 1, 2, 1, 0, 1, 1, 9, 9, 9, 9, 9, 9};
-  const std::vector<float> points = {0.5f, 0.2f, 0.3f, 0.2f, 0.2f, 0.5f, 5.5f, 1.0f, 0.0f};
-  const std::vector<SurfaceHit> hits = {
-      {0, 0.5f, 0.0f, 0.0f}, {1, 0.2f, 0.2f, 0.0f}, {2, 0.5f, 0.0f, 0.0f}};
+  const auto [from, mesh, to, points, hits] = degenerateFrames();
   // Expected: hit 0 and 2 keep the world offset; hit 1 rotates with its frame.
   const std::vector<float> expected = {1.0f, 1.7f, 1.3f, 0.8f, 1.2f, 1.5f, 9.0f, 10.0f, 9.0f};
   for (ClosestBackend* backend : {hostBackend(), clBackend()}) {

@@ -70,6 +70,17 @@ TempDir::~TempDir() {
   std::filesystem::remove_all(mPath, ec);
 }
 
+void expectThrows(const std::function<void()>& call, ErrorCode code, const std::string& fragment) {
+  try {
+    call();
+    ADD_FAILURE() << "no exception; expected a drivenshape::Error mentioning '" << fragment << "'";
+  } catch (const Error& error) {
+    EXPECT_EQ(static_cast<int>(error.code()), static_cast<int>(code)) << error.what();
+    EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos)
+        << "'" << fragment << "' not found in: " << error.what();
+  }
+}
+
 void OpenClTest::SetUpTestSuite() {
   if (clState() || !clFailure().empty()) {
     return;

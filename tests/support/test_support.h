@@ -1,14 +1,17 @@
 #pragma once
 // Shared by every test binary: tolerances (stated once per quantity), random seeds, temporary
-// folders and the OpenCL fixture.
+// folders, the check of a thrown drivenshape::Error and the OpenCL fixture.
 
 #include <gtest/gtest.h>
 
 #include <CL/opencl.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <random>
 #include <string>
+
+#include <drivenshape/error.h>
 
 namespace drivenshape::testing {
 
@@ -154,6 +157,12 @@ class TempDir {
  private:
   std::string mPath;
 };
+
+// ---- Errors ----
+
+/// Runs `call` and expects it to throw a drivenshape::Error with `code` whose message contains
+/// `fragment`; a test failure (with the message) otherwise, also when nothing is thrown.
+void expectThrows(const std::function<void()>& call, ErrorCode code, const std::string& fragment);
 
 // ---- OpenCL ----
 

@@ -24,10 +24,15 @@ class AtomicFile {
 
   const std::string& tempPath() const { return mTempPath; }
   const std::string& finalPath() const { return mFinalPath; }
-  /// fsyncs and renames; throws Error(kOutput) on failure (and removes the temp file).
-  void commit();
+  /// Renames the finished file into place, after an fsync when `syncToDisk`; throws
+  /// Error(kOutput) on failure (and removes the temp file). Without the fsync readers still see
+  /// the old file or the whole new one, but after a power loss or kernel crash the new file can
+  /// be empty or short (a resumed bake's --skip-existing check takes it for incomplete).
+  void commit(bool syncToDisk = true);
 
  private:
+  void sync();
+
   std::string mFinalPath;
   std::string mTempPath;
   bool mCommitted = false;

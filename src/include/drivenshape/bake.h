@@ -109,6 +109,10 @@ struct BakeOptions {
   /// another cache of the cloth, procedural wind. Off by default; needs BakeBackends::layers
   /// when on. Recorded in the settings hash, the report and the EXR header (`dsLayers`).
   LayerOptions layers;
+  /// fsync every output EXR before its atomic rename (`--sync`). Off by default: the rename
+  /// alone already means readers never see a partial file, and a file cut short by a power
+  /// loss is rebaked by --skip-existing; the fsync costs a disk (or NFS) round trip per frame.
+  bool syncOutputs = false;
 };
 
 /// Whether a bake with these options blends in local frames: BlendMode::kLocal with the

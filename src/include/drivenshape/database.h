@@ -12,9 +12,12 @@ namespace drivenshape {
 
 /// How a database was (or is to be) built.
 struct DatabaseBuildOptions {
-  int count = 30;                 ///< shapes wanted (fewer if the clip runs out of distinct ones)
-  std::vector<int> frames;        ///< candidate frames; empty = every frame of the driver cache
-  std::vector<int> addFrames;     ///< always kept; they seed the greedy pick
+  int count = 30;           ///< shapes wanted (fewer if the clip runs out of distinct ones)
+  std::vector<int> frames;  ///< candidate frames; empty = every frame of the driver cache
+  /// Always kept; they seed the greedy pick. Without them the seed is the settled rest pose:
+  /// the candidate whose driver is nearest the rest driver (the latest of those within the
+  /// duplicate tolerance of it, since a simulated clip drapes the cloth during its opening hold).
+  std::vector<int> addFrames;
   std::vector<int> removeFrames;  ///< never kept
   /// Shapes whose RMS per-vertex distance to an already chosen shape is below this fraction
   /// of the rest driver's bounding-box diagonal are rejected as near-duplicates.

@@ -106,6 +106,9 @@ struct ExrWriteOptions {
   /// Extra string attributes (name, value), e.g. {"dsLayers", LayerStack::describe()}. Names
   /// are at most 31 bytes and must not be one of the attributes above (Error(kUsage)).
   std::vector<std::pair<std::string, std::string>> stringAttributes;
+  /// fsync before the atomic rename (see AtomicFile::commit): survives a power loss, costs a
+  /// disk round trip per file.
+  bool syncToDisk = true;
 };
 
 /// Writes one point-cache EXR frame atomically (temp file + rename). `normals` may be null.
