@@ -551,10 +551,15 @@ int runBake(const std::vector<std::string>& args) {
     std::cout << "report:  " << absolute(options.reportPath) << "\n";
   }
   if (options.audit && result.baked > 0) {
+    // Counts that a mode does not measure are -1 in the records (local blending has no
+    // blended cloth to audit, world blending no binding switches to report).
     long before = 0, corrected = 0, after = 0, switches = 0;
+    bool hasBefore = false, hasSwitches = false;
     double jump = 0;
     for (const FrameRecord& record : result.frames) {
       if (!record.skipped) {
+        hasBefore = hasBefore || record.insideBefore >= 0;
+        hasSwitches = hasSwitches || record.bindingSwitches >= 0;
         before += std::max(record.insideBefore, 0);
         corrected += std::max(record.insideCorrected, 0);
         after += record.insideAfter;
@@ -562,13 +567,17 @@ int runBake(const std::vector<std::string>& args) {
         jump = std::max(jump, record.maxJump);
       }
     }
-    std::cout << "audit:   cloth vertices inside the driver per frame: " << std::setprecision(1)
-              << double(before) / result.baked << " blended, " << double(corrected) / result.baked
-              << (options.correct ? " corrected" : " (no correction)") << ", "
-              << double(after) / result.baked
-              << (options.resolve ? " after resolution" : " written") << "; binding switches "
-              << switches << "; largest frame-to-frame jump " << std::setprecision(4) << jump
-              << "\n";
+    const double frames = result.baked;
+    std::cout << "audit:   cloth vertices inside the driver per frame: " << std::setprecision(1);
+    if (hasBefore) {
+      std::cout << before / frames << " blended, ";
+    }
+    std::cout << corrected / frames << (options.correct ? " corrected" : " (no correction)") << ", "
+              << after / frames << (options.resolve ? " after resolution" : " written");
+    if (hasSwitches) {
+      std::cout << "; binding switches " << switches;
+    }
+    std::cout << "; largest frame-to-frame jump " << std::setprecision(4) << jump << "\n";
   }
   return 0;
 }

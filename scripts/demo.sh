@@ -19,6 +19,7 @@ ds=build/apps/drivenshape
 "$ds" bake --db $out/sleeve.dsdb --driver $data/test.driver.pc2 --frames 1-48 \
   -o $out/bake/sleeve.####.exr 2>$out/bake.log
 "$ds" eval --truth $data/test.driven.pc2 --bake "$out/bake/sleeve.####.exr" --frames 1-48 \
+  --driver $data/test.driver.pc2 --db $out/sleeve.dsdb --baseline \
   --json $out/eval.json
 echo "log:      $PWD/$out/bake.log"
 echo "accuracy: $PWD/$out/eval.json"

@@ -10,9 +10,9 @@
 # Usage: scripts/measure_accuracy.sh [SCENE...]   (default: pants sleeve)
 # Environment: DRIVENSHAPE_DATA (default ../shared/data), DRIVENSHAPE_BUILD (default build),
 #              DRIVENSHAPE_DEVICE (bake --device, default auto), MODES (space-separated keys to
-#              run, default all), DB_FLAGS (extra `db build` flags, e.g. "--add-frames 8
-#              --remove-frames 1-7" to seed the database with the settled rest pose instead of
-#              the simulation's first frame), ACCURACY_OUT (default out/accuracy).
+#              run, default all), DB_FLAGS (extra `db build` flags, e.g. "--add-frames 1"
+#              to seed the database with the simulation's undraped first frame instead of the
+#              settled rest pose `db build` picks), ACCURACY_OUT (default out/accuracy).
 #
 # Regions: the reference OBJs have no left/right groups (one `o` each), so this script derives
 # index lists: pants by the sign of the rest x (the character's left is +x) on both meshes;

@@ -36,7 +36,11 @@ stamp=.venv/.requirements.sha256
 want=$(sha256sum scripts/requirements.txt | cut -d' ' -f1)
 if [[ ! -x .venv/bin/python || ! -f $stamp || $(cat "$stamp") != "$want" ]]; then
   echo "setup: preparing the Python venv in .venv" >&2
-  "$PYTHON" -m venv .venv
+  # An existing venv is updated in place (re-running venv over one made by another interpreter
+  # fails in ensurepip); a broken one is made again from scratch.
+  if ! .venv/bin/python -m pip --version >/dev/null 2>&1; then
+    "$PYTHON" -m venv --clear .venv
+  fi
   .venv/bin/python -m pip install -q --upgrade pip >/dev/null
   .venv/bin/python -m pip install -q -r scripts/requirements.txt
   echo "$want" >"$stamp"

@@ -340,6 +340,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
         {"correct", result.times.correct},
         {"resolve", result.times.resolve},
         {"layers", result.times.layers},
+        {"setup", result.times.setup},
         {"audit", result.times.audit},
         {"write", result.times.write},
         {"read_wait", result.times.readWait},
@@ -592,6 +593,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
   const Eigen::MatrixXd shapes = options.weightMode == WeightMode::kNearest
                                      ? driverMatrix(prepared.driverShapes, k, vp, {})
                                      : Eigen::MatrixXd();
+  result.times.setup = secondsSince(bakeStart);
   std::size_t batchIndex = 0;
   for (std::size_t begin = 0; begin < todo.size();
        begin += static_cast<std::size_t>(chunk), ++batchIndex) {

@@ -15,62 +15,28 @@
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>
 
+#include "bake_test_util.h"
 #include "test_support.h"
 
 namespace drivenshape {
 namespace {
 
+using testing::Backends;
+using testing::buildSample;
+using testing::hostBackends;
+using testing::readBake;
+using testing::sample;
+using testing::sampleDatabase;
 using testing::TempDir;
-
-std::string sample(const std::string& name) {
-  return testing::dataDir() + "/sleeve/" + name;
-}
-
-/// The 30-shape database of the sample, built once for the whole binary.
-const Database& sampleDatabase() {
-  static const Database db = [] {
-    const Mesh driver = readObj(sample("driver_rest.obj"));
-    const Mesh driven = readObj(sample("driven_rest.obj"));
-    const auto driverCache = openPointCache(sample("train.driver.pc2"));
-    const auto drivenCache = openPointCache(sample("train.driven.pc2"));
-    DatabaseBuildOptions options;
-    options.count = 30;
-    return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
-  }();
-  return db;
-}
-
-std::vector<float> readExrFrames(const std::string& pattern, const std::vector<int>& frames) {
-  const auto cache = openPointCache(pattern);
-  return readFrames(*cache, frames);
-}
-
-/// Owns one device's backends (OpenCL or host) for a bake.
-struct Backends {
-  std::unique_ptr<StageBackend> stages;
-  std::unique_ptr<ClosestBackend> binding, audit;
-  BakeBackends view() const { return {stages.get(), binding.get(), audit.get()}; }
-};
-
-Backends hostBackends() {
-  return {makeHostStages(), makeHostClosest(), makeHostClosest()};
-}
-
-class BakeTest : public testing::OpenClTest {
- protected:
-  Backends clBackends() {
-    return {makeClStages(context(), device(), queue()), makeClClosest(context(), device(), queue()),
-            makeClClosest(context(), device(), queue())};
-  }
-};
+using BakeTest = testing::BakeClTest;
 
 /// Worst per-vertex distance between two baked sequences, as a fraction of each frame's
 /// bounding-box diagonal; fails at the first vertex beyond kDeviceVsHostRelTol.
 double compareBakes(const std::string& a, const std::string& b, const std::vector<int>& frames,
                     int vertexCount) {
   const std::size_t values = static_cast<std::size_t>(vertexCount) * 3;
-  const std::vector<float> x = readExrFrames(a, frames);
-  const std::vector<float> y = readExrFrames(b, frames);
+  const std::vector<float> x = readBake(a, frames);
+  const std::vector<float> y = readBake(b, frames);
   double worst = 0;
   for (std::size_t f = 0; f < frames.size(); ++f) {
     const Bounds bounds = computeBounds(&x[f * values], vertexCount);
@@ -211,7 +177,7 @@ TEST_F(BakeTest, DatabaseFramesReproduceTheirDrivenShape) {
   const Backends cl = clBackends();
   const BakeResult result = bake(db, *driver, cl.view(), options);
   const std::size_t values = db.drivenVertexCount() * 3;
-  const std::vector<float> baked = readExrFrames(options.outputPattern, options.frames);
+  const std::vector<float> baked = readBake(options.outputPattern, options.frames);
   const int shapeIndex[] = {0, 7, 29};
   for (int i = 0; i < 3; ++i) {
     EXPECT_NEAR(result.frames[i].weights[shapeIndex[i]], 1.0, 1e-3)
@@ -255,8 +221,8 @@ TEST_F(BakeTest, OutputIsBitwiseIdenticalAcrossThreadsAndChunks) {
   options.threads = 2;
   options.chunkSize = 3;
   bake(db, *driver, cl.view(), options);
-  EXPECT_EQ(readExrFrames(dir.file("a.####.exr"), options.frames),
-            readExrFrames(dir.file("b.####.exr"), options.frames));
+  EXPECT_EQ(readBake(dir.file("a.####.exr"), options.frames),
+            readBake(dir.file("b.####.exr"), options.frames));
 }
 
 }  // namespace

@@ -24,55 +24,20 @@
 #include <drivenshape/error.h>
 #include <drivenshape/regions.h>
 
+#include "bake_test_util.h"
 #include "test_support.h"
 
 namespace drivenshape {
 namespace {
 
+using testing::Backends;
+using testing::buildSample;
+using testing::hostBackends;
+using testing::readBake;
+using testing::sample;
+using testing::sampleDatabase;
 using testing::TempDir;
-
-std::string sample(const std::string& name) {
-  return testing::dataDir() + "/sleeve/" + name;
-}
-
-Database buildSample(int count, const std::vector<int>& addFrames = {}) {
-  const Mesh driver = readObj(sample("driver_rest.obj"));
-  const Mesh driven = readObj(sample("driven_rest.obj"));
-  const auto driverCache = openPointCache(sample("train.driver.pc2"));
-  const auto drivenCache = openPointCache(sample("train.driven.pc2"));
-  DatabaseBuildOptions options;
-  options.count = count;
-  options.addFrames = addFrames;
-  return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
-}
-
-/// The 30-shape database of the sample, built once for the whole binary.
-const Database& sampleDatabase() {
-  static const Database db = buildSample(30);
-  return db;
-}
-
-struct Backends {
-  std::unique_ptr<StageBackend> stages;
-  std::unique_ptr<ClosestBackend> binding, audit;
-  BakeBackends view() const { return {stages.get(), binding.get(), audit.get()}; }
-};
-
-Backends hostBackends() {
-  return {makeHostStages(), makeHostClosest(), makeHostClosest()};
-}
-
-class FidelityTest : public testing::OpenClTest {
- protected:
-  Backends clBackends() {
-    return {makeClStages(context(), device(), queue()), makeClClosest(context(), device(), queue()),
-            makeClClosest(context(), device(), queue())};
-  }
-};
-
-std::vector<float> readBake(const std::string& pattern, const std::vector<int>& frames) {
-  return readFrames(*openPointCache(pattern), frames);
-}
+using FidelityTest = testing::BakeClTest;
 
 /// Worst per-vertex distance between two frame blocks, as a fraction of each frame's bounding-
 /// box diagonal (of `a`).

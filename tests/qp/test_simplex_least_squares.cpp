@@ -391,38 +391,33 @@ TEST(SimplexLeastSquares, FloatProjectionStillPassesChecks) {
   EXPECT_LE(worst, 1e-5);  // float rounding of p and rr, not a QP tolerance
 }
 
-void expectError(const std::function<void()>& call, ErrorCode code, const std::string& mention) {
-  try {
-    call();
-    ADD_FAILURE() << "no exception; expected one mentioning '" << mention << "'";
-  } catch (const Error& error) {
-    EXPECT_EQ(static_cast<int>(error.code()), static_cast<int>(code)) << error.what();
-    EXPECT_NE(std::string(error.what()).find(mention), std::string::npos) << error.what();
-  }
-}
-
 TEST(SimplexLeastSquares, BadInputThrows) {
   Eigen::MatrixXd A = Eigen::MatrixXd::Ones(6, 3);
   A(4, 2) = std::numeric_limits<double>::quiet_NaN();
-  expectError([&] { SimplexLeastSquares solver(A); }, ErrorCode::kNumerical, "shape 2");
-  expectError([&] { SimplexLeastSquares solver(A); }, ErrorCode::kNumerical, "vertex 1");
+  ::drivenshape::testing::expectThrows([&] { SimplexLeastSquares solver(A); },
+                                       ErrorCode::kNumerical, "shape 2");
+  ::drivenshape::testing::expectThrows([&] { SimplexLeastSquares solver(A); },
+                                       ErrorCode::kNumerical, "vertex 1");
   A(4, 2) = 1.0;
-  expectError([&] { SimplexLeastSquares solver(Eigen::MatrixXd(6, 0)); }, ErrorCode::kInput,
-              "at least one");
-  expectError([&] { SimplexLeastSquares solver(A, 0.0); }, ErrorCode::kUsage, "ridge");
+  ::drivenshape::testing::expectThrows([&] { SimplexLeastSquares solver(Eigen::MatrixXd(6, 0)); },
+                                       ErrorCode::kInput, "at least one");
+  ::drivenshape::testing::expectThrows([&] { SimplexLeastSquares solver(A, 0.0); },
+                                       ErrorCode::kUsage, "ridge");
 
   const SimplexLeastSquares solver(A);
   Eigen::VectorXd b = Eigen::VectorXd::Ones(6);
   b(3) = std::numeric_limits<double>::infinity();
-  expectError([&] { solver.solve(b); }, ErrorCode::kNumerical, "row 3");
-  expectError([&] { solver.solve(Eigen::VectorXd::Ones(5)); }, ErrorCode::kInternal, "6 expected");
+  ::drivenshape::testing::expectThrows([&] { solver.solve(b); }, ErrorCode::kNumerical, "row 3");
+  ::drivenshape::testing::expectThrows([&] { solver.solve(Eigen::VectorXd::Ones(5)); },
+                                       ErrorCode::kInternal, "6 expected");
   Eigen::VectorXd p = Eigen::VectorXd::Zero(2);
   p(1) = std::numeric_limits<double>::quiet_NaN();
-  expectError([&] { solver.solveProjected(p, 1.0, 1.0); }, ErrorCode::kNumerical,
-              "projection entry 1");
-  expectError([&] { solver.solveProjected(Eigen::VectorXd::Zero(3), 1.0, 1.0); },
-              ErrorCode::kInternal, "2 expected");
-  expectError(
+  ::drivenshape::testing::expectThrows([&] { solver.solveProjected(p, 1.0, 1.0); },
+                                       ErrorCode::kNumerical, "projection entry 1");
+  ::drivenshape::testing::expectThrows(
+      [&] { solver.solveProjected(Eigen::VectorXd::Zero(3), 1.0, 1.0); }, ErrorCode::kInternal,
+      "2 expected");
+  ::drivenshape::testing::expectThrows(
       [&] {
         solver.solveProjected(Eigen::VectorXd::Zero(2), std::numeric_limits<double>::infinity(),
                               1.0);
@@ -695,19 +690,27 @@ TEST(SimplexLeastSquaresBounded, BadBoundsThrowInternal) {
   auto call = [&](const Eigen::VectorXd& lower, const Eigen::VectorXd& upper) {
     return [&solver, &p, lower, upper] { solver.solveProjected(p, 1.0, 1.0, lower, upper); };
   };
-  expectError(call(Eigen::VectorXd::Zero(2), one), ErrorCode::kInternal, "3 expected");
-  expectError(call(zero, Eigen::VectorXd::Ones(4)), ErrorCode::kInternal, "3 expected");
-  expectError(call(Eigen::Vector3d(-0.1, 0, 0), one), ErrorCode::kInternal, "shape 0");
-  expectError(call(zero, Eigen::Vector3d(1, 1.5, 1)), ErrorCode::kInternal, "shape 1");
-  expectError(call(Eigen::Vector3d(0, 0, 0.6), Eigen::Vector3d(1, 1, 0.5)), ErrorCode::kInternal,
-              "shape 2");
-  expectError(call(Eigen::Vector3d(0, std::numeric_limits<double>::quiet_NaN(), 0), one),
-              ErrorCode::kInternal, "shape 1");
-  expectError(call(Eigen::Vector3d(0.5, 0.5, 0.5), one), ErrorCode::kInternal, "no weights");
-  expectError(call(zero, Eigen::Vector3d(0.3, 0.3, 0.3)), ErrorCode::kInternal, "no weights");
+  ::drivenshape::testing::expectThrows(call(Eigen::VectorXd::Zero(2), one), ErrorCode::kInternal,
+                                       "3 expected");
+  ::drivenshape::testing::expectThrows(call(zero, Eigen::VectorXd::Ones(4)), ErrorCode::kInternal,
+                                       "3 expected");
+  ::drivenshape::testing::expectThrows(call(Eigen::Vector3d(-0.1, 0, 0), one), ErrorCode::kInternal,
+                                       "shape 0");
+  ::drivenshape::testing::expectThrows(call(zero, Eigen::Vector3d(1, 1.5, 1)), ErrorCode::kInternal,
+                                       "shape 1");
+  ::drivenshape::testing::expectThrows(call(Eigen::Vector3d(0, 0, 0.6), Eigen::Vector3d(1, 1, 0.5)),
+                                       ErrorCode::kInternal, "shape 2");
+  ::drivenshape::testing::expectThrows(
+      call(Eigen::Vector3d(0, std::numeric_limits<double>::quiet_NaN(), 0), one),
+      ErrorCode::kInternal, "shape 1");
+  ::drivenshape::testing::expectThrows(call(Eigen::Vector3d(0.5, 0.5, 0.5), one),
+                                       ErrorCode::kInternal, "no weights");
+  ::drivenshape::testing::expectThrows(call(zero, Eigen::Vector3d(0.3, 0.3, 0.3)),
+                                       ErrorCode::kInternal, "no weights");
   // The projection is still checked first.
-  expectError([&] { solver.solveProjected(Eigen::VectorXd::Zero(3), 1.0, 1.0, zero, one); },
-              ErrorCode::kInternal, "2 expected");
+  ::drivenshape::testing::expectThrows(
+      [&] { solver.solveProjected(Eigen::VectorXd::Zero(3), 1.0, 1.0, zero, one); },
+      ErrorCode::kInternal, "2 expected");
 }
 
 }  // namespace

@@ -167,6 +167,7 @@ struct StageTimes {
          audit = 0, write = 0, total = 0;
   double layers = 0;
   double readWait = 0, writeWait = 0;
+  double setup = 0;  ///< before the first batch: checks, alignment weights, tables, uploads
 };
 
 /// Memory that one launch batch's frame blocks may take; larger meshes get smaller batches

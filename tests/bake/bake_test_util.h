@@ -1,0 +1,68 @@
+#pragma once
+
+// Helpers shared by the bake suites: the bundled sample shot (a slice of the sleeve scene), its
+// databases, and the backends of a bake on the host or an OpenCL device.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <drivenshape/bake.h>
+#include <drivenshape/cl_stages.h>
+#include <drivenshape/correction.h>
+#include <drivenshape/database.h>
+#include <drivenshape/point_cache.h>
+
+#include "test_support.h"
+
+namespace drivenshape::testing {
+
+/// A file of the bundled sample shot (tests/data/sleeve).
+inline std::string sample(const std::string& name) {
+  return dataDir() + "/sleeve/" + name;
+}
+
+/// A database of `count` shapes from the sample's train clip, seeded with `addFrames` if any.
+inline Database buildSample(int count, const std::vector<int>& addFrames = {}) {
+  const Mesh driver = readObj(sample("driver_rest.obj"));
+  const Mesh driven = readObj(sample("driven_rest.obj"));
+  const auto driverCache = openPointCache(sample("train.driver.pc2"));
+  const auto drivenCache = openPointCache(sample("train.driven.pc2"));
+  DatabaseBuildOptions options;
+  options.count = count;
+  options.addFrames = addFrames;
+  return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
+}
+
+/// The 30-shape database of the sample, built once per test binary.
+inline const Database& sampleDatabase() {
+  static const Database db = buildSample(30);
+  return db;
+}
+
+/// The frames of a baked EXR sequence (or any cache), frame-major.
+inline std::vector<float> readBake(const std::string& pattern, const std::vector<int>& frames) {
+  return readFrames(*openPointCache(pattern), frames);
+}
+
+/// Owns one device's backends (OpenCL or host) for a bake.
+struct Backends {
+  std::unique_ptr<StageBackend> stages;
+  std::unique_ptr<ClosestBackend> binding, audit;
+  BakeBackends view() const { return {stages.get(), binding.get(), audit.get()}; }
+};
+
+inline Backends hostBackends() {
+  return {makeHostStages(), makeHostClosest(), makeHostClosest()};
+}
+
+/// Bake tests on the OpenCL device of OpenClTest (failing, never skipping, without one).
+class BakeClTest : public OpenClTest {
+ protected:
+  Backends clBackends() {
+    return {makeClStages(context(), device(), queue()), makeClClosest(context(), device(), queue()),
+            makeClClosest(context(), device(), queue())};
+  }
+};
+
+}  // namespace drivenshape::testing
