@@ -322,12 +322,15 @@ std::string defaultPosmapPattern(const std::string& pattern) {
 int runBake(const std::vector<std::string>& args) {
   ArgParser parser(
       "drivenshape bake --db DB --driver CACHE --frames RANGE -o OUT.####.exr",
-      "Bakes a shot: for each frame of the driver cache, solves the blend weights of the "
-      "database shapes (min ||A w - b||, sum w = 1, 0 <= w <= 1), blends the driven shapes with "
-      "them, corrects the blend onto the shot's driver (each cloth vertex bound to its exact "
-      "closest triangle of the blended driver and carried to the shot's driver in that "
-      "triangle's frame) and writes one point-cache EXR per frame. Frames are evaluated a "
-      "chunk at a time with OpenCL kernels (or the host reference path).");
+      "Bakes a shot: for each frame of the driver cache, fits it rigidly to the database's rest "
+      "driver (--align), solves the blend weights of the database shapes (min ||A w - b||, "
+      "sum w = 1, 0 <= w <= 1), blends the cloth shapes with them (as offsets in local "
+      "triangle frames bound at rest, or as world positions corrected onto the shot's driver "
+      "like the 2008 talk: --blend), rebuilds them on the shot's driver, moves cloth out of "
+      "the body (--skin-offset), applies layers (--mix, --wind-*) and writes one point-cache "
+      "EXR per frame. Frames are evaluated a batch at a time with OpenCL kernels (or the host "
+      "reference path); reading and writing overlap the kernels. The talk's method exactly: "
+      "--align none --blend world --no-resolve.");
   parser.option("--db", "DB", "database from `drivenshape db build`", "", true)
       .option("--driver", "CACHE", "shot driver cache (.pc2 or name.####.exr)", "", true)
       .option("--frames", "RANGE", "frames to bake: 1001-1100, 1001-1100x2, 1001,1005", "", true)
