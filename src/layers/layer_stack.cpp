@@ -165,7 +165,17 @@ void LayerStack::apply(int frameCount, const int* frames, float* positions,
     const std::size_t floats = 3 * static_cast<std::size_t>(mTables.vertexCount);
     mOther.resize(static_cast<std::size_t>(frameCount) * floats);
     for (int f = 0; f < frameCount; ++f) {
+      const float* other = mOther.data() + static_cast<std::size_t>(f) * floats;
       mMixCache->readFrame(frames[f], mOther.data() + static_cast<std::size_t>(f) * floats);
+      // Where the mix takes any of the other cache, its positions must be numbers.
+      for (int v = 0; v < mTables.vertexCount; ++v) {
+        if (mTables.mixWeights[v] < 1.0f &&
+            !(std::isfinite(other[3 * v]) && std::isfinite(other[3 * v + 1]) &&
+              std::isfinite(other[3 * v + 2]))) {
+          DS_THROW(kInput, "--mix ", mOptions.mixCache, ": frame ", frames[f], " vertex ", v,
+                   " is not a finite number; fix the cache or give the vertex mix weight 1");
+        }
+      }
     }
     mBackend.mix(frameCount, mOther.data(), positions);
   }

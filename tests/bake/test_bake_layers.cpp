@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include <drivenshape/layers.h>
@@ -77,6 +78,28 @@ TEST_F(BakeLayersTest, MixWeightZeroWritesTheOtherCacheAndOneTheBake) {
   EXPECT_TRUE(described.contains("mix")) << info.stringAttributes.at("dsLayers");
   EXPECT_EQ(readPointCacheExrInfo(dir.file("plain.0005.exr")).stringAttributes.count("dsLayers"),
             0u);
+}
+
+TEST_F(BakeLayersTest, MixCacheWithNanWhereItIsTakenIsAnInputErrorNamingTheVertex) {
+  TempDir dir;
+  const int vd = sampleDatabase().drivenVertexCount();
+  std::vector<float> other = readBake(sample("test.driven.pc2"), {1, 2, 3});
+  other[3 * vd + 3 * 17 + 1] = std::numeric_limits<float>::quiet_NaN();  // frame 2, vertex 17
+  writePc2(dir.file("other.pc2"), vd, 1.0f, 3, other.data());
+  LayerOptions layers;
+  layers.mixCache = dir.file("other.pc2");
+  layers.mixWeight = writeConstantMap(dir, "zero.json", 0.0);
+  const testing::Backends backends = clBackends();
+  const std::unique_ptr<LayerBackend> layerBackend = makeClLayers(context(), device(), queue());
+  BakeBackends view = backends.view();
+  view.layers = layerBackend.get();
+  BakeOptions options;
+  options.frames = {1, 2, 3};
+  options.outputPattern = dir.file("out.####.exr");
+  options.layers = layers;
+  const auto driver = openPointCache(sample("test.driver.pc2"));
+  testing::expectThrows([&] { bake(sampleDatabase(), *driver, view, options); }, ErrorCode::kInput,
+                        "frame 2 vertex 17");
 }
 
 TEST_F(BakeLayersTest, WindMovesTheClothBoundedByItsAmplitudeAndKeepsItOutOfTheBody) {
