@@ -40,26 +40,6 @@ bool hasFp64(const cl::Device& device) {
   return extensions.find("cl_khr_fp64") != std::string::npos;
 }
 
-/// A device buffer that grows to the largest size asked for and is then reused.
-class GrowingBuffer {
- public:
-  explicit GrowingBuffer(cl_mem_flags flags) : mFlags(flags) {}
-
-  cl::Buffer& reserve(const cl::Context& context, std::size_t bytes) {
-    bytes = std::max<std::size_t>(bytes, 16);
-    if (bytes > mBytes) {
-      mBuffer = cl::Buffer(context, mFlags, bytes);
-      mBytes = bytes;
-    }
-    return mBuffer;
-  }
-
- private:
-  cl_mem_flags mFlags;
-  cl::Buffer mBuffer;
-  std::size_t mBytes = 0;
-};
-
 class ClClosest final : public ClosestBackend {
  public:
   ClClosest(const cl::Context& context, const cl::Device& device, const cl::CommandQueue& queue,
@@ -159,16 +139,9 @@ class ClClosest final : public ClosestBackend {
       mQueue.enqueueWriteBuffer(candidateBuffer, CL_TRUE, 0,
                                 mCandidates.triangles.size() * sizeof(std::int32_t),
                                 mCandidates.triangles.data());
-      mClosestKernel.setArg(0, posesBuffer);
-      mClosestKernel.setArg(1, mTriangles);
-      mClosestKernel.setArg(2, pointsBuffer);
-      mClosestKernel.setArg(3, startBuffer);
-      mClosestKernel.setArg(4, candidateBuffer);
-      mClosestKernel.setArg(5, hitBuffer);
-      mClosestKernel.setArg(6, sizeof(params), &params);
-      mQueue.enqueueNDRangeKernel(mClosestKernel, cl::NullRange,
-                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
-                                  cl::NDRange(DS_LOCAL_SIZE));
+      cl_util::setArgs(mClosestKernel, posesBuffer, mTriangles, pointsBuffer, startBuffer,
+                       candidateBuffer, hitBuffer, params);
+      cl_util::enqueue1d(mQueue, mClosestKernel, items, DS_LOCAL_SIZE);
       mQueue.enqueueReadBuffer(hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
     });
   }
@@ -199,16 +172,9 @@ class ClClosest final : public ClosestBackend {
       mQueue.enqueueWriteBuffer(fromBuffer, CL_TRUE, 0, poseBytes, fromPoses);
       mQueue.enqueueWriteBuffer(toBuffer, CL_TRUE, 0, poseBytes, toPoses);
       mQueue.enqueueWriteBuffer(pointsBuffer, CL_TRUE, 0, pointBytes, points);
-      mTransferKernel.setArg(0, hitBuffer);
-      mTransferKernel.setArg(1, fromBuffer);
-      mTransferKernel.setArg(2, toBuffer);
-      mTransferKernel.setArg(3, mTriangles);
-      mTransferKernel.setArg(4, pointsBuffer);
-      mTransferKernel.setArg(5, outBuffer);
-      mTransferKernel.setArg(6, sizeof(params), &params);
-      mQueue.enqueueNDRangeKernel(mTransferKernel, cl::NullRange,
-                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
-                                  cl::NDRange(DS_LOCAL_SIZE));
+      cl_util::setArgs(mTransferKernel, hitBuffer, fromBuffer, toBuffer, mTriangles, pointsBuffer,
+                       outBuffer, params);
+      cl_util::enqueue1d(mQueue, mTransferKernel, items, DS_LOCAL_SIZE);
       mQueue.enqueueReadBuffer(outBuffer, CL_TRUE, 0, pointBytes, out);
     });
   }
@@ -239,15 +205,9 @@ class ClClosest final : public ClosestBackend {
       mQueue.enqueueWriteBuffer(hitBuffer, CL_FALSE, 0, hitBytes, hits);
       mQueue.enqueueWriteBuffer(toBuffer, CL_FALSE, 0, poseBytes, toPoses);
       mQueue.enqueueWriteBuffer(localBuffer, CL_FALSE, 0, pointBytes, local);
-      mRebuildKernel.setArg(0, hitBuffer);
-      mRebuildKernel.setArg(1, toBuffer);
-      mRebuildKernel.setArg(2, mTriangles);
-      mRebuildKernel.setArg(3, localBuffer);
-      mRebuildKernel.setArg(4, outBuffer);
-      mRebuildKernel.setArg(5, sizeof(params), &params);
-      mQueue.enqueueNDRangeKernel(mRebuildKernel, cl::NullRange,
-                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
-                                  cl::NDRange(DS_LOCAL_SIZE));
+      cl_util::setArgs(mRebuildKernel, hitBuffer, toBuffer, mTriangles, localBuffer, outBuffer,
+                       params);
+      cl_util::enqueue1d(mQueue, mRebuildKernel, items, DS_LOCAL_SIZE);
       mQueue.enqueueReadBuffer(outBuffer, CL_TRUE, 0, pointBytes, out);
     });
   }
@@ -283,20 +243,10 @@ class ClClosest final : public ClosestBackend {
       mQueue.enqueueWriteBuffer(hitBuffer, CL_FALSE, 0, items * sizeof(SurfaceHit), hits);
       mQueue.enqueueWriteBuffer(pointsBuffer, CL_FALSE, 0, pointBytes, points);
       mQueue.enqueueFillBuffer(countBuffer, cl_int(0), 0, countBytes);
-      cl_uint arg = 0;
-      mResolveKernel.setArg(arg++, posesBuffer);
-      mResolveKernel.setArg(arg++, mTriangles);
-      mResolveKernel.setArg(arg++, mEdgeStart);
-      mResolveKernel.setArg(arg++, mEdgeTriangles);
-      mResolveKernel.setArg(arg++, mVertexStart);
-      mResolveKernel.setArg(arg++, mVertexTriangles);
-      mResolveKernel.setArg(arg++, hitBuffer);
-      mResolveKernel.setArg(arg++, pointsBuffer);
-      mResolveKernel.setArg(arg++, countBuffer);
-      mResolveKernel.setArg(arg++, sizeof(params), &params);
-      mQueue.enqueueNDRangeKernel(mResolveKernel, cl::NullRange,
-                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
-                                  cl::NDRange(DS_LOCAL_SIZE));
+      cl_util::setArgs(mResolveKernel, posesBuffer, mTriangles, mEdgeStart, mEdgeTriangles,
+                       mVertexStart, mVertexTriangles, hitBuffer, pointsBuffer, countBuffer,
+                       params);
+      cl_util::enqueue1d(mQueue, mResolveKernel, items, DS_LOCAL_SIZE);
       mQueue.enqueueReadBuffer(pointsBuffer, CL_TRUE, 0, pointBytes, points);
       std::vector<cl_int> counts(static_cast<std::size_t>(frameCount));
       mQueue.enqueueReadBuffer(countBuffer, CL_TRUE, 0, countBytes, counts.data());
@@ -364,33 +314,18 @@ class ClClosest final : public ClosestBackend {
       refit.frameCount = frameCount;
       refit.vertexCount = vertexCount;
       refit.nodeCount = nodeCount;
-      mRefitKernel.setArg(0, posesBuffer);
-      mRefitKernel.setArg(1, mNodes);
-      mRefitKernel.setArg(2, mLeafTriangles);
-      mRefitKernel.setArg(3, boxBuffer);
+      // Arguments 0-3 stay; the level's range (argument 4) changes per launch.
+      cl_util::setArgs(mRefitKernel, posesBuffer, mNodes, mLeafTriangles, boxBuffer, refit);
       for (int level = mBvh.depth() - 1; level >= 0; --level) {
         refit.levelFirst = mBvh.levelStart[static_cast<std::size_t>(level)];
         refit.levelCount = mBvh.levelStart[static_cast<std::size_t>(level) + 1] - refit.levelFirst;
-        mRefitKernel.setArg(4, sizeof(refit), &refit);
+        mRefitKernel.setArg(4, refit);
         const std::size_t work = static_cast<std::size_t>(frameCount) * refit.levelCount;
-        mQueue.enqueueNDRangeKernel(mRefitKernel, cl::NullRange,
-                                    cl::NDRange(cl_util::roundUp(work, DS_LOCAL_SIZE)),
-                                    cl::NDRange(DS_LOCAL_SIZE));
+        cl_util::enqueue1d(mQueue, mRefitKernel, work, DS_LOCAL_SIZE);
       }
-      cl_uint arg = 0;
-      mBvhKernel.setArg(arg++, posesBuffer);
-      mBvhKernel.setArg(arg++, mTriangles);
-      mBvhKernel.setArg(arg++, mNodes);
-      mBvhKernel.setArg(arg++, mLeafTriangles);
-      mBvhKernel.setArg(arg++, boxBuffer);
-      mBvhKernel.setArg(arg++, pointsBuffer);
-      mBvhKernel.setArg(arg++, mPointRoot);
-      mBvhKernel.setArg(arg++, mSeeds);
-      mBvhKernel.setArg(arg++, hitBuffer);
-      mBvhKernel.setArg(arg++, sizeof(params), &params);
-      mQueue.enqueueNDRangeKernel(mBvhKernel, cl::NullRange,
-                                  cl::NDRange(cl_util::roundUp(items, DS_LOCAL_SIZE)),
-                                  cl::NDRange(DS_LOCAL_SIZE));
+      cl_util::setArgs(mBvhKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles, boxBuffer,
+                       pointsBuffer, mPointRoot, mSeeds, hitBuffer, params);
+      cl_util::enqueue1d(mQueue, mBvhKernel, items, DS_LOCAL_SIZE);
       mQueue.enqueueReadBuffer(hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
       // The next chunk starts from this chunk's last frame (a warm start only; see bvh.cpp).
       const SurfaceHit* last = hits + (items - static_cast<std::size_t>(pointCount));
@@ -448,15 +383,15 @@ class ClClosest final : public ClosestBackend {
   cl::Buffer mSeeds;
   std::vector<std::int32_t> mSeedHost;
   bool mSeeded = false;
-  GrowingBuffer mBoxes{CL_MEM_READ_WRITE};
-  GrowingBuffer mPoses{CL_MEM_READ_ONLY};
-  GrowingBuffer mToPoses{CL_MEM_READ_ONLY};
-  GrowingBuffer mPoints{CL_MEM_READ_ONLY};
-  GrowingBuffer mStart{CL_MEM_READ_ONLY};
-  GrowingBuffer mCandidateTriangles{CL_MEM_READ_ONLY};
-  GrowingBuffer mHits{CL_MEM_READ_WRITE};
-  GrowingBuffer mOut{CL_MEM_READ_WRITE};
-  GrowingBuffer mCounts{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mBoxes{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mPoses{CL_MEM_READ_ONLY};
+  cl_util::GrowingBuffer mToPoses{CL_MEM_READ_ONLY};
+  cl_util::GrowingBuffer mPoints{CL_MEM_READ_ONLY};
+  cl_util::GrowingBuffer mStart{CL_MEM_READ_ONLY};
+  cl_util::GrowingBuffer mCandidateTriangles{CL_MEM_READ_ONLY};
+  cl_util::GrowingBuffer mHits{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mOut{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mCounts{CL_MEM_READ_WRITE};
 };
 
 }  // namespace

@@ -62,24 +62,21 @@ class ClLayers final : public LayerBackend {
       return;
     }
     const std::size_t bytes = frameBytes(frameCount);
-    reserve(mPositions, bytes, CL_MEM_READ_WRITE, "allocating the layer position buffer");
-    reserve(mOther, bytes, CL_MEM_READ_ONLY, "allocating the mix cache buffer");
+    cl::Buffer& positionBuffer = reserve(mPositions, bytes, "allocating the layer position buffer");
+    cl::Buffer& otherBuffer = reserve(mOther, bytes, "allocating the mix cache buffer");
     guard("uploading a chunk for the mix", [&] {
-      mQueue.enqueueWriteBuffer(mPositions.buffer, CL_FALSE, 0, bytes, positions);
-      mQueue.enqueueWriteBuffer(mOther.buffer, CL_TRUE, 0, bytes, other);
+      mQueue.enqueueWriteBuffer(positionBuffer, CL_FALSE, 0, bytes, positions);
+      mQueue.enqueueWriteBuffer(otherBuffer, CL_TRUE, 0, bytes, other);
     });
     DsMixParams params{};
     params.vertexCount = mVertexCount;
     params.frameCount = frameCount;
     guard("running dsMix on a chunk of frames", [&] {
-      mMix.setArg(0, mPositions.buffer);
-      mMix.setArg(1, mOther.buffer);
-      mMix.setArg(2, mMixWeights);
-      mMix.setArg(3, params);
+      cl_util::setArgs(mMix, positionBuffer, otherBuffer, mMixWeights, params);
       enqueue(mMix, frameCount);
     });
     guard("reading back the mixed positions",
-          [&] { mQueue.enqueueReadBuffer(mPositions.buffer, CL_TRUE, 0, bytes, positions); });
+          [&] { mQueue.enqueueReadBuffer(positionBuffer, CL_TRUE, 0, bytes, positions); });
   }
 
   void wind(int frameCount, const int* frames, const WindSettings& settings, const float* clearance,
@@ -95,43 +92,34 @@ class ClLayers final : public LayerBackend {
     for (std::size_t f = 0; f < count; ++f) {
       windFrameOffsets(settings, frames[f], mOffsets.data() + f * DS_WIND_MAX_OCTAVES * 4);
     }
-    reserve(mPositions, bytes, CL_MEM_READ_WRITE, "allocating the layer position buffer");
-    reserve(mOffsetBuffer, mOffsets.size() * sizeof(float), CL_MEM_READ_ONLY,
-            "allocating the wind offset buffer");
+    cl::Buffer& positionBuffer = reserve(mPositions, bytes, "allocating the layer position buffer");
+    cl::Buffer& offsetBuffer = reserve(mOffsetBuffer, mOffsets.size() * sizeof(float),
+                                       "allocating the wind offset buffer");
     const std::size_t clearanceBytes = count * static_cast<std::size_t>(mVertexCount) * 4;
-    if (clearance != nullptr) {
-      reserve(mClearance, clearanceBytes, CL_MEM_READ_ONLY, "allocating the clearance buffer");
-    }
+    cl::Buffer& clearanceBuffer = clearance != nullptr ? reserve(mClearance, clearanceBytes,
+                                                                 "allocating the clearance buffer")
+                                                       : mNoClearance;
     guard("uploading a chunk for the wind", [&] {
-      mQueue.enqueueWriteBuffer(mPositions.buffer, CL_FALSE, 0, bytes, positions);
-      mQueue.enqueueWriteBuffer(mOffsetBuffer.buffer, CL_FALSE, 0, mOffsets.size() * sizeof(float),
+      mQueue.enqueueWriteBuffer(positionBuffer, CL_FALSE, 0, bytes, positions);
+      mQueue.enqueueWriteBuffer(offsetBuffer, CL_FALSE, 0, mOffsets.size() * sizeof(float),
                                 mOffsets.data());
       if (clearance != nullptr) {
-        mQueue.enqueueWriteBuffer(mClearance.buffer, CL_FALSE, 0, clearanceBytes, clearance);
+        mQueue.enqueueWriteBuffer(clearanceBuffer, CL_FALSE, 0, clearanceBytes, clearance);
       }
       mQueue.finish();
     });
     const DsWindParams params =
         layer_detail::makeWindParams(settings, mVertexCount, frameCount, clearance != nullptr);
     guard("running dsWind on a chunk of frames", [&] {
-      mWind.setArg(0, mPositions.buffer);
-      mWind.setArg(1, mRest);
-      mWind.setArg(2, mWindWeights);
-      mWind.setArg(3, clearance != nullptr ? mClearance.buffer : mNoClearance);
-      mWind.setArg(4, mOffsetBuffer.buffer);
-      mWind.setArg(5, params);
+      cl_util::setArgs(mWind, positionBuffer, mRest, mWindWeights, clearanceBuffer, offsetBuffer,
+                       params);
       enqueue(mWind, frameCount);
     });
     guard("reading back the wind positions",
-          [&] { mQueue.enqueueReadBuffer(mPositions.buffer, CL_TRUE, 0, bytes, positions); });
+          [&] { mQueue.enqueueReadBuffer(positionBuffer, CL_TRUE, 0, bytes, positions); });
   }
 
  private:
-  struct ChunkBuffer {
-    cl::Buffer buffer;
-    std::size_t bytes = 0;
-  };
-
   std::size_t frameBytes(int frameCount) const {
     return static_cast<std::size_t>(frameCount) * 3 * static_cast<std::size_t>(mVertexCount) *
            sizeof(float);
@@ -142,12 +130,8 @@ class ClLayers final : public LayerBackend {
                       data.size() * sizeof(float), const_cast<float*>(data.data()));
   }
 
-  void reserve(ChunkBuffer& chunk, std::size_t bytes, cl_mem_flags flags, const char* what) {
-    if (chunk.bytes >= bytes) {
-      return;
-    }
-    guard(what, [&] { chunk.buffer = cl::Buffer(mContext, flags, bytes); });
-    chunk.bytes = bytes;
+  cl::Buffer& reserve(cl_util::GrowingBuffer& chunk, std::size_t bytes, const char* what) {
+    return guard(what, [&]() -> cl::Buffer& { return chunk.reserve(mContext, bytes); });
   }
 
   // One item per (vertex, frame), rows of DS_LOCAL_SIZE vertices.
@@ -171,14 +155,14 @@ class ClLayers final : public LayerBackend {
   bool mHasMix = false;
   bool mHasWind = false;
   int mVertexCount = 0;
-  cl::Buffer mRest;         // 3Vd
-  cl::Buffer mMixWeights;   // Vd (or 1 placeholder)
-  cl::Buffer mWindWeights;  // Vd (or 1 placeholder)
-  cl::Buffer mNoClearance;  // 1 placeholder
-  ChunkBuffer mPositions;   // F x 3Vd
-  ChunkBuffer mOther;       // F x 3Vd
-  ChunkBuffer mClearance;   // F x Vd
-  ChunkBuffer mOffsetBuffer;
+  cl::Buffer mRest;                                      // 3Vd
+  cl::Buffer mMixWeights;                                // Vd (or 1 placeholder)
+  cl::Buffer mWindWeights;                               // Vd (or 1 placeholder)
+  cl::Buffer mNoClearance;                               // 1 placeholder
+  cl_util::GrowingBuffer mPositions{CL_MEM_READ_WRITE};  // F x 3Vd
+  cl_util::GrowingBuffer mOther{CL_MEM_READ_ONLY};       // F x 3Vd
+  cl_util::GrowingBuffer mClearance{CL_MEM_READ_ONLY};   // F x Vd
+  cl_util::GrowingBuffer mOffsetBuffer{CL_MEM_READ_ONLY};
   std::vector<float> mOffsets;
 };
 
