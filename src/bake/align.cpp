@@ -9,6 +9,7 @@
 #include <numeric>
 
 #include <drivenshape/error.h>
+#include <drivenshape/parallel.h>
 
 namespace drivenshape {
 namespace {
@@ -277,17 +278,27 @@ void RigidAligner::weightByRigidity(const float* examples, int exampleCount,
   const Eigen::Vector3d high = mReference.colwise().maxCoeff().transpose();
   const double diagonal = (high - low).norm();
   const double tau2 = std::pow(options.residualScale * diagonal, 2);
-  // Mean over the examples of each selected vertex's squared residual under `weights`.
+  // Mean over the examples of each selected vertex's squared residual under `weights`. The
+  // examples are fitted in parallel; their residuals are summed in example order, so the result
+  // does not depend on the thread count.
+  std::vector<double> perExample(static_cast<std::size_t>(exampleCount) * n);
   auto residuals = [&](const std::vector<double>& weights) {
-    std::vector<double> r2(static_cast<std::size_t>(n), 0.0);
-    for (int e = 0; e < exampleCount; ++e) {
+    parallelFor(exampleCount, options.threads, [&](int e) {
       const float* frame = examples + static_cast<std::size_t>(e) * mVertexCount * 3;
       const RigidTransform motion = fitWith(weights, frame);
+      double* out = &perExample[static_cast<std::size_t>(e) * n];
       for (int i = 0; i < n; ++i) {
         const float* p = frame + 3 * mVertices[i];
         const Eigen::Vector3d q = motion.rotation * Eigen::Vector3d(p[0], p[1], p[2]) +
                                   motion.translation - mReferenceCentroid;
-        r2[i] += (q - mReference.row(i).transpose()).squaredNorm();
+        out[i] = (q - mReference.row(i).transpose()).squaredNorm();
+      }
+    });
+    std::vector<double> r2(static_cast<std::size_t>(n), 0.0);
+    for (int e = 0; e < exampleCount; ++e) {
+      const double* values = &perExample[static_cast<std::size_t>(e) * n];
+      for (int i = 0; i < n; ++i) {
+        r2[i] += values[i];
       }
     }
     for (double& value : r2) {

@@ -119,7 +119,7 @@ struct WeightProblem {
 /// What a bake precomputes from the database and its settings, once.
 struct Prepared {
   std::vector<float> driverShapes;  ///< k x 3Vp, rigidly aligned to the rest driver if asked
-  std::vector<float> drivenShapes;  ///< k x 3Vd, the same motion per shape
+  std::vector<float> drivenShapes;  ///< k x 3Vd, the same motion per shape (world blending)
   std::unique_ptr<RigidAligner> aligner;
   std::vector<int> alignVertices;
   bool hasRegions = false;
@@ -365,9 +365,14 @@ Prepared prepare(const Database& db, const BakeOptions& options, const BakeBacke
   const int k = db.shapeCount();
   const std::size_t driverValues = static_cast<std::size_t>(db.driverVertexCount()) * 3;
   const std::size_t drivenValues = static_cast<std::size_t>(db.drivenVertexCount()) * 3;
-  prepared.driverShapes = db.driverShapes;
-  prepared.drivenShapes = db.drivenShapes;
   const bool weighted = options.weightMode != WeightMode::kBind;
+  const bool local = blendsLocally(options);
+  const int threads = options.threads > 0 ? options.threads : hardwareThreads();
+  prepared.driverShapes = db.driverShapes;
+  if (!local) {
+    // Local blending encodes the unaligned shapes (local coordinates ignore rigid motions).
+    prepared.drivenShapes = db.drivenShapes;
+  }
   if (weighted && options.align != AlignMode::kNone) {
     const std::string source =
         "--align-group '" + (options.alignGroup.empty() ? std::string("all") : options.alignGroup) +
@@ -377,17 +382,21 @@ Prepared prepare(const Database& db, const BakeOptions& options, const BakeBacke
                                                       prepared.alignVertices, source);
     if (options.align == AlignMode::kRigid) {
       // Lock onto the part that moves rigidly across the database (the pelvis, not the legs).
-      prepared.aligner->weightByRigidity(db.driverShapes.data(), k);
+      RigidityOptions rigidity;
+      rigidity.threads = threads;
+      prepared.aligner->weightByRigidity(db.driverShapes.data(), k, rigidity);
     }
     // The database in the same frame as the shots: each shape pair moves with the motion
     // that fits its driver shape to the rest driver.
-    for (int i = 0; i < k; ++i) {
+    parallelFor(k, threads, [&](int i) {
       const RigidTransform motion = prepared.aligner->fit(&db.driverShapes[i * driverValues]);
       motion.apply(&db.driverShapes[i * driverValues], db.driverVertexCount(),
                    &prepared.driverShapes[i * driverValues]);
-      motion.apply(&db.drivenShapes[i * drivenValues], db.drivenVertexCount(),
-                   &prepared.drivenShapes[i * drivenValues]);
-    }
+      if (!local) {
+        motion.apply(&db.drivenShapes[i * drivenValues], db.drivenVertexCount(),
+                     &prepared.drivenShapes[i * drivenValues]);
+      }
+    });
   }
   if (weighted && !options.regionsPath.empty()) {
     prepared.hasRegions = true;
@@ -402,18 +411,18 @@ Prepared prepare(const Database& db, const BakeOptions& options, const BakeBacke
     problem.solver = std::make_unique<SimplexLeastSquares>(
         driverMatrix(prepared.driverShapes, k, db.driverVertexCount(), problem.rows));
   }
-  if (blendsLocally(options)) {
+  if (local) {
     // Bind once at rest (mask respected), then store every shape as offsets in the local
     // frames of the same triangles at the same barycentric points.
     prepared.restHits.resize(static_cast<std::size_t>(db.drivenVertexCount()));
     backends.binding->closest(1, db.driverMesh.positions.data(), db.drivenMesh.positions.data(),
                               prepared.restHits.data());
     prepared.localShapes.resize(db.drivenShapes.size());
-    for (int i = 0; i < k; ++i) {
+    parallelFor(k, threads, [&](int i) {
       encodeLocal(db.driverMesh, &db.driverShapes[i * driverValues], db.drivenVertexCount(),
                   &db.drivenShapes[i * drivenValues], prepared.restHits.data(),
                   &prepared.localShapes[i * drivenValues]);
-    }
+    });
   }
   return prepared;
 }
@@ -444,7 +453,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
   if (options.correct || local) {
     backends.binding->setSurface(db.driverMesh, mask);
   }
-  const Prepared prepared = prepare(db, options, backends);
+  Prepared prepared = prepare(db, options, backends);
   result.settingsHash = settingsHashOf(db, options, mask, prepared);
   // Layers (mix, wind) after the correction; their settings join the hash and the EXR header.
   std::optional<LayerStack> layerStack;
@@ -466,8 +475,9 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
     const SimplexLeastSquares& full =
         deviceProjection ? *prepared.problems.front().solver
                          : SimplexLeastSquares(driverMatrix(prepared.driverShapes, k, vp, {}));
+    // The blended shapes are needed only on the backend from here on: hand them over.
     stages.upload(tablesFrom(db, full, prepared.driverShapes,
-                             local ? prepared.localShapes : prepared.drivenShapes));
+                             std::move(local ? prepared.localShapes : prepared.drivenShapes)));
   }
   std::unique_ptr<InsideAudit> inside;
   if (options.audit || options.resolve || options.layers.hasWind()) {

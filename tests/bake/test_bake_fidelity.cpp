@@ -215,7 +215,9 @@ TEST(RigidAlign, RigidityWeightsLockOntoTheRigidPartWhileTheOtherArticulates) {
   const std::vector<int> all = selectVertices(mesh, "", "test");
   RigidAligner weighted(mesh, mesh.positions.data(), all, "test");
   const RigidAligner areaOnly(mesh, mesh.positions.data(), all, "test");
-  weighted.weightByRigidity(examples.data(), exampleCount);
+  RigidityOptions threeThreads;
+  threeThreads.threads = 3;
+  weighted.weightByRigidity(examples.data(), exampleCount, threeThreads);
   // A shot frame that is none of the examples: another bend, another motion.
   const RigidTransform motion = travellingMotion(5, 7);
   const std::vector<float> shot = articulatedFrame(mesh, rigidPart, joint, 1.2, motion);
@@ -251,9 +253,12 @@ TEST(RigidAlign, RigidityWeightsLockOntoTheRigidPartWhileTheOtherArticulates) {
   // The plain area fit is pulled by the bending half: the check above is not vacuous.
   EXPECT_GT(areaError, 10 * testing::kRigidityAlignTol);
 
-  // Deterministic: the same examples give bit-identical weights and fits.
+  // Deterministic: the same examples give bit-identical weights and fits, on one thread as on
+  // several.
   RigidAligner again(mesh, mesh.positions.data(), all, "test");
-  again.weightByRigidity(examples.data(), exampleCount);
+  RigidityOptions oneThread;
+  oneThread.threads = 1;
+  again.weightByRigidity(examples.data(), exampleCount, oneThread);
   EXPECT_EQ(again.weights(), weighted.weights());
   EXPECT_EQ(again.fit(shot.data()).rotation, weighted.fit(shot.data()).rotation);
   EXPECT_EQ(again.fit(shot.data()).translation, weighted.fit(shot.data()).translation);

@@ -15,8 +15,9 @@
 // per pass (median; all threads, PoCL's included), which is the fairer figure on a shared
 // machine. "candidates" is the host FLANN search alone (the host backend's first step, and the
 // OpenCL backend's with DeviceSearch::kCandidates), so closest minus candidates is the exact
-// step. The OpenCL backend runs twice: with its default BVH search and with the host
-// candidate lists (DeviceSearch::kCandidates), to compare the schemes in one run.
+// step. "floor" is the least any exact search must do: the distance to the triangle it returns,
+// with the answer handed over. The OpenCL backend runs twice: with its default BVH search and with
+// the host candidate lists (DeviceSearch::kCandidates), to compare the schemes in one run.
 
 #include <algorithm>
 #include <chrono>
@@ -34,7 +35,10 @@
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 
+#include <drivenshape/parallel.h>
+
 #include "candidates.h"
+#include "triangle_distance.h"
 
 namespace {
 
@@ -327,6 +331,29 @@ int run(const Options& options) {
                       });
                     })});
   }
+
+  // The floor of any exact search: the distance to the triangle it returns, measured once per
+  // point with the answer handed over (no search, no verification). Compare it with the
+  // transfer and with the blend stage (bench_stages) to see what a per-frame exact search can
+  // cost at best on this machine.
+  std::vector<double> oracle(frames * vd);
+  rows.push_back({"floor", "host, answer given", measure(options.repeat, [&] {
+                    drivenshape::parallelFor(options.frames, options.threads, [&](int f) {
+                      const float* pose = blended.data() + static_cast<std::size_t>(f) * 3 * vp;
+                      const float* points = cloth.data() + static_cast<std::size_t>(f) * 3 * vd;
+                      for (int i = 0; i < vd; ++i) {
+                        const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+                        const int t = hits[k].triangle;
+                        double u = 0.0;
+                        double v = 0.0;
+                        oracle[k] = drivenshape::correction::triangleDistance2(
+                            drivenshape::correction::loadPoint(points, i),
+                            drivenshape::correction::loadPoint(pose, driver.triangles(t, 0)),
+                            drivenshape::correction::loadPoint(pose, driver.triangles(t, 1)),
+                            drivenshape::correction::loadPoint(pose, driver.triangles(t, 2)), u, v);
+                      }
+                    });
+                  })});
 
   std::printf("candidates per point: %.1f\n",
               static_cast<double>(candidates) / (static_cast<double>(frames) * vd));

@@ -56,6 +56,9 @@ struct RigidityOptions {
   int seedCount = 64;
   /// Reweighting passes after the best seed.
   int iterations = 3;
+  /// Host threads for the fits over the examples (0 = one per hardware thread). The weights do
+  /// not depend on it: every sum runs in the same order.
+  int threads = 0;
 };
 
 /// Weighted rigid fit (Kabsch / Umeyama without scale, det(R) = +1) of frames of one mesh to a
