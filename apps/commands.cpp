@@ -101,6 +101,30 @@ void infoExr(const std::string& path) {
             << ")\n";
 }
 
+void infoPositionMap(const std::string& path) {
+  const PositionMapInfo info = readPositionMapExrInfo(path);
+  std::cout << "position-map EXR " << path << "\n"
+            << "  " << info.width << "x" << info.height << " texels, frame " << info.frame
+            << ", padding " << info.padding << " texels, compression "
+            << exrCompressionName(info.compression)
+            << (info.hasNormals ? (info.halfNormals ? ", normals (half)" : ", normals") : "")
+            << "\n"
+            << "  mesh of " << info.meshVertexCount << " vertices, topology "
+            << hashToHex(info.topologyHash) << ", written by drivenshape " << info.toolVersion
+            << ", " << info.framesPerSecond << " fps\n"
+            << "  bounds (" << info.bounds.min.transpose() << ") - (" << info.bounds.max.transpose()
+            << ")\n";
+}
+
+/// A single EXR: a position map or a point cache, by its header.
+void infoAnyExr(const std::string& path) {
+  if (isPositionMapExr(path)) {
+    infoPositionMap(path);
+  } else {
+    infoExr(path);
+  }
+}
+
 }  // namespace
 
 int runDevices(const std::vector<std::string>& args) {
@@ -116,9 +140,10 @@ int runDevices(const std::vector<std::string>& args) {
 }
 
 int runInfo(const std::vector<std::string>& args) {
-  ArgParser parser("drivenshape info FILE",
-                   "Describes a database, a mesh (.obj), a PC2 cache, a point-cache EXR or an EXR "
-                   "sequence pattern (name.####.exr).");
+  ArgParser parser(
+      "drivenshape info FILE",
+      "Describes a database, a mesh (.obj), a PC2 cache, a point-cache or position-map "
+      "EXR, or a point-cache sequence pattern (name.####.exr).");
   parser.positional("one FILE", 1);
   if (!parser.parse(args)) {
     std::cout << parser.help();
@@ -142,7 +167,7 @@ int runInfo(const std::vector<std::string>& args) {
               << frames.size() << " frames ("
               << (frames.empty() ? std::string("none") : formatFrameRange(frames)) << ")\n";
   } else if (endsWith(path, ".exr")) {
-    infoExr(path);
+    infoAnyExr(path);
   } else if (isDatabaseFile(path)) {
     infoDatabase(path);
   } else if (!std::filesystem::exists(path)) {

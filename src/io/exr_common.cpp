@@ -1,13 +1,19 @@
 #include "exr_common.h"
 
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfVecAttribute.h>
 
 #include <exception>
 #include <fstream>
 
 #include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
+#include <drivenshape/hash.h>
 
 namespace drivenshape::exr_detail {
 
@@ -23,6 +29,53 @@ Imf::Compression toImf(ExrCompression compression) {
       return Imf::PIZ_COMPRESSION;
   }
   return Imf::ZIP_COMPRESSION;
+}
+
+ExrCompression fromImf(Imf::Compression compression) {
+  switch (compression) {
+    case Imf::NO_COMPRESSION:
+    case Imf::RLE_COMPRESSION:
+      return ExrCompression::kNone;
+    case Imf::ZIPS_COMPRESSION:
+      return ExrCompression::kZips;
+    case Imf::PIZ_COMPRESSION:
+      return ExrCompression::kPiz;
+    default:
+      return ExrCompression::kZip;
+  }
+}
+
+ExrSharedHeader readSharedHeader(const std::string& path, const Imf::Header& header) {
+  ExrSharedHeader shared;
+  if (const auto* frame = header.findTypedAttribute<Imf::IntAttribute>(kAttrFrame)) {
+    shared.frame = frame->value();
+  }
+  if (const auto* hash = header.findTypedAttribute<Imf::StringAttribute>(kAttrTopologyHash)) {
+    if (!hexToHash(hash->value(), shared.topologyHash)) {
+      DS_THROW(kInput, path, ": ", kAttrTopologyHash, " '", hash->value(),
+               "' is not 16 hex digits");
+    }
+  }
+  if (const auto* version = header.findTypedAttribute<Imf::StringAttribute>(kAttrToolVersion)) {
+    shared.toolVersion = version->value();
+  }
+  const auto* boundsMin = header.findTypedAttribute<Imf::V3fAttribute>(kAttrBoundsMin);
+  const auto* boundsMax = header.findTypedAttribute<Imf::V3fAttribute>(kAttrBoundsMax);
+  if (boundsMin != nullptr && boundsMax != nullptr) {
+    const Imath::V3f& lo = boundsMin->value();
+    const Imath::V3f& hi = boundsMax->value();
+    shared.bounds.min = Eigen::Vector3f(lo.x, lo.y, lo.z);
+    shared.bounds.max = Eigen::Vector3f(hi.x, hi.y, hi.z);
+  }
+  if (Imf::hasFramesPerSecond(header)) {
+    shared.framesPerSecond = static_cast<double>(Imf::framesPerSecond(header));
+  }
+  const Imf::ChannelList& channels = header.channels();
+  shared.hasNormals = channels.findChannel(kNormalChannels[0]) != nullptr &&
+                      channels.findChannel(kNormalChannels[1]) != nullptr &&
+                      channels.findChannel(kNormalChannels[2]) != nullptr;
+  shared.compression = fromImf(header.compression());
+  return shared;
 }
 
 void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], const float* base,

@@ -28,6 +28,14 @@ inline constexpr const char* kCoverageChannel = "A";
 
 Imf::Compression toImf(ExrCompression compression);
 
+/// The four lossless codecs we write map back exactly; a file re-saved elsewhere with another
+/// codec reports the nearest lossless one (RLE -> none, anything else -> zip).
+ExrCompression fromImf(Imf::Compression compression);
+
+/// The shared header fields (ExrSharedHeader); a malformed topology hash is Error(kInput)
+/// naming `path`.
+ExrSharedHeader readSharedHeader(const std::string& path, const Imf::Header& header);
+
 /// FLOAT slices of an interleaved xyz image (3 floats per pixel, `width` pixels per row) for the
 /// three channels `names`. OpenEXR only reads through the slices when writing.
 void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], const float* base,

@@ -30,22 +30,6 @@ using namespace exr_detail;  // the names shared with the other EXR kind
 constexpr const char* kAttrVertexCount = "dsVertexCount";
 constexpr const char* kAttrSettingsHash = "dsSettingsHash";
 
-/// The four lossless codecs we write map back exactly; a file re-saved elsewhere with another
-/// codec reports the nearest lossless one (RLE -> none, anything else -> zip).
-ExrCompression fromImf(Imf::Compression compression) {
-  switch (compression) {
-    case Imf::NO_COMPRESSION:
-    case Imf::RLE_COMPRESSION:
-      return ExrCompression::kNone;
-    case Imf::ZIPS_COMPRESSION:
-      return ExrCompression::kZips;
-    case Imf::PIZ_COMPRESSION:
-      return ExrCompression::kPiz;
-    default:
-      return ExrCompression::kZip;
-  }
-}
-
 /// Interleaved xyz of W * H pixels: the V vertices, then zero padding.
 std::vector<float> paddedXyz(const float* xyz, int vertexCount, std::size_t pixels) {
   std::vector<float> padded(pixels * 3, 0.0f);
@@ -111,40 +95,13 @@ ExrPointCacheInfo parseHeader(const std::string& path, const Imf::Header& header
     DS_THROW(kInput, path, ": ", kAttrVertexCount, " is ", info.vertexCount,
              "; a point cache holds at least one vertex");
   }
-  if (const auto* frame = header.findTypedAttribute<Imf::IntAttribute>(kAttrFrame)) {
-    info.frame = frame->value();
-  }
-  if (const auto* hash = header.findTypedAttribute<Imf::StringAttribute>(kAttrTopologyHash)) {
-    if (!hexToHash(hash->value(), info.topologyHash)) {
-      DS_THROW(kInput, path, ": ", kAttrTopologyHash, " '", hash->value(),
-               "' is not 16 hex digits");
-    }
-  }
+  static_cast<ExrSharedHeader&>(info) = readSharedHeader(path, header);
   if (const auto* hash = header.findTypedAttribute<Imf::StringAttribute>(kAttrSettingsHash)) {
     if (!hexToHash(hash->value(), info.settingsHash)) {
       DS_THROW(kInput, path, ": ", kAttrSettingsHash, " '", hash->value(),
                "' is not 16 hex digits");
     }
   }
-  if (const auto* version = header.findTypedAttribute<Imf::StringAttribute>(kAttrToolVersion)) {
-    info.toolVersion = version->value();
-  }
-  const auto* boundsMin = header.findTypedAttribute<Imf::V3fAttribute>(kAttrBoundsMin);
-  const auto* boundsMax = header.findTypedAttribute<Imf::V3fAttribute>(kAttrBoundsMax);
-  if (boundsMin != nullptr && boundsMax != nullptr) {
-    const Imath::V3f& lo = boundsMin->value();
-    const Imath::V3f& hi = boundsMax->value();
-    info.bounds.min = Eigen::Vector3f(lo.x, lo.y, lo.z);
-    info.bounds.max = Eigen::Vector3f(hi.x, hi.y, hi.z);
-  }
-  if (Imf::hasFramesPerSecond(header)) {
-    info.framesPerSecond = static_cast<double>(Imf::framesPerSecond(header));
-  }
-  const Imf::ChannelList& channels = header.channels();
-  info.hasNormals = channels.findChannel(kNormalChannels[0]) != nullptr &&
-                    channels.findChannel(kNormalChannels[1]) != nullptr &&
-                    channels.findChannel(kNormalChannels[2]) != nullptr;
-  info.compression = fromImf(header.compression());
   info.stringAttributes = extraStrings(header);
 
   const Imath::Box2i& window = header.dataWindow();

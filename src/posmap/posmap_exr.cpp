@@ -7,12 +7,15 @@
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfFramesPerSecond.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
 
 #include <cmath>
+#include <filesystem>
+#include <optional>
 #include <vector>
 
 #include <drivenshape/error.h>
@@ -107,6 +110,63 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
 
     writeScanlines(path, tempPath, exrHeader, frameBuffer, height);
   });
+}
+
+namespace {
+
+/// The header of `path` if it is a position map, else nothing; Error(kInput) on a bad hash.
+std::optional<PositionMapInfo> positionMapHeader(const std::string& path) {
+  Imf::InputFile file(path.c_str());
+  const Imf::Header& header = file.header();
+  const auto* kind = header.findTypedAttribute<Imf::StringAttribute>(kAttrKind);
+  if (kind == nullptr || kind->value() != kKindValue) {
+    return std::nullopt;
+  }
+  PositionMapInfo info;
+  static_cast<ExrSharedHeader&>(info) = readSharedHeader(path, header);
+  const Imath::Box2i& window = header.dataWindow();
+  info.width = window.max.x - window.min.x + 1;
+  info.height = window.max.y - window.min.y + 1;
+  if (const auto* count = header.findTypedAttribute<Imf::IntAttribute>(kAttrMeshVertexCount)) {
+    info.meshVertexCount = count->value();
+  }
+  if (const auto* padding = header.findTypedAttribute<Imf::IntAttribute>(kAttrPadding)) {
+    info.padding = padding->value();
+  }
+  if (info.hasNormals) {
+    info.halfNormals = header.channels().findChannel(kNormalChannels[0])->type == Imf::HALF;
+  }
+  return info;
+}
+
+}  // namespace
+
+bool isPositionMapExr(const std::string& path) {
+  try {
+    return positionMapHeader(path).has_value();
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+PositionMapInfo readPositionMapExrInfo(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    DS_THROW(kInput, "position-map EXR '", path, "' does not exist");
+  }
+  std::optional<PositionMapInfo> info;
+  try {
+    info = positionMapHeader(path);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    DS_THROW(kInput, "cannot read EXR '", path, "': ", e.what());
+  }
+  if (!info) {
+    DS_THROW(kInput, path, ": not a drivenshape position map (no ", kAttrKind, " '", kKindValue,
+             "' attribute); `drivenshape info` describes point caches too");
+  }
+  return *info;
 }
 
 }  // namespace drivenshape

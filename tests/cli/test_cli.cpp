@@ -352,6 +352,12 @@ TEST(Cli, BakePosmapEqualsPosmapOfTheBakedCache) {
     EXPECT_GT(std::count(inBake.begin() + 3 * 96 * 64, inBake.end(), 1.0f), 100)
         << "the map covers texels";
   }
+  // `info` tells a position map from a point cache and describes it.
+  r = runCli(dir, {"info", dir.file("out/alone.0006.exr")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("position-map EXR"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("96x64 texels, frame 6"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("mesh of 2244 vertices"), std::string::npos) << r.out;
 }
 
 }  // namespace

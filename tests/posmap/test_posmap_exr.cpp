@@ -22,6 +22,7 @@
 #include <memory>
 
 #include <drivenshape/hash.h>
+#include <drivenshape/point_cache.h>
 #include <drivenshape/version.h>
 
 #include "posmap_test_util.h"
@@ -163,8 +164,38 @@ TEST(PosmapExr, ChannelsAttributesAndValuesReadBackForEveryCompression) {
       }
       const std::vector<float> alpha = readChannel(path, "A");
       EXPECT_EQ(alpha, maps.tables.coverage);
+
+      // What `drivenshape info` reads back: the header it was written with.
+      ASSERT_TRUE(isPositionMapExr(path));
+      const PositionMapInfo info = readPositionMapExrInfo(path);
+      EXPECT_EQ(info.width, 96);
+      EXPECT_EQ(info.height, 64);
+      EXPECT_EQ(info.frame, 12);
+      EXPECT_EQ(info.topologyHash, header.topologyHash);
+      EXPECT_EQ(info.meshVertexCount, header.meshVertexCount);
+      EXPECT_EQ(info.padding, 2);
+      EXPECT_EQ(info.toolVersion, kVersion);
+      EXPECT_EQ(info.framesPerSecond, 25.0);
+      EXPECT_EQ(info.bounds.min, header.bounds.min);
+      EXPECT_EQ(info.bounds.max, header.bounds.max);
+      EXPECT_TRUE(info.hasNormals);
+      EXPECT_EQ(info.halfNormals, half);
+      EXPECT_EQ(info.compression, compression);
     }
   }
+}
+
+TEST(PosmapExr, PointCachesAndMissingFilesAreNotPositionMaps) {
+  TempDir dir;
+  const std::string cache = dir.file("cache.0001.exr");
+  const std::vector<float> xyz = {0.0f, 1.0f, 2.0f, 3.0f, 4.0f, 5.0f};
+  writePointCacheExr(cache, 2, xyz.data(), nullptr, ExrWriteOptions());
+  EXPECT_FALSE(isPositionMapExr(cache));
+  expectThrows([&] { readPositionMapExrInfo(cache); }, ErrorCode::kInput,
+               "cache.0001.exr: not a drivenshape position map");
+  const std::string missing = dir.file("missing.exr");
+  EXPECT_FALSE(isPositionMapExr(missing));
+  expectThrows([&] { readPositionMapExrInfo(missing); }, ErrorCode::kInput, "does not exist");
 }
 
 TEST(PosmapExr, RowZeroOfTheMapIsTheFirstScanline) {

@@ -115,17 +115,22 @@ struct ExrWriteOptions {
 void writePointCacheExr(const std::string& path, int vertexCount, const float* xyz,
                         const float* normals, const ExrWriteOptions& options);
 
-struct ExrPointCacheInfo {
-  int vertexCount = 0;
+/// The header fields that point-cache and position-map EXRs share (same attribute names, same
+/// meaning). A missing attribute keeps its default.
+struct ExrSharedHeader {
   int frame = 0;
-  int width = 0;
   std::uint64_t topologyHash = 0;
-  std::uint64_t settingsHash = 0;
   std::string toolVersion;
-  double framesPerSecond = 0.0;
+  double framesPerSecond = 0.0;  ///< 0 when the file has none
   Bounds bounds;
-  bool hasNormals = false;
+  bool hasNormals = false;  ///< N.X, N.Y and N.Z all present
   ExrCompression compression = ExrCompression::kZip;
+};
+
+struct ExrPointCacheInfo : ExrSharedHeader {
+  int vertexCount = 0;
+  int width = 0;
+  std::uint64_t settingsHash = 0;
   /// String attributes other than the ones above (ExrWriteOptions::stringAttributes), by name.
   std::map<std::string, std::string> stringAttributes;
 };

@@ -207,6 +207,23 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
                          const float* coverage, const float* normals,
                          const PositionMapFrameHeader& header);
 
+/// What a position-map EXR's header says (`drivenshape info`).
+struct PositionMapInfo : ExrSharedHeader {
+  int width = 0;
+  int height = 0;
+  int meshVertexCount = 0;
+  int padding = 0;
+  bool halfNormals = false;  ///< normals stored as 16-bit floats
+};
+
+/// Whether `path` is an EXR whose header marks it as a position map (dsKind = positionMap);
+/// false for anything else, unreadable files included.
+bool isPositionMapExr(const std::string& path);
+
+/// Reads the header of a position-map EXR. Throws Error(kInput) naming the file when it does
+/// not exist, cannot be read or is not a position map.
+PositionMapInfo readPositionMapExrInfo(const std::string& path);
+
 /// Writes an 8-bit RGB PNG of one map atomically: covered texels show P scaled from `bounds`
 /// to 0..255 per axis (x red, y green, z blue), padded texels the same at half brightness,
 /// the rest black. For eyeballing a map, not for data.
