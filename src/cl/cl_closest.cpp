@@ -156,11 +156,7 @@ class ClClosest final : public ClosestBackend {
     const std::size_t poseBytes =
         static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
     const std::size_t pointBytes = items * 3 * sizeof(float);
-    DsTransferParams params{};
-    params.frameCount = frameCount;
-    params.pointCount = mSearch.pointCount();
-    params.vertexCount = mSearch.vertexCount();
-    params.triangleCount = mSearch.triangleCount();
+    const DsTransferParams params = transferParams(frameCount);
 
     cl_util::guard("running the transfer kernel", [&] {
       cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
@@ -191,11 +187,7 @@ class ClClosest final : public ClosestBackend {
     const std::size_t poseBytes =
         static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
     const std::size_t pointBytes = items * 3 * sizeof(float);
-    DsTransferParams params{};
-    params.frameCount = frameCount;
-    params.pointCount = mSearch.pointCount();
-    params.vertexCount = mSearch.vertexCount();
-    params.triangleCount = mSearch.triangleCount();
+    const DsTransferParams params = transferParams(frameCount);
 
     cl_util::guard("running the rebuild kernel", [&] {
       cl::Buffer& hitBuffer = mHits.reserve(mContext, hitBytes);
@@ -257,6 +249,16 @@ class ClClosest final : public ClosestBackend {
   }
 
  private:
+  /// The sizes the transfer and rebuild kernels share.
+  DsTransferParams transferParams(int frameCount) const {
+    DsTransferParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = mSearch.pointCount();
+    params.vertexCount = mSearch.vertexCount();
+    params.triangleCount = mSearch.triangleCount();
+    return params;
+  }
+
   /// At most this many triangles per BVH leaf (measured on W1: 4 and 8 are within noise).
   static constexpr int kLeafSize = 4;
 

@@ -10,8 +10,8 @@ Checks, on the bundled sleeve:
     search), within 1e-5 of the bounding-box diagonal;
   * texels farther than the padding from every covered texel are 0.
 
-Run by CTest (test_posmap_python) through run_python_check.cmake. A missing module fails the
-test with what to do; it never skips.
+Run by CTest (test_posmap_python) through tests/support/run_python.cmake. A missing module
+fails the test with what to do; it never skips.
 """
 
 import argparse
