@@ -22,6 +22,8 @@
 #include <drivenshape/error.h>
 #include <drivenshape/point_cache.h>
 
+#include "json_text.h"
+
 #include "cli_args.h"
 #include "device_choice.h"
 
@@ -265,7 +267,7 @@ int runBench(const std::vector<std::string>& args) {
                 hr.times.blend / cl.times.blend);
   }
   if (parser.has("--json")) {
-    std::ofstream(parser.get("--json")) << report.dump(1) << "\n";
+    std::ofstream(parser.get("--json")) << drivenshape::jsonText(report, 1) << "\n";
   }
   if (!parser.has("--keep")) {
     fs::remove_all(root);

@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
+#include <filesystem>
 #include <sstream>
 
 #include <drivenshape/error.h>
@@ -155,6 +156,12 @@ double ArgParser::getDouble(const std::string& name, double minimum) const {
     DS_THROW(kUsage, "option ", name, " takes a number >= ", minimum, " (got '", text, "')");
   }
   return value;
+}
+
+std::string absolute(const std::string& path) {
+  std::error_code ec;
+  const auto full = std::filesystem::absolute(path, ec);
+  return ec ? path : full.lexically_normal().string();
 }
 
 }  // namespace drivenshape::cli

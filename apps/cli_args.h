@@ -51,4 +51,7 @@ class ArgParser {
   std::vector<std::string> mPositionals;
 };
 
+/// `path` made absolute and normalised, for messages and summaries (unchanged if that fails).
+std::string absolute(const std::string& path);
+
 }  // namespace drivenshape::cli

@@ -38,12 +38,6 @@ bool endsWith(const std::string& text, const std::string& suffix) {
                     [](char a, char b) { return std::tolower(a) == std::tolower(b); });
 }
 
-std::string absolute(const std::string& path) {
-  std::error_code ec;
-  const auto full = std::filesystem::absolute(path, ec);
-  return ec ? path : full.lexically_normal().string();
-}
-
 /// out/cloth.####.exr -> out/cloth.report.json
 std::string defaultReportPath(const std::string& pattern) {
   return (std::filesystem::path(pattern).parent_path() / (sequenceStem(pattern) + ".report.json"))
@@ -342,6 +336,9 @@ std::string defaultPosmapPattern(const std::string& pattern) {
   return (path.parent_path() / name).string();
 }
 
+/// The bake command after its arguments are parsed.
+int bakeParsed(const ArgParser& parser);
+
 }  // namespace
 
 int runBake(const std::vector<std::string>& args) {
@@ -428,6 +425,27 @@ int runBake(const std::vector<std::string>& args) {
     std::cout << parser.help();
     return 0;
   }
+  // Farm tasks are stopped with SIGTERM (and users press Ctrl-C): from here on, through the
+  // setup too, a stop finishes the batch in hand, keeps every complete frame, leaves no
+  // temporary file and exits with code 7. A stop can also break the setup itself (LLVM inside
+  // PoCL deletes its temporary files on SIGTERM, failing a kernel build): an error after a
+  // stop request is reported as the interruption it is.
+  std::signal(SIGTERM, onStopSignal);
+  std::signal(SIGINT, onStopSignal);
+  try {
+    return bakeParsed(parser);
+  } catch (const Error& error) {
+    if (gStopRequested.load() && error.code() != ErrorCode::kInterrupted) {
+      DS_THROW(kInterrupted, "stopped by a signal before the bake finished (", error.what(),
+               "); finished frames are complete, rerun with --skip-existing to resume");
+    }
+    throw;
+  }
+}
+
+namespace {
+
+int bakeParsed(const ArgParser& parser) {
   BakeOptions options;
   options.frames = parseFrameRange(parser.get("--frames"));
   options.outputPattern = parser.get("-o");
@@ -534,10 +552,6 @@ int runBake(const std::vector<std::string>& args) {
     std::cerr << "baking " << options.frames.size() << " frames ("
               << formatFrameRange(options.frames) << ") on " << device << "\n";
   }
-  // Farm tasks are stopped with SIGTERM (and users press Ctrl-C): finish the batch in hand,
-  // keep every complete frame, leave no temporary file, exit with code 7.
-  std::signal(SIGTERM, onStopSignal);
-  std::signal(SIGINT, onStopSignal);
   CliObserver observer(static_cast<long>(options.frames.size()), quiet);
   std::string posmapPattern;
   if (parser.has("--posmap")) {
@@ -566,6 +580,16 @@ int runBake(const std::vector<std::string>& args) {
   }
   const BakeResult result = bake(db, *driver, backends.view(), options, &observer);
   observer.finish();
+  for (const FrameRecord& record : result.frames) {
+    if (!record.rebakeReason.empty()) {
+      std::cerr << "rebaked frame " << record.frame << ": the existing " << record.output << " "
+                << record.rebakeReason << "\n";
+    }
+  }
+  if (result.staleTempFilesRemoved > 0) {
+    std::cerr << "removed " << result.staleTempFilesRemoved
+              << " temporary files left by an interrupted run\n";
+  }
   const double fps = result.times.total > 0 ? result.baked / result.times.total : 0.0;
   std::cout << "baked " << result.baked << " frames (" << result.skipped << " kept) in "
             << std::fixed << std::setprecision(3) << result.times.total << " s, "
@@ -609,5 +633,7 @@ int runBake(const std::vector<std::string>& args) {
   }
   return 0;
 }
+
+}  // namespace
 
 }  // namespace drivenshape::cli

@@ -105,7 +105,8 @@ std::optional<ClDevice> chooseDevice(const std::string& spec) {
         break;
       }
     }
-  } else if (!spec.empty() && spec.find_first_not_of("0123456789") == std::string::npos) {
+  } else if (!spec.empty() && spec.size() <= 6 &&
+             spec.find_first_not_of("0123456789") == std::string::npos) {
     const std::size_t index = std::stoul(spec);
     if (index < devices.size()) {
       chosen = &devices[index];

@@ -16,6 +16,8 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 
+#include "json_text.h"
+
 #include "cli_args.h"
 #include "device_choice.h"
 
@@ -340,7 +342,7 @@ int runEval(const std::vector<std::string>& args) {
   if (parser.has("--json")) {
     const nlohmann::json report =
         reportJson(result, haveDriver ? parser.get("--driver") : std::string(), deviceName);
-    writeFileAtomically(parser.get("--json"), report.dump(1) + "\n");
+    writeFileAtomically(parser.get("--json"), jsonText(report, 1) + "\n");
   }
   return 0;
 }

@@ -16,6 +16,8 @@
 #include <drivenshape/point_cache.h>
 #include <drivenshape/version.h>
 
+#include "json_text.h"
+
 #include "cli_args.h"
 
 namespace drivenshape::cli {
@@ -37,12 +39,6 @@ const char* const kFarmExitCodes =
     "(SIGTERM/SIGINT; rerun to resume). The farm command itself exits 2 for usage errors, 3 "
     "when an input is missing, 4 when the job file or log folder cannot be written or sbatch "
     "fails.";
-
-std::string absolute(const std::string& path) {
-  std::error_code ec;
-  const fs::path full = fs::absolute(path, ec);
-  return ec ? path : full.lexically_normal().string();
-}
 
 /// POSIX shell single quoting: 'it'\''s'.
 std::string shellQuote(const std::string& word) {
@@ -109,7 +105,8 @@ long parseTimeLimit(const std::string& text) {
   long days = -1;
   if (const auto dash = rest.find('-'); dash != std::string::npos) {
     const std::string dayText = rest.substr(0, dash);
-    if (dayText.empty() || !std::all_of(dayText.begin(), dayText.end(), ::isdigit)) {
+    if (dayText.empty() || dayText.size() > 6 ||
+        !std::all_of(dayText.begin(), dayText.end(), ::isdigit)) {
       fail();
     }
     days = std::stol(dayText);
@@ -573,7 +570,7 @@ std::string yamlKey(const std::string& key) {
       !key.empty() && (std::isalpha(static_cast<unsigned char>(key[0])) || key[0] == '_') &&
       std::all_of(key.begin(), key.end(),
                   [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
-  return plain ? key : nlohmann::json(key).dump();
+  return plain ? key : jsonText(nlohmann::json(key));
 }
 
 /// Block-style YAML of a JSON value. Strings are written as JSON strings, which YAML reads as
@@ -590,7 +587,7 @@ void writeYaml(std::ostream& out, const nlohmann::ordered_json& value, int inden
         out << "\n";
         writeYaml(out, child, indent + 2, false);
       } else {
-        out << " " << child.dump() << "\n";
+        out << " " << jsonText(child) << "\n";
       }
       first = false;
     }
@@ -600,11 +597,11 @@ void writeYaml(std::ostream& out, const nlohmann::ordered_json& value, int inden
       if ((child.is_object() || child.is_array()) && !child.empty()) {
         writeYaml(out, child, indent + 2, true);
       } else {
-        out << child.dump() << "\n";
+        out << jsonText(child) << "\n";
       }
     }
   } else {
-    out << pad << value.dump() << "\n";
+    out << pad << jsonText(value) << "\n";
   }
 }
 
@@ -664,11 +661,11 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
     writeYaml(yaml, jobTemplate, 0, false);
     text = yaml.str();
   } else {
-    text = jobTemplate.dump(2) + "\n";
+    text = jsonText(jobTemplate, 2) + "\n";
   }
   checkOutputFolderWritable(jobFile);
   createOutputFolder(job);
-  writeFileAtomically(valuesFile, values.dump(2) + "\n");
+  writeFileAtomically(valuesFile, jsonText(values, 2) + "\n");
   writeFileAtomically(jobFile, text);
   std::cout << "openjd template: " << jobFile << " (step Bake, " << job.chunks << " tasks Chunk=0-"
             << job.chunks - 1 << ", " << job.frameCount << " frames in chunks of up to "

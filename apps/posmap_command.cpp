@@ -19,12 +19,6 @@
 namespace drivenshape::cli {
 namespace {
 
-std::string absolute(const std::string& path) {
-  std::error_code ec;
-  const auto full = std::filesystem::absolute(path, ec);
-  return ec ? path : full.lexically_normal().string();
-}
-
 /// The backend for --device SPEC: OpenCL, or the host reference for `host` (and for `auto`
 /// when there is no OpenCL device, with a warning).
 std::unique_ptr<PositionMapBackend> makeBackend(const std::string& spec, std::string& description,

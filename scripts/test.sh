@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
-# Installs what is missing, builds, and runs the whole test suite (CTest). CI runs this.
+# Installs what is missing, builds (for x86-64, and checks x86-64-v4 compiles), and runs the
+# whole test suite (CTest: unit, command-line, farm, Python and fuzz tests). CI runs this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+# The tree must also compile warning-free for AVX-512 CPUs (x86-64-v4), whatever CPU runs this.
+bash scripts/check_targets.sh x86-64-v4
 mkdir -p build/pocl-cache
 jobs=$(nproc 2>/dev/null || echo 2)
 cd build

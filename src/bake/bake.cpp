@@ -21,6 +21,8 @@
 #include <drivenshape/regions.h>
 #include <drivenshape/version.h>
 
+#include "json_text.h"
+
 namespace drivenshape {
 namespace {
 
@@ -166,20 +168,6 @@ std::uint64_t settingsHashOf(const Database& db, const BakeOptions& options,
   return hasher.value();
 }
 
-/// True if `path` holds a complete EXR written for this database and these settings.
-bool isReusableOutput(const std::string& path, std::uint64_t topology, std::uint64_t settings,
-                      int frame) {
-  if (!isCompleteExr(path)) {
-    return false;
-  }
-  try {
-    const ExrPointCacheInfo info = readPointCacheExrInfo(path);
-    return info.topologyHash == topology && info.settingsHash == settings && info.frame == frame;
-  } catch (const Error&) {
-    return false;
-  }
-}
-
 void validate(const Database& db, const PointCacheReader& driver, const BakeBackends& backends,
               const BakeOptions& options) {
   if (backends.stages == nullptr ||
@@ -254,6 +242,9 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   json frames = json::array();
   for (const FrameRecord& record : result.frames) {
     json entry{{"frame", record.frame}, {"output", record.output}, {"skipped", record.skipped}};
+    if (!record.rebakeReason.empty()) {
+      entry["rebaked_because"] = record.rebakeReason;
+    }
     if (!record.skipped) {
       entry["relative_residual"] = record.relativeResidual;
       entry["kkt_residual"] = record.kktResidual;
@@ -326,7 +317,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
         {"max_weight_change", options.maxWeightChange},
         {"temporal_warmup", options.maxWeightChange > 0 ? options.temporalWarmup : 0},
         {"batch", options.chunkSize},
-        {"layers", nlohmann::json::parse(layers)},
+        {"layers", parseJsonText(layers, "the layer description")},
         {"compression", exrCompressionName(options.compression)},
         {"exr_width", options.exrWidth}}},
       {"baked", result.baked},
@@ -348,7 +339,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
         {"total", result.times.total}}},
       {"frames", frames},
   };
-  writeFileAtomically(path, report.dump(1) + "\n");
+  writeFileAtomically(path, jsonText(report, 1) + "\n");
 }
 
 }  // namespace
@@ -490,20 +481,38 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
   std::vector<SurfaceHit> previousHits;
   std::vector<float> previousOutput;
 
-  // Decide up front which frames to bake, so progress counts real work.
+  // Decide up front which frames to bake, so progress counts real work. A resume keeps an
+  // existing output only if it decodes completely and matches (reuseProblem), and removes the
+  // temporary files that killed runs left for this task's frames.
   std::vector<int> todo;
   for (int frame : options.frames) {
     FrameRecord record;
     record.frame = frame;
     record.output = expandFramePattern(options.outputPattern, frame);
-    if (options.skipExisting &&
-        isReusableOutput(record.output, topology, result.settingsHash, frame)) {
-      record.skipped = true;
+    result.frames.push_back(std::move(record));
+  }
+  if (options.skipExisting) {
+    std::vector<std::string> outputs;
+    for (const FrameRecord& record : result.frames) {
+      outputs.push_back(record.output);
+    }
+    result.staleTempFilesRemoved = removeStaleTempFiles(outputs);
+    parallelFor(static_cast<int>(result.frames.size()), threads, [&](int i) {
+      FrameRecord& record = result.frames[i];
+      std::error_code ec;
+      if (std::filesystem::exists(record.output, ec)) {
+        record.rebakeReason =
+            reuseProblem(record.output, vd, topology, result.settingsHash, record.frame);
+        record.skipped = record.rebakeReason.empty();
+      }
+    });
+  }
+  for (std::size_t i = 0; i < result.frames.size(); ++i) {
+    if (result.frames[i].skipped) {
       ++result.skipped;
     } else {
-      todo.push_back(static_cast<int>(result.frames.size()));
+      todo.push_back(static_cast<int>(i));
     }
-    result.frames.push_back(std::move(record));
   }
 
   ExrWriteOptions exr;
@@ -526,7 +535,10 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
   for (int index : todo) {
     todoFrames.push_back(result.frames[index].frame);
   }
-  auto readBatch = [&driver, &todoFrames, &options, temporal, chunk, threads,
+  // Warm-up frames come from what the cache holds (a warm-up longer than the cache costs
+  // nothing more).
+  const std::vector<int> cacheFrames = temporal ? driver.frames() : std::vector<int>();
+  auto readBatch = [&driver, &todoFrames, &cacheFrames, &options, temporal, chunk, threads,
                     driverValues](std::size_t begin) {
     const auto readStart = Clock::now();
     BatchInput in;
@@ -535,11 +547,12 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, const BakeBa
     // batch, solved but not written), then the batch itself.
     if (temporal) {
       const int first = todoFrames[begin];
-      for (int f = first - options.temporalWarmup; f < first; ++f) {
-        if (driver.hasFrame(f)) {
-          in.solveFrames.push_back(f);
-        }
-      }
+      const long long from = static_cast<long long>(first) - options.temporalWarmup;
+      const auto warmBegin = std::lower_bound(
+          cacheFrames.begin(), cacheFrames.end(), from,
+          [](int frame, long long value) { return static_cast<long long>(frame) < value; });
+      in.solveFrames.assign(warmBegin,
+                            std::lower_bound(cacheFrames.begin(), cacheFrames.end(), first));
     }
     in.warm = static_cast<int>(in.solveFrames.size());
     in.solveFrames.insert(in.solveFrames.end(), todoFrames.begin() + begin,

@@ -14,13 +14,17 @@
 
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <string_view>
 
 #include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/version.h>
+
+#include "json_text.h"
 
 namespace drivenshape {
 namespace {
@@ -171,7 +175,7 @@ void saveDatabase(const std::string& path, const Database& db) {
            {"fnv1a64", hashToHex(Hasher().add(blocks[i].data, blocks[i].bytes).value())}});
     }
     header["blocks"] = table;
-    headerText = header.dump(1);
+    headerText = drivenshape::jsonText(header, 1);
     std::size_t cursor = (kPrefixBytes + headerText.size() + kAlign - 1) / kAlign * kAlign;
     bool changed = false;
     for (std::size_t i = 0; i < blocks.size(); ++i) {
@@ -227,8 +231,8 @@ class BlockReader {
     const json& entry = it->second;
     const std::string dtype = entry.at("dtype").get<std::string>();
     const std::string wanted = std::is_same_v<T, float> ? "float32" : "int32";
-    const auto offset = entry.at("offset").get<std::size_t>();
-    const auto bytes = entry.at("bytes").get<std::size_t>();
+    const std::size_t offset = sizeAt(entry, "offset", name);
+    const std::size_t bytes = sizeAt(entry, "bytes", name);
     if (dtype != wanted || bytes != expectedCount * sizeof(T)) {
       DS_THROW(kInput, mPath, ": database block '", name, "' holds ", bytes, " bytes of ", dtype,
                ", expected ", expectedCount * sizeof(T), " bytes of ", wanted);
@@ -245,7 +249,9 @@ class BlockReader {
                "); the file is corrupted, rebuild it with `drivenshape db build`");
     }
     std::vector<T> values(expectedCount);
-    std::memcpy(values.data(), mBytes.data() + offset, bytes);
+    if (bytes > 0) {
+      std::memcpy(values.data(), mBytes.data() + offset, bytes);
+    }
     return values;
   }
 
@@ -254,10 +260,21 @@ class BlockReader {
     if (it == mTable.end()) {
       return 0;
     }
-    return it->second.at("bytes").get<std::size_t>() / 4;
+    return sizeAt(it->second, "bytes", name) / 4;
   }
 
  private:
+  /// A byte count or offset of the block table: a whole number (read() checks it against the
+  /// file's size).
+  std::size_t sizeAt(const json& entry, const char* key, const std::string& name) const {
+    const json& value = entry.at(key);
+    if (!value.is_number_unsigned()) {
+      DS_THROW(kInput, mPath, ": database block '", name, "' has ", key, " ", jsonText(value),
+               "; the file is corrupt");
+    }
+    return static_cast<std::size_t>(value.get<std::uint64_t>());
+  }
+
   std::string mPath;
   std::string mBytes;
   std::map<std::string, json> mTable;
@@ -265,8 +282,12 @@ class BlockReader {
 
 void readMesh(const BlockReader& blocks, const std::string& prefix, const json& info,
               const std::string& path, Mesh& mesh) {
-  const int vertices = info.at("vertices").get<int>();
-  const int faces = info.at("faces").get<int>();
+  const std::string where = path + ": " + prefix + " mesh";
+  // Counts are bounded so that every product below fits; the blocks must then match them.
+  const int vertices =
+      jsonInt(info.at("vertices"), where + " vertex count", 1, std::numeric_limits<int>::max() / 3);
+  const int faces =
+      jsonInt(info.at("faces"), where + " face count", 0, std::numeric_limits<int>::max() - 1);
   const std::vector<float> rest = blocks.read<float>(prefix + "_rest", std::size_t(vertices) * 3);
   mesh.positions = Eigen::Map<const Positions>(rest.data(), vertices, 3);
   mesh.faceStart = blocks.read<int>(prefix + "_face_start", std::size_t(faces) + 1);
@@ -280,12 +301,7 @@ void readMesh(const BlockReader& blocks, const std::string& prefix, const json& 
     mesh.uvs[i] = Eigen::Vector2f(uv[2 * i], uv[2 * i + 1]);
   }
   mesh.groupNames = info.at("groups").get<std::vector<std::string>>();
-  for (int v : mesh.faceVertices) {
-    if (v < 0 || v >= vertices) {
-      DS_THROW(kInput, path, ": ", prefix, " face list references vertex ", v, " of ", vertices,
-               "; the file is corrupted");
-    }
-  }
+  validateMesh(mesh, where);
   mesh.triangulate();
   const std::string expectedHash = info.at("topology_hash").get<std::string>();
   if (hashToHex(topologyHash(mesh)) != expectedHash) {
@@ -297,11 +313,7 @@ void readMesh(const BlockReader& blocks, const std::string& prefix, const json& 
 }  // namespace
 
 Database loadDatabase(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    DS_THROW(kInput, "cannot open database '", path, "': ", std::strerror(errno));
-  }
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string bytes = readWholeFile(path, "database");
   if (bytes.size() < kPrefixBytes || std::memcmp(bytes.data(), kMagic, 8) != 0) {
     DS_THROW(kInput, "'", path, "' is not a drivenshape database (no DSHAPEDB magic); build one ",
              "with `drivenshape db build`");
@@ -321,21 +333,16 @@ Database loadDatabase(const std::string& path) {
     DS_THROW(kInput, "'", path, "' is truncated (header of ", headerLength,
              " bytes does not fit in the file)");
   }
-  json header;
-  try {
-    header = json::parse(bytes.begin() + kPrefixBytes,
-                         bytes.begin() + kPrefixBytes + static_cast<std::ptrdiff_t>(headerLength));
-  } catch (const json::exception& error) {
-    DS_THROW(kInput, "'", path, "': database header is not valid JSON: ", error.what());
-  }
+  const json header = parseJsonText(std::string_view(bytes).substr(kPrefixBytes, headerLength),
+                                    "'" + path + "': database header");
   Database db;
   try {
     const BlockReader blocks(path, std::move(bytes), header.at("blocks"));
     readMesh(blocks, "driver", header.at("driver"), path, db.driverMesh);
     readMesh(blocks, "driven", header.at("driven"), path, db.drivenMesh);
-    const int k = header.at("shape_count").get<int>();
+    const int k = jsonInt(header.at("shape_count"), path + ": shape_count", 1, 1 << 20);
     for (const auto& pick : header.at("picks")) {
-      db.frames.push_back(pick.at("frame").get<int>());
+      db.frames.push_back(jsonInt(pick.at("frame"), path + ": a pick's frame"));
       const std::string reason = pick.at("reason").get<std::string>();
       db.reasons.push_back(reason == "seed"    ? PickReason::kSeed
                            : reason == "added" ? PickReason::kAdded
@@ -351,10 +358,17 @@ Database loadDatabase(const std::string& path) {
     db.drivenShapes =
         blocks.read<float>("driven_shapes", std::size_t(k) * db.drivenVertexCount() * 3);
     const json& settings = header.at("settings");
-    db.options.count = settings.at("count").get<int>();
-    db.options.frames = settings.at("candidate_frames").get<std::vector<int>>();
-    db.options.addFrames = settings.at("add_frames").get<std::vector<int>>();
-    db.options.removeFrames = settings.at("remove_frames").get<std::vector<int>>();
+    db.options.count = jsonInt(settings.at("count"), path + ": settings.count");
+    const auto frameList = [&](const char* key) {
+      std::vector<int> frames;
+      for (const json& frame : settings.at(key)) {
+        frames.push_back(jsonInt(frame, path + ": settings." + key));
+      }
+      return frames;
+    };
+    db.options.frames = frameList("candidate_frames");
+    db.options.addFrames = frameList("add_frames");
+    db.options.removeFrames = frameList("remove_frames");
     db.options.duplicateTolerance = settings.at("duplicate_tolerance").get<double>();
     db.driverSource = header.at("sources").at("driver").get<std::string>();
     db.drivenSource = header.at("sources").at("driven").get<std::string>();

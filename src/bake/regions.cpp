@@ -8,7 +8,10 @@
 #include <sstream>
 
 #include <drivenshape/align.h>
+#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
+
+#include "json_text.h"
 
 namespace drivenshape {
 namespace {
@@ -189,12 +192,7 @@ std::vector<float> regionFalloff(const Mesh& mesh, const std::vector<std::vector
 
 RegionSet parseRegions(const std::string& jsonText, const std::string& source, const Mesh& driver,
                        const Mesh& driven) {
-  json root;
-  try {
-    root = json::parse(jsonText);
-  } catch (const json::exception& error) {
-    DS_THROW(kInput, source, ": not valid JSON (", error.what(), ")");
-  }
+  const json root = parseJsonText(jsonText, source);
   if (!root.is_object()) {
     DS_THROW(kInput, source, ": expected an object with a \"regions\" list");
   }
@@ -281,13 +279,7 @@ RegionSet parseRegions(const std::string& jsonText, const std::string& source, c
 }
 
 RegionSet readRegions(const std::string& path, const Mesh& driver, const Mesh& driven) {
-  std::ifstream in(path);
-  if (!in) {
-    DS_THROW(kInput, "region file '", path, "' cannot be read; check the path given to --regions");
-  }
-  std::stringstream text;
-  text << in.rdbuf();
-  return parseRegions(text.str(), path, driver, driven);
+  return parseRegions(readWholeFile(path, "region file"), path, driver, driven);
 }
 
 }  // namespace drivenshape

@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <map>
+#include <set>
 
 #include <drivenshape/error.h>
 
@@ -79,6 +81,57 @@ void AtomicFile::sync() {
     std::remove(mTempPath.c_str());
     DS_THROW(kOutput, "cannot flush '", mFinalPath, "' to disk: ", std::strerror(syncErrno));
   }
+}
+
+std::string readWholeFile(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    DS_THROW(kInput, "cannot read ", what, " '", path, "': it is a folder, not a file");
+  }
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (file == nullptr) {
+    DS_THROW(kInput, "cannot read ", what, " '", path, "': ", std::strerror(errno));
+  }
+  std::string bytes;
+  char buffer[1 << 16];
+  std::size_t got;
+  while ((got = std::fread(buffer, 1, sizeof(buffer), file)) > 0) {
+    bytes.append(buffer, got);
+  }
+  const bool failed = std::ferror(file) != 0;
+  const int readErrno = errno;
+  std::fclose(file);
+  if (failed) {
+    DS_THROW(kInput, "cannot read ", what, " '", path, "': ", std::strerror(readErrno));
+  }
+  return bytes;
+}
+
+int removeStaleTempFiles(const std::vector<std::string>& finalPaths) {
+  // One listing per folder: the temporary name of <name> starts with ".<name>.tmp-".
+  std::map<std::string, std::set<std::string>> wanted;
+  for (const std::string& path : finalPaths) {
+    const std::filesystem::path target(path);
+    wanted[folderOf(path)].insert("." + target.filename().string() + ".tmp-");
+  }
+  int removed = 0;
+  for (const auto& [folder, prefixes] : wanted) {
+    std::error_code ec;
+    for (std::filesystem::directory_iterator it(folder, ec), end; !ec && it != end;
+         it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      const std::size_t marker = name.rfind(".tmp-");
+      if (name.empty() || name[0] != '.' || marker == std::string::npos ||
+          prefixes.count(name.substr(0, marker + 5)) == 0) {
+        continue;
+      }
+      std::error_code removeError;
+      if (std::filesystem::remove(it->path(), removeError)) {
+        ++removed;
+      }
+    }
+  }
+  return removed;
 }
 
 void writeFileAtomically(const std::string& path, const std::string& bytes) {

@@ -9,8 +9,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <drivenshape/atomic_file.h>
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+
+#include "json_text.h"
 
 namespace drivenshape {
 
@@ -65,12 +68,7 @@ class MaskParser {
       : mSource(source), mDriver(driver), mDriven(driven) {}
 
   BindingMask parse(const std::string& text) {
-    Json document;
-    try {
-      document = Json::parse(text);
-    } catch (const Json::parse_error& error) {
-      fail("", "is not valid JSON (", error.what(), ")");
-    }
+    const Json document = parseJsonText(text, mSource);
     if (!document.is_object()) {
       fail("", "must hold a JSON object with a \"bindings\" list");
     }
@@ -328,16 +326,7 @@ BindingMask parseBindingMask(const std::string& jsonText, const std::string& sou
 }
 
 BindingMask readBindingMask(const std::string& path, const Mesh& driver, const Mesh& driven) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) {
-    DS_THROW(kInput, "binding mask ", path, ": cannot open the file");
-  }
-  std::ostringstream text;
-  text << file.rdbuf();
-  if (file.bad()) {
-    DS_THROW(kInput, "binding mask ", path, ": read error");
-  }
-  return parseBindingMask(text.str(), path, driver, driven);
+  return parseBindingMask(readWholeFile(path, "binding mask"), path, driver, driven);
 }
 
 }  // namespace drivenshape

@@ -6,9 +6,11 @@
 #include <OpenEXR/ImfCompression.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
 
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <string>
 
 #include <drivenshape/point_cache.h>
@@ -31,6 +33,13 @@ Imf::Compression toImf(ExrCompression compression);
 /// The four lossless codecs we write map back exactly; a file re-saved elsewhere with another
 /// codec reports the nearest lossless one (RLE -> none, anything else -> zip).
 ExrCompression fromImf(Imf::Compression compression);
+
+/// Opens `path` for reading, after checking what OpenEXR would otherwise trust from the file:
+/// every header attribute fits in the file, the image is single-part scan lines, and its data
+/// window and channels describe no more pixel data than a file of this size can decode to
+/// (OpenEXR sizes its tables and our readers size their buffers from those fields). A file that
+/// fails is Error(kInput) "<kind> EXR '<path>': ..."; so is anything OpenEXR throws on open.
+std::unique_ptr<Imf::InputFile> openExr(const std::string& path, const char* kind);
 
 /// The shared header fields (ExrSharedHeader); a malformed topology hash is Error(kInput)
 /// naming `path`.

@@ -10,10 +10,14 @@
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
 
+#include <zlib.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <sstream>
 
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
@@ -29,6 +33,36 @@ using namespace exr_detail;  // the names shared with the other EXR kind
 // Header attributes of point caches only (the shared names: exr_common.h).
 constexpr const char* kAttrVertexCount = "dsVertexCount";
 constexpr const char* kAttrSettingsHash = "dsSettingsHash";
+constexpr const char* kAttrPixelsCrc = "dsPixelsCrc32";
+
+/// Running zlib CRC-32 over float planes (the hosts we build for are little-endian, so the
+/// bytes in memory are the bytes in the file).
+class PlaneCrc {
+ public:
+  /// Adds `count` floats read `stride` floats apart, starting at `values`.
+  void add(const float* values, std::size_t count, std::size_t stride) {
+    float buffer[4096];
+    for (std::size_t done = 0; done < count;) {
+      const std::size_t step = std::min<std::size_t>(count - done, 4096);
+      for (std::size_t i = 0; i < step; ++i) {
+        buffer[i] = values[(done + i) * stride];
+      }
+      mCrc = crc32(mCrc, reinterpret_cast<const Bytef*>(buffer),
+                   static_cast<uInt>(step * sizeof(float)));
+      done += step;
+    }
+  }
+  std::uint32_t value() const { return static_cast<std::uint32_t>(mCrc); }
+
+ private:
+  uLong mCrc = crc32(0L, Z_NULL, 0);
+};
+
+std::string crcText(std::uint32_t crc) {
+  char text[9];
+  std::snprintf(text, sizeof(text), "%08x", static_cast<unsigned>(crc));
+  return text;
+}
 
 /// Interleaved xyz of W * H pixels: the V vertices, then zero padding.
 std::vector<float> paddedXyz(const float* xyz, int vertexCount, std::size_t pixels) {
@@ -47,9 +81,9 @@ void checkExists(const std::string& path) {
 /// Extra attribute names: 1..31 bytes (OpenEXR's limit), unique, and none of the names this
 /// writer sets itself or OpenEXR requires.
 void checkStringAttributes(const std::string& path, const ExrWriteOptions& options) {
-  static const char* const kReserved[] = {kAttrVertexCount, kAttrFrame,     kAttrTopologyHash,
-                                          kAttrToolVersion, kAttrBoundsMin, kAttrBoundsMax,
-                                          kAttrSettingsHash};
+  static const char* const kReserved[] = {kAttrVertexCount,  kAttrFrame,     kAttrTopologyHash,
+                                          kAttrToolVersion,  kAttrBoundsMin, kAttrBoundsMax,
+                                          kAttrSettingsHash, kAttrPixelsCrc};
   const Imf::Header standard(1, 1);
   for (std::size_t i = 0; i < options.stringAttributes.size(); ++i) {
     const std::string& name = options.stringAttributes[i].first;
@@ -73,7 +107,8 @@ std::map<std::string, std::string> extraStrings(const Imf::Header& header) {
   std::map<std::string, std::string> strings;
   for (auto it = header.begin(); it != header.end(); ++it) {
     const std::string name = it.name();
-    if (name == kAttrTopologyHash || name == kAttrToolVersion || name == kAttrSettingsHash) {
+    if (name == kAttrTopologyHash || name == kAttrToolVersion || name == kAttrSettingsHash ||
+        name == kAttrPixelsCrc) {
       continue;
     }
     if (const auto* text = dynamic_cast<const Imf::StringAttribute*>(&it.attribute())) {
@@ -101,6 +136,14 @@ ExrPointCacheInfo parseHeader(const std::string& path, const Imf::Header& header
       DS_THROW(kInput, path, ": ", kAttrSettingsHash, " '", hash->value(),
                "' is not 16 hex digits");
     }
+  }
+  if (const auto* crc = header.findTypedAttribute<Imf::StringAttribute>(kAttrPixelsCrc)) {
+    std::uint64_t value = 0;
+    if (crc->value().size() != 8 || !hexToHash("00000000" + crc->value(), value)) {
+      DS_THROW(kInput, path, ": ", kAttrPixelsCrc, " '", crc->value(), "' is not 8 hex digits");
+    }
+    info.pixelsCrc = static_cast<std::uint32_t>(value);
+    info.hasPixelsCrc = true;
   }
   info.stringAttributes = extraStrings(header);
 
@@ -199,6 +242,16 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
                                                                    bounds.min.z())));
         header.insert(kAttrBoundsMax, Imf::V3fAttribute(Imath::V3f(bounds.max.x(), bounds.max.y(),
                                                                    bounds.max.z())));
+        // Channels in the file's order: A, N.X, N.Y, N.Z, P.X, P.Y, P.Z.
+        PlaneCrc crc;
+        crc.add(coverage.data(), pixels, 1);
+        for (int k = 0; k < 3 && normals != nullptr; ++k) {
+          crc.add(normalData.data() + k, pixels, 3);
+        }
+        for (int k = 0; k < 3; ++k) {
+          crc.add(positions.data() + k, pixels, 3);
+        }
+        header.insert(kAttrPixelsCrc, Imf::StringAttribute(crcText(crc.value())));
         if (options.settingsHash != 0) {
           header.insert(kAttrSettingsHash, Imf::StringAttribute(hashToHex(options.settingsHash)));
         }
@@ -224,8 +277,8 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
 ExrPointCacheInfo readPointCacheExrInfo(const std::string& path) {
   checkExists(path);
   try {
-    Imf::InputFile file(path.c_str());
-    return parseHeader(path, file.header());
+    const auto file = openExr(path, "point-cache");
+    return parseHeader(path, file->header());
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
@@ -237,8 +290,8 @@ ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>&
                                     int expectedVertexCount, std::uint64_t expectedTopology) {
   checkExists(path);
   try {
-    Imf::InputFile file(path.c_str());
-    const Imf::Header& header = file.header();
+    const auto file = openExr(path, "point-cache");
+    const Imf::Header& header = file->header();
     const ExrPointCacheInfo info = parseHeader(path, header);
     if (expectedVertexCount != 0 && expectedVertexCount != info.vertexCount) {
       DS_THROW(kInput, path, ": the cache holds ", info.vertexCount, " vertices but ",
@@ -275,8 +328,8 @@ ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>&
                          Imf::Slice(Imf::FLOAT, base + k * sizeof(float), 3 * sizeof(float),
                                     3 * sizeof(float) * width));
     }
-    file.setFrameBuffer(frameBuffer);
-    file.readPixels(window.min.y, window.max.y);
+    file->setFrameBuffer(frameBuffer);
+    file->readPixels(window.min.y, window.max.y);
     xyz.resize(3 * static_cast<std::size_t>(info.vertexCount));
     return info;
   } catch (const Error&) {
@@ -286,18 +339,83 @@ ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>&
   }
 }
 
+namespace {
+
+/// Decodes every channel of `path` as float planes and returns the CRC of them (PlaneCrc, in
+/// the channel list's order, which is the order the writer used).
+std::uint32_t decodedPixelsCrc(const std::string& path) {
+  const auto file = openExr(path, "point-cache");
+  const Imath::Box2i& window = file->header().dataWindow();
+  const std::size_t width = static_cast<std::size_t>(window.max.x - window.min.x + 1);
+  const std::size_t height = static_cast<std::size_t>(window.max.y - window.min.y + 1);
+  const std::size_t pixels = width * height;
+  const std::ptrdiff_t origin =
+      static_cast<std::ptrdiff_t>(window.min.x) +
+      static_cast<std::ptrdiff_t>(window.min.y) * static_cast<std::ptrdiff_t>(width);
+  const Imf::ChannelList& channels = file->header().channels();
+  std::vector<std::vector<float>> planes;
+  Imf::FrameBuffer frameBuffer;
+  for (auto it = channels.begin(); it != channels.end(); ++it) {
+    planes.emplace_back(pixels, 0.0f);
+    char* base = reinterpret_cast<char*>(planes.back().data()) -
+                 origin * static_cast<std::ptrdiff_t>(sizeof(float));
+    frameBuffer.insert(it.name(),
+                       Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * width));
+  }
+  file->setFrameBuffer(frameBuffer);
+  file->readPixels(window.min.y, window.max.y);
+  PlaneCrc crc;
+  for (const std::vector<float>& plane : planes) {
+    crc.add(plane.data(), plane.size(), 1);
+  }
+  return crc.value();
+}
+
+}  // namespace
+
+std::string reuseProblem(const std::string& path, int vertexCount, std::uint64_t topology,
+                         std::uint64_t settings, int frame) {
+  if (!isCompleteExr(path)) {
+    return "is incomplete: scan lines are missing or cut short";
+  }
+  ExrPointCacheInfo info;
+  std::uint32_t crc = 0;
+  try {
+    info = readPointCacheExrInfo(path);
+    crc = decodedPixelsCrc(path);
+  } catch (const std::exception& error) {
+    return std::string("does not decode: ") + error.what();
+  }
+  std::ostringstream problem;
+  if (info.vertexCount != vertexCount) {
+    problem << "holds " << info.vertexCount << " vertices, not " << vertexCount;
+  } else if (info.topologyHash != topology) {
+    problem << "has topology " << hashText(info.topologyHash) << ", not this mesh's "
+            << hashToHex(topology);
+  } else if (info.settingsHash != settings) {
+    problem << "was baked with other settings (" << hashText(info.settingsHash) << ", now "
+            << hashToHex(settings) << ")";
+  } else if (info.frame != frame) {
+    problem << "holds frame " << info.frame;
+  } else if (!info.hasPixelsCrc) {
+    problem << "has no " << kAttrPixelsCrc << " to verify its pixels";
+  } else if (crc != info.pixelsCrc) {
+    problem << "does not match its pixel checksum (" << crcText(crc) << " decoded, "
+            << crcText(info.pixelsCrc) << " written): it was damaged after it was written";
+  }
+  return problem.str();
+}
+
 bool isCompleteExr(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     return false;
   }
   try {
-    Imf::InputFile file(path.c_str());
+    const auto opened = openExr(path, "point-cache");
+    Imf::InputFile& file = *opened;
     if (!file.isComplete()) {
       return false;
-    }
-    if (file.header().hasTileDescription()) {
-      return true;  // tiled files are not ours; isComplete() is all we check
     }
     // isComplete() only looks at the offset table, which survives when a copy loses its
     // tail. Reading the raw first and last chunks finds that: they are the last chunk in the

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 
+#include <drivenshape/error.h>
 #include <drivenshape/hash.h>
 
 #include "byte_order.h"
@@ -31,12 +33,76 @@ void addInt(Hasher& hasher, int value) {
 
 static_assert(sizeof(int) == 4, "topology hashes assume 32-bit int");
 
+void validateMesh(const Mesh& mesh, const std::string& source) {
+  constexpr std::size_t kMaxInt = static_cast<std::size_t>(std::numeric_limits<int>::max());
+  const std::size_t corners = mesh.faceVertices.size();
+  if (corners > kMaxInt || mesh.faceStart.size() > kMaxInt) {
+    DS_THROW(kInput, source, ": ", corners, " face corners; at most ", kMaxInt, " are supported");
+  }
+  const std::size_t faces = mesh.faceStart.empty() ? 0 : mesh.faceStart.size() - 1;
+  if (mesh.faceStart.empty() ? corners != 0
+                             : mesh.faceStart.front() != 0 ||
+                                   static_cast<std::size_t>(mesh.faceStart.back()) != corners) {
+    DS_THROW(kInput, source, ": the face offsets do not span the ", corners,
+             " face corners; the mesh data is corrupt");
+  }
+  if (mesh.faceGroup.size() != faces) {
+    DS_THROW(kInput, source, ": ", mesh.faceGroup.size(), " face group ids for ", faces,
+             " faces; the mesh data is corrupt");
+  }
+  if (!mesh.faceUvs.empty() && mesh.faceUvs.size() != corners) {
+    DS_THROW(kInput, source, ": ", mesh.faceUvs.size(), " texture-coordinate ids for ", corners,
+             " face corners; the mesh data is corrupt");
+  }
+  const long long vertices = mesh.vertexCount();
+  const long long uvs = static_cast<long long>(mesh.uvs.size());
+  const long long groups = static_cast<long long>(mesh.groupNames.size());
+  long long triangles = 0;
+  for (std::size_t f = 0; f < faces; ++f) {
+    const int begin = mesh.faceStart[f];
+    const int end = mesh.faceStart[f + 1];
+    if (end < begin + 3) {
+      DS_THROW(kInput, source, ": face ", f, " has ", end < begin ? -1LL : end - begin,
+               " corners (offsets ", begin, "..", end, "); a face needs at least 3");
+    }
+    if (static_cast<std::size_t>(end) > corners) {
+      DS_THROW(kInput, source, ": face ", f, " ends at corner ", end, " of ", corners,
+               "; the mesh data is corrupt");
+    }
+    triangles += end - begin - 2;
+    if (mesh.faceGroup[f] < 0 || mesh.faceGroup[f] >= groups) {
+      DS_THROW(kInput, source, ": face ", f, " is in group ", mesh.faceGroup[f], " of ", groups,
+               "; the mesh data is corrupt");
+    }
+    for (int c = begin; c < end; ++c) {
+      const int v = mesh.faceVertices[static_cast<std::size_t>(c)];
+      if (v < 0 || v >= vertices) {
+        DS_THROW(kInput, source, ": face ", f, " uses vertex ", v, " of ", vertices, " (ids 0-",
+                 vertices - 1, ")");
+      }
+      const int t = mesh.faceUvs.empty() ? -1 : mesh.faceUvs[static_cast<std::size_t>(c)];
+      if (t < -1 || t >= uvs) {
+        DS_THROW(kInput, source, ": face ", f, " uses texture coordinate ", t, " of ", uvs);
+      }
+    }
+  }
+  if (triangles > std::numeric_limits<int>::max()) {
+    DS_THROW(kInput, source, ": ", triangles, " triangles; at most ",
+             std::numeric_limits<int>::max(), " are supported");
+  }
+}
+
 void Mesh::triangulate() {
   // Counted from faceStart, not faceGroup, so meshes built in code without groups work too.
   const int faces = faceStart.empty() ? 0 : static_cast<int>(faceStart.size()) - 1;
-  int count = 0;
+  // validateMesh() bounds the count by INT_MAX for anything a reader returns; a mesh built in
+  // code that exceeds it is a caller bug, caught here before the int overflows.
+  long long count = 0;
   for (int f = 0; f < faces; ++f) {
-    count += std::max(0, faceStart[f + 1] - faceStart[f] - 2);
+    count += std::max(0LL, static_cast<long long>(faceStart[f + 1]) - faceStart[f] - 2);
+  }
+  if (count > std::numeric_limits<int>::max()) {
+    DS_THROW(kInternal, "Mesh::triangulate: ", count, " triangles do not fit in an int");
   }
   triangles.resize(count, 3);
   triangleFace.resize(static_cast<std::size_t>(count));

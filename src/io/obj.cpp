@@ -3,8 +3,10 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <string_view>
 #include <unordered_map>
 
@@ -19,24 +21,50 @@ bool isSpace(char ch) {
   return ch == ' ' || ch == '\t' || ch == '\r' || ch == '\f' || ch == '\v';
 }
 
-std::string readWholeFile(const std::string& path) {
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (file == nullptr) {
-    DS_THROW(kInput, "cannot open OBJ '", path, "': ", std::strerror(errno));
+/// `text` if it is valid UTF-8, else the same bytes read as Latin-1 (each byte its own code
+/// point), so that names from older exporters stay distinct and every name is valid UTF-8 in
+/// JSON headers and reports.
+std::string utf8OrLatin1(const std::string& text) {
+  bool valid = true;
+  for (std::size_t i = 0; i < text.size() && valid;) {
+    const auto lead = static_cast<unsigned char>(text[i]);
+    std::size_t length = 0;  // 0: not a lead byte
+    if (lead < 0x80) {
+      length = 1;
+    } else if ((lead >> 5) == 0x6) {
+      length = 2;
+    } else if ((lead >> 4) == 0xe) {
+      length = 3;
+    } else if ((lead >> 3) == 0x1e) {
+      length = 4;
+    }
+    valid = length > 0 && i + length <= text.size();
+    std::uint32_t code = length == 1 ? lead : lead & (0x7fu >> length);
+    for (std::size_t k = 1; valid && k < length; ++k) {
+      const auto next = static_cast<unsigned char>(text[i + k]);
+      valid = (next & 0xc0) == 0x80;
+      code = (code << 6) | (next & 0x3fu);
+    }
+    // No overlong forms, no surrogates, nothing past U+10FFFF.
+    static constexpr std::uint32_t kSmallest[5] = {0, 0, 0x80, 0x800, 0x10000};
+    valid =
+        valid && code >= kSmallest[length] && code <= 0x10ffff && (code < 0xd800 || code > 0xdfff);
+    i += length;
   }
-  std::string bytes;
-  char buffer[1 << 16];
-  std::size_t got;
-  while ((got = std::fread(buffer, 1, sizeof(buffer), file)) > 0) {
-    bytes.append(buffer, got);
+  if (valid) {
+    return text;
   }
-  const bool failed = std::ferror(file) != 0;
-  const int readErrno = errno;
-  std::fclose(file);
-  if (failed) {
-    DS_THROW(kInput, "cannot read OBJ '", path, "': ", std::strerror(readErrno));
+  std::string converted;
+  for (const char ch : text) {
+    const auto byte = static_cast<unsigned char>(ch);
+    if (byte < 0x80) {
+      converted.push_back(ch);
+    } else {
+      converted.push_back(static_cast<char>(0xc0 | (byte >> 6)));
+      converted.push_back(static_cast<char>(0x80 | (byte & 0x3f)));
+    }
   }
-  return bytes;
+  return converted;
 }
 
 /// Walks the whitespace-separated tokens of one line.
@@ -142,7 +170,7 @@ class ObjParser {
     } else if (keyword == "f") {
       parseFace(tokens);
     } else if (keyword == "g" || keyword == "o") {
-      mGroupName = tokens.rest();
+      mGroupName = utf8OrLatin1(tokens.rest());
       if (mGroupName.empty()) {
         mGroupName = "default";
       }
@@ -173,7 +201,8 @@ class ObjParser {
     if (index > 0) {
       return index - 1;
     }
-    if (-index > definedSoFar) {
+    // In 64 bits: -index overflows an int for INT_MIN.
+    if (-static_cast<long long>(index) > definedSoFar) {
       fail(what, " index ", index, " in face corner '", corner, "' is out of range: only ",
            definedSoFar, " ", plural, " are defined before this line");
     }
@@ -181,6 +210,9 @@ class ObjParser {
   }
 
   void parseFace(Tokens& tokens) {
+    if (mMesh.faceVertices.size() >= static_cast<std::size_t>(std::numeric_limits<int>::max())) {
+      fail("more face corners than this reader supports (", std::numeric_limits<int>::max(), ")");
+    }
     const int vertexCount = static_cast<int>(mPositions.size() / 3);
     const int uvCount = static_cast<int>(mMesh.uvs.size());
     std::string_view corner;
@@ -237,6 +269,9 @@ class ObjParser {
     if (vertexCount == 0) {
       DS_THROW(kInput, mPath, ": no vertices ('v' lines); is this an OBJ file?");
     }
+    if (mPositions.size() / 3 > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
+      DS_THROW(kInput, mPath, ": more vertices than this reader supports");
+    }
     const int uvCount = static_cast<int>(mMesh.uvs.size());
     for (std::size_t f = 0; f < mFaceLine.size(); ++f) {
       for (int c = mMesh.faceStart[f]; c < mMesh.faceStart[f + 1]; ++c) {
@@ -256,6 +291,7 @@ class ObjParser {
       mMesh.faceUvs.clear();
     }
     mMesh.positions = Eigen::Map<const Positions>(mPositions.data(), vertexCount, 3);
+    validateMesh(mMesh, mPath);
     mMesh.triangulate();
     return std::move(mMesh);
   }
@@ -286,7 +322,7 @@ void appendInt(std::string& out, int value) {
 }  // namespace
 
 Mesh readObj(const std::string& path) {
-  const std::string bytes = readWholeFile(path);
+  const std::string bytes = readWholeFile(path, "OBJ");
   return ObjParser(path).parse(bytes);
 }
 

@@ -10,7 +10,9 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+
 #include <layer_types.h>
+#include "json_text.h"
 
 namespace drivenshape {
 namespace {
@@ -224,7 +226,7 @@ std::string LayerStack::describe() const {
     wind["fps"] = mOptions.framesPerSecond;
     json["wind"] = wind;
   }
-  return json.dump();
+  return jsonText(json);
 }
 
 }  // namespace drivenshape

@@ -21,7 +21,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
+
+#include "json_text.h"
 
 #include "exr_common.h"
 
@@ -69,18 +72,8 @@ void checkLength(std::size_t count, int vertexCount, const std::string& source) 
 }
 
 std::vector<float> readJsonMap(const std::string& path, int vertexCount, const std::string& what) {
-  std::ifstream stream(path, std::ios::binary);
-  if (!stream) {
-    DS_THROW(kInput, "cannot open ", what, " '", path, "': ", std::strerror(errno));
-  }
-  const std::string text((std::istreambuf_iterator<char>(stream)),
-                         std::istreambuf_iterator<char>());
-  Json json;
-  try {
-    json = Json::parse(text);
-  } catch (const Json::exception& e) {
-    DS_THROW(kInput, what, " '", path, "' is not valid JSON: ", e.what());
-  }
+  const std::string text = readWholeFile(path, what);
+  const Json json = parseJsonText(text, what + " '" + path + "'");
   const Json* array = &json;
   if (json.is_object()) {
     for (const auto& item : json.items()) {
@@ -119,8 +112,8 @@ std::vector<float> readExrMap(const std::string& path, int vertexCount, const st
   }
   const std::string source = what + " '" + path + "'";
   try {
-    Imf::InputFile file(path.c_str());
-    const Imf::Header& header = file.header();
+    const auto file = exr_detail::openExr(path, "weight-map");
+    const Imf::Header& header = file->header();
     const auto* count = header.findTypedAttribute<Imf::IntAttribute>(kAttrVertexCount);
     if (count == nullptr) {
       DS_THROW(kInput, source, ": not a point-cache weight map (no ", kAttrVertexCount,
@@ -167,8 +160,8 @@ std::vector<float> readExrMap(const std::string& path, int vertexCount, const st
     frameBuffer.insert(channel,
                        Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(pixels.data() - origin),
                                   sizeof(float), sizeof(float) * static_cast<std::size_t>(width)));
-    file.setFrameBuffer(frameBuffer);
-    file.readPixels(window.min.y, window.max.y);
+    file->setFrameBuffer(frameBuffer);
+    file->readPixels(window.min.y, window.max.y);
     pixels.resize(static_cast<std::size_t>(vertexCount));
     checkRange(pixels, source);
     return pixels;

@@ -116,8 +116,8 @@ namespace {
 
 /// The header of `path` if it is a position map, else nothing; Error(kInput) on a bad hash.
 std::optional<PositionMapInfo> positionMapHeader(const std::string& path) {
-  Imf::InputFile file(path.c_str());
-  const Imf::Header& header = file.header();
+  const auto file = openExr(path, "position-map");
+  const Imf::Header& header = file->header();
   const auto* kind = header.findTypedAttribute<Imf::StringAttribute>(kAttrKind);
   if (kind == nullptr || kind->value() != kKindValue) {
     return std::nullopt;

@@ -6,12 +6,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <random>
 
 #include <drivenshape/error.h>
+#include <drivenshape/hash.h>
 #include <drivenshape/point_cache.h>
 
 #include "test_support.h"
@@ -263,6 +266,80 @@ TEST(Database, FileRoundTripAndCorruption) {
   future[8] = 9;  // format version 9
   expectRejected(future, "format version 9");
   expectRejected("not a database at all, just text", "not a drivenshape database");
+}
+
+/// The file at `path` with int32 entry `index` of block `name` set to `value` and the block's
+/// checksum in the header recomputed, so that only the reader's consistency checks can catch
+/// it (the checksum is 16 hex digits: the header keeps its length and every offset holds).
+std::string withBlockEntry(const std::string& path, const std::string& name, std::size_t index,
+                           std::int32_t value) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::uint64_t headerLength = 0;
+  std::memcpy(&headerLength, bytes.data() + 16, 8);
+  const nlohmann::json header = nlohmann::json::parse(bytes.substr(24, headerLength));
+  for (const nlohmann::json& block : header.at("blocks")) {
+    if (block.at("name") != name) {
+      continue;
+    }
+    const std::size_t offset = block.at("offset").get<std::size_t>();
+    const std::size_t size = block.at("bytes").get<std::size_t>();
+    EXPECT_LT(index * 4, size) << name;
+    std::memcpy(&bytes[offset + index * 4], &value, 4);
+    const std::string oldSum = block.at("fnv1a64").get<std::string>();
+    const std::string newSum = hashToHex(Hasher().add(bytes.data() + offset, size).value());
+    const std::size_t at = bytes.find(oldSum, 24);
+    EXPECT_LT(at, 24 + headerLength);
+    bytes.replace(at, oldSum.size(), newSum);
+    return bytes;
+  }
+  ADD_FAILURE() << "no block " << name;
+  return bytes;
+}
+
+// Regression (fuzzing): a face offset past the face-vertex block, with a valid checksum,
+// overflowed the heap in Mesh::triangulate; a huge one overflowed the triangle count.
+TEST(Database, CraftedFaceOffsetsWithValidChecksumsAreRefused) {
+  std::mt19937 rng(testing::testSeed());
+  TempDir dir;
+  const Mesh driver = gridMesh(5, 0.0f);
+  const Mesh driven = gridMesh(4, 0.1f);
+  writeRandomCache(dir.file("driver.pc2"), driver, 12, rng, 0.3f);
+  writeRandomCache(dir.file("driven.pc2"), driven, 12, rng, 0.3f);
+  DatabaseBuildOptions options;
+  options.count = 4;
+  const std::string path = dir.file("db.dsdb");
+  saveDatabase(path, buildDatabase(driver, driven, *openPointCache(dir.file("driver.pc2")),
+                                   *openPointCache(dir.file("driven.pc2")), options));
+  const int corners = static_cast<int>(driven.faceVertices.size());
+  struct Case {
+    std::string block;
+    std::size_t index;
+    std::int32_t value;
+  };
+  const std::vector<Case> cases = {
+      {"driven_face_start", 1, corners + 4000},                          // past the corners
+      {"driven_face_start", 1, 2147483000},                              // triangle count overflow
+      {"driven_face_start", 2, 1},                                       // decreasing
+      {"driven_face_start", 0, -8},                                      // negative start
+      {"driver_face_vertices", 3, 1 << 30},                              // vertex id out of range
+      {"driven_face_group", 0, 7},                                       // group id out of range
+      {"driven_face_start", driven.faceStart.size() - 1, corners - 1}};  // short of the end
+  for (const Case& c : cases) {
+    const std::string bad = dir.file("bad.dsdb");
+    std::ofstream(bad, std::ios::binary) << withBlockEntry(path, c.block, c.index, c.value);
+    testing::expectThrows([&] { loadDatabase(bad); }, ErrorCode::kInput, "bad.dsdb");
+  }
+  // The untouched file still loads (the crafting itself is sound).
+  std::ofstream(dir.file("same.dsdb"), std::ios::binary)
+      << withBlockEntry(path, "driven_face_start", 1, driven.faceStart[1]);
+  EXPECT_EQ(topologyHash(loadDatabase(dir.file("same.dsdb")).drivenMesh), topologyHash(driven));
+}
+
+// Regression: a folder given as the database was an internal error (basic_filebuf::underflow).
+TEST(Database, FolderIsAnInputError) {
+  TempDir dir;
+  testing::expectThrows([&] { loadDatabase(dir.path()); }, ErrorCode::kInput, "is a folder");
 }
 
 TEST(Database, MismatchedCachesAreRefused) {

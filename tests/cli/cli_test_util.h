@@ -27,7 +27,21 @@ std::string quote(const std::string& word);
 /// to hidden files in `dir` (".stdout", ".stderr"), which are read back and removed.
 CliRun runCli(const TempDir& dir, const std::vector<std::string>& args);
 
+/// Like runCli, but sends SIGTERM to the process `seconds` after it starts (as a farm
+/// scheduler stopping a task does) and waits for it.
+CliRun runCliStopped(const TempDir& dir, const std::vector<std::string>& args, double seconds);
+
 /// Path of `name` in the bundled sleeve sample (tests/data/sleeve).
 std::string sample(const std::string& name);
+
+/// Builds a small database of the sample (5 shapes) in `dir` with the CLI; returns its path.
+std::string buildDb(const TempDir& dir);
+
+/// Files in `dir` (recursively) other than the harness's own; leftover temporary files
+/// (`.name.tmp-*`) are listed too, since one is a failure.
+std::vector<std::string> filesIn(const std::string& dir);
+
+/// A one-line error ("drivenshape: <kind>: ...") naming `fragment`, with exit code `code`.
+void expectError(const CliRun& r, int code, const std::string& fragment);
 
 }  // namespace drivenshape::testing

@@ -26,52 +26,14 @@ namespace drivenshape {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::buildDb;
 using testing::CliRun;
+using testing::expectError;
+using testing::filesIn;
 using testing::runCli;
 using testing::sample;
 using testing::slurp;
 using testing::TempDir;
-
-/// Builds a small database of the sample (5 shapes) in `dir`; returns its path.
-std::string buildDb(const TempDir& dir) {
-  const std::string db = dir.file("sleeve.dsdb");
-  const CliRun r =
-      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
-  EXPECT_EQ(r.code, 0) << r.err;
-  return db;
-}
-
-/// Files in `dir` (recursively) other than the harness's own.
-std::vector<std::string> filesIn(const std::string& dir) {
-  std::vector<std::string> names;
-  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
-    if (entry.is_regular_file() && entry.path().filename().string()[0] != '.') {
-      names.push_back(entry.path().string());
-    }
-    if (entry.is_regular_file() &&
-        entry.path().filename().string().find(".tmp-") != std::string::npos) {
-      names.push_back(entry.path().string());  // a leftover temp file is a failure too
-    }
-  }
-  return names;
-}
-
-/// A one-line error naming `fragment`, with exit code `code`.
-void expectError(const CliRun& r, int code, const std::string& fragment) {
-  EXPECT_EQ(r.code, code) << r.err;
-  // Exactly one error line ("drivenshape: <kind>: ..."), and it names the culprit.
-  std::istringstream lines(r.err);
-  std::vector<std::string> errors;
-  for (std::string line; std::getline(lines, line);) {
-    if (line.rfind("drivenshape: ", 0) == 0) {
-      errors.push_back(line);
-    }
-  }
-  ASSERT_EQ(errors.size(), 1u) << "stderr: " << r.err;
-  EXPECT_NE(errors[0].find(fragment), std::string::npos) << "stderr: " << r.err;
-}
 
 TEST(Cli, HelpForEveryCommand) {
   TempDir dir;

@@ -179,6 +179,25 @@ TEST(BindingMask, ErrorsNameTheFileTheEntryAndTheProblem) {
   EXPECT_TRUE(contains(message, "bindings")) << message;
 }
 
+// Regression (fuzzing): a number beyond double (1e999), bytes that are not UTF-8 and a number
+// too large for an index escaped as internal JSON errors (exit 1) instead of input errors.
+TEST(BindingMask, HostileJsonIsAnInputError) {
+  const Legs legs;
+  for (
+      const std::string& text :
+      {std::string(R"({"version": 1e999, "bindings": []})"),
+       std::string(R"({"bindings": [{"driven": {"vertices": [1e999]}, "driver": "left_leg"}]})"),
+       std::string("{\"bindings\": [{\"name\": \"\xff\xfe\", \"driven\": \"left_trouser\", "
+                   "\"driver\": \"left_leg\"}]}"),
+       std::string(
+           R"({"bindings": [{"driven": {"vertices": [99999999999999999999]}, "driver": "left_leg"}]})"),
+       std::string(
+           R"({"bindings": [{"driven": {"vertices": [-1e300]}, "driver": "left_leg"}]})")}) {
+    const std::string message = errorOf(text, legs);  // fails the test unless Error(kInput)
+    EXPECT_NE(message.find("mask.json"), std::string::npos) << message;
+  }
+}
+
 TEST_F(CorrectionClTest, CrossedLegsBindOnlyToTheirOwnLeg) {
   const Legs legs;
   const BindingMask mask = parseBindingMask(kLegMask, "mask.json", legs.driver, legs.driven);

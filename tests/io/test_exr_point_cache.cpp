@@ -12,10 +12,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <random>
 
@@ -429,6 +431,76 @@ TEST(ExrPointCache, IsCompleteExrRejectsTruncatedCopies) {
   writeTextFile(dir.file("garbage.exr"), "not an exr at all");
   EXPECT_FALSE(isCompleteExr(dir.file("garbage.exr")));
   EXPECT_FALSE(isCompleteExr(dir.path()));  // a folder
+}
+
+// Regression (fuzzing): a 2 KB file whose attribute claims 0x7fffffff bytes made OpenEXR
+// allocate gigabytes before failing. The size is checked against the file first.
+TEST(ExrPointCache, AttributeLargerThanTheFileIsRefusedBeforeOpenExrReadsIt) {
+  TempDir dir;
+  const std::string path = dir.file("small.exr");
+  const std::vector<float> xyz = randomPositions(50, testSeed() + 7);
+  writePointCacheExr(path, 50, xyz.data(), nullptr, ExrWriteOptions{});
+  std::vector<unsigned char> bytes = readBytes(path);
+  // "dsToolVersion\0string\0" then the int32 size: claim 0x7fffffff bytes.
+  const std::string marker = std::string("dsToolVersion") + '\0' + "string" + '\0';
+  const auto at = std::search(bytes.begin(), bytes.end(), marker.begin(), marker.end());
+  ASSERT_NE(at, bytes.end());
+  const std::size_t size = static_cast<std::size_t>(at - bytes.begin()) + marker.size();
+  for (int i = 0; i < 4; ++i) {
+    bytes[size + i] = i == 3 ? 0x7f : 0xff;
+  }
+  const std::string bad = dir.file("huge_attribute.exr");
+  writeBytes(bad, bytes);
+  for (const auto& read : std::vector<std::function<void()>>{
+           [&] { readPointCacheExrInfo(bad); },
+           [&] {
+             std::vector<float> back;
+             readPointCacheExr(bad, back);
+           },
+       }) {
+    const Error error = catchError(read);
+    EXPECT_EQ(error.code(), ErrorCode::kInput);
+    EXPECT_TRUE(contains(error.what(), "dsToolVersion"));
+    EXPECT_TRUE(contains(error.what(), bad));
+  }
+  EXPECT_FALSE(isCompleteExr(bad));
+}
+
+// Regression: a resume kept frames that no longer decoded or decoded to other numbers.
+// reuseProblem() decodes every pixel and checks the CRC written with them.
+TEST(ExrPointCache, ReuseFindsEveryFlippedPixelByte) {
+  TempDir dir;
+  constexpr int kCount = 700;  // one row and a bit: padding pixels are covered too
+  const std::vector<float> xyz = randomPositions(kCount, testSeed() + 8);
+  ExrWriteOptions options;
+  options.width = 512;
+  options.frame = 12;
+  options.topologyHash = 0x1234;
+  options.settingsHash = 0x5678;
+  for (ExrCompression compression : {ExrCompression::kNone, ExrCompression::kZip}) {
+    SCOPED_TRACE(exrCompressionName(compression));
+    options.compression = compression;
+    const std::string path = dir.file("frame.exr");
+    writePointCacheExr(path, kCount, xyz.data(), nullptr, options);
+    EXPECT_EQ(reuseProblem(path, kCount, 0x1234, 0x5678, 12), "");
+    EXPECT_TRUE(contains(reuseProblem(path, kCount, 0x1234, 0x9999, 12), "other settings"));
+    EXPECT_TRUE(contains(reuseProblem(path, kCount, 0x1234, 0x5678, 13), "frame 12"));
+    EXPECT_TRUE(contains(reuseProblem(path, kCount, 0x4321, 0x5678, 12), "topology"));
+    EXPECT_TRUE(contains(reuseProblem(path, kCount + 1, 0x1234, 0x5678, 12), "vertices"));
+    const std::vector<unsigned char> bytes = readBytes(path);
+    // The pixel data is the second half of the file and more (the header is ~600 bytes).
+    std::mt19937 random(testSeed() + 9);
+    std::uniform_int_distribution<std::size_t> where(bytes.size() / 2, bytes.size() - 1);
+    for (int trial = 0; trial < 40; ++trial) {
+      std::vector<unsigned char> damaged = bytes;
+      const std::size_t at = where(random);
+      damaged[at] ^= static_cast<unsigned char>(1u << (trial % 8));
+      const std::string bad = dir.file("damaged.exr");
+      writeBytes(bad, damaged);
+      EXPECT_NE(reuseProblem(bad, kCount, 0x1234, 0x5678, 12), "")
+          << "byte " << at << " of " << bytes.size();
+    }
+  }
 }
 
 TEST(ExrPointCache, FailedWriteIsAnOutputErrorAndLeavesNothing) {

@@ -153,6 +153,71 @@ TEST(Obj, NegativeIndexBeforeItsVertexIsAnError) {
   EXPECT_TRUE(contains(error.what(), "2 vertices"));
 }
 
+// Regression (fuzzing): -2147483648 negated overflowed an int, and the file was accepted.
+TEST(Obj, MostNegativeIndexIsAnErrorNotAnOverflow) {
+  TempDir dir;
+  for (const char* corner : {"-2147483648/1", "1/-2147483648", "-2147483647", "2147483648"}) {
+    std::string path;
+    const Error error = objError(
+        std::string("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf ") + corner + " 2/1 3/1\n", path, dir);
+    EXPECT_EQ(error.code(), ErrorCode::kInput) << corner;
+    EXPECT_TRUE(contains(error.what(), path + ":5")) << corner;
+  }
+}
+
+// Regression: a group name that is not UTF-8 made every JSON writer (database header, bake
+// report) throw after the work was done. Such names are read as Latin-1.
+TEST(Obj, GroupNameThatIsNotUtf8IsReadAsLatin1) {
+  TempDir dir;
+  const std::string path = dir.file("latin1.obj");
+  writeTextFile(path,
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\ng caf\xe9 \xff\nf 1 2 3\ng caf\xc3\xa9\nf 3 2 1\n");
+  const Mesh mesh = readObj(path);
+  ASSERT_EQ(mesh.groupNames.size(), 2u);
+  EXPECT_EQ(mesh.groupNames[0], "caf\xc3\xa9 \xc3\xbf");  // U+00E9, U+00FF
+  EXPECT_EQ(mesh.groupNames[1], "caf\xc3\xa9");           // valid UTF-8 is kept as it is
+}
+
+TEST(Mesh, ValidateRefusesInconsistentFaceLists) {
+  Mesh good;
+  good.positions = Positions::Zero(4, 3);
+  good.faceStart = {0, 4};
+  good.faceVertices = {0, 1, 2, 3};
+  good.faceGroup = {0};
+  good.groupNames = {"default"};
+  validateMesh(good, "good");
+  const auto expectRefused = [](const Mesh& mesh, const char* what) {
+    const Error error = catchError([&] { validateMesh(mesh, "crafted"); });
+    EXPECT_EQ(error.code(), ErrorCode::kInput) << what;
+    EXPECT_TRUE(contains(error.what(), "crafted")) << what;
+  };
+  Mesh bad = good;
+  bad.faceStart = {0, 5};
+  expectRefused(bad, "offset past the corners");
+  bad = good;
+  bad.faceStart = {0, 2, 4};
+  bad.faceGroup = {0, 0};
+  expectRefused(bad, "a two-corner face");
+  bad = good;
+  bad.faceVertices[2] = 4;
+  expectRefused(bad, "vertex id out of range");
+  bad = good;
+  bad.faceVertices[2] = -1;
+  expectRefused(bad, "negative vertex id");
+  bad = good;
+  bad.faceGroup = {1};
+  expectRefused(bad, "group id out of range");
+  bad = good;
+  bad.faceGroup = {};
+  expectRefused(bad, "missing group ids");
+  bad = good;
+  bad.faceUvs = {0, 0, 0, 0};
+  expectRefused(bad, "uv ids without uvs");
+  bad = good;
+  bad.faceStart = {0, 2147483647};
+  expectRefused(bad, "an offset near INT_MAX");
+}
+
 TEST(Obj, UvIndexOutOfRange) {
   TempDir dir;
   std::string path;

@@ -19,9 +19,9 @@
 namespace drivenshape::testing {
 namespace {
 
-constexpr int kColumns = 30;
-constexpr int kRows = 8;
-constexpr int kSplit = 15;
+constexpr int kStackColumns = 30;
+constexpr int kStackRows = 8;
+constexpr int kStackSplit = 15;
 constexpr int kFirstFrame = 1001;
 constexpr int kFrames = 5;
 
@@ -29,7 +29,7 @@ class LayerStackTest : public OpenClTest {
  protected:
   void SetUp() override {
     OpenClTest::SetUp();
-    mMesh = gridMesh(kColumns, kRows, kSplit);
+    mMesh = gridMesh(kStackColumns, kStackRows, kStackSplit);
     mDriven = jitteredFrames(mMesh, kFrames, 0.02f, testSeed());
     mOther = jitteredFrames(mMesh, kFrames, 0.05f, testSeed() + 1);
     // Values a blend formula would change: -0 where weight 1 keeps DrivenShape (-0 + 0 = +0),
@@ -38,7 +38,7 @@ class LayerStackTest : public OpenClTest {
     // the last column deep in "right" (weight 0).
     mDriven[0] = -0.0f;
     mOther[1] = std::numeric_limits<float>::quiet_NaN();
-    mOther[3 * (kColumns - 1) + 1] = -0.0f;
+    mOther[3 * (kStackColumns - 1) + 1] = -0.0f;
     for (int f = 0; f < kFrames; ++f) {
       mFrames.push_back(kFirstFrame + f);
     }

@@ -78,7 +78,7 @@ TEST(WeightMap, JsonErrorsNameFileIndexAndValue) {
 
   writeTextFile(dir.file("bad.json"), "[0, 1,");
   error = catchError([&] { readWeightMap(dir.file("bad.json"), mesh); });
-  EXPECT_TRUE(contains(error.what(), "is not valid JSON"));
+  EXPECT_TRUE(contains(error.what(), "not valid JSON"));
 
   error = catchError([&] { readWeightMap(dir.file("missing.json"), mesh); });
   EXPECT_EQ(error.code(), ErrorCode::kInput);

@@ -16,15 +16,15 @@
 namespace drivenshape::testing {
 namespace {
 
-constexpr int kColumns = 40;
-constexpr int kRows = 25;
+constexpr int kWindColumns = 40;
+constexpr int kWindRows = 25;
 constexpr double kFps = 24.0;
 
 class WindTest : public OpenClTest {
  protected:
   void SetUp() override {
     OpenClTest::SetUp();
-    mMesh = gridMesh(kColumns, kRows, kColumns / 2);
+    mMesh = gridMesh(kWindColumns, kWindRows, kWindColumns / 2);
     LayerOptions options;  // only for the centred rest positions and the weight tables
     options.windAmplitude = 1.0;
     options.windWeight = "group:right";

@@ -164,4 +164,18 @@ inline std::vector<float> readSleeveFrames(const Sleeve& sleeve, const std::vect
   return readFrames(*sleeve.cache, frames);
 }
 
+/// The code of the drivenshape::Error that `body` throws, its message in `message`; kInternal
+/// (which no caller expects) when nothing is thrown.
+template <typename Body>
+ErrorCode codeOf(Body&& body, std::string& message) {
+  try {
+    body();
+  } catch (const Error& error) {
+    message = error.what();
+    return error.code();
+  }
+  message.clear();
+  return ErrorCode::kInternal;  // nothing thrown: the caller's EXPECT fails on the code
+}
+
 }  // namespace drivenshape::testing

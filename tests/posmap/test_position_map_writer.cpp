@@ -42,18 +42,6 @@ PositionMapOptions smallOptions() {
   return options;
 }
 
-template <typename Body>
-ErrorCode codeOf(Body&& body, std::string& message) {
-  try {
-    body();
-  } catch (const Error& error) {
-    message = error.what();
-    return error.code();
-  }
-  message.clear();
-  return ErrorCode::kInternal;  // nothing thrown: the caller's EXPECT fails on the code
-}
-
 class PositionMapWriterCl : public OpenClTest {};
 
 TEST_F(PositionMapWriterCl, BatchedFramesMatchSingleFramesAndTheHost) {

@@ -69,18 +69,6 @@ std::vector<float> evaluateHost(const PositionMapTables& tables, const float* xy
   return positions;
 }
 
-template <typename Body>
-ErrorCode codeOf(Body&& body, std::string& message) {
-  try {
-    body();
-  } catch (const Error& error) {
-    message = error.what();
-    return error.code();
-  }
-  message.clear();
-  return ErrorCode::kInternal;  // nothing thrown: the caller's EXPECT fails on the code
-}
-
 TEST(UvRaster, TopLeftUvTriangleCoversTheLeftOfRowZero) {
   // v = 1 is the top of the image: a triangle hugging the (u, v) = (0, 1) corner must land on
   // the first rows, at their left ends, and nowhere near the bottom.

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace drivenshape {
 
@@ -38,8 +39,18 @@ class AtomicFile {
   bool mCommitted = false;
 };
 
+/// Removes the temporary files (`.<name>.tmp-*`) that killed writers left for `finalPaths`,
+/// e.g. the frames a resumed farm task owns, and returns how many it removed. Only call it for
+/// files no other live process is writing.
+int removeStaleTempFiles(const std::vector<std::string>& finalPaths);
+
 /// Writes `bytes` to `path` atomically (see AtomicFile).
 void writeFileAtomically(const std::string& path, const std::string& bytes);
+
+/// The whole content of the file at `path`. Throws Error(kInput) "cannot read <what> '<path>':
+/// <reason>" when it is missing, a folder or unreadable; `what` names the kind of file
+/// ("database", "OBJ", "binding mask", ...).
+std::string readWholeFile(const std::string& path, const std::string& what);
 
 /// Throws Error(kOutput) naming the folder of `path` and the reason when a file cannot be
 /// created there. Call before long work so a bad -o fails in the first second.

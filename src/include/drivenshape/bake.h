@@ -137,7 +137,9 @@ struct BakeBackends {
 /// What happened to one frame.
 struct FrameRecord {
   int frame = 0;
-  bool skipped = false;         ///< an existing complete output was kept
+  bool skipped = false;  ///< an existing complete output was kept
+  /// Why an existing output was baked again by a resume (reuseProblem), or empty.
+  std::string rebakeReason;
   std::vector<double> weights;  ///< k per region, region-major (k without regions)
   std::vector<int> atZero;      ///< shapes held at weight 0 (active bounds)
   std::vector<int> atOne;
@@ -181,6 +183,7 @@ struct BakeResult {
   std::uint64_t settingsHash = 0;
   int baked = 0;
   int skipped = 0;
+  int staleTempFilesRemoved = 0;  ///< by a resume (options.skipExisting), of its own frames
 };
 
 /// Receives progress from a bake (called on the bake's thread).

@@ -37,6 +37,15 @@ struct Mesh {
   void triangulate();
 };
 
+/// Checks that the face lists agree with each other and with the vertex and UV counts, which is
+/// what triangulate() and every user of a Mesh rely on: faceStart starts at 0, never decreases
+/// and ends at faceVertices.size(); every face has at least 3 corners; vertex ids are in
+/// [0, V); faceUvs is empty or parallel to faceVertices with ids in [-1, uvs.size()); faceGroup
+/// has one valid group id per face; the triangle count fits in an int. Throws Error(kInput)
+/// "<source>: ..." naming the first face at fault. Readers call it on everything they load,
+/// whatever checksums the file carried.
+void validateMesh(const Mesh& mesh, const std::string& source);
+
 /// Hash of what makes two meshes interchangeable for a cache: the vertex count and the face
 /// lists (not positions, not UVs). Written into EXR headers and databases.
 std::uint64_t topologyHash(const Mesh& mesh);

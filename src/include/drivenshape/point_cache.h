@@ -131,6 +131,11 @@ struct ExrPointCacheInfo : ExrSharedHeader {
   int vertexCount = 0;
   int width = 0;
   std::uint64_t settingsHash = 0;
+  /// CRC-32 (zlib's) of all pixel data as written: every channel in the file's (alphabetical)
+  /// order as a W x H plane of float32, little-endian. writePointCacheExr stores it
+  /// (dsPixelsCrc32) so that damage which still decodes can be found (reuseProblem).
+  std::uint32_t pixelsCrc = 0;
+  bool hasPixelsCrc = false;
   /// String attributes other than the ones above (ExrWriteOptions::stringAttributes), by name.
   std::map<std::string, std::string> stringAttributes;
 };
@@ -147,5 +152,13 @@ ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>&
 
 /// True if the file exists and OpenEXR reports it complete (all scanlines present).
 bool isCompleteExr(const std::string& path);
+
+/// Why the existing point-cache EXR at `path` cannot be kept as frame `frame` of a bake that
+/// writes `vertexCount` vertices with these topology and settings hashes, or "" when it can
+/// (a resumed bake, `--skip-existing`). The file must decode completely (every pixel, not only
+/// the header), match the vertex count, both hashes and the frame number, and its positions
+/// must match the CRC written with them, which finds a changed byte that still decodes.
+std::string reuseProblem(const std::string& path, int vertexCount, std::uint64_t topology,
+                         std::uint64_t settings, int frame);
 
 }  // namespace drivenshape

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Compiles the library, the command line and every benchmark for other x86-64 instruction-set
+# levels, with warnings as errors, so that a warning that only shows when the compiler targets
+# a newer CPU (e.g. GCC's AVX-512 code paths in Eigen) fails CI on whatever machine CI runs on.
+# The main build (scripts/setup.sh) covers the baseline, -march=x86-64, for the whole tree.
+#
+#   bash scripts/check_targets.sh [LEVEL ...]     default: x86-64-v4 (AVX-512)
+#
+# Each level builds in build-arch-LEVEL as a unity build (fewer, larger translation units: the
+# check costs about a third of a normal build). Binaries built here may not run on this machine.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+levels=("$@")
+((${#levels[@]})) || levels=(x86-64-v4)
+jobs=$(nproc 2>/dev/null || echo 2)
+targets=(drivenshape_cli drivenshape_bench bench_stages bench_correction bench_roofline bench_posmap
+         bench_layers)
+for level in "${levels[@]}"; do
+  build="build-arch-$level"
+  echo "check_targets: compiling the library, CLI and benchmarks with -march=$level -Werror" >&2
+  cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DDRIVENSHAPE_WERROR=ON \
+    -DDRIVENSHAPE_ARCH="$level" -DCMAKE_UNITY_BUILD=ON >/dev/null
+  cmake --build "$build" -j"$jobs" --target "${targets[@]}" >"$build/check.log" 2>&1 || {
+    grep -E "error|warning" -A4 "$build/check.log" | head -60 >&2
+    echo "check_targets: -march=$level does not compile warning-free (full log: $build/check.log)" >&2
+    exit 1
+  }
+  echo "check_targets: -march=$level compiles warning-free" >&2
+done

@@ -1,0 +1,26 @@
+// Position-map EXR reader (src/posmap/posmap_exr.cpp): the header reader behind
+// `drivenshape info`, the kind test, and the completeness check.
+
+#include <drivenshape/point_cache.h>
+#include <drivenshape/position_map.h>
+
+#include "fuzz_support.h"
+
+namespace ds = drivenshape;
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string path = ds::fuzz::writeInput("map.0001.exr", data, size);
+  ds::PositionMapInfo info;
+  const bool read = ds::fuzz::expectOnlyErrors("readPositionMapExrInfo",
+                                               [&] { info = ds::readPositionMapExrInfo(path); });
+  bool isMap = false;
+  ds::fuzz::expectOnlyErrors("isPositionMapExr", [&] { isMap = ds::isPositionMapExr(path); });
+  ds::fuzz::require(!read || isMap, "isPositionMapExr",
+                    "false for a file readPositionMapExrInfo reads");
+  if (read) {
+    ds::fuzz::require(info.width > 0 && info.height > 0, "readPositionMapExrInfo",
+                      "a map without pixels was read");
+  }
+  ds::fuzz::expectOnlyErrors("isCompleteExr", [&] { ds::isCompleteExr(path); });
+  return 0;
+}
