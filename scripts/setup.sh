@@ -50,6 +50,10 @@ fi
 
 jobs=$(nproc 2>/dev/null || echo 2)
 # -march=x86-64: the baseline every x86-64 CPU runs, whatever CPU builds it (never native).
+# A unity build (a few source files per compiler run) parses the large headers (Eigen, OpenCL,
+# GoogleTest, nlohmann) once per batch: a build from scratch takes about a third less time.
+# DRIVENSHAPE_UNITY=OFF turns it off (quicker rebuilds of one changed file while developing).
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DDRIVENSHAPE_WERROR=ON -DDRIVENSHAPE_ARCH=x86-64 \
-  -DDRIVENSHAPE_PYTHON="$PWD/.venv/bin/python" >/dev/null
+  -DCMAKE_UNITY_BUILD="${DRIVENSHAPE_UNITY:-ON}" -DDRIVENSHAPE_PYTHON="$PWD/.venv/bin/python" \
+  >/dev/null
 cmake --build build -j"$jobs"
