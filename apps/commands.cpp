@@ -177,8 +177,10 @@ int runDbBuild(const std::vector<std::string>& args) {
       "drivenshape db build --driver-mesh M.obj --driven-mesh M.obj --driver CACHE "
       "--driven CACHE -o DB",
       "Builds a DrivenShape database from a reference animation: a greedy farthest-point pick "
-      "of driver shapes (seeded with --add-frames, else the first candidate frame, by "
-      "convention the rest pose), each paired with the driven shape of the same frame.");
+      "of driver shapes (seeded with --add-frames, else with the settled rest pose: the "
+      "latest candidate frame whose driver is as close to the rest driver as any, i.e. the end "
+      "of the opening hold, once the cloth has draped), each paired with the driven shape of "
+      "the same frame.");
   parser.option("--driver-mesh", "M.obj", "driver rest mesh (topology, groups)", "", true)
       .option("--driven-mesh", "M.obj", "driven rest mesh (topology, UVs, groups)", "", true)
       .option("--driver", "CACHE", "driver reference cache (.pc2 or name.####.exr)", "", true)

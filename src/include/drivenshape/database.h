@@ -58,8 +58,9 @@ struct Database {
 };
 
 /// Builds a database from reference caches. The greedy farthest-point pick on driver shapes:
-/// the set starts from `addFrames` if given, else from the first candidate frame (by
-/// convention the rest or bind pose, which every shot starts near); each step then adds the
+/// the set starts from `addFrames` if given, else from the settled rest pose (the latest
+/// candidate whose driver is, within the duplicate tolerance, the closest to the rest driver:
+/// the end of the clip's opening hold, when the simulated cloth has draped); each step adds the
 /// candidate whose smallest RMS distance to the chosen shapes is largest. Candidates closer
 /// than the duplicate tolerance to a chosen shape are dropped. Progress and decisions are
 /// written to `log` if not null. Throws Error(kInput/kUsage) naming the cache and frame on
