@@ -21,11 +21,16 @@ std::string folderOf(const std::string& path) {
   return parent.empty() ? std::string(".") : parent.string();
 }
 
+/// What every temporary name of `finalPath` starts with: `.<name>.tmp-` (then `<pid>-<n>`).
+std::string tempPrefixFor(const std::string& finalPath) {
+  return "." + std::filesystem::path(finalPath).filename().string() + ".tmp-";
+}
+
 std::string tempPathFor(const std::string& finalPath) {
   static std::atomic<unsigned> counter{0};
   const std::filesystem::path target(finalPath);
-  const std::string name = "." + target.filename().string() + ".tmp-" + std::to_string(::getpid()) +
-                           "-" + std::to_string(counter++);
+  const std::string name =
+      tempPrefixFor(finalPath) + std::to_string(::getpid()) + "-" + std::to_string(counter++);
   return (target.parent_path() / name).string();
 }
 
@@ -111,8 +116,7 @@ int removeStaleTempFiles(const std::vector<std::string>& finalPaths) {
   // One listing per folder: the temporary name of <name> starts with ".<name>.tmp-".
   std::map<std::string, std::set<std::string>> wanted;
   for (const std::string& path : finalPaths) {
-    const std::filesystem::path target(path);
-    wanted[folderOf(path)].insert("." + target.filename().string() + ".tmp-");
+    wanted[folderOf(path)].insert(tempPrefixFor(path));
   }
   int removed = 0;
   for (const auto& [folder, prefixes] : wanted) {

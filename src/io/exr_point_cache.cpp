@@ -341,18 +341,17 @@ ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>&
 
 namespace {
 
-/// Decodes every channel of `path` as float planes and returns the CRC of them (PlaneCrc, in
+/// Decodes every channel of `file` as float planes and returns the CRC of them (PlaneCrc, in
 /// the channel list's order, which is the order the writer used).
-std::uint32_t decodedPixelsCrc(const std::string& path) {
-  const auto file = openExr(path, "point-cache");
-  const Imath::Box2i& window = file->header().dataWindow();
+std::uint32_t decodedPixelsCrc(Imf::InputFile& file) {
+  const Imath::Box2i& window = file.header().dataWindow();
   const std::size_t width = static_cast<std::size_t>(window.max.x - window.min.x + 1);
   const std::size_t height = static_cast<std::size_t>(window.max.y - window.min.y + 1);
   const std::size_t pixels = width * height;
   const std::ptrdiff_t origin =
       static_cast<std::ptrdiff_t>(window.min.x) +
       static_cast<std::ptrdiff_t>(window.min.y) * static_cast<std::ptrdiff_t>(width);
-  const Imf::ChannelList& channels = file->header().channels();
+  const Imf::ChannelList& channels = file.header().channels();
   std::vector<std::vector<float>> planes;
   Imf::FrameBuffer frameBuffer;
   for (auto it = channels.begin(); it != channels.end(); ++it) {
@@ -362,8 +361,8 @@ std::uint32_t decodedPixelsCrc(const std::string& path) {
     frameBuffer.insert(it.name(),
                        Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * width));
   }
-  file->setFrameBuffer(frameBuffer);
-  file->readPixels(window.min.y, window.max.y);
+  file.setFrameBuffer(frameBuffer);
+  file.readPixels(window.min.y, window.max.y);
   PlaneCrc crc;
   for (const std::vector<float>& plane : planes) {
     crc.add(plane.data(), plane.size(), 1);
@@ -381,8 +380,9 @@ std::string reuseProblem(const std::string& path, int vertexCount, std::uint64_t
   ExrPointCacheInfo info;
   std::uint32_t crc = 0;
   try {
-    info = readPointCacheExrInfo(path);
-    crc = decodedPixelsCrc(path);
+    const auto file = openExr(path, "point-cache");  // one open for the header and the pixels
+    info = parseHeader(path, file->header());
+    crc = decodedPixelsCrc(*file);
   } catch (const std::exception& error) {
     return std::string("does not decode: ") + error.what();
   }
