@@ -26,6 +26,7 @@
 
 #include "cli_args.h"
 #include "device_choice.h"
+#include "upload_every_call.h"
 
 namespace ds = drivenshape;
 namespace fs = std::filesystem;
@@ -108,15 +109,42 @@ Workload workload(const std::string& name) {
   DS_THROW(kUsage, "--workload takes W1 or W2 (got '", name, "')");
 }
 
+/// The evaluator's stages in the columns of the table (stages that did not run show 0).
+const char* const kStages[] = {"align",   "project", "weights", "blend",
+                               "correct", "resolve", "layers",  "audit"};
+
 nlohmann::json timesJson(const ds::BakeResult& r, double rssMiB) {
-  return {{"peak_rss_mib", rssMiB},          {"read", r.times.read},
-          {"align", r.times.align},          {"project", r.times.project},
-          {"weights", r.times.weights},      {"blend", r.times.blend},
-          {"correct", r.times.correct},      {"resolve", r.times.resolve},
-          {"layers", r.times.layers},        {"audit", r.times.audit},
-          {"write", r.times.write},          {"read_wait", r.times.readWait},
-          {"write_wait", r.times.writeWait}, {"setup", r.times.setup},
-          {"total", r.times.total},          {"frames_per_second", r.baked / r.times.total}};
+  nlohmann::json json{
+      {"peak_rss_mib", rssMiB},          {"read", r.times.read},
+      {"write", r.times.write},          {"read_wait", r.times.readWait},
+      {"write_wait", r.times.writeWait}, {"setup", r.times.setup},
+      {"total", r.times.total},          {"frames_per_second", r.baked / r.times.total}};
+  for (const char* stage : kStages) {
+    json[stage] = r.times.stage(stage);
+  }
+  return json;
+}
+
+/// Host<->device copies per launch batch between two counts (setup uploads included, spread
+/// over the batches), printed and returned.
+nlohmann::json transfersPerBatch(const std::string& name, const ds::TransferCounts& before,
+                                 const ds::TransferCounts& after, int frames, int batch) {
+  const double batches = std::ceil(static_cast<double>(frames) / batch);
+  const nlohmann::json transfers{
+      {"batches", batches},
+      {"uploads_per_batch", (after.uploads - before.uploads) / batches},
+      {"downloads_per_batch", (after.downloads - before.downloads) / batches},
+      {"upload_mib_per_batch", (after.uploadBytes - before.uploadBytes) / batches / 1048576.0},
+      {"download_mib_per_batch",
+       (after.downloadBytes - before.downloadBytes) / batches / 1048576.0}};
+  std::printf(
+      "%s transfers per batch of %d frames: %.1f uploads (%.2f MiB), %.1f downloads "
+      "(%.2f MiB)\n",
+      name.c_str(), batch, transfers["uploads_per_batch"].get<double>(),
+      transfers["upload_mib_per_batch"].get<double>(),
+      transfers["downloads_per_batch"].get<double>(),
+      transfers["download_mib_per_batch"].get<double>());
+  return transfers;
 }
 
 void printHeader() {
@@ -131,8 +159,9 @@ void printRow(const std::string& name, const ds::BakeResult& r, double rssMiB) {
   std::printf(
       "%-24s %6.3f %6.3f %6.3f %6.3f %6.3f %7.3f %7.3f %6.3f %6.3f %6.3f %6.3f %6.3f %8.3f "
       "%9.1f %7.0f\n",
-      name.substr(0, 24).c_str(), r.times.read, r.times.align, r.times.project, r.times.weights,
-      r.times.blend, r.times.correct, r.times.resolve, r.times.layers, r.times.audit, r.times.write,
+      name.substr(0, 24).c_str(), r.times.read, r.times.stage("align"), r.times.stage("project"),
+      r.times.stage("weights"), r.times.stage("blend"), r.times.stage("correct"),
+      r.times.stage("resolve"), r.times.stage("layers"), r.times.stage("audit"), r.times.write,
       r.times.readWait + r.times.writeWait, r.times.setup, r.times.total, r.baked / r.times.total,
       rssMiB);
 }
@@ -155,6 +184,9 @@ int runBench(const std::vector<std::string>& args) {
       .flag("--sync", "fsync every output before its rename")
       .option("--blend", "MODE", "world (the talk: correction searches P~) or local", "local")
       .option("--align", "MODE", "none, rigid or rigid-all", "rigid")
+      .flag("--upload-every-call",
+            "also bake through OpenCL with every closest-point call uploading its own poses "
+            "(the transfers before a batch's driver was kept on the device)")
       .flag("--no-host", "skip the host reference bake");
   if (!parser.parse(args)) {
     std::cout << parser.help();
@@ -170,6 +202,7 @@ int runBench(const std::vector<std::string>& args) {
           : fs::temp_directory_path() / ("drivenshape-bench-" + std::to_string(::getpid()));
   fs::create_directories(root / "host");
   fs::create_directories(root / "cl");
+  fs::create_directories(root / "cl-every-call");
 
   const ds::Mesh driver = tube(w.driverRings, w.driverSegments, 0.1f);
   const ds::Mesh driven = tube(w.drivenRings, w.drivenSegments, 0.12f);
@@ -221,9 +254,9 @@ int runBench(const std::vector<std::string>& args) {
                   : align == "rigid-all" ? ds::AlignMode::kRigidAll
                                          : ds::AlignMode::kRigid;
 
-  const ds::cli::DeviceBackends clBackends =
-      ds::cli::makeBackends(parser.get("--device"), std::cerr);
-  const std::string& clName = clBackends.description;
+  const std::unique_ptr<ds::Device> clDevice =
+      ds::cli::openCliDevice(parser.get("--device"), std::cerr);
+  const std::string clName = clDevice->description();
   std::printf(
       "workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
       "compression %s, correction %s, audit %s\n",
@@ -245,26 +278,42 @@ int runBench(const std::vector<std::string>& args) {
     ds::BakeOptions warm = options;
     warm.frames = {1};
     warm.outputPattern = (root / "cl" / "warm.####.exr").string();
-    ds::bake(db, *shotCache, clBackends.view(), warm);
+    ds::bake(db, *shotCache, *clDevice, warm);
   }
   options.outputPattern = (root / "cl" / "shot.####.exr").string();
   resetPeakRss();
-  const ds::BakeResult cl = ds::bake(db, *shotCache, clBackends.view(), options);
+  const ds::TransferCounts before = clDevice->transfers();
+  const ds::BakeResult cl = ds::bake(db, *shotCache, *clDevice, options);
+  const ds::TransferCounts after = clDevice->transfers();
   const double clRss = peakRssMiB();
   printRow("OpenCL: " + clName.substr(0, 20), cl, clRss);
   report["opencl"] = timesJson(cl, clRss);
   report["opencl"]["device"] = clName;
+  report["opencl"]["programs_built"] = clDevice->programsBuilt();
+  report["opencl"]["transfers"] =
+      transfersPerBatch("OpenCL", before, after, w.frames, options.chunkSize);
+  if (parser.has("--upload-every-call") && clDevice->isOpenCl()) {
+    ds::cli::UploadEveryCallDevice everyCall(*clDevice);
+    options.outputPattern = (root / "cl-every-call" / "shot.####.exr").string();
+    const ds::TransferCounts start = clDevice->transfers();
+    const ds::BakeResult again = ds::bake(db, *shotCache, everyCall, options);
+    printRow("same, uploads every call", again, peakRssMiB());
+    report["opencl_upload_every_call"] = timesJson(again, peakRssMiB());
+    report["opencl_upload_every_call"]["transfers"] = transfersPerBatch(
+        "same, uploads every call", start, clDevice->transfers(), w.frames, options.chunkSize);
+  }
   if (!parser.has("--no-host")) {
-    const ds::cli::DeviceBackends host = ds::cli::makeBackends("host", std::cerr);
+    const std::unique_ptr<ds::Device> host = ds::makeHostDevice();
     options.outputPattern = (root / "host" / "shot.####.exr").string();
     resetPeakRss();
-    const ds::BakeResult hr = ds::bake(db, *shotCache, host.view(), options);
+    const ds::BakeResult hr = ds::bake(db, *shotCache, *host, options);
     const double hostRss = peakRssMiB();
     printRow("host reference", hr, hostRss);
     report["host"] = timesJson(hr, hostRss);
     std::printf("OpenCL / host speed-up: whole bake %.2fx, project %.2fx, blend %.2fx\n",
-                hr.times.total / cl.times.total, hr.times.project / cl.times.project,
-                hr.times.blend / cl.times.blend);
+                hr.times.total / cl.times.total,
+                hr.times.stage("project") / cl.times.stage("project"),
+                hr.times.stage("blend") / cl.times.stage("blend"));
   }
   if (parser.has("--json")) {
     std::ofstream(parser.get("--json")) << drivenshape::jsonText(report, 1) << "\n";

@@ -13,7 +13,6 @@
 #include <sstream>
 #include <tuple>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/bake.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
@@ -21,7 +20,8 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/position_map.h>
-#include <drivenshape/progress.h>
+#include "atomic_file.h"
+#include "progress.h"
 
 #include "cli_args.h"
 #include "device_choice.h"
@@ -129,7 +129,7 @@ int runDevices(const std::vector<std::string>& args) {
     std::cout << parser.help();
     return 0;
   }
-  listDevices(std::cout);
+  printDevices(std::cout);
   return 0;
 }
 
@@ -405,7 +405,7 @@ int runBake(const std::vector<std::string>& args) {
       .flag("--no-resolve", "skip the penetration resolution")
       .option("--regions", "FILE.json",
               "region-local weights: one QP per region (driver groups) mixed over the matching "
-              "driven groups with a smooth falloff; see the README for the format")
+              "driven groups with a smooth falloff; see docs/commands.md for the format")
       .option("--max-weight-change", "TAU",
               "temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order "
               "within each --batch (0 = off)",
@@ -547,8 +547,8 @@ int bakeParsed(const ArgParser& parser) {
     // PoCL reads this when the platform loads: cap its worker threads like ours.
     ::setenv("POCL_MAX_PTHREAD_COUNT", std::to_string(options.threads).c_str(), 0);
   }
-  const DeviceBackends backends = makeBackends(parser.get("--device"), std::cerr, options.threads);
-  const std::string& device = backends.description;
+  const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
+  const std::string device = target->description();
   const bool quiet = parser.has("--quiet");
   if (!quiet) {
     std::cerr << "baking " << options.frames.size() << " frames ("
@@ -571,16 +571,12 @@ int bakeParsed(const ArgParser& parser) {
       DS_THROW(kUsage, "--posmap-out '", posmapPattern, "' has no frame token");
     }
     checkOutputFolderWritable(expandFramePattern(posmapPattern, options.frames.front()));
-    auto backend = backends.device
-                       ? makeClPositionMaps(backends.device->context, backends.device->device,
-                                            backends.device->queue)
-                       : makeHostPositionMaps();
     observer.setPositionMaps(
-        std::make_unique<PositionMapWriter>(db.drivenMesh, maps, std::move(backend),
+        std::make_unique<PositionMapWriter>(db.drivenMesh, maps, target->makePositionMaps(),
                                             "the database's driven mesh", &std::cerr),
         posmapPattern);
   }
-  const BakeResult result = bake(db, *driver, backends.view(), options, &observer);
+  const BakeResult result = bake(db, *driver, *target, options, &observer);
   observer.finish();
   for (const FrameRecord& record : result.frames) {
     if (!record.rebakeReason.empty()) {

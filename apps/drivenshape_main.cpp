@@ -1,5 +1,5 @@
 // drivenshape: the command line. Picks the command, runs it, and turns every error into one
-// line on stderr and a documented exit code (see drivenshape::ErrorCode and the README).
+// line on stderr and a documented exit code (see drivenshape::ErrorCode and docs/commands.md).
 
 #include <cstdio>
 #include <cstring>

@@ -8,13 +8,13 @@
 #include <optional>
 #include <sstream>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
+#include "atomic_file.h"
 
 #include "json_text.h"
 
@@ -279,8 +279,8 @@ int runEval(const std::vector<std::string>& args) {
   std::optional<Database> db;
   Mesh driverMesh, drivenMesh;
   std::optional<BindingMask> mask;
+  std::unique_ptr<Device> device;  // outlives `closest`
   std::unique_ptr<ClosestBackend> closest;
-  std::optional<ClDevice> device;
   std::string deviceName = "none";
   if (haveDriver) {
     if (parser.has("--db")) {
@@ -307,17 +307,9 @@ int runEval(const std::vector<std::string>& args) {
     }
     ClosestOptions search;
     search.threads = input.threads;
-    device = chooseDevice(parser.get("--device"));
-    if (device) {
-      closest = makeClClosest(device->context, device->device, device->queue, search);
-      deviceName = device->description;
-    } else {
-      if (parser.get("--device") == "auto") {
-        std::cerr << "warning: no OpenCL device found; using the host reference path\n";
-      }
-      closest = makeHostClosest(search);
-      deviceName = "host";
-    }
+    device = openCliDevice(parser.get("--device"), std::cerr);
+    closest = device->makeClosest(search);
+    deviceName = device->isOpenCl() ? device->description() : "host";
   } else {
     closest = makeHostClosest();
   }

@@ -4,11 +4,11 @@
 #include <memory>
 #include <optional>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+#include "atomic_file.h"
 
 #include "cli_args.h"
 

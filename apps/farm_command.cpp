@@ -10,11 +10,11 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/version.h>
+#include "atomic_file.h"
 
 #include "json_text.h"
 

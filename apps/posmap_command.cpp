@@ -6,37 +6,17 @@
 #include <memory>
 #include <optional>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/position_map.h>
-#include <drivenshape/progress.h>
+#include "atomic_file.h"
+#include "progress.h"
 
 #include "cli_args.h"
 #include "device_choice.h"
 
 namespace drivenshape::cli {
-namespace {
-
-/// The backend for --device SPEC: OpenCL, or the host reference for `host` (and for `auto`
-/// when there is no OpenCL device, with a warning).
-std::unique_ptr<PositionMapBackend> makeBackend(const std::string& spec, std::string& description,
-                                                std::ostream& log) {
-  std::optional<ClDevice> device = chooseDevice(spec);
-  if (!device) {
-    if (spec == "auto") {
-      log << "warning: no OpenCL device found; using the host reference path (slower). "
-             "Install pocl-opencl-icd or a GPU driver for OpenCL.\n";
-    }
-    description = "host (reference path, no OpenCL)";
-    return makeHostPositionMaps();
-  }
-  description = device->description;
-  return makeClPositionMaps(device->context, device->device, device->queue);
-}
-
-}  // namespace
 
 int runPosmap(const std::vector<std::string>& args) {
   ArgParser parser(
@@ -92,8 +72,9 @@ int runPosmap(const std::vector<std::string>& args) {
   const auto cache = openPointCache(parser.get("--cache"), topologyHash(mesh));
   const bool quiet = parser.has("--quiet");
   std::string device;
-  PositionMapWriter writer(mesh, options, makeBackend(parser.get("--device"), device, std::cerr),
-                           meshPath, &std::cerr);
+  const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
+  device = target->description();
+  PositionMapWriter writer(mesh, options, target->makePositionMaps(), meshPath, &std::cerr);
   if (!quiet) {
     std::cerr << "position maps " << width << "x" << height << ", padding " << options.padding
               << ": " << writer.tables().coveredCount << " covered and "

@@ -1,5 +1,5 @@
 // Exact closest triangle among candidates (contract: ClosestBackend::closest in
-// src/include/drivenshape/correction.h; host reference: src/host/host_closest.cpp).
+// src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp).
 //
 // The host (src/correction/candidates.cpp) lists, for every point of every frame, the triangles
 // that can be closest (a superset of the true answer, with a proof there). This kernel computes

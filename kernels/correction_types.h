@@ -1,5 +1,5 @@
 // Types and constants of the correction stage (closest triangle, local-frame transfer), shared
-// by the host (C++, src/correction, src/host, src/cl) and the device (kernels/closest.cl,
+// by the host (C++, src/correction, src/devices) and the device (kernels/closest.cl,
 // kernels/transfer.cl, kernels/resolve.cl). The OpenCL programs get this text as their first
 // source, so both sides see one layout; the host checks the sizes with static_assert.
 #ifndef DRIVENSHAPE_CORRECTION_TYPES_H

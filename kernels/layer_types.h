@@ -1,8 +1,9 @@
 // Types and the wind noise of the layer stage (DESIGN.md section 3 step 7), shared by the host
-// (src/layers/layers_host.cpp, the reference) and the device (kernels/mix.cl, kernels/wind.cl).
-// The OpenCL programs get this text as their first source; the host includes it. Both sides
-// run the very same float operations in the same order (the kernels switch off FP_CONTRACT), so
-// the device and the host reference agree to the rounding of tanh() in the clearance limit.
+// (src/devices/host/host_layers.cpp, the reference) and the device (kernels/mix.cl,
+// kernels/wind.cl). The OpenCL programs get this text as their first source; the host includes it.
+// Both sides run the very same float operations in the same order (the kernels switch off
+// FP_CONTRACT), so the device and the host reference agree to the rounding of tanh() in the
+// clearance limit.
 #ifndef DRIVENSHAPE_LAYER_TYPES_H
 #define DRIVENSHAPE_LAYER_TYPES_H
 

@@ -1,5 +1,5 @@
 // Per-vertex mix of the DrivenShape result with another cache (contract: LayerBackend::mix in
-// src/include/drivenshape/layers.h; host reference: src/layers/layers_host.cpp):
+// src/include/drivenshape/layers.h; host reference: src/devices/host/host_layers.cpp):
 //
 //   out = w * drivenshape + (1 - w) * other,   out = drivenshape where w = 1, other where w = 0
 //

@@ -1,5 +1,5 @@
 // Penetration resolution (contract: ClosestBackend::resolve in
-// src/include/drivenshape/correction.h; host reference: src/host/host_closest.cpp with
+// src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp with
 // src/correction/surface_features.cpp, whose pseudoNormal() this file repeats in OpenCL C).
 //
 // Point p has its exact closest point q = a + u (b - a) + v (c - a) on triangle t. Its signed

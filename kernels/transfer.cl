@@ -1,5 +1,5 @@
 // Local-frame transfer (contract: ClosestBackend::transfer in
-// src/include/drivenshape/correction.h; host reference: src/host/host_closest.cpp).
+// src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp).
 //
 // Point p was found closest to triangle t of the `from` pose at q = a + u (b - a) + v (c - a).
 // The frame at q is

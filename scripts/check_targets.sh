@@ -13,7 +13,8 @@ cd "$(dirname "$0")/.."
 levels=("$@")
 ((${#levels[@]})) || levels=(x86-64-v4)
 jobs=$(nproc 2>/dev/null || echo 2)
-targets=(drivenshape_cli drivenshape_bench bench_stages bench_correction bench_roofline bench_posmap
+targets=(drivenshape_cli drivenshape_bench drivenshape_bench_evaluate bench_stages bench_correction
+         bench_roofline bench_posmap
          bench_layers)
 for level in "${levels[@]}"; do
   build="build-arch-$level"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The README's layering picture (issue 8): the pants of the reference data with the waistband
+# The layering picture of docs/commands.md (issue 8): the pants of the reference data with the waistband
 # mixed with the skin-only result and light wind on the lower legs.
 #
 #   1. db build: 30 shapes from the pants `train` clip;

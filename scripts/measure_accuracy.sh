@@ -5,7 +5,7 @@
 # with the simulated truth: mean / RMS / max vertex error (mm), cloth vertices inside the
 # driver per frame (and the truth's, when `drivenshape eval` measures penetrations), and the
 # largest frame-to-frame vertex jump against the truth's. Prints a Markdown table (the
-# README's accuracy table). Not a test: it reads ../shared/data.
+# accuracy table in docs/method.md). Not a test: it reads ../shared/data.
 #
 # Usage: scripts/measure_accuracy.sh [SCENE...]   (default: pants sleeve)
 # Environment: DRIVENSHAPE_DATA (default ../shared/data), DRIVENSHAPE_BUILD (default build),

@@ -19,10 +19,10 @@
 #include <nlohmann/json.hpp>
 #include <string_view>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/version.h>
+#include "atomic_file.h"
 
 #include "json_text.h"
 

@@ -42,11 +42,11 @@ void checkFrame(const PointCacheReader& cache, int frame, const char* role) {
   }
 }
 
-}  // namespace
-
-Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
-                       const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
-                       const DatabaseBuildOptions& options, std::ostream* log) {
+/// Throws unless at least one shape is wanted, each mesh matches its cache and no frame is
+/// both added and removed.
+void checkBuildInputs(const Mesh& driverMesh, const Mesh& drivenMesh,
+                      const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
+                      const DatabaseBuildOptions& options) {
   if (options.count < 1) {
     DS_THROW(kUsage, "--count must be at least 1 (got ", options.count, ")");
   }
@@ -66,9 +66,15 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
       DS_THROW(kUsage, "frame ", frame, " is in both --add-frames and --remove-frames");
     }
   }
+}
 
-  // Candidates: the given frames (or the whole driver cache) minus the removed ones, plus the
-  // added ones (which must exist even if outside --frames).
+/// The candidate frames: the added ones (in the order given, without repeats), then the given
+/// frames (or the whole driver cache) minus the removed ones. The added ones must exist even if
+/// outside --frames; throws unless both caches hold every candidate.
+std::vector<int> candidateFrames(const PointCacheReader& driverCache,
+                                 const PointCacheReader& drivenCache,
+                                 const DatabaseBuildOptions& options) {
+  const std::set<int> removed(options.removeFrames.begin(), options.removeFrames.end());
   std::vector<int> candidates;
   {
     std::vector<int> pool = options.frames.empty() ? driverCache.frames() : options.frames;
@@ -92,9 +98,14 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
     checkFrame(driverCache, frame, "driver");
     checkFrame(drivenCache, frame, "driven");
   }
+  return candidates;
+}
 
-  const std::size_t driverValues = static_cast<std::size_t>(driverMesh.vertexCount()) * 3;
-  const std::vector<float> shapes = readFrames(driverCache, candidates);
+/// The candidates' driver shapes, C x 3Vp (`driverValues` = 3Vp); throws on a non-finite value.
+std::vector<float> readCandidateShapes(const PointCacheReader& driverCache,
+                                       const std::vector<int>& candidates,
+                                       std::size_t driverValues) {
+  std::vector<float> shapes = readFrames(driverCache, candidates);
   for (std::size_t c = 0; c < candidates.size(); ++c) {
     for (std::size_t i = 0; i < driverValues; ++i) {
       if (!std::isfinite(shapes[c * driverValues + i])) {
@@ -103,93 +114,120 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
       }
     }
   }
+  return shapes;
+}
 
-  const Bounds bounds = computeBounds(driverMesh.positions.data(), driverMesh.vertexCount());
-  const double tolerance = options.duplicateTolerance * bounds.diagonal();
-  const std::size_t n = candidates.size();
-  std::vector<double> minDistance(n, std::numeric_limits<double>::infinity());
-  std::vector<bool> chosen(n, false);
+/// The greedy farthest-point pick over the candidates' driver shapes: every pick is recorded
+/// in the database (frame, reason, distance) and lowers the others' distance to the chosen set.
+class ShapePicker {
+ public:
+  /// `shapes` C x 3Vp (`driverValues` = 3Vp) of `candidates`; `log` may be null.
+  ShapePicker(const std::vector<int>& candidates, const std::vector<float>& shapes,
+              std::size_t driverValues, Database& db, std::ostream* log)
+      : mCandidates(candidates),
+        mShapes(shapes),
+        mDriverValues(driverValues),
+        mDb(db),
+        mLog(log),
+        mMinDistance(candidates.size(), std::numeric_limits<double>::infinity()),
+        mChosen(candidates.size(), false) {}
 
-  Database db;
-  db.driverMesh = driverMesh;
-  db.drivenMesh = drivenMesh;
-  db.options = options;
-  db.driverSource = driverCache.path();
-  db.drivenSource = drivenCache.path();
-  db.toolVersion = kVersion;
-  db.created = utcNow();
-  std::vector<std::size_t> picks;
+  /// Candidate indices in the order picked.
+  const std::vector<std::size_t>& picks() const { return mPicks; }
 
-  auto take = [&](std::size_t c, PickReason reason) {
-    chosen[c] = true;
-    picks.push_back(c);
-    db.frames.push_back(candidates[c]);
-    db.reasons.push_back(reason);
-    db.pickDistances.push_back(picks.size() == 1 ? 0.0 : minDistance[c]);
-    if (log != nullptr) {
-      *log << "pick " << picks.size() << ": frame " << candidates[c] << " ("
-           << pickReasonName(reason) << ", RMS distance to the others " << db.pickDistances.back()
-           << ")\n";
-    }
-    for (std::size_t other = 0; other < n; ++other) {
-      if (!chosen[other]) {
-        minDistance[other] = std::min(
-            minDistance[other],
-            rmsDistance(&shapes[other * driverValues], &shapes[c * driverValues], driverValues));
-      }
-    }
-  };
-
-  // Seeds: the artist's frames (in the order given), else the settled rest pose: the candidate
-  // whose driver is closest to the rest driver, and among those within the duplicate tolerance
-  // of it the latest. Reference clips usually open with a hold at rest while the simulation
-  // drapes the cloth, so the first frame's cloth is undraped; the end of the hold is not.
-  const std::size_t addedCount = [&] {
-    std::set<int> unique(options.addFrames.begin(), options.addFrames.end());
-    return unique.size();
-  }();
-  if (addedCount == 0) {
+  /// Seeds with the settled rest pose: the candidate whose driver is closest to the rest
+  /// driver (`rest`, 3Vp), and among those within `tolerance` of it the latest.
+  void pickRestSeed(const float* rest, double tolerance) {
+    const std::size_t n = mCandidates.size();
     std::vector<double> toRest(n);
     for (std::size_t c = 0; c < n; ++c) {
-      toRest[c] = rmsDistance(&shapes[c * driverValues], driverMesh.positions.data(), driverValues);
+      toRest[c] = rmsDistance(&mShapes[c * mDriverValues], rest, mDriverValues);
     }
     const double nearest = *std::min_element(toRest.begin(), toRest.end());
     std::size_t seed = n;
     for (std::size_t c = 0; c < n; ++c) {
-      if (toRest[c] <= nearest + tolerance && (seed == n || candidates[c] > candidates[seed])) {
+      if (toRest[c] <= nearest + tolerance && (seed == n || mCandidates[c] > mCandidates[seed])) {
         seed = c;
       }
     }
     take(seed, PickReason::kSeed);
   }
-  for (std::size_t c = 0; c < addedCount; ++c) {
-    if (!picks.empty() && minDistance[c] < tolerance) {
-      if (log != nullptr) {
-        *log << "skip added frame " << candidates[c] << ": a near-duplicate of a chosen shape "
-             << "(RMS distance " << minDistance[c] << " < tolerance " << tolerance << ")\n";
+
+  /// Picks the first `addedCount` candidates (the artist's frames) in order, skipping those
+  /// within `tolerance` of a chosen shape.
+  void pickAdded(std::size_t addedCount, double tolerance) {
+    for (std::size_t c = 0; c < addedCount; ++c) {
+      if (!mPicks.empty() && mMinDistance[c] < tolerance) {
+        if (mLog != nullptr) {
+          *mLog << "skip added frame " << mCandidates[c] << ": a near-duplicate of a chosen shape "
+                << "(RMS distance " << mMinDistance[c] << " < tolerance " << tolerance << ")\n";
+        }
+        mChosen[c] = true;  // never reconsider it
+        continue;
       }
-      chosen[c] = true;  // never reconsider it
-      continue;
+      take(c, PickReason::kAdded);
     }
-    take(c, PickReason::kAdded);
-  }
-  while (static_cast<int>(picks.size()) < options.count) {
-    std::size_t best = n;
-    for (std::size_t c = 0; c < n; ++c) {
-      if (!chosen[c] && (best == n || minDistance[c] > minDistance[best])) {
-        best = c;
-      }
-    }
-    if (best == n || minDistance[best] < tolerance) {
-      if (log != nullptr) {
-        *log << "stopping at " << picks.size() << " shapes: every remaining frame is within "
-             << tolerance << " (RMS) of a chosen shape\n";
-      }
-      break;
-    }
-    take(best, PickReason::kFarthest);
   }
 
+  /// Picks the candidate farthest from the chosen shapes until there are `count` of them or
+  /// every remaining one is within `tolerance` of a chosen shape.
+  void pickFarthest(int count, double tolerance) {
+    const std::size_t n = mCandidates.size();
+    while (static_cast<int>(mPicks.size()) < count) {
+      std::size_t best = n;
+      for (std::size_t c = 0; c < n; ++c) {
+        if (!mChosen[c] && (best == n || mMinDistance[c] > mMinDistance[best])) {
+          best = c;
+        }
+      }
+      if (best == n || mMinDistance[best] < tolerance) {
+        if (mLog != nullptr) {
+          *mLog << "stopping at " << mPicks.size() << " shapes: every remaining frame is within "
+                << tolerance << " (RMS) of a chosen shape\n";
+        }
+        break;
+      }
+      take(best, PickReason::kFarthest);
+    }
+  }
+
+ private:
+  /// Chooses candidate c, records it and lowers the others' distance to the chosen set.
+  void take(std::size_t c, PickReason reason) {
+    mChosen[c] = true;
+    mPicks.push_back(c);
+    mDb.frames.push_back(mCandidates[c]);
+    mDb.reasons.push_back(reason);
+    mDb.pickDistances.push_back(mPicks.size() == 1 ? 0.0 : mMinDistance[c]);
+    if (mLog != nullptr) {
+      *mLog << "pick " << mPicks.size() << ": frame " << mCandidates[c] << " ("
+            << pickReasonName(reason) << ", RMS distance to the others " << mDb.pickDistances.back()
+            << ")\n";
+    }
+    for (std::size_t other = 0; other < mCandidates.size(); ++other) {
+      if (!mChosen[other]) {
+        mMinDistance[other] =
+            std::min(mMinDistance[other], rmsDistance(&mShapes[other * mDriverValues],
+                                                      &mShapes[c * mDriverValues], mDriverValues));
+      }
+    }
+  }
+
+  const std::vector<int>& mCandidates;
+  const std::vector<float>& mShapes;
+  std::size_t mDriverValues;
+  Database& mDb;
+  std::ostream* mLog;
+  std::vector<double> mMinDistance;  // per candidate: RMS distance to the nearest chosen shape
+  std::vector<bool> mChosen;
+  std::vector<std::size_t> mPicks;
+};
+
+/// Fills the database's shapes: the picked candidates' driver shapes and their frames of the
+/// driven cache; throws on a non-finite driven value.
+void fillPickedShapes(Database& db, const std::vector<float>& shapes,
+                      const std::vector<std::size_t>& picks, std::size_t driverValues,
+                      const PointCacheReader& drivenCache, const Mesh& drivenMesh) {
   const int k = static_cast<int>(picks.size());
   db.driverShapes.resize(static_cast<std::size_t>(k) * driverValues);
   for (int i = 0; i < k; ++i) {
@@ -203,6 +241,46 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
                " vertex ", (i % values) / 3, " is not a finite number; fix the cache");
     }
   }
+}
+
+}  // namespace
+
+Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
+                       const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
+                       const DatabaseBuildOptions& options, std::ostream* log) {
+  checkBuildInputs(driverMesh, drivenMesh, driverCache, drivenCache, options);
+  const std::vector<int> candidates = candidateFrames(driverCache, drivenCache, options);
+  const std::size_t driverValues = static_cast<std::size_t>(driverMesh.vertexCount()) * 3;
+  const std::vector<float> shapes = readCandidateShapes(driverCache, candidates, driverValues);
+
+  const Bounds bounds = computeBounds(driverMesh.positions.data(), driverMesh.vertexCount());
+  const double tolerance = options.duplicateTolerance * bounds.diagonal();
+
+  Database db;
+  db.driverMesh = driverMesh;
+  db.drivenMesh = drivenMesh;
+  db.options = options;
+  db.driverSource = driverCache.path();
+  db.drivenSource = drivenCache.path();
+  db.toolVersion = kVersion;
+  db.created = utcNow();
+  ShapePicker picker(candidates, shapes, driverValues, db, log);
+
+  // Seeds: the artist's frames (in the order given), else the settled rest pose: the candidate
+  // whose driver is closest to the rest driver, and among those within the duplicate tolerance
+  // of it the latest. Reference clips usually open with a hold at rest while the simulation
+  // drapes the cloth, so the first frame's cloth is undraped; the end of the hold is not.
+  const std::size_t addedCount = [&] {
+    std::set<int> unique(options.addFrames.begin(), options.addFrames.end());
+    return unique.size();
+  }();
+  if (addedCount == 0) {
+    picker.pickRestSeed(driverMesh.positions.data(), tolerance);
+  }
+  picker.pickAdded(addedCount, tolerance);
+  picker.pickFarthest(options.count, tolerance);
+
+  fillPickedShapes(db, shapes, picker.picks(), driverValues, drivenCache, drivenMesh);
   return db;
 }
 

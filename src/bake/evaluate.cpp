@@ -5,7 +5,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
-#include <drivenshape/parallel.h>
+#include "parallel.h"
 
 namespace drivenshape {
 namespace {
@@ -66,48 +66,28 @@ struct Accumulator {
   double sumDistance = 0.0, sumSquares = 0.0;
 };
 
-}  // namespace
+/// Sizes shared by the batch steps of evaluateShot.
+struct ShotLayout {
+  int vd = 0;                    // cloth vertices
+  std::size_t drivenValues = 0;  // vd x 3
+  std::size_t driverValues = 0;  // driver vertices x 3 (0 without penetrations)
+  bool penetrations = false;
+};
 
-EvaluationResult evaluateCaches(const PointCacheReader& truth, const PointCacheReader& baked,
-                                const std::vector<int>& frames) {
-  if (frames.empty()) {
-    DS_THROW(kUsage, "the frame range is empty; pass --frames");
-  }
-  if (truth.vertexCount() != baked.vertexCount()) {
-    DS_THROW(kInput, "truth '", truth.path(), "' has ", truth.vertexCount(), " vertices but bake '",
-             baked.path(), "' has ", baked.vertexCount(), "; compare caches of the same mesh");
-  }
-  for (const PointCacheReader* cache : {&truth, &baked}) {
-    for (int frame : frames) {
-      if (!cache->hasFrame(frame)) {
-        DS_THROW(kInput, "'", cache->path(), "' has no frame ", frame, " (it holds ",
-                 formatFrameRange(cache->frames()), ")");
-      }
-    }
-  }
-  const int v = truth.vertexCount();
-  EvaluationResult result;
-  result.vertexCount = v;
-  std::vector<float> a(static_cast<std::size_t>(v) * 3), b(a.size());
-  double sum = 0.0, sumSquares = 0.0;
-  for (int frame : frames) {
-    truth.readFrame(frame, a.data());
-    baked.readFrame(frame, b.data());
-    const FrameError error = frameError(frame, v, a.data(), b.data(), sum, sumSquares);
-    if (error.max > result.max || result.frames.empty()) {
-      result.max = error.max;
-      result.maxFrame = frame;
-    }
-    result.frames.push_back(error);
-  }
-  const double total = static_cast<double>(v) * static_cast<double>(frames.size());
-  result.mean = sum / total;
-  result.rms = std::sqrt(sumSquares / total);
-  return result;
-}
+/// The sequences of evaluateShot, in the order of ShotBatch::cloth.
+enum { kShotBake = 0, kShotTruth = 1, kShotBaseline = 2 };
 
-ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
-                            ClosestBackend& closest) {
+/// Buffers of one batch of frames, reused from batch to batch.
+struct ShotBatch {
+  std::vector<std::vector<float>> cloth;  // per sequence: count x Vd x 3
+  std::vector<float> driverBlock;         // count x Vp x 3
+  std::vector<float> restDriver, restDriven, signedDistance;
+  std::vector<SurfaceHit> hits, baseHits;
+};
+
+/// Throws unless the inputs of evaluateShot fit together: a truth and a bake of one cloth that
+/// hold every frame, and for penetrations and the baseline the meshes and caches they need.
+void checkShotInput(const ShotEvaluationInput& input, const std::vector<int>& frames) {
   if (frames.empty()) {
     DS_THROW(kUsage, "the frame range is empty; pass --frames");
   }
@@ -163,24 +143,30 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
     DS_THROW(kInput, "the binding mask covers ", input.mask->drivenVertexCount(),
              " cloth vertices but the cloth has ", vd);
   }
+}
 
+/// The result's description (frames, sizes, which metrics, sequence names) with no metrics yet.
+ShotEvaluation emptyShotEvaluation(const ShotEvaluationInput& input, const std::vector<int>& frames,
+                                   const ShotLayout& layout, int vp) {
   ShotEvaluation result;
   result.frames = frames;
-  result.vertexCount = vd;
+  result.vertexCount = layout.vd;
   result.driverVertexCount = vp;
-  result.penetrations = penetrations;
+  result.penetrations = layout.penetrations;
   result.hasBaseline = input.baseline;
   result.bake.name = "bake";
-  result.bake.source = bake.path();
+  result.bake.source = input.bake->path();
   result.truth.name = "truth";
-  result.truth.source = truth.path();
+  result.truth.source = input.truth->path();
   result.baseline.name = "baseline";
+  return result;
+}
 
-  const std::size_t drivenValues = static_cast<std::size_t>(vd) * 3;
-  const std::size_t driverValues = static_cast<std::size_t>(vp) * 3;
-
-  // The baseline's binding: the rest cloth on the rest driver, once (the bake redoes the same
-  // search for every frame, with the same inputs and so the same hits).
+/// The baseline's binding: the closest hits of the rest cloth on the rest driver, once (the
+/// bake redoes the same search for every frame, with the same inputs and so the same hits).
+/// Empty without the baseline.
+std::vector<SurfaceHit> bindRestCloth(const ShotEvaluationInput& input, int vd,
+                                      ClosestBackend& closest) {
   std::vector<SurfaceHit> restHits;
   if (input.baseline) {
     const BindingMask all = BindingMask::all(vd);
@@ -189,9 +175,203 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
     closest.closest(1, input.driverMesh->positions.data(), input.drivenMesh->positions.data(),
                     restHits.data());
   }
-  std::unique_ptr<InsideAudit> audit;
+  return restHits;
+}
+
+/// Reads frames[begin .. begin + count) of the bake, the truth and (for penetrations) the
+/// driver into the batch, refusing non-finite positions.
+void readShotBatch(const ShotEvaluationInput& input, const std::vector<int>& frames, int begin,
+                   int count, const ShotLayout& layout, ShotBatch& batch) {
+  const std::size_t drivenValues = layout.drivenValues;
+  const std::size_t driverValues = layout.driverValues;
+  for (auto& block : batch.cloth) {
+    block.resize(count * drivenValues);
+  }
+  batch.driverBlock.resize(count * driverValues);
+  for (int i = 0; i < count; ++i) {
+    const int frame = frames[begin + i];
+    readFinite(*input.bake, frame, &batch.cloth[kShotBake][i * drivenValues], "bake");
+    readFinite(*input.truth, frame, &batch.cloth[kShotTruth][i * drivenValues], "truth");
+    if (layout.penetrations) {
+      readFinite(*input.driver, frame, &batch.driverBlock[i * driverValues], "driver");
+    }
+  }
+}
+
+/// The baseline cloth of the batch: the rest binding carried from the rest driver onto each
+/// frame's driver.
+void transferBaseline(const ShotEvaluationInput& input, const std::vector<SurfaceHit>& restHits,
+                      int count, const ShotLayout& layout, ClosestBackend& closest,
+                      ShotBatch& batch) {
+  const int vd = layout.vd;
+  const std::size_t drivenValues = layout.drivenValues;
+  const std::size_t driverValues = layout.driverValues;
+  batch.restDriver.resize(count * driverValues);
+  batch.restDriven.resize(count * drivenValues);
+  batch.baseHits.resize(static_cast<std::size_t>(count) * vd);
+  for (int i = 0; i < count; ++i) {
+    std::copy_n(input.driverMesh->positions.data(), driverValues,
+                &batch.restDriver[i * driverValues]);
+    std::copy_n(input.drivenMesh->positions.data(), drivenValues,
+                &batch.restDriven[i * drivenValues]);
+    std::copy(restHits.begin(), restHits.end(), batch.baseHits.begin() + std::size_t(i) * vd);
+  }
+  closest.transfer(count, batch.baseHits.data(), batch.restDriver.data(), batch.driverBlock.data(),
+                   batch.restDriven.data(), batch.cloth[kShotBaseline].data());
+}
+
+/// Signed distances to the driver of every point of one sequence's batch `block` (exact
+/// closest triangle, then InsideAudit), into batch.signedDistance.
+void measureSignedDistances(const std::vector<float>& block, int count, const ShotLayout& layout,
+                            int threads, const InsideAudit& audit, ClosestBackend& closest,
+                            ShotBatch& batch) {
+  const int vd = layout.vd;
+  const std::size_t drivenValues = layout.drivenValues;
+  const std::size_t driverValues = layout.driverValues;
+  batch.hits.resize(static_cast<std::size_t>(count) * vd);
+  batch.signedDistance.resize(static_cast<std::size_t>(count) * vd);
+  closest.closest(count, batch.driverBlock.data(), block.data(), batch.hits.data());
+  parallelFor(count, threads, [&](int i) {
+    audit.signedDistances(&batch.driverBlock[i * driverValues], vd, &block[i * drivenValues],
+                          &batch.hits[std::size_t(i) * vd],
+                          &batch.signedDistance[std::size_t(i) * vd]);
+  });
+}
+
+/// Counts the vertices inside the driver (signed distance `sd` < 0) and finds the deepest.
+void measureInside(int vd, const float* sd, ClothFrameMetrics& m) {
+  m.inside = 0;
+  for (int v = 0; v < vd; ++v) {
+    if (sd[v] < 0.0f) {
+      ++m.inside;
+      if (-double(sd[v]) > m.maxDepth) {
+        m.maxDepth = -double(sd[v]);
+        m.maxDepthVertex = v;
+      }
+    }
+  }
+}
+
+/// Adds the metrics of one sequence's frames of the batch (error against the truth, jump since
+/// the frame before, vertices inside the driver) to its accumulator.
+void addSequenceBatch(Accumulator& acc, const std::vector<float>& block,
+                      const std::vector<float>& truthBlock, const std::vector<int>& frames,
+                      int begin, int count, const ShotLayout& layout, const ShotBatch& batch) {
+  const int vd = layout.vd;
+  const std::size_t drivenValues = layout.drivenValues;
+  for (int i = 0; i < count; ++i) {
+    ClothFrameMetrics m;
+    m.frame = frames[begin + i];
+    const float* now = &block[i * drivenValues];
+    m.error = frameError(m.frame, vd, &truthBlock[i * drivenValues], now, acc.sumDistance,
+                         acc.sumSquares);
+    const float* before = i > 0                  ? now - drivenValues
+                          : acc.previous.empty() ? nullptr
+                                                 : acc.previous.data();
+    if (before != nullptr) {
+      double sumUnused = 0.0, squaresUnused = 0.0;
+      const FrameError move = frameError(m.frame, vd, before, now, sumUnused, squaresUnused);
+      m.jump = move.max;
+      m.jumpVertex = move.maxVertex;
+    }
+    if (layout.penetrations) {
+      measureInside(vd, &batch.signedDistance[std::size_t(i) * vd], m);
+    }
+    acc.metrics->frames.push_back(m);
+  }
+  acc.previous.assign(block.end() - drivenValues, block.end());
+}
+
+/// The sequence's totals over the frame list: mean and RMS error, the worst frames of error,
+/// jump, inside count and depth, and the mean inside count.
+void summarizeSequence(const Accumulator& acc, int vd, int frameCount, bool penetrations) {
+  const double total = static_cast<double>(vd) * frameCount;
+  ClothMetrics& c = *acc.metrics;
+  c.mean = total > 0 ? acc.sumDistance / total : 0.0;
+  c.rms = total > 0 ? std::sqrt(acc.sumSquares / total) : 0.0;
+  long long insideTotal = 0;
+  for (std::size_t f = 0; f < c.frames.size(); ++f) {
+    const ClothFrameMetrics& m = c.frames[f];
+    if (f == 0 || m.error.max > c.max) {
+      c.max = m.error.max;
+      c.maxFrame = m.frame;
+    }
+    if (m.jump > c.maxJump) {
+      c.maxJump = m.jump;
+      c.maxJumpFrame = m.frame;
+    }
+    if (penetrations) {
+      insideTotal += m.inside;
+      if (m.inside > c.maxInside) {
+        c.maxInside = m.inside;
+        c.maxInsideFrame = m.frame;
+      }
+      if (m.maxDepth > c.maxDepth) {
+        c.maxDepth = m.maxDepth;
+        c.maxDepthFrame = m.frame;
+      }
+    }
+  }
   if (penetrations) {
-    closest.setSurface(*input.driverMesh, BindingMask::all(vd));
+    c.meanInside = static_cast<double>(insideTotal) / frameCount;
+  }
+}
+
+}  // namespace
+
+EvaluationResult evaluateCaches(const PointCacheReader& truth, const PointCacheReader& baked,
+                                const std::vector<int>& frames) {
+  if (frames.empty()) {
+    DS_THROW(kUsage, "the frame range is empty; pass --frames");
+  }
+  if (truth.vertexCount() != baked.vertexCount()) {
+    DS_THROW(kInput, "truth '", truth.path(), "' has ", truth.vertexCount(), " vertices but bake '",
+             baked.path(), "' has ", baked.vertexCount(), "; compare caches of the same mesh");
+  }
+  for (const PointCacheReader* cache : {&truth, &baked}) {
+    for (int frame : frames) {
+      if (!cache->hasFrame(frame)) {
+        DS_THROW(kInput, "'", cache->path(), "' has no frame ", frame, " (it holds ",
+                 formatFrameRange(cache->frames()), ")");
+      }
+    }
+  }
+  const int v = truth.vertexCount();
+  EvaluationResult result;
+  result.vertexCount = v;
+  std::vector<float> a(static_cast<std::size_t>(v) * 3), b(a.size());
+  double sum = 0.0, sumSquares = 0.0;
+  for (int frame : frames) {
+    truth.readFrame(frame, a.data());
+    baked.readFrame(frame, b.data());
+    const FrameError error = frameError(frame, v, a.data(), b.data(), sum, sumSquares);
+    if (error.max > result.max || result.frames.empty()) {
+      result.max = error.max;
+      result.maxFrame = frame;
+    }
+    result.frames.push_back(error);
+  }
+  const double total = static_cast<double>(v) * static_cast<double>(frames.size());
+  result.mean = sum / total;
+  result.rms = std::sqrt(sumSquares / total);
+  return result;
+}
+
+ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
+                            ClosestBackend& closest) {
+  checkShotInput(input, frames);
+  ShotLayout layout;
+  layout.penetrations = input.driver != nullptr;
+  layout.vd = input.truth->vertexCount();
+  const int vp = layout.penetrations ? input.driverMesh->vertexCount() : 0;
+  layout.drivenValues = static_cast<std::size_t>(layout.vd) * 3;
+  layout.driverValues = static_cast<std::size_t>(vp) * 3;
+  ShotEvaluation result = emptyShotEvaluation(input, frames, layout, vp);
+
+  const std::vector<SurfaceHit> restHits = bindRestCloth(input, layout.vd, closest);
+  std::unique_ptr<InsideAudit> audit;
+  if (layout.penetrations) {
+    closest.setSurface(*input.driverMesh, BindingMask::all(layout.vd));
     audit = std::make_unique<InsideAudit>(*input.driverMesh);
   }
 
@@ -199,119 +379,29 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
   if (input.baseline) {
     sequences.emplace_back(&result.baseline);
   }
-  enum { kBake = 0, kTruth = 1, kBaseline = 2 };
 
-  const int batch = std::max(1, input.batch);
+  const int batchSize = std::max(1, input.batch);
   const auto frameCount = static_cast<int>(frames.size());
-  std::vector<std::vector<float>> cloth(sequences.size());
-  std::vector<float> driverBlock, restDriver, restDriven, signedDistance;
-  std::vector<SurfaceHit> hits, baseHits;
-  for (int begin = 0; begin < frameCount; begin += batch) {
-    const int count = std::min(batch, frameCount - begin);
-    for (auto& block : cloth) {
-      block.resize(count * drivenValues);
-    }
-    driverBlock.resize(count * driverValues);
-    for (int i = 0; i < count; ++i) {
-      const int frame = frames[begin + i];
-      readFinite(bake, frame, &cloth[kBake][i * drivenValues], "bake");
-      readFinite(truth, frame, &cloth[kTruth][i * drivenValues], "truth");
-      if (penetrations) {
-        readFinite(*input.driver, frame, &driverBlock[i * driverValues], "driver");
-      }
-    }
+  ShotBatch batch;
+  batch.cloth.resize(sequences.size());
+  for (int begin = 0; begin < frameCount; begin += batchSize) {
+    const int count = std::min(batchSize, frameCount - begin);
+    readShotBatch(input, frames, begin, count, layout, batch);
     if (input.baseline) {
-      restDriver.resize(count * driverValues);
-      restDriven.resize(count * drivenValues);
-      baseHits.resize(static_cast<std::size_t>(count) * vd);
-      for (int i = 0; i < count; ++i) {
-        std::copy_n(input.driverMesh->positions.data(), driverValues,
-                    &restDriver[i * driverValues]);
-        std::copy_n(input.drivenMesh->positions.data(), drivenValues,
-                    &restDriven[i * drivenValues]);
-        std::copy(restHits.begin(), restHits.end(), baseHits.begin() + std::size_t(i) * vd);
-      }
-      closest.transfer(count, baseHits.data(), restDriver.data(), driverBlock.data(),
-                       restDriven.data(), cloth[kBaseline].data());
+      transferBaseline(input, restHits, count, layout, closest, batch);
     }
-
     for (std::size_t s = 0; s < sequences.size(); ++s) {
-      Accumulator& acc = sequences[s];
-      const std::vector<float>& block = cloth[s];
-      if (penetrations) {
-        hits.resize(static_cast<std::size_t>(count) * vd);
-        signedDistance.resize(static_cast<std::size_t>(count) * vd);
-        closest.closest(count, driverBlock.data(), block.data(), hits.data());
-        parallelFor(count, input.threads, [&](int i) {
-          audit->signedDistances(&driverBlock[i * driverValues], vd, &block[i * drivenValues],
-                                 &hits[std::size_t(i) * vd], &signedDistance[std::size_t(i) * vd]);
-        });
+      const std::vector<float>& block = batch.cloth[s];
+      if (layout.penetrations) {
+        measureSignedDistances(block, count, layout, input.threads, *audit, closest, batch);
       }
-      for (int i = 0; i < count; ++i) {
-        ClothFrameMetrics m;
-        m.frame = frames[begin + i];
-        const float* now = &block[i * drivenValues];
-        m.error = frameError(m.frame, vd, &cloth[kTruth][i * drivenValues], now, acc.sumDistance,
-                             acc.sumSquares);
-        const float* before = i > 0                  ? now - drivenValues
-                              : acc.previous.empty() ? nullptr
-                                                     : acc.previous.data();
-        if (before != nullptr) {
-          double sumUnused = 0.0, squaresUnused = 0.0;
-          const FrameError move = frameError(m.frame, vd, before, now, sumUnused, squaresUnused);
-          m.jump = move.max;
-          m.jumpVertex = move.maxVertex;
-        }
-        if (penetrations) {
-          m.inside = 0;
-          const float* sd = &signedDistance[std::size_t(i) * vd];
-          for (int v = 0; v < vd; ++v) {
-            if (sd[v] < 0.0f) {
-              ++m.inside;
-              if (-double(sd[v]) > m.maxDepth) {
-                m.maxDepth = -double(sd[v]);
-                m.maxDepthVertex = v;
-              }
-            }
-          }
-        }
-        acc.metrics->frames.push_back(m);
-      }
-      acc.previous.assign(block.end() - drivenValues, block.end());
+      addSequenceBatch(sequences[s], block, batch.cloth[kShotTruth], frames, begin, count, layout,
+                       batch);
     }
   }
 
-  const double total = static_cast<double>(vd) * frameCount;
-  for (Accumulator& acc : sequences) {
-    ClothMetrics& c = *acc.metrics;
-    c.mean = total > 0 ? acc.sumDistance / total : 0.0;
-    c.rms = total > 0 ? std::sqrt(acc.sumSquares / total) : 0.0;
-    long long insideTotal = 0;
-    for (std::size_t f = 0; f < c.frames.size(); ++f) {
-      const ClothFrameMetrics& m = c.frames[f];
-      if (f == 0 || m.error.max > c.max) {
-        c.max = m.error.max;
-        c.maxFrame = m.frame;
-      }
-      if (m.jump > c.maxJump) {
-        c.maxJump = m.jump;
-        c.maxJumpFrame = m.frame;
-      }
-      if (penetrations) {
-        insideTotal += m.inside;
-        if (m.inside > c.maxInside) {
-          c.maxInside = m.inside;
-          c.maxInsideFrame = m.frame;
-        }
-        if (m.maxDepth > c.maxDepth) {
-          c.maxDepth = m.maxDepth;
-          c.maxDepthFrame = m.frame;
-        }
-      }
-    }
-    if (penetrations) {
-      c.meanInside = static_cast<double>(insideTotal) / frameCount;
-    }
+  for (const Accumulator& acc : sequences) {
+    summarizeSequence(acc, layout.vd, frameCount, layout.penetrations);
   }
   return result;
 }

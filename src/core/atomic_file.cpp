@@ -1,4 +1,4 @@
-#include <drivenshape/atomic_file.h>
+#include "atomic_file.h"
 
 #include <fcntl.h>
 #include <unistd.h>

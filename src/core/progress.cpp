@@ -1,4 +1,4 @@
-#include <drivenshape/progress.h>
+#include "progress.h"
 
 #include <unistd.h>
 

@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "atomic_file.h"
 
 #include "json_text.h"
 

@@ -61,7 +61,7 @@
 #include <flann/flann.hpp>
 
 #include <drivenshape/error.h>
-#include <drivenshape/parallel.h>
+#include "parallel.h"
 
 #include "triangle_distance.h"
 
@@ -309,22 +309,43 @@ std::uint32_t mortonCode(const float* p, const Eigen::Vector3f& low, float scale
   return code;
 }
 
-}  // namespace
+/// The FLANN tree over the piece centroids.
+using PieceIndex = flann::KDTreeSingleIndex<flann::L2<float>>;
 
-void CandidateSearch::findFrame(const float* pose, const float* points, double frameScale,
-                                FrameCandidates& out) const {
-  out.count.assign(static_cast<std::size_t>(mPointCount), 0);
-  out.offset.assign(static_cast<std::size_t>(mPointCount), 0);
-  out.triangles.clear();
-  const double absoluteSlack =
-      kAbsoluteSlack * frameScale + 2.0 * std::sqrt(DS_TIE_SCALE2_DOUBLE) * mSceneScale;
-  double upper = 0.0;  // the U of bound(): set before each use
-  auto bound = [&](double r) { return (upper + r) * (1.0 + kRelativeSlack) + absoluteSlack; };
-  auto corner = [&](int t, int k) {
+/// bound(r) of the scheme above for the upper bound U = `upper`.
+double candidateBound(double upper, double r, double absoluteSlack) {
+  return (upper + r) * (1.0 + kRelativeSlack) + absoluteSlack;
+}
+
+/// The driver triangles on one frame's pose.
+struct PoseTriangles {
+  const float* pose;                           // Vp x 3
+  const std::vector<std::int32_t>& triangles;  // T x 3 vertex ids
+
+  /// Corner k of triangle t, in double.
+  Eigen::Vector3d corner(int t, int k) const {
     return loadPoint(pose,
-                     mTriangles[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)]);
-  };
+                     triangles[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)]);
+  }
 
+  /// The exact distance from p to triangle t.
+  double distance(const Eigen::Vector3d& p, int t) const {
+    double u = 0.0;
+    double v = 0.0;
+    return std::sqrt(triangleDistance2(p, corner(t, 0), corner(t, 1), corner(t, 2), u, v));
+  }
+};
+
+/// Work buffers of one frame's search, reused from class to class.
+///
+///   order         m        (Morton code, point) of the class's points, sorted
+///   clusterStart  C + 1    cluster c is order[clusterStart[c] .. clusterStart[c+1]-1]
+///   centers       C x 3    cluster centres o (float, as FLANN takes them)
+///   spread        C        rho = max |d_i - o| over the cluster
+///   nearIndices   C        the piece nearest each centre
+///   uppers        <= 8     U_i of the current cluster's points
+///   found         -        pieces within the current cluster's radius R
+struct SearchScratch {
   Pieces pieces;
   std::vector<double> radii;
   std::vector<std::array<Eigen::Vector3d, 3>> stack;
@@ -334,187 +355,246 @@ void CandidateSearch::findFrame(const float* pose, const float* points, double f
   std::vector<std::size_t> clusterStart;
   std::vector<std::size_t> nearIndices;
   std::vector<float> nearDists;
-  std::vector<double> uppers(kClusterSize);
+  std::vector<double> uppers = std::vector<double>(kClusterSize);
   std::vector<std::size_t> found;
   std::vector<double> centroidDistance2;
   std::vector<std::int32_t> kept;
-  for (const SearchClass& cls : mClasses) {
-    // Pieces: the target radius is kSplitFactor times the median triangle radius.
-    const std::size_t n = cls.triangles.size();
-    radii.resize(n);
-    Eigen::Vector3f center;
-    for (std::size_t j = 0; j < n; ++j) {
-      const int t = cls.triangles[j];
-      radii[j] = Pieces::measure(corner(t, 0), corner(t, 1), corner(t, 2), center);
+};
+
+/// The split target of a class: kSplitFactor times the median triangle radius (infinite when
+/// that is 0, i.e. mostly degenerate triangles: nothing to split). `radii` is scratch.
+double pieceTarget(const PoseTriangles& surface, const std::vector<int>& triangles,
+                   std::vector<double>& radii) {
+  const std::size_t n = triangles.size();
+  radii.resize(n);
+  Eigen::Vector3f center;
+  for (std::size_t j = 0; j < n; ++j) {
+    const int t = triangles[j];
+    radii[j] =
+        Pieces::measure(surface.corner(t, 0), surface.corner(t, 1), surface.corner(t, 2), center);
+  }
+  std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(n / 2), radii.end());
+  double target = kSplitFactor * radii[n / 2];
+  if (!(target > 0.0)) {
+    target = std::numeric_limits<double>::infinity();  // mostly points: nothing to split
+  }
+  return target;
+}
+
+/// Adds the pieces of triangle t: longest-edge bisection until a piece's radius is at most
+/// `target`, at most kMaxPiecesPerTriangle pieces. `stack` is scratch.
+void splitTriangle(const PoseTriangles& surface, int t, double target,
+                   std::vector<std::array<Eigen::Vector3d, 3>>& stack, Pieces& pieces) {
+  Eigen::Vector3f center;
+  stack.clear();
+  stack.push_back({surface.corner(t, 0), surface.corner(t, 1), surface.corner(t, 2)});
+  int budget = kMaxPiecesPerTriangle;
+  while (!stack.empty()) {
+    const std::array<Eigen::Vector3d, 3> piece = stack.back();
+    stack.pop_back();
+    const double r = Pieces::measure(piece[0], piece[1], piece[2], center);
+    if (r <= target || budget <= 1 + static_cast<int>(stack.size())) {
+      pieces.add(t, center, r);
+      --budget;
+      continue;
     }
-    std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(n / 2),
-                     radii.end());
-    double target = kSplitFactor * radii[n / 2];
-    if (!(target > 0.0)) {
-      target = std::numeric_limits<double>::infinity();  // mostly points: nothing to split
-    }
-    pieces.clear();
-    for (std::size_t j = 0; j < n; ++j) {
-      const int t = cls.triangles[j];
-      stack.clear();
-      stack.push_back({corner(t, 0), corner(t, 1), corner(t, 2)});
-      int budget = kMaxPiecesPerTriangle;
-      while (!stack.empty()) {
-        const std::array<Eigen::Vector3d, 3> piece = stack.back();
-        stack.pop_back();
-        const double r = Pieces::measure(piece[0], piece[1], piece[2], center);
-        if (r <= target || budget <= 1 + static_cast<int>(stack.size())) {
-          pieces.add(t, center, r);
-          --budget;
-          continue;
-        }
-        // Bisect the longest edge (k, k+1) at its midpoint.
-        int k = 0;
-        double longest = -1.0;
-        for (int e = 0; e < 3; ++e) {
-          const double length =
-              (piece[static_cast<std::size_t>((e + 1) % 3)] - piece[static_cast<std::size_t>(e)])
-                  .squaredNorm();
-          if (length > longest) {
-            longest = length;
-            k = e;
-          }
-        }
-        const Eigen::Vector3d& p0 = piece[static_cast<std::size_t>(k)];
-        const Eigen::Vector3d& p1 = piece[static_cast<std::size_t>((k + 1) % 3)];
-        const Eigen::Vector3d& p2 = piece[static_cast<std::size_t>((k + 2) % 3)];
-        const Eigen::Vector3d middle = 0.5 * (p0 + p1);
-        stack.push_back({p0, middle, p2});
-        stack.push_back({middle, p1, p2});
+    // Bisect the longest edge (k, k+1) at its midpoint.
+    int k = 0;
+    double longest = -1.0;
+    for (int e = 0; e < 3; ++e) {
+      const double length =
+          (piece[static_cast<std::size_t>((e + 1) % 3)] - piece[static_cast<std::size_t>(e)])
+              .squaredNorm();
+      if (length > longest) {
+        longest = length;
+        k = e;
       }
     }
+    const Eigen::Vector3d& p0 = piece[static_cast<std::size_t>(k)];
+    const Eigen::Vector3d& p1 = piece[static_cast<std::size_t>((k + 1) % 3)];
+    const Eigen::Vector3d& p2 = piece[static_cast<std::size_t>((k + 2) % 3)];
+    const Eigen::Vector3d middle = 0.5 * (p0 + p1);
+    stack.push_back({p0, middle, p2});
+    stack.push_back({middle, p1, p2});
+  }
+}
 
-    const std::size_t pieceCount = pieces.parent.size();
-    flann::KDTreeSingleIndex<flann::L2<float>> index(
-        flann::Matrix<float>(pieces.centroid.data(), pieceCount, 3),
-        flann::KDTreeSingleIndexParams(kLeafSize));
+/// The class's points as (Morton code, point) in Morton order of this frame's positions.
+void mortonOrder(const float* points, const std::vector<int>& classPoints,
+                 std::vector<std::pair<std::uint32_t, int>>& order) {
+  const std::size_t m = classPoints.size();
+  Eigen::Vector3f low = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+  Eigen::Vector3f high = -low;
+  for (int point : classPoints) {
+    const Eigen::Vector3f p(points + 3 * static_cast<std::size_t>(point));
+    low = low.cwiseMin(p);
+    high = high.cwiseMax(p);
+  }
+  const float extent = (high - low).maxCoeff();
+  const float scale = extent > 0.0f ? 1023.0f / extent : 0.0f;
+  order.resize(m);
+  for (std::size_t r = 0; r < m; ++r) {
+    const int point = classPoints[r];
+    order[r] = {mortonCode(points + 3 * static_cast<std::size_t>(point), low, scale), point};
+  }
+  std::sort(order.begin(), order.end());
+}
+
+/// Cuts s.order into clusters and sets s.clusterStart (with the end appended), s.centers and
+/// s.spread; returns the cluster count. Consecutive points join a cluster while they stay
+/// within `join` of its first point (the Morton order jumps now and then), at most
+/// kClusterSize of them.
+std::size_t clusterPoints(const float* points, double join, SearchScratch& s) {
+  const std::size_t m = s.order.size();
+  s.clusterStart.clear();
+  for (std::size_t r = 0; r < m; ++r) {
+    if (s.clusterStart.empty() || r - s.clusterStart.back() >= kClusterSize ||
+        (loadPoint(points, s.order[r].second) -
+         loadPoint(points, s.order[s.clusterStart.back()].second))
+                .norm() > join) {
+      s.clusterStart.push_back(r);
+    }
+  }
+  const std::size_t clusterCount = s.clusterStart.size();
+  s.clusterStart.push_back(m);
+  s.centers.resize(3 * clusterCount);
+  s.spread.resize(clusterCount);
+  for (std::size_t c = 0; c < clusterCount; ++c) {
+    const std::size_t first = s.clusterStart[c];
+    const std::size_t last = s.clusterStart[c + 1];
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (std::size_t r = first; r < last; ++r) {
+      sum += loadPoint(points, s.order[r].second);
+    }
+    const Eigen::Vector3f center32 = (sum / static_cast<double>(last - first)).cast<float>();
+    const Eigen::Vector3d center64 = center32.cast<double>();
+    double rho = 0.0;
+    for (std::size_t r = first; r < last; ++r) {
+      rho = std::max(rho, (loadPoint(points, s.order[r].second) - center64).norm());
+    }
+    s.centers[3 * c] = center32.x();
+    s.centers[3 * c + 1] = center32.y();
+    s.centers[3 * c + 2] = center32.z();
+    s.spread[c] = rho;
+  }
+  return clusterCount;
+}
+
+/// s.nearIndices: the piece nearest each cluster centre (exact 1-NN query).
+void nearestPieces(const PieceIndex& index, const flann::SearchParams& params,
+                   std::size_t clusterCount, SearchScratch& s) {
+  s.nearIndices.resize(clusterCount);
+  s.nearDists.resize(clusterCount);
+  flann::Matrix<std::size_t> nearIndexMatrix(s.nearIndices.data(), clusterCount, 1);
+  flann::Matrix<float> nearDistMatrix(s.nearDists.data(), clusterCount, 1);
+  index.knnSearch(flann::Matrix<float>(s.centers.data(), clusterCount, 3), nearIndexMatrix,
+                  nearDistMatrix, 1, params);
+}
+
+/// Steps 4 and 5 for cluster c: s.uppers gets U_i of its points (the exact distance to the
+/// triangle of the piece nearest the centre), s.found every piece within R of the centre.
+void findClusterPieces(const PieceIndex& index, const flann::SearchParams& params,
+                       const PoseTriangles& surface, const float* points, std::size_t c,
+                       double absoluteSlack, SearchScratch& s) {
+  const std::size_t first = s.clusterStart[c];
+  const std::size_t last = s.clusterStart[c + 1];
+  const int nearest = s.pieces.parent[s.nearIndices[c]];
+  double reach = 0.0;
+  for (std::size_t r = first; r < last; ++r) {
+    s.uppers[r - first] = surface.distance(loadPoint(points, s.order[r].second), nearest);
+    reach = std::max(reach, s.uppers[r - first]);
+  }
+  const double upper = reach + s.spread[c];
+  const double radius = candidateBound(upper, s.pieces.largest, absoluteSlack);
+  s.found.clear();
+  Collect collect(
+      static_cast<float>(radius * radius * (1.0 + 1e-6)) + std::numeric_limits<float>::min(),
+      s.found);
+  index.findNeighbors(collect, &s.centers[3 * c], params);
+}
+
+/// Step 6 for one point: s.kept gets the triangles of the found pieces within the bound of
+/// `point` (sorted, without repeats), with U_i (`firstUpper` from the cluster's search)
+/// lowered to the distance to the triangle of the nearest found piece. Throws Error(kInternal)
+/// if none is kept.
+void keepCandidates(const PoseTriangles& surface, const float* points, int point, double firstUpper,
+                    double absoluteSlack, SearchScratch& s) {
+  const Eigen::Vector3d p = loadPoint(points, point);
+  // Refine U_i with the triangle of the nearest found piece (any triangle is an upper
+  // bound; the search above already covers the larger one).
+  double nearestDistance2 = std::numeric_limits<double>::infinity();
+  std::size_t nearestPiece = 0;
+  s.centroidDistance2.resize(s.found.size());
+  for (std::size_t j = 0; j < s.found.size(); ++j) {
+    const float* cp = &s.pieces.centroid[3 * s.found[j]];
+    const double d2 = (p - Eigen::Vector3d(cp[0], cp[1], cp[2])).squaredNorm();
+    s.centroidDistance2[j] = d2;
+    if (d2 < nearestDistance2) {
+      nearestDistance2 = d2;
+      nearestPiece = s.found[j];
+    }
+  }
+  double upper = firstUpper;
+  if (!s.found.empty()) {
+    upper = std::min(upper, surface.distance(p, s.pieces.parent[nearestPiece]));
+  }
+  s.kept.clear();
+  for (std::size_t j = 0; j < s.found.size(); ++j) {
+    const double limit = candidateBound(upper, s.pieces.radius[s.found[j]], absoluteSlack);
+    if (s.centroidDistance2[j] <= limit * limit) {
+      s.kept.push_back(s.pieces.parent[s.found[j]]);
+    }
+  }
+  if (s.kept.empty()) {
+    DS_THROW(kInternal, "closest triangle: no candidate triangle for driven point ", point,
+             "; the candidate bound failed (a bug)");
+  }
+  std::sort(s.kept.begin(), s.kept.end());
+  s.kept.erase(std::unique(s.kept.begin(), s.kept.end()), s.kept.end());
+}
+
+}  // namespace
+
+void CandidateSearch::findFrame(const float* pose, const float* points, double frameScale,
+                                FrameCandidates& out) const {
+  out.count.assign(static_cast<std::size_t>(mPointCount), 0);
+  out.offset.assign(static_cast<std::size_t>(mPointCount), 0);
+  out.triangles.clear();
+  const double absoluteSlack =
+      kAbsoluteSlack * frameScale + 2.0 * std::sqrt(DS_TIE_SCALE2_DOUBLE) * mSceneScale;
+  const PoseTriangles surface{pose, mTriangles};
+
+  SearchScratch s;
+  for (const SearchClass& cls : mClasses) {
+    // Pieces, and the tree over their centroids.
+    const double target = pieceTarget(surface, cls.triangles, s.radii);
+    s.pieces.clear();
+    for (const int t : cls.triangles) {
+      splitTriangle(surface, t, target, s.stack, s.pieces);
+    }
+    const std::size_t pieceCount = s.pieces.parent.size();
+    PieceIndex index(flann::Matrix<float>(s.pieces.centroid.data(), pieceCount, 3),
+                     flann::KDTreeSingleIndexParams(kLeafSize));
     index.buildIndex();
 
     // Clusters of nearby points (Morton order of this frame's positions).
-    const std::size_t m = cls.points.size();
-    Eigen::Vector3f low = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
-    Eigen::Vector3f high = -low;
-    for (int point : cls.points) {
-      const Eigen::Vector3f p(points + 3 * static_cast<std::size_t>(point));
-      low = low.cwiseMin(p);
-      high = high.cwiseMax(p);
-    }
-    const float extent = (high - low).maxCoeff();
-    const float scale = extent > 0.0f ? 1023.0f / extent : 0.0f;
-    order.resize(m);
-    for (std::size_t r = 0; r < m; ++r) {
-      const int point = cls.points[r];
-      order[r] = {mortonCode(points + 3 * static_cast<std::size_t>(point), low, scale), point};
-    }
-    std::sort(order.begin(), order.end());
-    // Consecutive points join a cluster while they stay within `join` of its first point (the
-    // Morton order jumps now and then), at most kClusterSize of them.
-    const double join = std::isfinite(target) ? target : pieces.largest;
-    clusterStart.clear();
-    for (std::size_t r = 0; r < m; ++r) {
-      if (clusterStart.empty() || r - clusterStart.back() >= kClusterSize ||
-          (loadPoint(points, order[r].second) -
-           loadPoint(points, order[clusterStart.back()].second))
-                  .norm() > join) {
-        clusterStart.push_back(r);
-      }
-    }
-    const std::size_t clusterCount = clusterStart.size();
-    clusterStart.push_back(m);
-    centers.resize(3 * clusterCount);
-    spread.resize(clusterCount);
-    for (std::size_t c = 0; c < clusterCount; ++c) {
-      const std::size_t first = clusterStart[c];
-      const std::size_t last = clusterStart[c + 1];
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      for (std::size_t r = first; r < last; ++r) {
-        sum += loadPoint(points, order[r].second);
-      }
-      const Eigen::Vector3f center32 = (sum / static_cast<double>(last - first)).cast<float>();
-      const Eigen::Vector3d center64 = center32.cast<double>();
-      double rho = 0.0;
-      for (std::size_t r = first; r < last; ++r) {
-        rho = std::max(rho, (loadPoint(points, order[r].second) - center64).norm());
-      }
-      centers[3 * c] = center32.x();
-      centers[3 * c + 1] = center32.y();
-      centers[3 * c + 2] = center32.z();
-      spread[c] = rho;
-    }
-    nearIndices.resize(clusterCount);
-    nearDists.resize(clusterCount);
-    flann::Matrix<std::size_t> nearIndexMatrix(nearIndices.data(), clusterCount, 1);
-    flann::Matrix<float> nearDistMatrix(nearDists.data(), clusterCount, 1);
+    mortonOrder(points, cls.points, s.order);
+    const double join = std::isfinite(target) ? target : s.pieces.largest;
+    const std::size_t clusterCount = clusterPoints(points, join, s);
     const flann::SearchParams params(-1, 0.0f, false);
-    index.knnSearch(flann::Matrix<float>(centers.data(), clusterCount, 3), nearIndexMatrix,
-                    nearDistMatrix, 1, params);
+    nearestPieces(index, params, clusterCount, s);
 
-    auto exact = [&](const Eigen::Vector3d& p, int t) {
-      double u = 0.0;
-      double v = 0.0;
-      return std::sqrt(triangleDistance2(p, corner(t, 0), corner(t, 1), corner(t, 2), u, v));
-    };
     for (std::size_t c = 0; c < clusterCount; ++c) {
-      const std::size_t first = clusterStart[c];
-      const std::size_t last = clusterStart[c + 1];
-      // Upper bounds U_i from the triangle of the piece nearest the cluster's centre.
-      const int nearest = pieces.parent[nearIndices[c]];
-      double reach = 0.0;
+      findClusterPieces(index, params, surface, points, c, absoluteSlack, s);
+      const std::size_t first = s.clusterStart[c];
+      const std::size_t last = s.clusterStart[c + 1];
       for (std::size_t r = first; r < last; ++r) {
-        uppers[r - first] = exact(loadPoint(points, order[r].second), nearest);
-        reach = std::max(reach, uppers[r - first]);
-      }
-      upper = reach + spread[c];
-      const double radius = bound(pieces.largest);
-      found.clear();
-      Collect collect(
-          static_cast<float>(radius * radius * (1.0 + 1e-6)) + std::numeric_limits<float>::min(),
-          found);
-      index.findNeighbors(collect, &centers[3 * c], params);
-
-      for (std::size_t r = first; r < last; ++r) {
-        const int point = order[r].second;
-        const Eigen::Vector3d p = loadPoint(points, point);
-        // Refine U_i with the triangle of the nearest found piece (any triangle is an upper
-        // bound; the search above already covers the larger one).
-        double nearestDistance2 = std::numeric_limits<double>::infinity();
-        std::size_t nearestPiece = 0;
-        centroidDistance2.resize(found.size());
-        for (std::size_t j = 0; j < found.size(); ++j) {
-          const float* cp = &pieces.centroid[3 * found[j]];
-          const double d2 = (p - Eigen::Vector3d(cp[0], cp[1], cp[2])).squaredNorm();
-          centroidDistance2[j] = d2;
-          if (d2 < nearestDistance2) {
-            nearestDistance2 = d2;
-            nearestPiece = found[j];
-          }
-        }
-        upper = uppers[r - first];
-        if (!found.empty()) {
-          upper = std::min(upper, exact(p, pieces.parent[nearestPiece]));
-        }
-        kept.clear();
-        for (std::size_t j = 0; j < found.size(); ++j) {
-          const double limit = bound(pieces.radius[found[j]]);
-          if (centroidDistance2[j] <= limit * limit) {
-            kept.push_back(pieces.parent[found[j]]);
-          }
-        }
-        if (kept.empty()) {
-          DS_THROW(kInternal, "closest triangle: no candidate triangle for driven point ", point,
-                   "; the candidate bound failed (a bug)");
-        }
-        std::sort(kept.begin(), kept.end());
-        kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
+        const int point = s.order[r].second;
+        keepCandidates(surface, points, point, s.uppers[r - first], absoluteSlack, s);
         out.offset[static_cast<std::size_t>(point)] =
             static_cast<std::int32_t>(out.triangles.size());
-        out.count[static_cast<std::size_t>(point)] = static_cast<std::int32_t>(kept.size());
-        out.triangles.insert(out.triangles.end(), kept.begin(), kept.end());
+        out.count[static_cast<std::size_t>(point)] = static_cast<std::int32_t>(s.kept.size());
+        out.triangles.insert(out.triangles.end(), s.kept.begin(), s.kept.end());
       }
     }
   }

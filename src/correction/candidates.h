@@ -2,7 +2,7 @@
 
 // The host half of the closest-triangle stage shared by both backends: the driver topology and
 // mask as flat tables, input checks, and the candidate search (FLANN) whose lists the exact
-// step (kernels/closest.cl or src/host/host_closest.cpp) reduces to one triangle per point.
+// step (kernels/closest.cl or src/devices/host/host_closest.cpp) reduces to one triangle per point.
 
 #include <cstddef>
 #include <cstdint>

@@ -18,9 +18,9 @@
 #include <map>
 #include <vector>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
+#include "atomic_file.h"
 
 namespace drivenshape::exr_detail {
 namespace {

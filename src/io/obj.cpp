@@ -10,9 +10,9 @@
 #include <string_view>
 #include <unordered_map>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/version.h>
+#include "atomic_file.h"
 
 namespace drivenshape {
 namespace {

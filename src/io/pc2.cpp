@@ -10,9 +10,9 @@
 #include <cstdio>
 #include <cstring>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+#include "atomic_file.h"
 
 #include "byte_order.h"
 

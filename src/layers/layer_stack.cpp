@@ -96,31 +96,68 @@ void hashFloats(Hasher& hasher, const std::vector<float>& values) {
 
 }  // namespace
 
-LayerStack::LayerStack(const LayerOptions& options, const Mesh& drivenMesh, LayerBackend& backend)
-    : mOptions(options), mBackend(backend) {
+LayerSettings loadLayers(const LayerOptions& options, const Mesh& drivenMesh) {
+  validate(options);
+  LayerSettings settings;
+  settings.options = options;
+  if (options.hasMix()) {
+    settings.mixWeights =
+        smoothWeightMap(readWeightMap(options.mixWeight, drivenMesh, "--mix-weight"), drivenMesh,
+                        options.mixFalloff);
+    settings.mixCache = openPointCache(options.mixCache, topologyHash(drivenMesh));
+  }
+  if (options.hasWind() && !options.windWeight.empty()) {
+    settings.windWeights =
+        smoothWeightMap(readWeightMap(options.windWeight, drivenMesh, "--wind-weight"), drivenMesh,
+                        options.windFalloff);
+  }
+  return settings;
+}
+
+LayerStack::LayerStack(LayerSettings settings, const Mesh& drivenMesh, LayerBackend& backend)
+    : mOptions(std::move(settings.options)),
+      mMixCache(std::move(settings.mixCache)),
+      mBackend(backend) {
+  const std::size_t vertices = static_cast<std::size_t>(drivenMesh.vertexCount());
+  if (mMixCache) {
+    if (mOptions.mixCache.empty()) {
+      mOptions.mixCache = "(in memory)";
+    }
+    if (mOptions.mixWeight.empty()) {
+      mOptions.mixWeight = "(in memory)";
+    }
+  } else {
+    mOptions.mixCache.clear();
+    mOptions.mixWeight.clear();
+  }
+  if (mOptions.hasWind() && mOptions.windWeight.empty() && !settings.windWeights.empty()) {
+    mOptions.windWeight = "(in memory)";
+  }
   validate(mOptions);
   mTables.vertexCount = drivenMesh.vertexCount();
   if (empty()) {
     return;
   }
   mTables.rest = centredRest(drivenMesh);
-  if (mOptions.hasMix()) {
-    mTables.mixWeights =
-        smoothWeightMap(readWeightMap(mOptions.mixWeight, drivenMesh, "--mix-weight"), drivenMesh,
-                        mOptions.mixFalloff);
-    mMixCache = openPointCache(mOptions.mixCache, topologyHash(drivenMesh));
+  if (mMixCache) {
     if (mMixCache->vertexCount() != drivenMesh.vertexCount()) {
       DS_THROW(kInput, "--mix ", mOptions.mixCache, ": the cache has ", mMixCache->vertexCount(),
                " vertices but the driven mesh has ", drivenMesh.vertexCount(),
                "; mix with a cache of the same garment (same vertex count and order)");
     }
+    if (settings.mixWeights.size() != vertices) {
+      DS_THROW(kUsage, "the mix weights have ", settings.mixWeights.size(),
+               " values but the driven mesh has ", vertices, " vertices");
+    }
+    mTables.mixWeights = std::move(settings.mixWeights);
   }
   if (mOptions.hasWind()) {
-    mTables.windWeights =
-        mOptions.windWeight.empty()
-            ? std::vector<float>(static_cast<std::size_t>(drivenMesh.vertexCount()), 1.0f)
-            : smoothWeightMap(readWeightMap(mOptions.windWeight, drivenMesh, "--wind-weight"),
-                              drivenMesh, mOptions.windFalloff);
+    if (!settings.windWeights.empty() && settings.windWeights.size() != vertices) {
+      DS_THROW(kUsage, "the wind weights have ", settings.windWeights.size(),
+               " values but the driven mesh has ", vertices, " vertices");
+    }
+    mTables.windWeights = settings.windWeights.empty() ? std::vector<float>(vertices, 1.0f)
+                                                       : std::move(settings.windWeights);
     double length = 0.0;
     for (double value : mOptions.windDirection) {
       length += value * value;

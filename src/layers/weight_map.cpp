@@ -21,8 +21,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
+#include "atomic_file.h"
 
 #include "json_text.h"
 
@@ -117,7 +117,7 @@ std::vector<float> readExrMap(const std::string& path, int vertexCount, const st
     const auto* count = header.findTypedAttribute<Imf::IntAttribute>(kAttrVertexCount);
     if (count == nullptr) {
       DS_THROW(kInput, source, ": not a point-cache weight map (no ", kAttrVertexCount,
-               " attribute); write it with the point-cache pixel layout (see the README)");
+               " attribute); write it with the point-cache pixel layout (see docs/formats.md)");
     }
     checkLength(static_cast<std::size_t>(std::max(0, count->value())), vertexCount, source);
     // Channel W, or the only channel besides the coverage A.

@@ -3,7 +3,7 @@
 
 #include <drivenshape/position_map.h>
 
-#include <drivenshape/parallel.h>
+#include "parallel.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,9 +12,9 @@
 #include <thread>
 #include <vector>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+#include "atomic_file.h"
 
 namespace drivenshape {
 namespace {

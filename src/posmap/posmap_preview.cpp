@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
+#include "atomic_file.h"
 
 namespace drivenshape {
 namespace {

@@ -60,6 +60,159 @@ void checkBounds(int k, const Eigen::Ref<const Eigen::VectorXd>& lower,
   }
 }
 
+/// The inputs of a bounded solve (see qp.h); a wrong size or bound is a caller's bug
+/// (Error(kInternal)), a non-finite projection a broken frame (Error(kNumerical)).
+void checkProjectedInputs(int k, const Eigen::Ref<const Eigen::VectorXd>& p, double rr, double bb,
+                          const Eigen::Ref<const Eigen::VectorXd>& lower,
+                          const Eigen::Ref<const Eigen::VectorXd>& upper) {
+  if (p.size() != k - 1) {
+    DS_THROW(kInternal, "constrained blend weights: the projection has ", p.size(), " entries; ",
+             k - 1, " expected for ", k, " shapes");
+  }
+  checkBounds(k, lower, upper);
+  for (int i = 0; i < p.size(); ++i) {
+    if (!std::isfinite(p(i))) {
+      DS_THROW(kNumerical, "constrained blend weights: projection entry ", i, " is ", p(i),
+               " (the frame's positions are not finite?)");
+    }
+  }
+  if (!std::isfinite(rr) || !std::isfinite(bb)) {
+    DS_THROW(kNumerical, "constrained blend weights: |b - m|^2 = ", rr, ", |b|^2 = ", bb,
+             " (the frame's positions are not finite?)");
+  }
+}
+
+/// The factors of a SimplexLeastSquares that the solve steps read (see the class members).
+struct SimplexFactors {
+  int k;                     // shapes
+  const Eigen::MatrixXd& z;  // k by k-1
+  const Eigen::MatrixXd& r;  // k-1 by k-1, upper triangular
+  const Eigen::MatrixXd& c;  // k-1 by 2k
+  double lambda;
+};
+
+/// The QP in y for a box that is not pinned. Same constraint normals as [0, 1], other
+/// right-hand sides: Z_i y >= l_i - 1/k and -Z_i y >= 1/k - u_i. (For l = 0, u = 1: -1/k and
+/// 1/k - 1.) Throws Error(kNumerical) if the solver finds the box infeasible.
+QpResult solveBoxQp(const SimplexFactors& f, const Eigen::Ref<const Eigen::VectorXd>& p,
+                    const Eigen::Ref<const Eigen::VectorXd>& lower,
+                    const Eigen::Ref<const Eigen::VectorXd>& upper) {
+  const int k = f.k;
+  Eigen::VectorXd bounds(2 * k);
+  for (int i = 0; i < k; ++i) {
+    bounds(i) = lower(i) - 1.0 / k;
+    bounds(k + i) = 1.0 / k - upper(i);
+  }
+  const Eigen::MatrixXd noEqualities(k - 1, 0);
+  const Eigen::VectorXd noBounds(0);
+  QpResult qp = detail::solveGoldfarbIdnani(f.r, -p, noEqualities, noBounds, f.c, bounds);
+  if (!qp.feasible) {
+    // Cannot happen in exact arithmetic: the preconditions make the box meet the simplex.
+    DS_THROW(kNumerical,
+             "constrained blend weights: the QP solver reported the bound constraints "
+             "infeasible for ",
+             k, " shapes (after ", qp.iterations, " iterations)");
+  }
+  return qp;
+}
+
+/// Clean-up of the QP's weights w. The QP keeps only an independent subset of the tight
+/// bounds active (`active`), so:
+///  * weights with an active bound are set to that bound exactly; the others are clamped to
+///    their box (a clamp moves a weight by at most the bound violation, which is rounding),
+///    and those that reach their upper bound are held there too;
+///  * the free weights then share what the held ones leave of the sum, T = 1 - sum(held) -
+///    sum(lower of free). T <= 0 puts them all at their lower bound (with [0, 1] bounds: one
+///    weight at 1, all others 0); T >= the total width of their boxes puts them all at their
+///    upper bound (with [0, 1]: the one weight left when k-1 are at 0 is 1); otherwise their
+///    excess over the lower bound is divided by (its sum / T). With [0, 1] that is the plain
+///    division by the sum, which keeps every weight in [0, 1] exactly (each is at most the
+///    sum) and leaves |sum - 1| at a few ulps; in general a weight can overshoot its upper
+///    bound by rounding and is clamped back. The division moves a weight by at most
+///    |sum - 1| before it, which the checks bound by kSumLimit.
+void cleanUpWeights(int k, const std::vector<int>& active,
+                    const Eigen::Ref<const Eigen::VectorXd>& lower,
+                    const Eigen::Ref<const Eigen::VectorXd>& upper, Eigen::VectorXd& w) {
+  std::vector<char> held(k, 0);
+  std::vector<char> atLower(k, 0);
+  std::vector<char> atUpper(k, 0);
+  for (const int id : active) {
+    (id < k ? atLower[id] : atUpper[id - k]) = 1;
+  }
+  for (int i = 0; i < k; ++i) {
+    if (atUpper[i]) {
+      w(i) = upper(i);
+    } else if (atLower[i]) {
+      w(i) = lower(i);
+    } else {
+      w(i) = std::clamp(w(i), lower(i), upper(i));
+    }
+    held[i] = atLower[i] || atUpper[i] || w(i) >= upper(i);
+  }
+  // base: the held weights and the lower bounds of the free ones; excess: the free weights
+  // above their lower bound.
+  Eigen::VectorXd base(k);
+  Eigen::VectorXd excess(k);
+  double width = 0.0;
+  for (int i = 0; i < k; ++i) {
+    base(i) = held[i] ? w(i) : lower(i);
+    excess(i) = held[i] ? 0.0 : w(i) - lower(i);
+    width += held[i] ? 0.0 : upper(i) - lower(i);
+  }
+  const double target = 1.0 - base.sum();
+  const bool anyFree = std::find(held.begin(), held.end(), 0) != held.end();
+  if (anyFree && target <= 0.0) {
+    excess.setZero();
+  } else if (anyFree && target >= width) {
+    for (int i = 0; i < k; ++i) {
+      excess(i) = held[i] ? 0.0 : upper(i) - lower(i);
+    }
+  } else if (anyFree) {
+    const double sum = excess.sum();
+    if (sum > 0.0 && std::abs(sum - target) <= kSumLimit) {
+      excess /= sum / target;
+    }
+  }
+  for (int i = 0; i < k; ++i) {
+    if (!held[i]) {
+      w(i) = std::min(lower(i) + excess(i), upper(i));
+    }
+  }
+}
+
+/// The relative KKT residual of the weights y = Z^T (w - 1/k) (Ry = R y) and the QP's active
+/// bounds. The gradient of 1/2 |A w - b|^2 in y, M^T M y - p, must equal sum_j u_j n_j over
+/// the active bounds with u_j >= 0. The residual is taken back to w-space (Z times it; the
+/// component along 1 belongs to the multiplier of the sum) and measured in the max norm,
+/// together with any negative multiplier, relative to max(trace(M^T M), |p|_inf): the sizes
+/// of the two terms of the gradient (|M^T M| <= trace, |y| < 1).
+double kktResidualOf(const SimplexFactors& f, const Eigen::Ref<const Eigen::VectorXd>& p,
+                     const Eigen::VectorXd& y, const Eigen::VectorXd& Ry, const QpResult& qp) {
+  Eigen::VectorXd stationarity = f.r.triangularView<Eigen::Upper>().transpose() * Ry;
+  stationarity -= f.lambda * y + p;
+  double dualViolation = 0.0;
+  for (std::size_t j = 0; j < qp.active.size(); ++j) {
+    stationarity -= qp.multipliers(static_cast<Eigen::Index>(j)) * f.c.col(qp.active[j]);
+    dualViolation = std::max(dualViolation, -qp.multipliers(static_cast<Eigen::Index>(j)));
+  }
+  const double gramTrace = std::max(f.r.squaredNorm() - f.lambda * (f.k - 1), 0.0);  // trace(M^T M)
+  const double kktScale = std::max(gramTrace, p.cwiseAbs().maxCoeff());
+  const double kktAbsolute = std::max((f.z * stationarity).cwiseAbs().maxCoeff(), dualViolation);
+  return kktScale > 0.0 ? kktAbsolute / kktScale : kktAbsolute;
+}
+
+/// Throws Error(kNumerical) when a solution fails the sum, bound or KKT check (see qp.h).
+void checkSimplexSolution(int k, const SimplexSolution& solution) {
+  if (solution.sumError > kSumLimit || solution.boundViolation > kBoundLimit ||
+      !(solution.kktResidual <= kKktLimit)) {
+    DS_THROW(kNumerical, "constrained blend weights failed their checks (", k,
+             " shapes): |sum(w) - 1| = ", solution.sumError, " (limit ", kSumLimit,
+             "), bound violation before clamping = ", solution.boundViolation, " (limit ",
+             kBoundLimit, "), relative KKT residual = ", solution.kktResidual, " (limit ",
+             kKktLimit, "); the database shapes may be nearly degenerate: try a larger ridge");
+  }
+}
+
 }  // namespace
 
 SimplexLeastSquares::SimplexLeastSquares(const Eigen::Ref<const Eigen::MatrixXd>& shapes,
@@ -141,21 +294,7 @@ SimplexSolution SimplexLeastSquares::solveProjected(
     const Eigen::Ref<const Eigen::VectorXd>& lower,
     const Eigen::Ref<const Eigen::VectorXd>& upper) const {
   const int k = mShapeCount;
-  if (p.size() != k - 1) {
-    DS_THROW(kInternal, "constrained blend weights: the projection has ", p.size(), " entries; ",
-             k - 1, " expected for ", k, " shapes");
-  }
-  checkBounds(k, lower, upper);
-  for (int i = 0; i < p.size(); ++i) {
-    if (!std::isfinite(p(i))) {
-      DS_THROW(kNumerical, "constrained blend weights: projection entry ", i, " is ", p(i),
-               " (the frame's positions are not finite?)");
-    }
-  }
-  if (!std::isfinite(rr) || !std::isfinite(bb)) {
-    DS_THROW(kNumerical, "constrained blend weights: |b - m|^2 = ", rr, ", |b|^2 = ", bb,
-             " (the frame's positions are not finite?)");
-  }
+  checkProjectedInputs(k, p, rr, bb, lower, upper);
 
   SimplexSolution solution;
   if (k == 1) {
@@ -170,94 +309,21 @@ SimplexSolution SimplexLeastSquares::solveProjected(
   // would meet k tight, dependent bounds there, which rounding can make look inconsistent.
   const bool pinnedLow = lower.sum() >= 1.0 - kPinnedSlack;
   const bool pinnedHigh = upper.sum() <= 1.0 + kPinnedSlack;
+  const SimplexFactors factors{k, mZ, mR, mC, mLambda};
   Eigen::VectorXd w(k);
   QpResult qp;
   if (pinnedLow || pinnedHigh) {
     w = pinnedLow ? lower : upper;
   } else {
-    // Same constraint normals as [0, 1], other right-hand sides: Z_i y >= l_i - 1/k and
-    // -Z_i y >= 1/k - u_i. (For l = 0, u = 1: -1/k and 1/k - 1.)
-    Eigen::VectorXd bounds(2 * k);
-    for (int i = 0; i < k; ++i) {
-      bounds(i) = lower(i) - 1.0 / k;
-      bounds(k + i) = 1.0 / k - upper(i);
-    }
-    const Eigen::MatrixXd noEqualities(k - 1, 0);
-    const Eigen::VectorXd noBounds(0);
-    qp = detail::solveGoldfarbIdnani(mR, -p, noEqualities, noBounds, mC, bounds);
-    if (!qp.feasible) {
-      // Cannot happen in exact arithmetic: the preconditions make the box meet the simplex.
-      DS_THROW(kNumerical,
-               "constrained blend weights: the QP solver reported the bound constraints "
-               "infeasible for ",
-               k, " shapes (after ", qp.iterations, " iterations)");
-    }
+    qp = solveBoxQp(factors, p, lower, upper);
     solution.iterations = qp.iterations;
     w = (mZ * qp.x).array() + 1.0 / k;
   }
   for (int i = 0; i < k; ++i) {
     solution.boundViolation = std::max({solution.boundViolation, lower(i) - w(i), w(i) - upper(i)});
   }
-
-  // Clean-up. The QP keeps only an independent subset of the tight bounds active, so:
-  //  * weights with an active bound are set to that bound exactly; the others are clamped to
-  //    their box (a clamp moves a weight by at most the bound violation, which is rounding),
-  //    and those that reach their upper bound are held there too;
-  //  * the free weights then share what the held ones leave of the sum, T = 1 - sum(held) -
-  //    sum(lower of free). T <= 0 puts them all at their lower bound (with [0, 1] bounds: one
-  //    weight at 1, all others 0); T >= the total width of their boxes puts them all at their
-  //    upper bound (with [0, 1]: the one weight left when k-1 are at 0 is 1); otherwise their
-  //    excess over the lower bound is divided by (its sum / T). With [0, 1] that is the plain
-  //    division by the sum, which keeps every weight in [0, 1] exactly (each is at most the
-  //    sum) and leaves |sum - 1| at a few ulps; in general a weight can overshoot its upper
-  //    bound by rounding and is clamped back. The division moves a weight by at most
-  //    |sum - 1| before it, which the checks below bound by kSumLimit.
-  std::vector<char> held(k, 0);
   if (!pinnedLow && !pinnedHigh) {
-    std::vector<char> atLower(k, 0);
-    std::vector<char> atUpper(k, 0);
-    for (const int id : qp.active) {
-      (id < k ? atLower[id] : atUpper[id - k]) = 1;
-    }
-    for (int i = 0; i < k; ++i) {
-      if (atUpper[i]) {
-        w(i) = upper(i);
-      } else if (atLower[i]) {
-        w(i) = lower(i);
-      } else {
-        w(i) = std::clamp(w(i), lower(i), upper(i));
-      }
-      held[i] = atLower[i] || atUpper[i] || w(i) >= upper(i);
-    }
-    // base: the held weights and the lower bounds of the free ones; excess: the free weights
-    // above their lower bound.
-    Eigen::VectorXd base(k);
-    Eigen::VectorXd excess(k);
-    double width = 0.0;
-    for (int i = 0; i < k; ++i) {
-      base(i) = held[i] ? w(i) : lower(i);
-      excess(i) = held[i] ? 0.0 : w(i) - lower(i);
-      width += held[i] ? 0.0 : upper(i) - lower(i);
-    }
-    const double target = 1.0 - base.sum();
-    const bool anyFree = std::find(held.begin(), held.end(), 0) != held.end();
-    if (anyFree && target <= 0.0) {
-      excess.setZero();
-    } else if (anyFree && target >= width) {
-      for (int i = 0; i < k; ++i) {
-        excess(i) = held[i] ? 0.0 : upper(i) - lower(i);
-      }
-    } else if (anyFree) {
-      const double sum = excess.sum();
-      if (sum > 0.0 && std::abs(sum - target) <= kSumLimit) {
-        excess /= sum / target;
-      }
-    }
-    for (int i = 0; i < k; ++i) {
-      if (!held[i]) {
-        w(i) = std::min(lower(i) + excess(i), upper(i));
-      }
-    }
+    cleanUpWeights(k, qp.active, lower, upper, w);
   }
   for (int i = 0; i < k; ++i) {
     if (w(i) == lower(i)) {
@@ -277,34 +343,12 @@ SimplexSolution SimplexLeastSquares::solveProjected(
       std::max(Ry.squaredNorm() - mLambda * y.squaredNorm() - 2.0 * p.dot(y) + rr, 0.0);
   solution.relativeResidual = bb > 0.0 ? std::sqrt(solution.objective / bb) : 0.0;
 
-  // KKT: the gradient of 1/2 |A w - b|^2 in y, M^T M y - p, must equal sum_j u_j n_j over the
-  // active bounds with u_j >= 0. The residual is taken back to w-space (Z times it; the
-  // component along 1 belongs to the multiplier of the sum) and measured in the max norm,
-  // together with any negative multiplier, relative to max(trace(M^T M), |p|_inf): the sizes
-  // of the two terms of the gradient (|M^T M| <= trace, |y| < 1). A pinned box has a single
-  // feasible point, where every gradient is balanced by the bounds' multipliers: residual 0.
+  // A pinned box has a single feasible point, where every gradient is balanced by the bounds'
+  // multipliers: KKT residual 0.
   if (!pinnedLow && !pinnedHigh) {
-    Eigen::VectorXd stationarity = mR.triangularView<Eigen::Upper>().transpose() * Ry;
-    stationarity -= mLambda * y + p;
-    double dualViolation = 0.0;
-    for (std::size_t j = 0; j < qp.active.size(); ++j) {
-      stationarity -= qp.multipliers(static_cast<Eigen::Index>(j)) * mC.col(qp.active[j]);
-      dualViolation = std::max(dualViolation, -qp.multipliers(static_cast<Eigen::Index>(j)));
-    }
-    const double gramTrace = std::max(mR.squaredNorm() - mLambda * (k - 1), 0.0);  // trace(M^T M)
-    const double kktScale = std::max(gramTrace, p.cwiseAbs().maxCoeff());
-    const double kktAbsolute = std::max((mZ * stationarity).cwiseAbs().maxCoeff(), dualViolation);
-    solution.kktResidual = kktScale > 0.0 ? kktAbsolute / kktScale : kktAbsolute;
+    solution.kktResidual = kktResidualOf(factors, p, y, Ry, qp);
   }
-
-  if (solution.sumError > kSumLimit || solution.boundViolation > kBoundLimit ||
-      !(solution.kktResidual <= kKktLimit)) {
-    DS_THROW(kNumerical, "constrained blend weights failed their checks (", k,
-             " shapes): |sum(w) - 1| = ", solution.sumError, " (limit ", kSumLimit,
-             "), bound violation before clamping = ", solution.boundViolation, " (limit ",
-             kBoundLimit, "), relative KKT residual = ", solution.kktResidual, " (limit ",
-             kKktLimit, "); the database shapes may be nearly degenerate: try a larger ridge");
-  }
+  checkSimplexSolution(k, solution);
   return solution;
 }
 

@@ -8,9 +8,10 @@
 #include <vector>
 
 #include <drivenshape/bake.h>
-#include <drivenshape/cl_stages.h>
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
+#include <drivenshape/device.h>
+#include <drivenshape/device_cl.h>
 #include <drivenshape/point_cache.h>
 
 #include "test_support.h"
@@ -45,24 +46,44 @@ inline std::vector<float> readBake(const std::string& pattern, const std::vector
   return readFrames(*openPointCache(pattern), frames);
 }
 
-/// Owns one device's backends (OpenCL or host) for a bake.
+/// One device (OpenCL or host) for a bake.
 struct Backends {
-  std::unique_ptr<StageBackend> stages;
-  std::unique_ptr<ClosestBackend> binding, audit;
-  BakeBackends view() const { return {stages.get(), binding.get(), audit.get()}; }
+  std::unique_ptr<Device> device;
+  Device& view() const { return *device; }
 };
 
 inline Backends hostBackends() {
-  return {makeHostStages(), makeHostClosest(), makeHostClosest()};
+  return {makeHostDevice()};
 }
+
+/// A device that runs the projection, blend and layers on `stages` and every closest-point
+/// search (binding, transfer, resolution, audit) on `closest`: compares one part of the
+/// pipeline across devices with the rest held fixed. Both must outlive it.
+class MixedDevice final : public Device {
+ public:
+  MixedDevice(Device& stages, Device& closest) : mStages(stages), mClosest(closest) {}
+  std::string description() const override {
+    return mStages.description() + " + " + mClosest.description();
+  }
+  bool isOpenCl() const override { return mStages.isOpenCl(); }
+  std::unique_ptr<StageBackend> makeStages() override { return mStages.makeStages(); }
+  std::unique_ptr<ClosestBackend> makeClosest(const ClosestOptions& options) override {
+    return mClosest.makeClosest(options);
+  }
+  std::unique_ptr<LayerBackend> makeLayers() override { return mStages.makeLayers(); }
+  std::unique_ptr<PositionMapBackend> makePositionMaps() override {
+    return mStages.makePositionMaps();
+  }
+
+ private:
+  Device& mStages;
+  Device& mClosest;
+};
 
 /// Bake tests on the OpenCL device of OpenClTest (failing, never skipping, without one).
 class BakeClTest : public OpenClTest {
  protected:
-  Backends clBackends() {
-    return {makeClStages(context(), device(), queue()), makeClClosest(context(), device(), queue()),
-            makeClClosest(context(), device(), queue())};
-  }
+  Backends clBackends() { return {makeOpenClDevice(context(), device(), queue())}; }
 };
 
 }  // namespace drivenshape::testing

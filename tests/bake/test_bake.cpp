@@ -9,7 +9,6 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/cl_stages.h>
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
@@ -95,8 +94,8 @@ TEST_F(BakeTest, OpenClCorrectionMatchesHostReferenceOnEveryFrame) {
   const Backends host = hostBackends();
   // Same blended inputs (OpenCL stages) for both; only the correction backends differ.
   options.outputPattern = dir.file("host.####.exr");
-  const BakeResult hostResult =
-      bake(db, *driver, {cl.stages.get(), host.binding.get(), host.audit.get()}, options);
+  testing::MixedDevice mixed(cl.view(), host.view());
+  const BakeResult hostResult = bake(db, *driver, mixed, options);
   options.outputPattern = dir.file("cl.####.exr");
   const BakeResult result = bake(db, *driver, cl.view(), options);
   for (std::size_t f = 0; f < result.frames.size(); ++f) {

@@ -18,7 +18,6 @@
 #include <random>
 
 #include <drivenshape/align.h>
-#include <drivenshape/cl_stages.h>
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
@@ -414,7 +413,8 @@ TEST_F(FidelityTest, OpenClMatchesHostWithAlignmentLocalBlendRegionsAndResolutio
   options.blend = BlendMode::kWorld;
   options.regionsPath.clear();
   options.outputPattern = dir.file("host-world.####.exr");
-  bake(db, *driver, {cl.stages.get(), host.binding.get(), host.audit.get()}, options);
+  testing::MixedDevice mixed(cl.view(), host.view());
+  bake(db, *driver, mixed, options);
   options.outputPattern = dir.file("cl-world.####.exr");
   bake(db, *driver, cl.view(), options);
   const double worstWorld = worstRelativeDistance(

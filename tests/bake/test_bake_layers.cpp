@@ -41,9 +41,7 @@ class BakeLayersTest : public testing::BakeClTest {
   /// Bakes kFrames with `layers` on the OpenCL device; returns the result.
   BakeResult bakeWith(const LayerOptions& layers, const std::string& pattern) {
     const testing::Backends backends = clBackends();
-    const std::unique_ptr<LayerBackend> layerBackend = makeClLayers(context(), device(), queue());
-    BakeBackends view = backends.view();
-    view.layers = layerBackend.get();
+    Device& view = backends.view();
     BakeOptions options;
     options.frames = kFrames;
     options.outputPattern = pattern;
@@ -90,9 +88,7 @@ TEST_F(BakeLayersTest, MixCacheWithNanWhereItIsTakenIsAnInputErrorNamingTheVerte
   layers.mixCache = dir.file("other.pc2");
   layers.mixWeight = writeConstantMap(dir, "zero.json", 0.0);
   const testing::Backends backends = clBackends();
-  const std::unique_ptr<LayerBackend> layerBackend = makeClLayers(context(), device(), queue());
-  BakeBackends view = backends.view();
-  view.layers = layerBackend.get();
+  Device& view = backends.view();
   BakeOptions options;
   options.frames = {1, 2, 3};
   options.outputPattern = dir.file("out.####.exr");

@@ -35,7 +35,9 @@
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 
-#include <drivenshape/parallel.h>
+#include "parallel.h"
+
+#include "cl_backends.h"
 
 #include "candidates.h"
 #include "triangle_distance.h"

@@ -27,6 +27,8 @@
 #include <drivenshape/error.h>
 #include <drivenshape/position_map.h>
 
+#include "cl_backends.h"
+
 namespace {
 
 using namespace drivenshape;

@@ -1,6 +1,6 @@
-// Machine ceilings for the README's roofline note (issue 5): the measured peak of a dense float
-// GEMM (compute roof) and of streaming copy and triad loops (memory roof), on one thread and on
-// every thread at once. Not a test: run it by hand.
+// Machine ceilings for the roofline note in docs/performance.md (issue 5): the measured peak of a
+// dense float GEMM (compute roof) and of streaming copy and triad loops (memory roof), on one
+// thread and on every thread at once. Not a test: run it by hand.
 //
 //   bench_roofline [--threads N] [--repeat 5] [--gemm 768] [--stream-mib 256]
 //

@@ -10,9 +10,9 @@
 // time over --repeat passes, the median process CPU time (all threads; on a shared machine
 // cpu < wall x cores shows the run was starved) and frames per second from the median.
 
-#include <drivenshape/cl_stages.h>
 #include <drivenshape/error.h>
 #include <drivenshape/stages.h>
+#include "cl_backends.h"
 
 #include <algorithm>
 #include <chrono>

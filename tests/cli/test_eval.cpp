@@ -23,6 +23,8 @@
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
+#include "cl_backends.h"
+
 #include "cli_test_util.h"
 #include "test_support.h"
 

@@ -20,6 +20,8 @@
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
+#include "cl_backends.h"
+
 #include "correction_test_util.h"
 
 namespace ds = drivenshape;

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <thread>
 
+#include "cl_backends.h"
 #include "correction_test_util.h"
 
 namespace drivenshape::testing {

@@ -14,6 +14,8 @@
 
 #include <drivenshape/correction.h>
 
+#include "cl_backends.h"
+
 #include "bvh.h"
 #include "correction_fixture.h"
 #include "correction_test_util.h"

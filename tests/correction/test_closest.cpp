@@ -12,6 +12,8 @@
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 
+#include "cl_backends.h"
+
 #include "correction_fixture.h"
 #include "correction_test_util.h"
 #include "test_support.h"

@@ -13,6 +13,8 @@
 
 #include <drivenshape/layers.h>
 
+#include "cl_backends.h"
+
 #include "layers_test_util.h"
 
 namespace {

@@ -1,10 +1,12 @@
 // The LayerStack the bake runs (src/layers/layer_stack.cpp) and the mix layer on both backends
-// (kernels/mix.cl vs src/layers/layers_host.cpp): weight 1 reproduces DrivenShape and weight 0
-// the other cache bitwise, the band in between is the float mix; bad inputs give clear errors.
+// (kernels/mix.cl vs src/devices/host/host_layers.cpp): weight 1 reproduces DrivenShape and weight
+// 0 the other cache bitwise, the band in between is the float mix; bad inputs give clear errors.
 
 #include <drivenshape/error.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/point_cache.h>
+
+#include "cl_backends.h"
 
 #include <nlohmann/json.hpp>
 
@@ -53,7 +55,7 @@ class LayerStackTest : public OpenClTest {
     options.mixCache = mOtherPath;
     options.mixWeight = "group:left";
     options.mixFalloff = rings;
-    LayerStack stack(options, mMesh, backend);
+    LayerStack stack(loadLayers(options, mMesh), mMesh, backend);
     EXPECT_FALSE(stack.empty());
     stack.checkFrames(mFrames);
     std::vector<float> positions = mDriven;
@@ -125,7 +127,7 @@ TEST_F(LayerStackTest, MixWeightOneIsDrivenShapeAndZeroTheOtherCacheBitwise) {
 TEST_F(LayerStackTest, EmptyStackChangesNothing) {
   auto host = makeHostLayers();
   LayerOptions options;
-  LayerStack stack(options, mMesh, *host);
+  LayerStack stack(loadLayers(options, mMesh), mMesh, *host);
   EXPECT_TRUE(stack.empty());
   EXPECT_EQ(stack.describe(), "{}");
   std::vector<float> positions = mDriven;
@@ -143,7 +145,8 @@ TEST_F(LayerStackTest, MixCacheOfAnotherVertexCountIsRefused) {
   LayerOptions options;
   options.mixCache = mDir.file("small.pc2");
   options.mixWeight = "group:left";
-  const Error error = catchError([&] { LayerStack stack(options, mMesh, *host); });
+  const Error error =
+      catchError([&] { LayerStack stack(loadLayers(options, mMesh), mMesh, *host); });
   EXPECT_EQ(error.code(), ErrorCode::kInput);
   EXPECT_TRUE(contains(error.what(), "small.pc2"));
   EXPECT_TRUE(contains(error.what(), "has 16 vertices but the driven mesh has 240"));
@@ -154,7 +157,7 @@ TEST_F(LayerStackTest, MixCacheMissingAFrameIsRefusedBeforeBaking) {
   LayerOptions options;
   options.mixCache = mOtherPath;
   options.mixWeight = "group:left";
-  LayerStack stack(options, mMesh, *host);
+  LayerStack stack(loadLayers(options, mMesh), mMesh, *host);
   const Error error = catchError([&] { stack.checkFrames({1003, 1010}); });
   EXPECT_EQ(error.code(), ErrorCode::kInput);
   EXPECT_TRUE(
@@ -167,7 +170,8 @@ TEST_F(LayerStackTest, BadSettingsNameTheFlag) {
     LayerOptions options;
     options.windAmplitude = 0.1;
     edit(options);
-    const Error error = catchError([&] { LayerStack stack(options, mMesh, *host); });
+    const Error error =
+        catchError([&] { LayerStack stack(loadLayers(options, mMesh), mMesh, *host); });
     EXPECT_EQ(error.code(), ErrorCode::kUsage) << flag;
     EXPECT_TRUE(contains(error.what(), flag));
   };
@@ -195,7 +199,7 @@ TEST_F(LayerStackTest, DescribeAndHashRecordTheSettings) {
   options.windSeed = 7;
   options.windWeight = "group:right";
   options.windFalloff = 2;
-  LayerStack stack(options, mMesh, *host);
+  LayerStack stack(loadLayers(options, mMesh), mMesh, *host);
   const auto json = nlohmann::json::parse(stack.describe());
   EXPECT_EQ(json["mix"]["cache"], mOtherPath);
   EXPECT_EQ(json["mix"]["falloff"], 3);
@@ -204,7 +208,7 @@ TEST_F(LayerStackTest, DescribeAndHashRecordTheSettings) {
   EXPECT_DOUBLE_EQ(json["wind"]["amplitude"].get<double>(), 0.02);
 
   const auto hashOf = [&](const LayerOptions& o) {
-    LayerStack s(o, mMesh, *host);
+    LayerStack s(loadLayers(o, mMesh), mMesh, *host);
     Hasher hasher;
     s.addToHash(hasher);
     return hasher.value();

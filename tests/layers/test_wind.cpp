@@ -1,10 +1,12 @@
-// Procedural wind (kernels/wind.cl, kernels/layer_types.h, src/layers/layers_host.cpp):
+// Procedural wind (kernels/wind.cl, kernels/layer_types.h, src/devices/host/host_layers.cpp):
 // amplitude 0 changes nothing, OpenCL agrees with the host reference, runs and chunkings agree,
 // the motion is continuous in time within the analytic bound, and the clearance limit keeps
 // cloth out of the body.
 
 #include <drivenshape/error.h>
 #include <drivenshape/layers.h>
+
+#include "cl_backends.h"
 
 #include <algorithm>
 #include <cmath>
@@ -30,7 +32,7 @@ class WindTest : public OpenClTest {
     options.windWeight = "group:right";
     options.windFalloff = 3;
     auto host = makeHostLayers();
-    LayerStack stack(options, mMesh, *host);
+    LayerStack stack(loadLayers(options, mMesh), mMesh, *host);
     mTables.vertexCount = mMesh.vertexCount();
     mTables.windWeights = stack.windWeights();
     const Bounds bounds = computeBounds(mMesh.positions.data(), mMesh.vertexCount());
@@ -115,7 +117,7 @@ TEST_F(WindTest, AmplitudeZeroChangesNothingBitwise) {
   // The stack with amplitude 0 is empty: the bake skips it.
   LayerOptions options;
   options.windAmplitude = 0.0;
-  EXPECT_TRUE(LayerStack(options, mMesh, *host).empty());
+  EXPECT_TRUE(LayerStack(loadLayers(options, mMesh), mMesh, *host).empty());
 }
 
 TEST_F(WindTest, OpenClMatchesTheHostReference) {

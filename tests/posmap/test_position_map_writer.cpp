@@ -11,6 +11,8 @@
 
 #include <drivenshape/error.h>
 
+#include "cl_backends.h"
+
 #include "posmap_test_util.h"
 #include "test_support.h"
 

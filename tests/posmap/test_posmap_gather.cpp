@@ -1,8 +1,10 @@
-// Tests for the position-map gather: the host reference (src/posmap/posmap_host.cpp) against
-// independent double computations, and the OpenCL kernels (kernels/posmap.cl,
+// Tests for the position-map gather: the host reference (src/devices/host/host_position_maps.cpp)
+// against independent double computations, and the OpenCL kernels (kernels/posmap.cl,
 // src/posmap/posmap_cl.cpp) against the host reference.
 
 #include <drivenshape/position_map.h>
+
+#include "cl_backends.h"
 
 #include <Eigen/Geometry>
 

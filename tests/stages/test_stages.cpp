@@ -1,10 +1,10 @@
 // Per-frame stages: the host reference against Eigen in double, and the OpenCL kernels against
-// the host reference (kernels/project.cl, kernels/blend.cl, src/cl/cl_stages.cpp,
-// src/host/host_stages.cpp).
+// the host reference (kernels/project.cl, kernels/blend.cl, src/devices/cl/cl_stages.cpp,
+// src/devices/host/host_stages.cpp).
 
-#include <drivenshape/cl_stages.h>
 #include <drivenshape/error.h>
 #include <drivenshape/stages.h>
+#include "cl_backends.h"
 
 #include <Eigen/Dense>
 

@@ -44,7 +44,7 @@ std::vector<int> groupVertices(const Mesh& mesh, const std::string& name,
 std::vector<double> lumpedVertexAreas(const Mesh& mesh, const float* positions);
 
 /// Settings of RigidAligner::weightByRigidity. The defaults were chosen on the reference
-/// scenes (README, "Fidelity"); lengths are fractions of the bounding-box diagonal of the
+/// scenes (docs/method.md, "Accuracy"); lengths are fractions of the bounding-box diagonal of the
 /// selected rest vertices, so they hold in any scene unit.
 struct RigidityOptions {
   /// Residual scale tau of the robust weights area / (r^2 + tau^2): vertices that move more

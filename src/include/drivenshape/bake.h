@@ -7,50 +7,14 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
+#include <drivenshape/device.h>
+#include <drivenshape/evaluator.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/stages.h>
 
 namespace drivenshape {
-
-/// How the per-frame weights are chosen.
-enum class WeightMode {
-  kQp,       ///< the DrivenShape QP: min ||A w - b|| with sum w = 1, 0 <= w <= 1
-  kNearest,  ///< baseline: one-hot on the closest database driver shape
-  kBind      ///< baseline: no database; the rest cloth bound to the rest driver and carried to
-             ///< every frame by the correction (what Houdini's Point Deform does)
-};
-
-/// Whether shot frames are rigidly aligned to the database before the weights are solved.
-enum class AlignMode {
-  kNone,     ///< the talk: weights compare world positions
-  kRigid,    ///< each shot frame (and each database shape) is fitted to the rest driver first,
-             ///< weighted by how rigidly each vertex moves across the database's driver shapes
-             ///< (RigidAligner::weightByRigidity): the fit follows the pelvis, not the legs
-  kRigidAll  ///< the same fit weighted by area only: every selected vertex counts alike
-};
-
-/// The `--align` spelling of a mode, as written in the bake report.
-inline const char* alignModeName(AlignMode mode) {
-  switch (mode) {
-    case AlignMode::kNone:
-      return "none";
-    case AlignMode::kRigid:
-      return "rigid";
-    case AlignMode::kRigidAll:
-      return "rigid-all";
-  }
-  return "?";
-}
-
-/// Where the database shapes are blended.
-enum class BlendMode {
-  kWorld,  ///< the talk: blend world positions D~ = sum w_i D_i, then correct onto the shot
-  kLocal   ///< bind each driven vertex once to the rest driver, blend every shape's offsets in
-           ///< those local frames and rebuild them on the shot's driver
-};
 
 struct BakeOptions {
   std::vector<int> frames;    ///< frames of the driver cache to bake
@@ -74,7 +38,7 @@ struct BakeOptions {
   /// binding switches, the largest frame-to-frame jump.
   bool audit = true;
 
-  // ---- Fidelity (issue 4); see the README's "Fidelity" section for the measured defaults. ----
+  // ---- Fidelity (issue 4); see docs/method.md for how the defaults were chosen. ----
 
   /// Rigid alignment: each shot driver frame is fitted (Kabsch, no scale; weighted by
   /// rigidity (kRigid) or area (kRigidAll)) to the database's rest driver on the vertices
@@ -106,8 +70,8 @@ struct BakeOptions {
   double maxWeightChange = 0.0;
   int temporalWarmup = 8;
   /// Layers after the correction and resolution (DESIGN.md section 3 step 7): a mix with
-  /// another cache of the cloth, procedural wind. Off by default; needs BakeBackends::layers
-  /// when on. Recorded in the settings hash, the report and the EXR header (`dsLayers`).
+  /// another cache of the cloth, procedural wind. Off by default. Recorded in the settings hash,
+  /// the report and the EXR header (`dsLayers`).
   LayerOptions layers;
   /// fsync every output EXR before its atomic rename (`--sync`). Off by default: the rename
   /// alone already means readers never see a partial file, and a file cut short by a power
@@ -115,61 +79,25 @@ struct BakeOptions {
   bool syncOutputs = false;
 };
 
-/// Whether a bake with these options blends in local frames: BlendMode::kLocal with the
-/// correction on and the DrivenShape weights (not the bind baseline).
+/// Whether a bake with these options blends in local frames (see blendsLocally).
 inline bool blendsLocally(const BakeOptions& options) {
   return options.blend == BlendMode::kLocal && options.correct &&
          options.weightMode != WeightMode::kBind;
 }
 
-/// The backends a bake runs on, all on one device (or all host): the per-frame stages, the
-/// closest-triangle search used for binding (the mask is applied to it), and a second one for
-/// the inside/outside audit and the penetration resolution (always against every triangle).
-/// `binding` may be null when options.correct is off, `audit` when options.audit and
-/// options.resolve are off.
-struct BakeBackends {
-  StageBackend* stages = nullptr;
-  ClosestBackend* binding = nullptr;
-  ClosestBackend* audit = nullptr;
-  LayerBackend* layers = nullptr;  ///< needed only when options.layers has a layer
-};
-
-/// What happened to one frame.
-struct FrameRecord {
-  int frame = 0;
-  bool skipped = false;  ///< an existing complete output was kept
-  /// Why an existing output was baked again by a resume (reuseProblem), or empty.
-  std::string rebakeReason;
-  std::vector<double> weights;  ///< k per region, region-major (k without regions)
-  std::vector<int> atZero;      ///< shapes held at weight 0 (active bounds)
-  std::vector<int> atOne;
-  double relativeResidual = 0.0;  ///< ||A w - b|| / ||b|| (the largest over regions)
-  double kktResidual = 0.0;
-  int iterations = 0;
-  std::string output;
-  /// Rigid alignment of this frame (AlignMode::kRigid): x -> R x + t maps the shot's driver
-  /// onto the rest driver. R row-major.
-  std::vector<double> alignRotation;
-  std::vector<double> alignTranslation;
-  // Audit (-1 where not measured).
-  int insideBefore = -1;     ///< blended cloth inside the (aligned) shot driver (world blend)
-  int insideCorrected = -1;  ///< after the correction (or rebuild), before resolution
-  int insideAfter = -1;      ///< in the written cloth (after resolution when it runs)
-  int resolved = -1;         ///< vertices moved out by the penetration resolution
-  int bindingSwitches = -1;  ///< vertices bound to another triangle than the previous frame
-  double maxJump = -1.0;     ///< largest vertex move since the previous baked frame
-  int maxJumpVertex = -1;
-};
-
 /// Seconds spent per stage, summed over batches. Reading and writing run on I/O tasks beside
 /// the other stages (the bake is pipelined), so the stages can add up to more than `total`;
 /// readWait and writeWait are the time the bake thread waited for them.
 struct StageTimes {
-  double read = 0, align = 0, project = 0, weights = 0, blend = 0, correct = 0, resolve = 0,
-         audit = 0, write = 0, total = 0;
-  double layers = 0;
+  StageSeconds stages;  ///< the evaluator's stages by name (align, project, weights, ...)
+  double read = 0, write = 0, total = 0;
   double readWait = 0, writeWait = 0;
   double setup = 0;  ///< before the first batch: checks, alignment weights, tables, uploads
+  /// Seconds of stage `name` (0 when it did not run).
+  double stage(const std::string& name) const {
+    const auto found = stages.find(name);
+    return found == stages.end() ? 0.0 : found->second;
+  }
 };
 
 /// Memory that one launch batch's frame blocks may take; larger meshes get smaller batches
@@ -201,9 +129,12 @@ struct BakeObserver {
 /// Bakes `options.frames` of `driver` with `database` on `stages` (host or OpenCL) and writes
 /// one point-cache EXR per frame (atomically). Validates everything it can before the first
 /// frame: vertex counts, frames present, output folder writable. Throws drivenshape::Error.
-BakeResult bake(const Database& database, const PointCacheReader& driver,
-                const BakeBackends& backends, const BakeOptions& options,
-                BakeObserver* observer = nullptr);
+BakeResult bake(const Database& database, const PointCacheReader& driver, Device& device,
+                const BakeOptions& options, BakeObserver* observer = nullptr);
+
+/// The evaluator settings of a bake: the options' values, with the binding mask, the regions
+/// and the layers loaded from the files they name (Error(kInput) naming the file).
+EvaluatorSettings evaluatorSettings(const Database& database, const BakeOptions& options);
 
 /// Flat tables for the stage backends, built from a database (projection basis, shapes).
 ShapeTables makeShapeTables(const Database& database);

@@ -11,8 +11,6 @@
 #include <string>
 #include <vector>
 
-#include <CL/opencl.hpp>
-
 #include <drivenshape/mesh.h>
 
 namespace drivenshape {
@@ -175,6 +173,14 @@ class ClosestBackend {
   /// offset >= 0 in scene units. Throws Error(kNumerical) on NaN/infinite input.
   virtual void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                        float* points, int* moved) = 0;
+
+  /// Declares that `poses` (F x 3Vp) stays unchanged until releasePoses(): calls that pass this
+  /// same pointer with the same frame count as their poses (closest's poses, transfer's and
+  /// rebuild's toPoses, resolve's poses) may use a copy made here instead of their own. The
+  /// OpenCL backend uploads the poses once here rather than once per call; the host backend
+  /// needs no copy. The caller must not change that memory before releasePoses().
+  virtual void keepPoses(int /*frameCount*/, const float* /*poses*/) {}
+  virtual void releasePoses() {}
 };
 
 /// Host-side encoding for local-frame blending (the inverse of ClosestBackend::rebuild, in
@@ -185,12 +191,6 @@ void encodeLocal(const Mesh& driver, const float* pose, int count, const float* 
 
 /// The host reference implementation (plain C++, double arithmetic).
 std::unique_ptr<ClosestBackend> makeHostClosest(const ClosestOptions& options = {});
-
-/// The OpenCL implementation. The caller owns the device choice and passes an in-order queue.
-/// Programs are built here (-cl-std=CL1.2); a build or launch failure throws Error(kDevice).
-std::unique_ptr<ClosestBackend> makeClClosest(const cl::Context& context, const cl::Device& device,
-                                              const cl::CommandQueue& queue,
-                                              const ClosestOptions& options = {});
 
 /// The whole correction of a chunk: hits on the blended driver, then the transfer of the
 /// blended cloth to the shot's driver.

@@ -33,7 +33,7 @@ const char* pickReasonName(PickReason reason);
 ///   driverShapes  N x 3Vp   shape i = source frame frames[i], interleaved xyz, float32
 ///   drivenShapes  N x 3Vd
 ///
-/// Stored as one self-describing, versioned file (see saveDatabase and the README).
+/// Stored as one self-describing, versioned file (see saveDatabase and docs/formats.md).
 struct Database {
   static constexpr int kFormatVersion = 1;
 
@@ -69,7 +69,7 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
                        const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
                        const DatabaseBuildOptions& options, std::ostream* log = nullptr);
 
-/// Writes the database atomically (see the README for the layout).
+/// Writes the database atomically (see docs/formats.md for the layout).
 void saveDatabase(const std::string& path, const Database& database);
 /// Reads and verifies (magic, version, checksums); Error(kInput) with the reason otherwise.
 Database loadDatabase(const std::string& path);

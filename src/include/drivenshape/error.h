@@ -8,7 +8,7 @@
 namespace drivenshape {
 
 /// What went wrong, as a class of failure. The values are the process exit codes of the
-/// `drivenshape` command line (documented in the README), so keep them stable.
+/// `drivenshape` command line (documented in docs/commands.md), so keep them stable.
 enum class ErrorCode : int {
   kInternal = 1,    ///< a bug or an unexpected condition inside the tool
   kUsage = 2,       ///< bad command line: unknown flag, missing value, empty frame range

@@ -11,8 +11,6 @@
 #include <string>
 #include <vector>
 
-#include <CL/opencl.hpp>
-
 #include <drivenshape/hash.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
@@ -128,10 +126,6 @@ class LayerBackend {
 };
 
 std::unique_ptr<LayerBackend> makeHostLayers();
-/// The OpenCL implementation on the caller's context, device and in-order queue; programs are
-/// built here (Error(kDevice) with the build log on failure).
-std::unique_ptr<LayerBackend> makeClLayers(const cl::Context& context, const cl::Device& device,
-                                           const cl::CommandQueue& queue);
 
 /// Octave advection offsets of one frame: for octave o (DS_WIND_MAX_OCTAVES x 4 floats, xyz
 /// used), -(2^o frequency speed frame/fps) direction + a fixed per-octave decorrelation shift,
@@ -147,16 +141,38 @@ void windFrameOffsets(const WindSettings& settings, int frame, float* offsets);
 /// amplitude A give 11.25 A f s O / S.
 double windRateBound(const WindSettings& settings);
 
-// ---- The stack the bake runs ----
+// ---- The stack an evaluation runs ----
 
-/// All layers of a bake, validated and loaded once. The bake calls apply() once per chunk after
-/// the correction: mix first, then wind.
+/// The layers of an evaluation as in-memory objects. `options` holds the numbers; its file
+/// names and weight-map specs only name things in messages, the settings hash and the report.
+/// An embedding application may fill `mixCache` and the weight vectors itself (names then
+/// default to "(in memory)"); the command line fills them with loadLayers().
+struct LayerSettings {
+  LayerOptions options;
+  /// The other cache of the cloth for the mix (same vertex count and order); null = no mix.
+  std::shared_ptr<PointCacheReader> mixCache;
+  /// Vd values in [0, 1]: 1 keeps DrivenShape, 0 takes the mix cache (falloff already applied).
+  std::vector<float> mixWeights;
+  /// Vd values in [0, 1] where the wind blows; empty = 1 everywhere (falloff already applied).
+  std::vector<float> windWeights;
+
+  bool hasMix() const { return mixCache != nullptr; }
+  bool hasWind() const { return options.hasWind(); }
+  bool empty() const { return !hasMix() && !hasWind(); }
+};
+
+/// Validates `options` (Error(kUsage) naming the flag) and loads what they name: the weight
+/// maps (smoothed by their falloffs) and the mix cache (openPointCache with the driven mesh's
+/// topology; Error(kInput) on another vertex count).
+LayerSettings loadLayers(const LayerOptions& options, const Mesh& drivenMesh);
+
+/// All layers of an evaluation, checked and uploaded once. The pipeline calls apply() once per
+/// block of frames after the correction: mix first, then wind.
 class LayerStack {
  public:
-  /// Validates `options` (Error(kUsage) naming the flag) and loads the weight maps and the mix
-  /// cache (openPointCache with the driven mesh's topology; Error(kInput) on another vertex
-  /// count). Uploads the tables to `backend`, which must outlive the stack.
-  LayerStack(const LayerOptions& options, const Mesh& drivenMesh, LayerBackend& backend);
+  /// Checks `settings` against the driven mesh (Error(kUsage) / Error(kInput)) and uploads the
+  /// tables to `backend`, which must outlive the stack.
+  LayerStack(LayerSettings settings, const Mesh& drivenMesh, LayerBackend& backend);
 
   /// True when no layer is on (apply() changes nothing).
   bool empty() const;
@@ -177,7 +193,7 @@ class LayerStack {
   LayerOptions mOptions;
   LayerTables mTables;
   WindSettings mWind;
-  std::unique_ptr<PointCacheReader> mMixCache;
+  std::shared_ptr<PointCacheReader> mMixCache;
   LayerBackend& mBackend;
   std::vector<float> mOther;
 };

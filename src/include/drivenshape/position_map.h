@@ -9,8 +9,6 @@
 #include <utility>
 #include <vector>
 
-#include <CL/opencl.hpp>
-
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
@@ -157,11 +155,6 @@ class PositionMapBackend {
 
 /// The host reference implementation (plain C++, no OpenCL).
 std::unique_ptr<PositionMapBackend> makeHostPositionMaps();
-/// The OpenCL implementation (kernels/posmap.cl) on the caller's context, device and in-order
-/// queue. Builds its program once here; a build failure throws Error(kDevice) with the log.
-std::unique_ptr<PositionMapBackend> makeClPositionMaps(const cl::Context& context,
-                                                       const cl::Device& device,
-                                                       const cl::CommandQueue& queue);
 
 // ---------------------------------------------------------------------------------------
 // Position-map EXR: scanline, one file per frame, W x H, row 0 = top (see above). Channels

@@ -25,7 +25,7 @@ struct ShapeTables {
 
 /// The per-frame stages of a bake, evaluated for a chunk of F frames per call (the "osd"
 /// side). Two implementations share this contract: the OpenCL kernels (makeClStages, in
-/// drivenshape/cl_stages.h) and the plain C++ host reference (makeHostStages), which is the
+/// src/devices/cl) and the plain C++ host reference (makeHostStages), which is the
 /// oracle in tests. Frame blocks are frame-major:
 ///
 ///   frames   F x 3V   frame f, vertex v, axis a at [f * 3V + 3v + a]

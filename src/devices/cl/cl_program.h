@@ -1,13 +1,61 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
+#include <map>
+#include <mutex>
 #include <string>
 #include <vector>
 
 #include <CL/opencl.hpp>
 
 namespace drivenshape::cl_util {
+
+/// Host<->device copies made by the backends of one device: counted so that benchmarks can
+/// show how much a batch moves (drivenshape::Device::transfers()).
+struct Transfers {
+  std::atomic<std::int64_t> uploads{0};
+  std::atomic<std::int64_t> downloads{0};
+  std::atomic<std::int64_t> uploadBytes{0};
+  std::atomic<std::int64_t> downloadBytes{0};
+};
+
+/// Programs already built on one device, by their full source text and defines: every backend
+/// of a drivenshape::Device shares them, so each program is compiled once per device.
+class ProgramCache {
+ public:
+  /// The cached program for `key`, or the result of `build()` stored under it.
+  template <typename Build>
+  cl::Program get(const std::string& key, Build&& build) {
+    std::lock_guard<std::mutex> lock(mMutex);
+    auto found = mPrograms.find(key);
+    if (found == mPrograms.end()) {
+      found = mPrograms.emplace(key, build()).first;
+    }
+    return found->second;
+  }
+  std::size_t size() const {
+    std::lock_guard<std::mutex> lock(mMutex);
+    return mPrograms.size();
+  }
+
+ private:
+  mutable std::mutex mMutex;
+  std::map<std::string, cl::Program> mPrograms;
+};
+
+/// Where an OpenCL backend runs: the caller's context, device and in-order queue, and (when
+/// the backend belongs to a drivenshape::Device) the device's program cache and transfer
+/// counters. Null pointers: build programs afresh, count nothing.
+struct ClTarget {
+  cl::Context context;
+  cl::Device device;
+  cl::CommandQueue queue;
+  ProgramCache* programs = nullptr;
+  Transfers* transfers = nullptr;
+};
 
 /// One embedded kernel source (from the generated headers in drivenshape_kernels/).
 struct KernelSource {
@@ -21,6 +69,33 @@ struct KernelSource {
 cl::Program buildProgram(const cl::Context& context, const cl::Device& device,
                          const std::vector<KernelSource>& sources,
                          const std::vector<std::string>& defines = {});
+
+/// The same program from `target`'s cache when it has one (built and stored on first use).
+cl::Program buildProgram(const ClTarget& target, const std::vector<KernelSource>& sources,
+                         const std::vector<std::string>& defines = {});
+
+/// Counts one host-to-device (`toDevice`) or device-to-host copy of `bytes` in `transfers`
+/// (nothing when it is null).
+inline void countTransfer(Transfers* transfers, bool toDevice, std::size_t bytes) {
+  if (transfers == nullptr) {
+    return;
+  }
+  ++(toDevice ? transfers->uploads : transfers->downloads);
+  (toDevice ? transfers->uploadBytes : transfers->downloadBytes) +=
+      static_cast<std::int64_t>(bytes);
+}
+
+/// enqueueWriteBuffer / enqueueReadBuffer, counted in `transfers`.
+inline void upload(cl::CommandQueue& queue, Transfers* transfers, const cl::Buffer& buffer,
+                   cl_bool blocking, std::size_t offset, std::size_t bytes, const void* data) {
+  queue.enqueueWriteBuffer(buffer, blocking, offset, bytes, data);
+  countTransfer(transfers, true, bytes);
+}
+inline void download(cl::CommandQueue& queue, Transfers* transfers, const cl::Buffer& buffer,
+                     cl_bool blocking, std::size_t offset, std::size_t bytes, void* data) {
+  queue.enqueueReadBuffer(buffer, blocking, offset, bytes, data);
+  countTransfer(transfers, false, bytes);
+}
 
 /// Runs `body`, turning a cl::Error into Error(kDevice) whose message names `what`, the
 /// failed call and its status ("CL_OUT_OF_RESOURCES").

@@ -1,4 +1,4 @@
-#include <drivenshape/cl_stages.h>
+#include "cl_backends.h"
 
 #include <cstdio>
 

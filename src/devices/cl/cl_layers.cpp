@@ -2,9 +2,9 @@
 // device once (upload); each mix()/wind() call uploads the chunk, runs one launch over all its
 // frames and reads the chunk back. Chunk buffers are kept and only grow.
 
-#include <drivenshape/cl_stages.h>
 #include <drivenshape/error.h>
 #include <drivenshape/layers.h>
+#include "cl_backends.h"
 
 #include <vector>
 
@@ -25,13 +25,16 @@ using cl_util::guard;
 
 class ClLayers final : public LayerBackend {
  public:
-  ClLayers(const cl::Context& context, const cl::Device& device, const cl::CommandQueue& queue)
-      : mContext(context), mDevice(device), mQueue(queue) {
+  ClLayers(const cl_util::ClTarget& target)
+      : mContext(target.context),
+        mDevice(target.device),
+        mQueue(target.queue),
+        mTransfers(target.transfers) {
     mName = guard("querying the device name", [&] { return mDevice.getInfo<CL_DEVICE_NAME>(); });
-    mProgram = cl_util::buildProgram(mContext, mDevice,
-                                     {{kernels::kLayerTypesSourceName, kernels::kLayerTypesSource},
-                                      {kernels::kMixSourceName, kernels::kMixSource},
-                                      {kernels::kWindSourceName, kernels::kWindSource}});
+    mProgram =
+        cl_util::buildProgram(target, {{kernels::kLayerTypesSourceName, kernels::kLayerTypesSource},
+                                       {kernels::kMixSourceName, kernels::kMixSource},
+                                       {kernels::kWindSourceName, kernels::kWindSource}});
     guard("creating the layer kernels", [&] {
       mMix = cl::Kernel(mProgram, "dsMix");
       mWind = cl::Kernel(mProgram, "dsWind");
@@ -65,8 +68,8 @@ class ClLayers final : public LayerBackend {
     cl::Buffer& positionBuffer = reserve(mPositions, bytes, "allocating the layer position buffer");
     cl::Buffer& otherBuffer = reserve(mOther, bytes, "allocating the mix cache buffer");
     guard("uploading a chunk for the mix", [&] {
-      mQueue.enqueueWriteBuffer(positionBuffer, CL_FALSE, 0, bytes, positions);
-      mQueue.enqueueWriteBuffer(otherBuffer, CL_TRUE, 0, bytes, other);
+      cl_util::upload(mQueue, mTransfers, positionBuffer, CL_FALSE, 0, bytes, positions);
+      cl_util::upload(mQueue, mTransfers, otherBuffer, CL_TRUE, 0, bytes, other);
     });
     DsMixParams params{};
     params.vertexCount = mVertexCount;
@@ -75,8 +78,9 @@ class ClLayers final : public LayerBackend {
       cl_util::setArgs(mMix, positionBuffer, otherBuffer, mMixWeights, params);
       enqueue(mMix, frameCount);
     });
-    guard("reading back the mixed positions",
-          [&] { mQueue.enqueueReadBuffer(positionBuffer, CL_TRUE, 0, bytes, positions); });
+    guard("reading back the mixed positions", [&] {
+      cl_util::download(mQueue, mTransfers, positionBuffer, CL_TRUE, 0, bytes, positions);
+    });
   }
 
   void wind(int frameCount, const int* frames, const WindSettings& settings, const float* clearance,
@@ -100,11 +104,12 @@ class ClLayers final : public LayerBackend {
                                                                  "allocating the clearance buffer")
                                                        : mNoClearance;
     guard("uploading a chunk for the wind", [&] {
-      mQueue.enqueueWriteBuffer(positionBuffer, CL_FALSE, 0, bytes, positions);
-      mQueue.enqueueWriteBuffer(offsetBuffer, CL_FALSE, 0, mOffsets.size() * sizeof(float),
-                                mOffsets.data());
+      cl_util::upload(mQueue, mTransfers, positionBuffer, CL_FALSE, 0, bytes, positions);
+      cl_util::upload(mQueue, mTransfers, offsetBuffer, CL_FALSE, 0,
+                      mOffsets.size() * sizeof(float), mOffsets.data());
       if (clearance != nullptr) {
-        mQueue.enqueueWriteBuffer(clearanceBuffer, CL_FALSE, 0, clearanceBytes, clearance);
+        cl_util::upload(mQueue, mTransfers, clearanceBuffer, CL_FALSE, 0, clearanceBytes,
+                        clearance);
       }
       mQueue.finish();
     });
@@ -115,8 +120,9 @@ class ClLayers final : public LayerBackend {
                        params);
       enqueue(mWind, frameCount);
     });
-    guard("reading back the wind positions",
-          [&] { mQueue.enqueueReadBuffer(positionBuffer, CL_TRUE, 0, bytes, positions); });
+    guard("reading back the wind positions", [&] {
+      cl_util::download(mQueue, mTransfers, positionBuffer, CL_TRUE, 0, bytes, positions);
+    });
   }
 
  private:
@@ -146,6 +152,7 @@ class ClLayers final : public LayerBackend {
   cl::Context mContext;
   cl::Device mDevice;
   cl::CommandQueue mQueue;
+  cl_util::Transfers* mTransfers = nullptr;
   std::string mName;
   cl::Program mProgram;
   cl::Kernel mMix;
@@ -168,9 +175,13 @@ class ClLayers final : public LayerBackend {
 
 }  // namespace
 
+std::unique_ptr<LayerBackend> makeClLayers(const cl_util::ClTarget& target) {
+  return std::make_unique<ClLayers>(target);
+}
+
 std::unique_ptr<LayerBackend> makeClLayers(const cl::Context& context, const cl::Device& device,
                                            const cl::CommandQueue& queue) {
-  return std::make_unique<ClLayers>(context, device, queue);
+  return makeClLayers(cl_util::ClTarget{context, device, queue});
 }
 
 }  // namespace drivenshape

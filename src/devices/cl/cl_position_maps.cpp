@@ -25,15 +25,17 @@ using cl_util::guard;
 
 class ClPositionMaps final : public PositionMapBackend {
  public:
-  ClPositionMaps(const cl::Context& context, const cl::Device& device,
-                 const cl::CommandQueue& queue)
-      : mContext(context), mDevice(device), mQueue(queue) {
+  ClPositionMaps(const cl_util::ClTarget& target)
+      : mContext(target.context),
+        mDevice(target.device),
+        mQueue(target.queue),
+        mTransfers(target.transfers) {
     guard("querying the device", [&] {
       mName = mDevice.getInfo<CL_DEVICE_NAME>();
       mMaxAlloc = static_cast<std::size_t>(mDevice.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>());
     });
-    mProgram = cl_util::buildProgram(mContext, mDevice,
-                                     {{kernels::kPosmapSourceName, kernels::kPosmapSource}});
+    mProgram =
+        cl_util::buildProgram(target, {{kernels::kPosmapSourceName, kernels::kPosmapSource}});
     guard("creating the position-map kernels", [&] {
       mNormalsKernel = cl::Kernel(mProgram, "dsPosmapVertexNormals");
       mGatherKernel = cl::Kernel(mProgram, "dsPosmapGather");
@@ -86,8 +88,8 @@ class ClPositionMaps final : public PositionMapBackend {
               "allocating the normal-map buffer");
     }
     guard("uploading a chunk of frames", [&] {
-      mQueue.enqueueWriteBuffer(mFrames.buffer, CL_TRUE, 0, count * vertexFloats * sizeof(float),
-                                frames);
+      cl_util::upload(mQueue, mTransfers, mFrames.buffer, CL_TRUE, 0,
+                      count * vertexFloats * sizeof(float), frames);
     });
     if (withNormals) {
       guard("running dsPosmapVertexNormals on a chunk of frames", [&] {
@@ -127,11 +129,11 @@ class ClPositionMaps final : public PositionMapBackend {
     }
     // Blocking reads: the caller's memory may go away as soon as we return or throw.
     guard("reading back the position maps", [&] {
-      mQueue.enqueueReadBuffer(mPositions.buffer, CL_TRUE, 0, count * mapFloats * sizeof(float),
-                               positions);
+      cl_util::download(mQueue, mTransfers, mPositions.buffer, CL_TRUE, 0,
+                        count * mapFloats * sizeof(float), positions);
       if (withNormals) {
-        mQueue.enqueueReadBuffer(mNormals.buffer, CL_TRUE, 0, count * mapFloats * sizeof(float),
-                                 normals);
+        cl_util::download(mQueue, mTransfers, mNormals.buffer, CL_TRUE, 0,
+                          count * mapFloats * sizeof(float), normals);
       }
     });
   }
@@ -177,6 +179,7 @@ class ClPositionMaps final : public PositionMapBackend {
   cl::Context mContext;
   cl::Device mDevice;
   cl::CommandQueue mQueue;
+  cl_util::Transfers* mTransfers = nullptr;
   std::string mName;
   std::size_t mMaxAlloc = 0;
   cl::Program mProgram;
@@ -202,10 +205,14 @@ class ClPositionMaps final : public PositionMapBackend {
 
 }  // namespace
 
+std::unique_ptr<PositionMapBackend> makeClPositionMaps(const cl_util::ClTarget& target) {
+  return std::make_unique<ClPositionMaps>(target);
+}
+
 std::unique_ptr<PositionMapBackend> makeClPositionMaps(const cl::Context& context,
                                                        const cl::Device& device,
                                                        const cl::CommandQueue& queue) {
-  return std::make_unique<ClPositionMaps>(context, device, queue);
+  return makeClPositionMaps(cl_util::ClTarget{context, device, queue});
 }
 
 }  // namespace drivenshape

@@ -3,7 +3,7 @@
 // chunk, one launch per output over all its frames, one read back. Chunk buffers are kept and
 // only grow.
 
-#include <drivenshape/cl_stages.h>
+#include "cl_backends.h"
 
 #include <algorithm>
 #include <array>
@@ -48,12 +48,15 @@ std::vector<float> padRows(const float* data, std::size_t rows, std::size_t coun
 
 class ClStages final : public StageBackend {
  public:
-  ClStages(const cl::Context& context, const cl::Device& device, const cl::CommandQueue& queue)
-      : mContext(context), mDevice(device), mQueue(queue) {
+  ClStages(const cl_util::ClTarget& target)
+      : mContext(target.context),
+        mDevice(target.device),
+        mQueue(target.queue),
+        mTransfers(target.transfers) {
     mName = guard("querying the device name", [&] { return mDevice.getInfo<CL_DEVICE_NAME>(); });
-    mProgram = cl_util::buildProgram(mContext, mDevice,
-                                     {{kernels::kProjectSourceName, kernels::kProjectSource},
-                                      {kernels::kBlendSourceName, kernels::kBlendSource}});
+    mProgram =
+        cl_util::buildProgram(target, {{kernels::kProjectSourceName, kernels::kProjectSource},
+                                       {kernels::kBlendSourceName, kernels::kBlendSource}});
     guard("creating the stage kernels", [&] {
       mProject = cl::Kernel(mProgram, "dsProject");
       mBlend = cl::Kernel(mProgram, "dsBlend");
@@ -136,8 +139,8 @@ class ClStages final : public StageBackend {
 
     mStaging.resize(frames * outStride);
     guard("reading back the projections", [&] {
-      mQueue.enqueueReadBuffer(mProjected.buffer, CL_TRUE, 0, mStaging.size() * sizeof(float),
-                               mStaging.data());
+      cl_util::download(mQueue, mTransfers, mProjected.buffer, CL_TRUE, 0,
+                        mStaging.size() * sizeof(float), mStaging.data());
     });
     const std::size_t rows = static_cast<std::size_t>(mRowCount);
     for (std::size_t f = 0; f < frames; ++f) {
@@ -174,8 +177,8 @@ class ClStages final : public StageBackend {
     reserve(mWeights, mStaging.size() * sizeof(float), CL_MEM_READ_ONLY, false,
             "allocating the weight buffer");
     guard("uploading a chunk of blend weights", [&] {
-      mQueue.enqueueWriteBuffer(mWeights.buffer, CL_TRUE, 0, mStaging.size() * sizeof(float),
-                                mStaging.data());
+      cl_util::upload(mQueue, mTransfers, mWeights.buffer, CL_TRUE, 0,
+                      mStaging.size() * sizeof(float), mStaging.data());
     });
 
     blendInto(mDriven, frameCount, mDrivenOut, driven, "blending the driven shapes");
@@ -250,26 +253,28 @@ class ClStages final : public StageBackend {
   void writeRows(const cl::Buffer& buffer, const float* data, std::size_t rows, std::size_t count,
                  std::size_t padded) {
     if (count == padded) {
-      mQueue.enqueueWriteBuffer(buffer, CL_TRUE, 0, rows * count * sizeof(float), data);
+      cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, rows * count * sizeof(float), data);
       return;
     }
     const std::array<cl::size_type, 3> origin{0, 0, 0};
     const std::array<cl::size_type, 3> region{count * sizeof(float), rows, 1};
     mQueue.enqueueWriteBufferRect(buffer, CL_TRUE, origin, origin, region, padded * sizeof(float),
                                   0, count * sizeof(float), 0, data);
+    cl_util::countTransfer(mTransfers, true, rows * count * sizeof(float));
   }
 
   // Device block (rows x padded) -> host block (rows x count, packed). Blocking.
   void readRows(const cl::Buffer& buffer, float* data, std::size_t rows, std::size_t count,
                 std::size_t padded) {
     if (count == padded) {
-      mQueue.enqueueReadBuffer(buffer, CL_TRUE, 0, rows * count * sizeof(float), data);
+      cl_util::download(mQueue, mTransfers, buffer, CL_TRUE, 0, rows * count * sizeof(float), data);
       return;
     }
     const std::array<cl::size_type, 3> origin{0, 0, 0};
     const std::array<cl::size_type, 3> region{count * sizeof(float), rows, 1};
     mQueue.enqueueReadBufferRect(buffer, CL_TRUE, origin, origin, region, padded * sizeof(float), 0,
                                  count * sizeof(float), 0, data);
+    cl_util::countTransfer(mTransfers, false, rows * count * sizeof(float));
   }
 
   void blendInto(const BlendTable& table, int frameCount, ChunkBuffer& out, float* result,
@@ -302,6 +307,7 @@ class ClStages final : public StageBackend {
   cl::Context mContext;
   cl::Device mDevice;
   cl::CommandQueue mQueue;
+  cl_util::Transfers* mTransfers = nullptr;
   std::string mName;
   cl::Program mProgram;
   cl::Kernel mProject;
@@ -328,9 +334,13 @@ class ClStages final : public StageBackend {
 
 }  // namespace
 
+std::unique_ptr<StageBackend> makeClStages(const cl_util::ClTarget& target) {
+  return std::make_unique<ClStages>(target);
+}
+
 std::unique_ptr<StageBackend> makeClStages(const cl::Context& context, const cl::Device& device,
                                            const cl::CommandQueue& queue) {
-  return std::make_unique<ClStages>(context, device, queue);
+  return makeClStages(cl_util::ClTarget{context, device, queue});
 }
 
 }  // namespace drivenshape

@@ -2,9 +2,9 @@
 
 #include <sstream>
 
-#include <drivenshape/cl_stages.h>
 #include <drivenshape/error.h>
 #include <drivenshape_kernels/shared_types_cl.h>
+#include "cl_backends.h"
 
 namespace drivenshape::cl_util {
 
@@ -16,11 +16,12 @@ void rethrowClError(const char* what, const cl::Error& error) {
                : "");
 }
 
-cl::Program buildProgram(const cl::Context& context, const cl::Device& device,
-                         const std::vector<KernelSource>& sources,
-                         const std::vector<std::string>& defines) {
+namespace {
+
+/// The text of a program: the defines, the shared types, then the sources with #line markers.
+std::string programText(const std::vector<KernelSource>& sources,
+                        const std::vector<std::string>& defines) {
   std::ostringstream text;
-  std::string names;
   for (const std::string& define : defines) {
     const auto eq = define.find('=');
     if (eq == std::string::npos) {
@@ -32,9 +33,35 @@ cl::Program buildProgram(const cl::Context& context, const cl::Device& device,
   text << kernels::kSharedTypesSource << "\n";
   for (const KernelSource& source : sources) {
     text << "#line 1 \"" << source.name << "\"\n" << source.text << "\n";
+  }
+  return text.str();
+}
+
+std::string sourceNames(const std::vector<KernelSource>& sources) {
+  std::string names;
+  for (const KernelSource& source : sources) {
     names += names.empty() ? source.name : std::string(", ") + source.name;
   }
-  const std::string program_text = text.str();
+  return names;
+}
+
+}  // namespace
+
+cl::Program buildProgram(const ClTarget& target, const std::vector<KernelSource>& sources,
+                         const std::vector<std::string>& defines) {
+  if (target.programs == nullptr) {
+    return buildProgram(target.context, target.device, sources, defines);
+  }
+  return target.programs->get(programText(sources, defines), [&] {
+    return buildProgram(target.context, target.device, sources, defines);
+  });
+}
+
+cl::Program buildProgram(const cl::Context& context, const cl::Device& device,
+                         const std::vector<KernelSource>& sources,
+                         const std::vector<std::string>& defines) {
+  const std::string program_text = programText(sources, defines);
+  const std::string names = sourceNames(sources);
   cl::Program program;
   try {
     program = cl::Program(context, program_text);

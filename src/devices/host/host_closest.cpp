@@ -12,7 +12,7 @@
 
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
-#include <drivenshape/parallel.h>
+#include "parallel.h"
 
 #include "candidates.h"
 #include "surface_features.h"

@@ -8,8 +8,8 @@
 #include <sstream>
 
 #include <drivenshape/align.h>
-#include <drivenshape/atomic_file.h>
 #include <drivenshape/error.h>
+#include "atomic_file.h"
 
 #include "json_text.h"
 

@@ -9,7 +9,7 @@
 #include <numeric>
 
 #include <drivenshape/error.h>
-#include <drivenshape/parallel.h>
+#include "parallel.h"
 
 namespace drivenshape {
 namespace {

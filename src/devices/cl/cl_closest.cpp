@@ -42,20 +42,20 @@ bool hasFp64(const cl::Device& device) {
 
 class ClClosest final : public ClosestBackend {
  public:
-  ClClosest(const cl::Context& context, const cl::Device& device, const cl::CommandQueue& queue,
-            const ClosestOptions& options)
-      : mContext(context),
-        mDevice(device),
-        mQueue(queue),
+  ClClosest(const cl_util::ClTarget& target, const ClosestOptions& options)
+      : mContext(target.context),
+        mDevice(target.device),
+        mQueue(target.queue),
+        mTransfers(target.transfers),
         mUseBvh(options.deviceSearch == ClosestOptions::DeviceSearch::kBvh),
         mSearch(options.threads) {
-    mDouble = !options.forceSinglePrecision && hasFp64(device);
+    mDouble = !options.forceSinglePrecision && hasFp64(mDevice);
     std::vector<std::string> defines;
     if (mDouble) {
       defines.push_back("DS_USE_DOUBLE");
     }
     mProgram = cl_util::buildProgram(
-        context, device,
+        target,
         {{kernels::kCorrectionTypesSourceName, kernels::kCorrectionTypesSource},
          {kernels::kClosestSourceName, kernels::kClosestSource},
          {kernels::kTransferSourceName, kernels::kTransferSource},
@@ -69,7 +69,7 @@ class ClClosest final : public ClosestBackend {
       mResolveKernel = cl::Kernel(mProgram, "dsResolve");
       mRefitKernel = cl::Kernel(mProgram, "dsBvhRefit");
       mBvhKernel = cl::Kernel(mProgram, "dsBvhClosest");
-      mName = device.getInfo<CL_DEVICE_NAME>();
+      mName = mDevice.getInfo<CL_DEVICE_NAME>();
     });
   }
 
@@ -80,8 +80,8 @@ class ClClosest final : public ClosestBackend {
     const std::vector<std::int32_t>& triangles = mSearch.triangles();
     cl_util::guard("uploading the driver triangles", [&] {
       mTriangles = cl::Buffer(mContext, CL_MEM_READ_ONLY, triangles.size() * sizeof(std::int32_t));
-      mQueue.enqueueWriteBuffer(mTriangles, CL_TRUE, 0, triangles.size() * sizeof(std::int32_t),
-                                triangles.data());
+      cl_util::upload(mQueue, mTransfers, mTriangles, CL_TRUE, 0,
+                      triangles.size() * sizeof(std::int32_t), triangles.data());
       const correction::FeatureTables features = correction::buildFeatureTables(
           triangles.data(), mSearch.triangleCount(), mSearch.vertexCount());
       mEdgeStart = upload(features.edgeStart);
@@ -124,25 +124,24 @@ class ClClosest final : public ClosestBackend {
         static_cast<float>((mDouble ? DS_TIE_SCALE2_DOUBLE : DS_TIE_SCALE2_SINGLE) * scale2);
 
     cl_util::guard("running the closest-triangle kernel", [&] {
-      cl::Buffer& posesBuffer = mPoses.reserve(mContext, poseBytes);
+      const cl::Buffer& posesBuffer = posesOnDevice(mPoses, poses, poseBytes);
       cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
       cl::Buffer& startBuffer =
           mStart.reserve(mContext, mCandidates.start.size() * sizeof(std::int32_t));
       cl::Buffer& candidateBuffer = mCandidateTriangles.reserve(
           mContext, mCandidates.triangles.size() * sizeof(std::int32_t));
       cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
-      mQueue.enqueueWriteBuffer(posesBuffer, CL_TRUE, 0, poseBytes, poses);
-      mQueue.enqueueWriteBuffer(pointsBuffer, CL_TRUE, 0, pointBytes, points);
-      mQueue.enqueueWriteBuffer(startBuffer, CL_TRUE, 0,
-                                mCandidates.start.size() * sizeof(std::int32_t),
-                                mCandidates.start.data());
-      mQueue.enqueueWriteBuffer(candidateBuffer, CL_TRUE, 0,
-                                mCandidates.triangles.size() * sizeof(std::int32_t),
-                                mCandidates.triangles.data());
+      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_TRUE, 0, pointBytes, points);
+      cl_util::upload(mQueue, mTransfers, startBuffer, CL_TRUE, 0,
+                      mCandidates.start.size() * sizeof(std::int32_t), mCandidates.start.data());
+      cl_util::upload(mQueue, mTransfers, candidateBuffer, CL_TRUE, 0,
+                      mCandidates.triangles.size() * sizeof(std::int32_t),
+                      mCandidates.triangles.data());
       cl_util::setArgs(mClosestKernel, posesBuffer, mTriangles, pointsBuffer, startBuffer,
                        candidateBuffer, hitBuffer, params);
       cl_util::enqueue1d(mQueue, mClosestKernel, items, DS_LOCAL_SIZE);
-      mQueue.enqueueReadBuffer(hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
+      cl_util::download(mQueue, mTransfers, hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit),
+                        hits);
     });
   }
 
@@ -161,17 +160,16 @@ class ClClosest final : public ClosestBackend {
     cl_util::guard("running the transfer kernel", [&] {
       cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
       cl::Buffer& fromBuffer = mPoses.reserve(mContext, poseBytes);
-      cl::Buffer& toBuffer = mToPoses.reserve(mContext, poseBytes);
+      const cl::Buffer& toBuffer = posesOnDevice(mToPoses, toPoses, poseBytes);
       cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
       cl::Buffer& outBuffer = mOut.reserve(mContext, pointBytes);
-      mQueue.enqueueWriteBuffer(hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
-      mQueue.enqueueWriteBuffer(fromBuffer, CL_TRUE, 0, poseBytes, fromPoses);
-      mQueue.enqueueWriteBuffer(toBuffer, CL_TRUE, 0, poseBytes, toPoses);
-      mQueue.enqueueWriteBuffer(pointsBuffer, CL_TRUE, 0, pointBytes, points);
+      cl_util::upload(mQueue, mTransfers, hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
+      cl_util::upload(mQueue, mTransfers, fromBuffer, CL_TRUE, 0, poseBytes, fromPoses);
+      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_TRUE, 0, pointBytes, points);
       cl_util::setArgs(mTransferKernel, hitBuffer, fromBuffer, toBuffer, mTriangles, pointsBuffer,
                        outBuffer, params);
       cl_util::enqueue1d(mQueue, mTransferKernel, items, DS_LOCAL_SIZE);
-      mQueue.enqueueReadBuffer(outBuffer, CL_TRUE, 0, pointBytes, out);
+      cl_util::download(mQueue, mTransfers, outBuffer, CL_TRUE, 0, pointBytes, out);
     });
   }
 
@@ -191,16 +189,15 @@ class ClClosest final : public ClosestBackend {
 
     cl_util::guard("running the rebuild kernel", [&] {
       cl::Buffer& hitBuffer = mHits.reserve(mContext, hitBytes);
-      cl::Buffer& toBuffer = mToPoses.reserve(mContext, poseBytes);
+      const cl::Buffer& toBuffer = posesOnDevice(mToPoses, toPoses, poseBytes);
       cl::Buffer& localBuffer = mPoints.reserve(mContext, pointBytes);
       cl::Buffer& outBuffer = mOut.reserve(mContext, pointBytes);
-      mQueue.enqueueWriteBuffer(hitBuffer, CL_FALSE, 0, hitBytes, hits);
-      mQueue.enqueueWriteBuffer(toBuffer, CL_FALSE, 0, poseBytes, toPoses);
-      mQueue.enqueueWriteBuffer(localBuffer, CL_FALSE, 0, pointBytes, local);
+      cl_util::upload(mQueue, mTransfers, hitBuffer, CL_FALSE, 0, hitBytes, hits);
+      cl_util::upload(mQueue, mTransfers, localBuffer, CL_FALSE, 0, pointBytes, local);
       cl_util::setArgs(mRebuildKernel, hitBuffer, toBuffer, mTriangles, localBuffer, outBuffer,
                        params);
       cl_util::enqueue1d(mQueue, mRebuildKernel, items, DS_LOCAL_SIZE);
-      mQueue.enqueueReadBuffer(outBuffer, CL_TRUE, 0, pointBytes, out);
+      cl_util::download(mQueue, mTransfers, outBuffer, CL_TRUE, 0, pointBytes, out);
     });
   }
 
@@ -227,28 +224,56 @@ class ClClosest final : public ClosestBackend {
     params.offset = offset;
 
     cl_util::guard("running the penetration-resolution kernel", [&] {
-      cl::Buffer& posesBuffer = mPoses.reserve(mContext, poseBytes);
+      const cl::Buffer& posesBuffer = posesOnDevice(mPoses, poses, poseBytes);
       cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
       cl::Buffer& pointsBuffer = mOut.reserve(mContext, pointBytes);
       cl::Buffer& countBuffer = mCounts.reserve(mContext, countBytes);
-      mQueue.enqueueWriteBuffer(posesBuffer, CL_FALSE, 0, poseBytes, poses);
-      mQueue.enqueueWriteBuffer(hitBuffer, CL_FALSE, 0, items * sizeof(SurfaceHit), hits);
-      mQueue.enqueueWriteBuffer(pointsBuffer, CL_FALSE, 0, pointBytes, points);
+      cl_util::upload(mQueue, mTransfers, hitBuffer, CL_FALSE, 0, items * sizeof(SurfaceHit), hits);
+      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_FALSE, 0, pointBytes, points);
       mQueue.enqueueFillBuffer(countBuffer, cl_int(0), 0, countBytes);
       cl_util::setArgs(mResolveKernel, posesBuffer, mTriangles, mEdgeStart, mEdgeTriangles,
                        mVertexStart, mVertexTriangles, hitBuffer, pointsBuffer, countBuffer,
                        params);
       cl_util::enqueue1d(mQueue, mResolveKernel, items, DS_LOCAL_SIZE);
-      mQueue.enqueueReadBuffer(pointsBuffer, CL_TRUE, 0, pointBytes, points);
+      cl_util::download(mQueue, mTransfers, pointsBuffer, CL_TRUE, 0, pointBytes, points);
       std::vector<cl_int> counts(static_cast<std::size_t>(frameCount));
-      mQueue.enqueueReadBuffer(countBuffer, CL_TRUE, 0, countBytes, counts.data());
+      cl_util::download(mQueue, mTransfers, countBuffer, CL_TRUE, 0, countBytes, counts.data());
       if (moved != nullptr) {
         std::copy(counts.begin(), counts.end(), moved);
       }
     });
   }
 
+  void keepPoses(int frameCount, const float* poses) override {
+    mKeptHost = nullptr;
+    const std::size_t bytes =
+        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
+    if (frameCount <= 0 || poses == nullptr) {
+      return;
+    }
+    cl_util::guard("uploading the batch's driver poses", [&] {
+      cl::Buffer& buffer = mKeptPoses.reserve(mContext, bytes);
+      cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, poses);
+    });
+    mKeptHost = poses;
+    mKeptBytes = bytes;
+  }
+
+  void releasePoses() override { mKeptHost = nullptr; }
+
  private:
+  /// The device copy of `poses` (`bytes` long): the kept one (keepPoses) when it is that
+  /// block, else `scratch` after a blocking upload.
+  const cl::Buffer& posesOnDevice(cl_util::GrowingBuffer& scratch, const float* poses,
+                                  std::size_t bytes) {
+    if (poses == mKeptHost && bytes == mKeptBytes) {
+      return mKeptPoses.reserve(mContext, bytes);
+    }
+    cl::Buffer& buffer = scratch.reserve(mContext, bytes);
+    cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, poses);
+    return buffer;
+  }
+
   /// The sizes the transfer and rebuild kernels share.
   DsTransferParams transferParams(int frameCount) const {
     DsTransferParams params{};
@@ -299,19 +324,18 @@ class ClClosest final : public ClosestBackend {
     if (!mSeeded) {
       correction::seedTriangles(mBvh, mSearch.triangles().data(), poses, points, mSeedHost);
       cl_util::guard("uploading the closest-triangle warm start", [&] {
-        mQueue.enqueueWriteBuffer(mSeeds, CL_TRUE, 0, mSeedHost.size() * sizeof(std::int32_t),
-                                  mSeedHost.data());
+        cl_util::upload(mQueue, mTransfers, mSeeds, CL_TRUE, 0,
+                        mSeedHost.size() * sizeof(std::int32_t), mSeedHost.data());
       });
       mSeeded = true;
     }
 
     cl_util::guard("running the closest-triangle kernels", [&] {
-      cl::Buffer& posesBuffer = mPoses.reserve(mContext, poseBytes);
+      const cl::Buffer& posesBuffer = posesOnDevice(mPoses, poses, poseBytes);
       cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
       cl::Buffer& boxBuffer = mBoxes.reserve(mContext, boxBytes);
       cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
-      mQueue.enqueueWriteBuffer(posesBuffer, CL_FALSE, 0, poseBytes, poses);
-      mQueue.enqueueWriteBuffer(pointsBuffer, CL_FALSE, 0, pointBytes, points);
+      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_FALSE, 0, pointBytes, points);
       DsBvhRefitParams refit{};
       refit.frameCount = frameCount;
       refit.vertexCount = vertexCount;
@@ -328,21 +352,22 @@ class ClClosest final : public ClosestBackend {
       cl_util::setArgs(mBvhKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles, boxBuffer,
                        pointsBuffer, mPointRoot, mSeeds, hitBuffer, params);
       cl_util::enqueue1d(mQueue, mBvhKernel, items, DS_LOCAL_SIZE);
-      mQueue.enqueueReadBuffer(hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
+      cl_util::download(mQueue, mTransfers, hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit),
+                        hits);
       // The next chunk starts from this chunk's last frame (a warm start only; see bvh.cpp).
       const SurfaceHit* last = hits + (items - static_cast<std::size_t>(pointCount));
       for (int i = 0; i < pointCount; ++i) {
         mSeedHost[static_cast<std::size_t>(i)] = last[i].triangle;
       }
-      mQueue.enqueueWriteBuffer(mSeeds, CL_TRUE, 0, mSeedHost.size() * sizeof(std::int32_t),
-                                mSeedHost.data());
+      cl_util::upload(mQueue, mTransfers, mSeeds, CL_TRUE, 0,
+                      mSeedHost.size() * sizeof(std::int32_t), mSeedHost.data());
     });
   }
 
   cl::Buffer uploadBytes(const void* data, std::size_t bytes) {
     cl::Buffer buffer(mContext, CL_MEM_READ_ONLY, std::max<std::size_t>(bytes, 16));
     if (bytes > 0) {
-      mQueue.enqueueWriteBuffer(buffer, CL_TRUE, 0, bytes, data);
+      cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, data);
     }
     return buffer;
   }
@@ -352,8 +377,8 @@ class ClClosest final : public ClosestBackend {
     const std::size_t bytes = std::max<std::size_t>(table.size(), 1) * sizeof(std::int32_t);
     cl::Buffer buffer(mContext, CL_MEM_READ_ONLY, bytes);
     if (!table.empty()) {
-      mQueue.enqueueWriteBuffer(buffer, CL_TRUE, 0, table.size() * sizeof(std::int32_t),
-                                table.data());
+      cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, table.size() * sizeof(std::int32_t),
+                      table.data());
     }
     return buffer;
   }
@@ -361,6 +386,7 @@ class ClClosest final : public ClosestBackend {
   cl::Context mContext;
   cl::Device mDevice;
   cl::CommandQueue mQueue;
+  cl_util::Transfers* mTransfers = nullptr;
   bool mDouble = false;
   bool mUseBvh = true;
   std::string mName;
@@ -394,14 +420,22 @@ class ClClosest final : public ClosestBackend {
   cl_util::GrowingBuffer mHits{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mOut{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mCounts{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mKeptPoses{CL_MEM_READ_ONLY};  // keepPoses(): F x 3Vp
+  const float* mKeptHost = nullptr;                     // the host block it copies, or null
+  std::size_t mKeptBytes = 0;
 };
 
 }  // namespace
 
+std::unique_ptr<ClosestBackend> makeClClosest(const cl_util::ClTarget& target,
+                                              const ClosestOptions& options) {
+  return std::make_unique<ClClosest>(target, options);
+}
+
 std::unique_ptr<ClosestBackend> makeClClosest(const cl::Context& context, const cl::Device& device,
                                               const cl::CommandQueue& queue,
                                               const ClosestOptions& options) {
-  return std::make_unique<ClClosest>(context, device, queue, options);
+  return makeClClosest(cl_util::ClTarget{context, device, queue}, options);
 }
 
 }  // namespace drivenshape

@@ -1,0 +1,92 @@
+#!/usr/bin/env python3
+"""Lists the longest functions (lines from signature to closing brace) in C++ sources.
+
+  scripts/function_sizes.py [--top N] [--rev COMMIT] [PATHS...]   (default: src)
+
+A brace-matching heuristic, not a parser: a function starts at a line that opens a block after
+a parameter list `(...)` and is not a control statement, a lambda, a class or a namespace; it
+ends at the matching brace. Comments and string literals are stripped first. With --rev the
+files are read from that commit (git show), to compare before and after a change.
+"""
+import argparse
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+CONTROL = re.compile(r"^\s*(if|for|while|switch|catch|else|do|return|case)\b")
+NOT_FUNCTION = re.compile(r"\b(class|struct|namespace|enum|union)\b|\[[^\]]*\]\s*\(|=\s*\[|^\s*\[")
+
+
+def strip(text):
+    text = re.sub(r"/\*.*?\*/", lambda m: "\n" * m.group(0).count("\n"), text, flags=re.S)
+    text = re.sub(r"//[^\n]*", "", text)
+    text = re.sub(r'"(\\.|[^"\\\n])*"', '""', text)
+    text = re.sub(r"'(\\.|[^'\\\n])*'", "''", text)
+    return text
+
+
+def functions(path, text):
+    lines = strip(text).split("\n")
+    found = []
+    depth = 0
+    stack = []  # (depth at open, start line, is function, signature)
+    pending = ""
+    for number, line in enumerate(lines, 1):
+        for i, char in enumerate(line):
+            if char == "{":
+                head = (pending + " " + line[:i]).strip()
+                is_function = (
+                    ")" in head[-200:]
+                    and not CONTROL.search(head.split(";")[-1].split("}")[-1])
+                    and not NOT_FUNCTION.search(head.split(";")[-1].split("}")[-1])
+                    and not any(s[2] for s in stack)  # nested blocks belong to their function
+                )
+                start = number
+                # the signature may start on earlier lines
+                signature = head.split(";")[-1].split("}")[-1].strip()
+                stack.append((depth, start, is_function, signature))
+                depth += 1
+                pending = ""
+            elif char == "}":
+                depth -= 1
+                if stack:
+                    _, start, is_function, signature = stack.pop()
+                    if is_function:
+                        name = re.sub(r"\s+", " ", signature)[:90]
+                        found.append((number - start + 1, path, start, name))
+                pending = ""
+        pending += " " + line if "{" not in line and "}" not in line else ""
+        if line.strip().endswith(";"):
+            pending = ""
+    return found
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("paths", nargs="*", default=["src"])
+    parser.add_argument("--top", type=int, default=5)
+    parser.add_argument("--rev")
+    args = parser.parse_args()
+    results = []
+    if args.rev:
+        names = subprocess.run(["git", "ls-tree", "-r", "--name-only", args.rev, *args.paths],
+                               capture_output=True, text=True, check=True).stdout.split()
+        for name in names:
+            if name.endswith((".cpp", ".h")):
+                text = subprocess.run(["git", "show", f"{args.rev}:{name}"], capture_output=True,
+                                      text=True, check=True).stdout
+                results += functions(name, text)
+    else:
+        for root in args.paths:
+            for path in sorted(Path(root).rglob("*")):
+                if path.suffix in (".cpp", ".h"):
+                    results += functions(str(path), path.read_text(errors="replace"))
+    results.sort(reverse=True)
+    for length, path, start, name in results[: args.top]:
+        print(f"{length:5d}  {path}:{start}  {name}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,206 @@
+#pragma once
+
+// The method in memory: an Evaluator is built once from a database, its settings and a device,
+// then turns frames of driver positions into cloth positions, one frame or hundreds per call.
+// The bake (drivenshape/bake.h), the command line, the Python module and the Blender add-on
+// are all users of this one class.
+//
+//   drivenshape::Database db = drivenshape::loadDatabase("sleeve.dsdb");
+//   std::unique_ptr<drivenshape::Device> device = drivenshape::openDevice("auto");
+//   drivenshape::Evaluator evaluator(db, drivenshape::EvaluatorSettings(), *device);
+//   drivenshape::Evaluation out = evaluator.evaluate({1001, 1002}, driver);  // 2 x 3Vp floats
+//   // out.cloth: 2 x 3Vd floats; out.records[f]: weights, residual, audit counts
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/database.h>
+#include <drivenshape/device.h>
+#include <drivenshape/layers.h>
+#include <drivenshape/regions.h>
+
+namespace drivenshape {
+
+/// How the per-frame weights are chosen.
+enum class WeightMode {
+  kQp,       ///< the DrivenShape QP: min ||A w - b|| with sum w = 1, 0 <= w <= 1
+  kNearest,  ///< baseline: one-hot on the closest database driver shape
+  kBind      ///< baseline: no database; the rest cloth bound to the rest driver and carried to
+             ///< every frame by the correction (what Houdini's Point Deform does)
+};
+
+/// Whether shot frames are rigidly aligned to the database before the weights are solved.
+enum class AlignMode {
+  kNone,     ///< the talk: weights compare world positions
+  kRigid,    ///< each shot frame (and each database shape) is fitted to the rest driver first,
+             ///< weighted by how rigidly each vertex moves across the database's driver shapes
+             ///< (RigidAligner::weightByRigidity): the fit follows the pelvis, not the legs
+  kRigidAll  ///< the same fit weighted by area only: every selected vertex counts alike
+};
+
+/// Where the database shapes are blended.
+enum class BlendMode {
+  kWorld,  ///< the talk: blend world positions D~ = sum w_i D_i, then correct onto the shot
+  kLocal   ///< bind each driven vertex once to the rest driver, blend every shape's offsets in
+           ///< those local frames and rebuild them on the shot's driver
+};
+
+/// The spellings written in reports ("none", "rigid", "rigid-all"; "qp", "nearest", "bind").
+const char* alignModeName(AlignMode mode);
+const char* weightModeName(WeightMode mode);
+
+/// Everything that decides the cloth of a frame, as in-memory objects. The defaults are the
+/// command line's `bake` defaults (see docs/method.md for how they were chosen).
+struct EvaluatorSettings {
+  WeightMode weightMode = WeightMode::kQp;
+  /// Rigid alignment: each driver frame is fitted (Kabsch, no scale) to the database's rest
+  /// driver on `alignGroup`; so is every database shape. Weights and blends are computed in
+  /// that frame and the result goes back through the inverse motion.
+  AlignMode align = AlignMode::kRigid;
+  /// Driver vertices of the fit: comma-separated `g` group names and/or vertex indices and
+  /// ranges ("0-99,250"); empty or "all" = every vertex (see selectVertices).
+  std::string alignGroup;
+  /// Where the shapes are blended. Local blending rebuilds the offsets on the shot's driver,
+  /// which is the correction: with `correct` off or the bind baseline the evaluator blends
+  /// world positions whatever this says (see blendsLocally).
+  BlendMode blend = BlendMode::kLocal;
+  /// Collision correction: bind every blended cloth vertex to its exact closest triangle of
+  /// the blended driver and carry it to the shot's driver in that triangle's frame.
+  bool correct = true;
+  /// Which driver triangles each cloth vertex may bind to; empty = every triangle.
+  std::optional<BindingMask> bindingMask;
+  /// Penetration resolution: cloth vertices inside the shot's driver or closer than
+  /// `skinOffset` (scene units) move to skinOffset along the pseudo-normal at their exact
+  /// closest point on the driver (every triangle, no mask).
+  bool resolve = true;
+  double skinOffset = 0.002;
+  /// Region-local weights: one QP per region, mixed with its partition of unity; empty = one
+  /// QP on every driver row.
+  std::optional<RegionSet> regions;
+  /// Temporal stability: |w_t - w_{t-1}| <= maxWeightChange per shape (0 = off). The bound
+  /// holds between consecutive frames of the evaluator's temporal state (see
+  /// Evaluator::resetTemporalBound).
+  double maxWeightChange = 0.0;
+  /// Per-frame audit: cloth vertices inside the driver before and after correction, binding
+  /// switches, the largest frame-to-frame jump.
+  bool audit = true;
+  /// Layers after the correction and resolution (mix with another cache, wind).
+  LayerSettings layers;
+  /// Host threads for the weights, the alignment and the closest-point search; 0 = all cores.
+  int threads = 0;
+};
+
+/// Whether these settings blend in local frames: BlendMode::kLocal with the correction on and
+/// the DrivenShape weights (not the bind baseline).
+bool blendsLocally(const EvaluatorSettings& settings);
+
+/// What happened to one frame.
+struct FrameRecord {
+  int frame = 0;
+  bool skipped = false;  ///< (bake) an existing complete output was kept
+  /// (bake) Why an existing output was baked again by a resume (reuseProblem), or empty.
+  std::string rebakeReason;
+  std::vector<double> weights;  ///< k per region, region-major (k without regions)
+  std::vector<int> atZero;      ///< shapes held at weight 0 (active bounds)
+  std::vector<int> atOne;
+  double relativeResidual = 0.0;  ///< ||A w - b|| / ||b|| (the largest over regions)
+  double kktResidual = 0.0;
+  int iterations = 0;
+  std::string output;  ///< (bake) the file written
+  /// Rigid alignment of this frame (AlignMode::kRigid): x -> R x + t maps the shot's driver
+  /// onto the rest driver. R row-major.
+  std::vector<double> alignRotation;
+  std::vector<double> alignTranslation;
+  // Audit (-1 where not measured).
+  int insideBefore = -1;     ///< blended cloth inside the (aligned) shot driver (world blend)
+  int insideCorrected = -1;  ///< after the correction (or rebuild), before resolution
+  int insideAfter = -1;      ///< in the final cloth (after resolution when it runs)
+  int resolved = -1;         ///< vertices moved out by the penetration resolution
+  int bindingSwitches = -1;  ///< vertices bound to another triangle than the previous frame
+  double maxJump = -1.0;     ///< largest vertex move since the previous evaluated frame
+  int maxJumpVertex = -1;
+};
+
+/// Seconds per pipeline stage by name ("align", "project", "weights", "blend", "correct",
+/// "resolve", "layers", "audit", ...), summed over the frames of a call (or a bake).
+using StageSeconds = std::map<std::string, double>;
+
+/// The result of one evaluate() call.
+struct Evaluation {
+  std::vector<float> cloth;          ///< F x 3Vd, frame-major, interleaved xyz
+  std::vector<FrameRecord> records;  ///< F
+  StageSeconds seconds;              ///< of this call
+};
+
+/// Evaluates frames of one character's driver with one database and one set of settings.
+///
+/// Thread safety: an Evaluator is not thread-safe (it owns device buffers and temporal state);
+/// use one per thread. Several Evaluators may share a Device and a Database, which must outlive
+/// them. Construction does all the per-database work (alignment of the shapes, QP
+/// factorisations, rest binding, table uploads); evaluate() does only per-frame work.
+class Evaluator {
+ public:
+  /// Checks the settings against the database (Error(kUsage) naming the setting, Error(kInput)
+  /// for masks, regions or layers that do not fit its meshes) and prepares everything.
+  Evaluator(const Database& database, EvaluatorSettings settings, Device& device);
+  ~Evaluator();
+  Evaluator(const Evaluator&) = delete;
+  Evaluator& operator=(const Evaluator&) = delete;
+
+  /// Evaluates `frames.size()` frames. `driver` holds them frame-major (F x 3Vp floats, the
+  /// database's driver topology); frame numbers name frames in records and messages and set
+  /// the wind's time. Throws Error(kInput) naming the frame and vertex of a non-finite driver
+  /// position, Error(kNumerical) when a solve fails, Error(kDevice) on OpenCL failures.
+  Evaluation evaluate(const std::vector<int>& frames, const std::vector<float>& driver);
+
+  /// The same into caller-owned memory: driver F x 3Vp, cloth F x 3Vd, records F.
+  ///
+  /// With maxWeightChange > 0, the first `warmup` frames are solved in order to settle the
+  /// weight bound but not evaluated further: cloth and records hold the other F - warmup
+  /// frames. Returns the seconds per stage of this call.
+  StageSeconds evaluate(int frameCount, const int* frames, const float* driver, float* cloth,
+                        FrameRecord* records, int warmup = 0);
+
+  /// Throws Error(kInput) naming the first of `frames` a layer cannot provide (a mix cache
+  /// without that frame). Call it before a long run to fail early.
+  void checkFrames(const std::vector<int>& frames) const;
+
+  /// Forgets the previous frame's weights: the next frame is solved without the temporal
+  /// bound (a cut, a jump in the timeline, or the start of a farm batch).
+  void resetTemporalBound();
+  /// Forgets the previous frame altogether: the weight bound and the audit's reference for
+  /// binding switches and jumps.
+  void resetHistory();
+
+  /// A hash of everything that changes the result (database, settings, loaded masks, regions
+  /// and layer weights, the library version): equal hashes, equal cloth.
+  std::uint64_t settingsHash() const;
+  /// The settings as the bake report writes them (JSON object text).
+  std::string describeSettings() const;
+  /// The layers as the EXR header's dsLayers attribute writes them ("{}" when none).
+  std::string describeLayers() const;
+  /// The stages this evaluator runs, in order.
+  std::vector<std::string> stageNames() const;
+
+  const Database& database() const;
+  const EvaluatorSettings& settings() const;
+  /// The device description (Device::description()).
+  std::string deviceName() const;
+  int driverVertexCount() const;
+  int drivenVertexCount() const;
+
+  /// Memory one frame takes in evaluate()'s buffers (bytes); callers batching many frames
+  /// keep batch x this within their budget.
+  std::size_t bytesPerFrame() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> mImpl;
+};
+
+}  // namespace drivenshape

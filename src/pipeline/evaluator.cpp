@@ -1,0 +1,242 @@
+// The Evaluator: configures the registered stages once, then runs them in order on every block
+// of frames, timing each by its name.
+
+#include <drivenshape/evaluator.h>
+
+#include <chrono>
+#include <cmath>
+
+#include <drivenshape/error.h>
+#include <drivenshape/version.h>
+
+#include "json_text.h"
+#include "stage.h"
+
+namespace drivenshape {
+
+namespace pipeline {
+
+#define DS_STAGE(Name) std::unique_ptr<Stage> make##Name##Stage(Model& model);
+#include "stage_list.h"
+#undef DS_STAGE
+
+const std::vector<StageFactory>& stageFactories() {
+  static const std::vector<StageFactory> factories = {
+#define DS_STAGE(Name) &make##Name##Stage,
+#include "stage_list.h"
+#undef DS_STAGE
+  };
+  return factories;
+}
+
+}  // namespace pipeline
+
+const char* alignModeName(AlignMode mode) {
+  switch (mode) {
+    case AlignMode::kNone:
+      return "none";
+    case AlignMode::kRigid:
+      return "rigid";
+    case AlignMode::kRigidAll:
+      return "rigid-all";
+  }
+  return "?";
+}
+
+const char* weightModeName(WeightMode mode) {
+  switch (mode) {
+    case WeightMode::kQp:
+      return "qp";
+    case WeightMode::kNearest:
+      return "nearest";
+    case WeightMode::kBind:
+      return "bind";
+  }
+  return "?";
+}
+
+bool blendsLocally(const EvaluatorSettings& settings) {
+  return settings.blend == BlendMode::kLocal && settings.correct &&
+         settings.weightMode != WeightMode::kBind;
+}
+
+struct Evaluator::Impl {
+  Impl(const Database& database, EvaluatorSettings settings, Device& device)
+      : model(database, std::move(settings), device) {
+    for (pipeline::StageFactory factory : pipeline::stageFactories()) {
+      if (std::unique_ptr<pipeline::Stage> stage = factory(model)) {
+        stages.push_back(std::move(stage));
+      }
+    }
+    Hasher hasher;
+    hasher.addValue(database.contentHash());
+    hasher.addValue(static_cast<int>(model.settings.weightMode));
+    hasher.addValue(model.local);
+    for (const auto& stage : stages) {
+      hasher.addString(stage->name());
+      stage->addToHash(hasher);
+    }
+    hasher.addString(kVersion);
+    hash = hasher.value();
+  }
+
+  pipeline::Model model;
+  std::vector<std::unique_ptr<pipeline::Stage>> stages;
+  std::uint64_t hash = 0;
+  pipeline::Batch batch;  ///< reused: its buffers keep their capacity between calls
+};
+
+Evaluator::Evaluator(const Database& database, EvaluatorSettings settings, Device& device)
+    : mImpl(std::make_unique<Impl>(database, std::move(settings), device)) {}
+
+Evaluator::~Evaluator() = default;
+
+Evaluation Evaluator::evaluate(const std::vector<int>& frames, const std::vector<float>& driver) {
+  const std::size_t expected = frames.size() * mImpl->model.driverValues;
+  if (driver.size() != expected) {
+    DS_THROW(kUsage, "evaluate: ", frames.size(), " frames of a driver with ", mImpl->model.vp,
+             " vertices need ", expected, " floats, got ", driver.size());
+  }
+  Evaluation out;
+  out.cloth.resize(frames.size() * mImpl->model.drivenValues);
+  out.records.resize(frames.size());
+  out.seconds = evaluate(static_cast<int>(frames.size()), frames.data(), driver.data(),
+                         out.cloth.data(), out.records.data());
+  return out;
+}
+
+StageSeconds Evaluator::evaluate(int frameCount, const int* frames, const float* driver,
+                                 float* cloth, FrameRecord* records, int warmup) {
+  pipeline::Model& model = mImpl->model;
+  if (frameCount < 0 || warmup < 0 || (frameCount > 0 && warmup >= frameCount)) {
+    DS_THROW(kUsage, "evaluate: ", frameCount, " frames with a warm-up of ", warmup,
+             "; the warm-up must leave at least one frame");
+  }
+  StageSeconds seconds;
+  if (frameCount == 0) {
+    return seconds;
+  }
+  for (int i = 0; i < frameCount; ++i) {
+    const float* xyz = driver + static_cast<std::size_t>(i) * model.driverValues;
+    for (std::size_t j = 0; j < model.driverValues; ++j) {
+      if (!std::isfinite(xyz[j])) {
+        DS_THROW(kInput, "driver frame ", frames[i], " vertex ", j / 3,
+                 " is not a finite number; fix the driver or leave the frame out");
+      }
+    }
+  }
+  pipeline::Batch& batch = mImpl->batch;
+  batch.solveCount = frameCount;
+  batch.warm = warmup;
+  batch.count = frameCount - warmup;
+  batch.frames = frames;
+  batch.driver = driver;
+  batch.aligned = driver;
+  batch.records = records;
+  batch.cloth = cloth;
+  batch.layersApplied = false;
+  for (int i = 0; i < batch.count; ++i) {
+    records[i].frame = frames[warmup + i];
+  }
+  // The shot's driver stays on the device for the whole batch (released even on an error, so
+  // that no later call can match a stale copy by its address).
+  struct KeptPoses {
+    pipeline::Model& model;
+    ~KeptPoses() { model.releaseShotPoses(); }
+  } kept{model};
+  model.keepShotPoses(batch.count, batch.driverBlock(model.driverValues));
+  for (const auto& stage : mImpl->stages) {
+    const auto start = std::chrono::steady_clock::now();
+    stage->run(batch);
+    seconds[stage->name()] +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return seconds;
+}
+
+void Evaluator::checkFrames(const std::vector<int>& frames) const {
+  if (mImpl->model.layerStack) {
+    mImpl->model.layerStack->checkFrames(frames);
+  }
+}
+
+void Evaluator::resetTemporalBound() {
+  for (const auto& stage : mImpl->stages) {
+    stage->reset(false);
+  }
+}
+
+void Evaluator::resetHistory() {
+  for (const auto& stage : mImpl->stages) {
+    stage->reset(true);
+  }
+}
+
+std::uint64_t Evaluator::settingsHash() const {
+  return mImpl->hash;
+}
+
+std::string Evaluator::describeSettings() const {
+  const EvaluatorSettings& settings = mImpl->model.settings;
+  nlohmann::json json{
+      {"weights", weightModeName(settings.weightMode)},
+      {"correct", settings.correct},
+      {"audit", settings.audit},
+      {"align", alignModeName(settings.align)},
+      {"align_group", settings.alignGroup.empty() ? std::string("all") : settings.alignGroup},
+      {"align_vertices", 0},
+      {"blend", mImpl->model.local ? "local" : "world"},
+      {"resolve", settings.resolve},
+      {"skin_offset", settings.skinOffset},
+      {"regions", nlohmann::json::array()},
+      {"region_falloff", 0},
+      {"max_weight_change", settings.maxWeightChange},
+      {"layers", nlohmann::json::object()},
+      {"stages", stageNames()},
+  };
+  for (const auto& stage : mImpl->stages) {
+    stage->describe(json);
+  }
+  return jsonText(json);
+}
+
+std::string Evaluator::describeLayers() const {
+  return mImpl->model.layerStack ? mImpl->model.layerStack->describe() : std::string("{}");
+}
+
+std::vector<std::string> Evaluator::stageNames() const {
+  std::vector<std::string> names;
+  for (const auto& stage : mImpl->stages) {
+    names.emplace_back(stage->name());
+  }
+  return names;
+}
+
+const Database& Evaluator::database() const {
+  return mImpl->model.db;
+}
+
+const EvaluatorSettings& Evaluator::settings() const {
+  return mImpl->model.settings;
+}
+
+std::string Evaluator::deviceName() const {
+  return mImpl->model.device.description();
+}
+
+int Evaluator::driverVertexCount() const {
+  return mImpl->model.vp;
+}
+
+int Evaluator::drivenVertexCount() const {
+  return mImpl->model.vd;
+}
+
+std::size_t Evaluator::bytesPerFrame() const {
+  // Driver frames (read, aligned, blended) and the pipeline's cloth blocks (blend, two output
+  // blocks) in float, plus two hit arrays.
+  const std::size_t vp = mImpl->model.vp, vd = mImpl->model.vd;
+  return sizeof(float) * 3 * (3 * vp + 3 * vd) + 2 * sizeof(SurfaceHit) * vd;
+}
+
+}  // namespace drivenshape

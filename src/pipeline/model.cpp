@@ -1,0 +1,230 @@
+// The state the stages of one evaluator share, and the helpers several stages use.
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+#include <drivenshape/error.h>
+#include "parallel.h"
+
+#include "stage.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+int threadsFor(const EvaluatorSettings& settings) {
+  return settings.threads > 0 ? settings.threads
+                              : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+/// Throws Error(kUsage) naming the setting when `settings` cannot run on `db`.
+void validate(const Database& db, const EvaluatorSettings& settings) {
+  if (db.shapeCount() < 1) {
+    DS_THROW(kInput, "the database has no shapes; build it again with `drivenshape db build`");
+  }
+  if (settings.weightMode == WeightMode::kBind && !settings.correct) {
+    DS_THROW(kUsage,
+             "the bind baseline is the correction applied to the rest shapes; it cannot run "
+             "with the correction off");
+  }
+  if (settings.weightMode != WeightMode::kQp &&
+      (settings.regions || settings.maxWeightChange > 0)) {
+    DS_THROW(kUsage,
+             "regions and a maximum weight change apply to the QP weights only (weight mode "
+             "qp)");
+  }
+  if (!std::isfinite(settings.skinOffset) || settings.skinOffset < 0) {
+    DS_THROW(kUsage, "the skin offset must be a distance >= 0 in scene units (got ",
+             settings.skinOffset, ")");
+  }
+  if (!std::isfinite(settings.maxWeightChange) || settings.maxWeightChange < 0 ||
+      settings.maxWeightChange > 1) {
+    DS_THROW(kUsage, "the maximum weight change must be in [0, 1] (0 = off; got ",
+             settings.maxWeightChange, ")");
+  }
+  if (settings.threads < 0) {
+    DS_THROW(kUsage, "threads must be >= 0 (0 = all cores; got ", settings.threads, ")");
+  }
+  if (settings.bindingMask && settings.bindingMask->drivenVertexCount() != db.drivenVertexCount()) {
+    DS_THROW(kInput, "the binding mask covers ", settings.bindingMask->drivenVertexCount(),
+             " cloth vertices but the database's cloth has ", db.drivenVertexCount());
+  }
+  if (settings.regions) {
+    const std::size_t count = static_cast<std::size_t>(settings.regions->count());
+    if (count == 0 || settings.regions->drivenMix.size() != count * db.drivenVertexCount() ||
+        settings.regions->driverMix.size() != count * db.driverVertexCount()) {
+      DS_THROW(kInput,
+               "the regions do not fit the database's meshes (a region set needs at least one "
+               "region and a mix weight per region and vertex); read them with readRegions()");
+    }
+  }
+}
+
+}  // namespace
+
+Model::Model(const Database& database, EvaluatorSettings evaluatorSettings, Device& target)
+    : db(database),
+      settings((validate(database, evaluatorSettings), std::move(evaluatorSettings))),
+      device(target),
+      threads(threadsFor(settings)),
+      k(database.shapeCount()),
+      vp(database.driverVertexCount()),
+      vd(database.drivenVertexCount()),
+      driverValues(static_cast<std::size_t>(vp) * 3),
+      drivenValues(static_cast<std::size_t>(vd) * 3),
+      local(blendsLocally(settings)),
+      mMask(settings.bindingMask ? *settings.bindingMask : BindingMask::all(vd)) {
+  driverShapes = db.driverShapes;
+  if (!local) {
+    // Local blending encodes the unaligned shapes (local coordinates ignore rigid motions).
+    drivenShapes = db.drivenShapes;
+  }
+}
+
+Model::~Model() = default;
+
+StageBackend& Model::stages() {
+  if (!mStages) {
+    mStages = device.makeStages();
+  }
+  return *mStages;
+}
+
+ClosestBackend& Model::binding() {
+  if (!mBinding) {
+    mBinding = makeClosest(mMask);
+  }
+  return *mBinding;
+}
+
+ClosestBackend& Model::audit() {
+  if (!mAudit) {
+    mAudit = makeClosest(BindingMask::all(vd));
+  }
+  return *mAudit;
+}
+
+void Model::keepShotPoses(int count, const float* poses) {
+  for (ClosestBackend* backend : {mBinding.get(), mAudit.get()}) {
+    if (backend != nullptr) {
+      backend->keepPoses(count, poses);
+    }
+  }
+}
+
+void Model::releaseShotPoses() {
+  for (ClosestBackend* backend : {mBinding.get(), mAudit.get()}) {
+    if (backend != nullptr) {
+      backend->releasePoses();
+    }
+  }
+}
+
+std::unique_ptr<ClosestBackend> Model::makeClosest(const BindingMask& mask) {
+  ClosestOptions options;
+  options.threads = threads;
+  std::unique_ptr<ClosestBackend> backend = device.makeClosest(options);
+  backend->setSurface(db.driverMesh, mask);
+  return backend;
+}
+
+LayerBackend& Model::layers() {
+  if (!mLayers) {
+    mLayers = device.makeLayers();
+  }
+  return *mLayers;
+}
+
+const InsideAudit& Model::inside() {
+  if (!mInside) {
+    mInside = std::make_unique<InsideAudit>(db.driverMesh);
+  }
+  return *mInside;
+}
+
+std::vector<WeightProblem>& Model::problems() {
+  if (mProblems.empty()) {
+    if (settings.weightMode != WeightMode::kBind && settings.regions) {
+      for (const Region& region : settings.regions->regions) {
+        mProblems.push_back({region.name, region.driverVertices, nullptr});
+      }
+    } else {
+      mProblems.push_back({"all", {}, nullptr});
+    }
+    for (WeightProblem& problem : mProblems) {
+      problem.solver =
+          std::make_unique<SimplexLeastSquares>(driverMatrix(driverShapes, k, vp, problem.rows));
+    }
+  }
+  return mProblems;
+}
+
+Eigen::MatrixXd driverMatrix(const std::vector<float>& shapes, int k, int vertexCount,
+                             const std::vector<int>& vertices) {
+  const Eigen::Index n = static_cast<Eigen::Index>(vertexCount) * 3;
+  if (vertices.empty()) {
+    Eigen::MatrixXd a(n, k);
+    for (int i = 0; i < k; ++i) {
+      a.col(i) = Eigen::Map<const Eigen::VectorXf>(&shapes[i * n], n).cast<double>();
+    }
+    return a;
+  }
+  Eigen::MatrixXd a(static_cast<Eigen::Index>(vertices.size()) * 3, k);
+  for (int i = 0; i < k; ++i) {
+    for (std::size_t j = 0; j < vertices.size(); ++j) {
+      for (int c = 0; c < 3; ++c) {
+        a(static_cast<Eigen::Index>(3 * j + c), i) = shapes[i * n + 3 * vertices[j] + c];
+      }
+    }
+  }
+  return a;
+}
+
+ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
+                       std::vector<float> driverShapes, std::vector<float> drivenShapes) {
+  ShapeTables tables;
+  tables.driverVertexCount = db.driverVertexCount();
+  tables.drivenVertexCount = db.drivenVertexCount();
+  tables.shapeCount = db.shapeCount();
+  const Eigen::MatrixXd& basis = solver.basis();  // n x (k-1)
+  const Eigen::Index n = basis.rows();
+  tables.projectionRows.resize(static_cast<std::size_t>(basis.size()));
+  for (Eigen::Index r = 0; r < basis.cols(); ++r) {
+    for (Eigen::Index j = 0; j < n; ++j) {
+      tables.projectionRows[r * n + j] = static_cast<float>(basis(j, r));
+    }
+  }
+  tables.center.resize(static_cast<std::size_t>(n));
+  for (Eigen::Index j = 0; j < n; ++j) {
+    tables.center[j] = static_cast<float>(solver.center()(j));
+  }
+  tables.driverShapes = std::move(driverShapes);
+  tables.drivenShapes = std::move(drivenShapes);
+  return tables;
+}
+
+void countInside(Model& model, Batch& batch, const float* poses, const float* cloth,
+                 int FrameRecord::*field) {
+  batch.auditHits.resize(static_cast<std::size_t>(batch.count) * model.vd);
+  model.audit().closest(batch.count, poses, cloth, batch.auditHits.data());
+  const InsideAudit& inside = model.inside();
+  parallelFor(batch.count, model.threads, [&](int i) {
+    batch.records[i].*field =
+        inside.countInside(poses + i * model.driverValues, model.vd, cloth + i * model.drivenValues,
+                           &batch.auditHits[static_cast<std::size_t>(i) * model.vd]);
+  });
+}
+
+}  // namespace drivenshape::pipeline
+
+namespace drivenshape {
+
+ShapeTables makeShapeTables(const Database& database) {
+  return pipeline::tablesFrom(
+      database,
+      SimplexLeastSquares(pipeline::driverMatrix(database.driverShapes, database.shapeCount(),
+                                                 database.driverVertexCount(), {})),
+      database.driverShapes, database.drivenShapes);
+}
+
+}  // namespace drivenshape

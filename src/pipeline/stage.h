@@ -1,0 +1,162 @@
+#pragma once
+
+// The evaluator's pipeline (DESIGN.md §3): each step of a frame is one Stage, in one file under
+// src/pipeline/stages/, registered by one line in stage_list.h. A stage is configured once (its
+// constructor, from the Model the stages share), adds what changes its result to the settings
+// hash and the report, and runs on a Batch of frames. The runner (evaluator.cpp) times every
+// stage by its name.
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include <drivenshape/align.h>
+#include <drivenshape/evaluator.h>
+#include <drivenshape/hash.h>
+#include <drivenshape/qp.h>
+
+namespace drivenshape::pipeline {
+
+/// One weight problem: the QP on the driver rows of a region (or all rows).
+struct WeightProblem {
+  std::string name;
+  std::vector<int> rows;  ///< driver vertices; empty = every row (projected by the backend)
+  std::unique_ptr<SimplexLeastSquares> solver;
+};
+
+/// What the stages of one evaluator share: the database and settings, the device's backends
+/// (made on first use) and the tables stages prepare for each other while they are configured,
+/// in pipeline order.
+class Model {
+ public:
+  Model(const Database& database, EvaluatorSettings settings, Device& device);
+  ~Model();
+
+  const Database& db;
+  const EvaluatorSettings settings;
+  Device& device;
+  const int threads;  ///< settings.threads, or every hardware thread
+  const int k, vp, vd;
+  const std::size_t driverValues, drivenValues;  ///< 3Vp, 3Vd
+  const bool local;                              ///< blendsLocally(settings)
+  const BindingMask& mask() const { return mMask; }
+
+  // Backends on the device, made on first use. binding() searches the triangles the mask
+  // allows; audit() every triangle (resolution, audit, wind clearance).
+  StageBackend& stages();
+  ClosestBackend& binding();
+  ClosestBackend& audit();
+  LayerBackend& layers();
+  const InsideAudit& inside();
+
+  /// Tells the closest-point backends made so far that `poses` (count x 3Vp: a batch's shot
+  /// driver) stays unchanged until releaseShotPoses(), so an OpenCL device holds one copy for
+  /// every search, rebuild and resolution of the batch (ClosestBackend::keepPoses).
+  void keepShotPoses(int count, const float* poses);
+  void releaseShotPoses();
+
+  // Tables the stages prepare (configure order: align, project/weights, blend, ...).
+  /// k x 3Vp database driver shapes, rigidly aligned to the rest driver by the align stage.
+  std::vector<float> driverShapes;
+  /// k x 3Vd database driven shapes moved with their driver's alignment (world blending).
+  std::vector<float> drivenShapes;
+  std::unique_ptr<RigidAligner> aligner;  ///< set by the align stage
+  std::vector<int> alignVertices;
+  /// Local blending: every driven vertex's closest point on the rest driver (mask respected),
+  /// set by the blend stage, used by the correction's rebuild.
+  std::vector<SurfaceHit> restHits;
+  /// The layers, set by the layers stage.
+  std::optional<LayerStack> layerStack;
+  /// The weight problems: one per region, or one on every row. Built on first use, from the
+  /// aligned driver shapes.
+  std::vector<WeightProblem>& problems();
+  int regionCount() { return static_cast<int>(problems().size()); }
+
+ private:
+  /// A closest-point backend on the device searching the triangles `mask` allows.
+  std::unique_ptr<ClosestBackend> makeClosest(const BindingMask& mask);
+
+  BindingMask mMask;
+  std::unique_ptr<StageBackend> mStages;
+  std::unique_ptr<ClosestBackend> mBinding, mAudit;
+  std::unique_ptr<LayerBackend> mLayers;
+  std::unique_ptr<InsideAudit> mInside;
+  std::vector<WeightProblem> mProblems;
+};
+
+/// One block of frames on its way through the pipeline. The first `warm` frames are solved
+/// (align, project, weights) to settle the temporal bound, then dropped; the other `count`
+/// frames go all the way. Frame blocks are frame-major.
+struct Batch {
+  int solveCount = 0;  ///< n = warm + count
+  int warm = 0;
+  int count = 0;
+  const int* frames = nullptr;     ///< n frame numbers
+  const float* driver = nullptr;   ///< n x 3Vp, world space
+  FrameRecord* records = nullptr;  ///< count
+  float* cloth = nullptr;          ///< count x 3Vd: the result
+
+  // Filled by the stages, in order.
+  const float* aligned = nullptr;          ///< n x 3Vp in the database's frame (or = driver)
+  std::vector<float> alignedStore;         ///< backs `aligned` when the align stage runs
+  std::vector<RigidTransform> motions;     ///< n, when the align stage runs
+  std::vector<float> projections, norms;   ///< device projection: n x (k-1), n x 2
+  std::vector<double> hostProjections;     ///< region projections: n x regions x (k+1)
+  std::vector<SimplexSolution> solutions;  ///< n x regions
+  std::vector<float> weights;              ///< count x regions x k
+  std::vector<float> driven;               ///< count x 3Vd blended cloth (world or local offsets)
+  std::vector<float> blendedDriver;        ///< count x 3Vp blended driver (world blending)
+  std::vector<SurfaceHit> hits;            ///< count x Vd binding hits (world blending)
+  std::vector<SurfaceHit> auditHits;       ///< count x Vd closest points over every triangle
+  std::vector<int> moved;                  ///< count, by the resolution
+  bool layersApplied = false;
+
+  const float* driverBlock(std::size_t driverValues) const {
+    return driver + static_cast<std::size_t>(warm) * driverValues;
+  }
+  const float* alignedBlock(std::size_t driverValues) const {
+    return aligned + static_cast<std::size_t>(warm) * driverValues;
+  }
+};
+
+/// One step of a frame. Configure in the constructor (from the Model; throw Error naming the
+/// setting when the settings do not fit), then run() on many batches.
+class Stage {
+ public:
+  virtual ~Stage() = default;
+  /// The timer (and report) name: stages sharing a name share a timer.
+  virtual const char* name() const = 0;
+  /// Adds every setting and table that changes this stage's result.
+  virtual void addToHash(Hasher& /*hasher*/) const {}
+  /// Adds this stage's entries to the report's "settings" object.
+  virtual void describe(nlohmann::json& /*settings*/) const {}
+  /// Forgets the previous frame (temporal state); `all` also forgets audit references.
+  virtual void reset(bool /*all*/) {}
+  virtual void run(Batch& batch) = 0;
+};
+
+/// Makes a stage for these settings, or null when the settings leave it out.
+using StageFactory = std::unique_ptr<Stage> (*)(Model& model);
+
+/// The registered stages in pipeline order (stage_list.h).
+const std::vector<StageFactory>& stageFactories();
+
+/// The database driver shapes (k x 3Vp, flat) as an n x k matrix of the rows of `vertices`
+/// (every vertex when empty).
+Eigen::MatrixXd driverMatrix(const std::vector<float>& shapes, int k, int vertexCount,
+                             const std::vector<int>& vertices);
+
+/// The backend tables: the projection basis of `solver` and the shapes to blend.
+ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
+                       std::vector<float> driverShapes, std::vector<float> drivenShapes);
+
+/// Counts how many of `count` points of each frame are inside the driver, from closest points
+/// over every triangle computed here: poses F x 3Vp, cloth F x 3Vd, into (records[f].*field).
+void countInside(Model& model, Batch& batch, const float* poses, const float* cloth,
+                 int FrameRecord::*field);
+
+}  // namespace drivenshape::pipeline

@@ -1,0 +1,88 @@
+// Rigid alignment (AlignMode::kRigid, kRigidAll): each driver frame is fitted to the database's
+// rest driver, and so is every database shape (once, here), so that the weights and the blend
+// compare poses, not places. The correction (or the inverse motion) takes the cloth back.
+
+#include "parallel.h"
+
+#include "../stage.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+class AlignStage final : public Stage {
+ public:
+  explicit AlignStage(Model& model) : mModel(model) {
+    const Database& db = model.db;
+    const EvaluatorSettings& settings = model.settings;
+    const std::string source =
+        "align group '" + (settings.alignGroup.empty() ? std::string("all") : settings.alignGroup) +
+        "' (driver mesh)";
+    model.alignVertices = selectVertices(db.driverMesh, settings.alignGroup, source);
+    model.aligner = std::make_unique<RigidAligner>(db.driverMesh, db.driverMesh.positions.data(),
+                                                   model.alignVertices, source);
+    if (settings.align == AlignMode::kRigid) {
+      // Lock onto the part that moves rigidly across the database (the pelvis, not the legs).
+      RigidityOptions rigidity;
+      rigidity.threads = model.threads;
+      model.aligner->weightByRigidity(db.driverShapes.data(), model.k, rigidity);
+    }
+    // The database in the same frame as the shots: each shape pair moves with the motion that
+    // fits its driver shape to the rest driver.
+    const std::size_t dv = model.driverValues, dd = model.drivenValues;
+    parallelFor(model.k, model.threads, [&](int i) {
+      const RigidTransform motion = model.aligner->fit(&db.driverShapes[i * dv]);
+      motion.apply(&db.driverShapes[i * dv], model.vp, &model.driverShapes[i * dv]);
+      if (!model.local) {
+        motion.apply(&db.drivenShapes[i * dd], model.vd, &model.drivenShapes[i * dd]);
+      }
+    });
+  }
+
+  const char* name() const override { return "align"; }
+
+  void addToHash(Hasher& hasher) const override {
+    hasher.addValue(static_cast<int>(mModel.settings.align));
+    hasher.add(mModel.alignVertices.data(), mModel.alignVertices.size() * sizeof(int));
+    hasher.add(mModel.aligner->weights().data(), mModel.aligner->weights().size() * sizeof(double));
+  }
+
+  void describe(nlohmann::json& settings) const override {
+    settings["align_vertices"] = mModel.alignVertices.size();
+  }
+
+  void run(Batch& batch) override {
+    const std::size_t dv = mModel.driverValues;
+    batch.alignedStore.resize(static_cast<std::size_t>(batch.solveCount) * dv);
+    batch.motions.resize(batch.solveCount);
+    parallelFor(batch.solveCount, mModel.threads, [&](int i) {
+      batch.motions[i] = mModel.aligner->fit(&batch.driver[i * dv]);
+      batch.motions[i].apply(&batch.driver[i * dv], mModel.vp, &batch.alignedStore[i * dv]);
+    });
+    batch.aligned = batch.alignedStore.data();
+    for (int i = 0; i < batch.count; ++i) {
+      const RigidTransform& motion = batch.motions[batch.warm + i];
+      FrameRecord& record = batch.records[i];
+      record.alignRotation.clear();
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+          record.alignRotation.push_back(motion.rotation(r, c));
+        }
+      }
+      record.alignTranslation.assign(motion.translation.data(), motion.translation.data() + 3);
+    }
+  }
+
+ private:
+  Model& mModel;
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> makeAlignStage(Model& model) {
+  if (model.settings.weightMode == WeightMode::kBind || model.settings.align == AlignMode::kNone) {
+    return nullptr;
+  }
+  return std::make_unique<AlignStage>(model);
+}
+
+}  // namespace drivenshape::pipeline

@@ -1,0 +1,105 @@
+// The per-frame audit of the final cloth: vertices inside the shot's driver (recounted only
+// when the resolution moved something or layers changed the cloth), binding switches and the
+// largest jump against the previous evaluated frame.
+
+#include <algorithm>
+#include <cmath>
+
+#include "../stage.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+class AuditStage final : public Stage {
+ public:
+  explicit AuditStage(Model& model) : mModel(model) { model.audit(); }
+
+  const char* name() const override { return "audit"; }
+
+  void reset(bool all) override {
+    if (all) {
+      mPreviousOutput.clear();
+      mPreviousHits.clear();
+    }
+  }
+
+  void run(Batch& batch) override {
+    countAfter(batch);
+    const bool switches = mModel.settings.correct && !mModel.local;
+    const std::size_t dd = mModel.drivenValues;
+    const int vd = mModel.vd;
+    for (int i = 0; i < batch.count; ++i) {
+      FrameRecord& record = batch.records[i];
+      const float* now = batch.cloth + i * dd;
+      const float* before = i > 0                     ? batch.cloth + (i - 1) * dd
+                            : mPreviousOutput.empty() ? nullptr
+                                                      : mPreviousOutput.data();
+      if (before != nullptr) {
+        record.maxJump = 0.0;
+        for (int v = 0; v < vd; ++v) {
+          const double dx = now[3 * v] - before[3 * v], dy = now[3 * v + 1] - before[3 * v + 1],
+                       dz = now[3 * v + 2] - before[3 * v + 2];
+          const double jump = std::sqrt(dx * dx + dy * dy + dz * dz);
+          if (jump > record.maxJump) {
+            record.maxJump = jump;
+            record.maxJumpVertex = v;
+          }
+        }
+      }
+      if (switches) {
+        const SurfaceHit* nowHits = &batch.hits[static_cast<std::size_t>(i) * vd];
+        const SurfaceHit* beforeHits = i > 0 ? &batch.hits[static_cast<std::size_t>(i - 1) * vd]
+                                       : mPreviousHits.empty() ? nullptr
+                                                               : mPreviousHits.data();
+        if (beforeHits != nullptr) {
+          record.bindingSwitches = 0;
+          for (int v = 0; v < vd; ++v) {
+            record.bindingSwitches += nowHits[v].triangle != beforeHits[v].triangle ? 1 : 0;
+          }
+        }
+      }
+    }
+    mPreviousOutput.assign(batch.cloth + (batch.count - 1) * dd, batch.cloth + batch.count * dd);
+    if (switches) {
+      mPreviousHits.assign(batch.hits.end() - vd, batch.hits.end());
+    }
+  }
+
+ private:
+  /// Inside counts after the resolution and layers; reuses the resolution's count when
+  /// nothing moved since.
+  void countAfter(Batch& batch) {
+    const bool resolve = mModel.settings.resolve;
+    const bool anyMoved = (resolve && std::any_of(batch.moved.begin(), batch.moved.end(),
+                                                  [](int moved) { return moved > 0; })) ||
+                          batch.layersApplied;
+    if (!resolve || anyMoved) {
+      countInside(mModel, batch, batch.driverBlock(mModel.driverValues), batch.cloth,
+                  &FrameRecord::insideAfter);
+    }
+    for (int i = 0; i < batch.count; ++i) {
+      FrameRecord& record = batch.records[i];
+      if (resolve && !anyMoved) {
+        record.insideAfter = record.insideCorrected;
+      }
+      if (!resolve) {
+        record.insideCorrected = record.insideAfter;
+      }
+    }
+  }
+
+  Model& mModel;
+  std::vector<float> mPreviousOutput;     ///< the previous frame's cloth, 3Vd
+  std::vector<SurfaceHit> mPreviousHits;  ///< its binding hits (world blending), Vd
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> makeAuditStage(Model& model) {
+  if (!model.settings.audit) {
+    return nullptr;
+  }
+  return std::make_unique<AuditStage>(model);
+}
+
+}  // namespace drivenshape::pipeline

@@ -1,0 +1,113 @@
+// The blend (DESIGN.md §3 step 4): the database shapes weighted per frame, on the backend. Per
+// region when there are regions, then mixed per vertex with the regions' partition of unity.
+// Local blending blends every shape's offsets in the local frames of the rest binding (encoded
+// here, once); the bind baseline blends nothing and hands the rest shapes on.
+
+#include <algorithm>
+
+#include "parallel.h"
+
+#include "../stage.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+class BlendStage final : public Stage {
+ public:
+  explicit BlendStage(Model& model) : mModel(model) {
+    const Database& db = model.db;
+    std::vector<float> localShapes;
+    if (model.local) {
+      // Bind once at rest (mask respected), then store every shape as offsets in the local
+      // frames of the same triangles at the same barycentric points.
+      model.restHits.resize(static_cast<std::size_t>(model.vd));
+      model.binding().closest(1, db.driverMesh.positions.data(), db.drivenMesh.positions.data(),
+                              model.restHits.data());
+      localShapes.resize(db.drivenShapes.size());
+      parallelFor(model.k, model.threads, [&](int i) {
+        encodeLocal(db.driverMesh, &db.driverShapes[i * model.driverValues], model.vd,
+                    &db.drivenShapes[i * model.drivenValues], model.restHits.data(),
+                    &localShapes[i * model.drivenValues]);
+      });
+    }
+    // The backend's projection tables are those of the one QP on every (aligned) row.
+    const bool regions = model.settings.regions && model.settings.weightMode != WeightMode::kBind;
+    const std::unique_ptr<SimplexLeastSquares> full =
+        regions ? std::make_unique<SimplexLeastSquares>(
+                      driverMatrix(model.driverShapes, model.k, model.vp, {}))
+                : nullptr;
+    // The blended shapes are needed only on the backend from here on: hand them over.
+    model.stages().upload(tablesFrom(db, full ? *full : *model.problems().front().solver,
+                                     model.driverShapes,
+                                     std::move(model.local ? localShapes : model.drivenShapes)));
+  }
+
+  const char* name() const override { return "blend"; }
+
+  void run(Batch& batch) override {
+    const int count = batch.count;
+    const std::size_t dv = mModel.driverValues, dd = mModel.drivenValues;
+    const bool needDriver = !mModel.local && mModel.settings.correct;
+    batch.driven.resize(count * dd);
+    batch.blendedDriver.resize(needDriver ? count * dv : 0);
+    if (mModel.settings.weightMode == WeightMode::kBind) {
+      // The rest shapes stand in for the blend: every frame binds the rest cloth to the rest
+      // driver and carries it to the shot's pose.
+      for (int i = 0; i < count; ++i) {
+        std::copy_n(mModel.db.drivenMesh.positions.data(), dd, &batch.driven[i * dd]);
+        std::copy_n(mModel.db.driverMesh.positions.data(), dv, &batch.blendedDriver[i * dv]);
+      }
+      return;
+    }
+    const int regionCount = mModel.regionCount();
+    if (regionCount == 1) {
+      mModel.stages().blend(count, batch.weights.data(), batch.driven.data(),
+                            needDriver ? batch.blendedDriver.data() : nullptr);
+      return;
+    }
+    mDrivenRegions.resize(static_cast<std::size_t>(count) * regionCount * dd);
+    mDriverRegions.resize(needDriver ? mDrivenRegions.size() / dd * dv : 0);
+    mModel.stages().blend(count * regionCount, batch.weights.data(), mDrivenRegions.data(),
+                          needDriver ? mDriverRegions.data() : nullptr);
+    const RegionSet& regions = *mModel.settings.regions;
+    mix(count, mDrivenRegions, regions.drivenMix, mModel.vd, batch.driven);
+    if (needDriver) {
+      mix(count, mDriverRegions, regions.driverMix, mModel.vp, batch.blendedDriver);
+    }
+  }
+
+ private:
+  /// out[f] = sum_r mix_r * perRegion[f][r], per vertex (the partition of unity).
+  void mix(int count, const std::vector<float>& perRegion, const std::vector<float>& weightsOf,
+           int vertices, std::vector<float>& out) const {
+    const int regionCount = mModel.settings.regions->count();
+    const std::size_t values = static_cast<std::size_t>(vertices) * 3;
+    parallelFor(count, mModel.threads, [&](int i) {
+      for (int v = 0; v < vertices; ++v) {
+        double sum[3] = {0, 0, 0};
+        for (int r = 0; r < regionCount; ++r) {
+          const float phi = weightsOf[static_cast<std::size_t>(r) * vertices + v];
+          const float* x =
+              &perRegion[(static_cast<std::size_t>(i) * regionCount + r) * values + 3 * v];
+          for (int c = 0; c < 3; ++c) {
+            sum[c] += double(phi) * x[c];
+          }
+        }
+        for (int c = 0; c < 3; ++c) {
+          out[i * values + 3 * v + c] = static_cast<float>(sum[c]);
+        }
+      }
+    });
+  }
+
+  Model& mModel;
+  std::vector<float> mDrivenRegions, mDriverRegions;  ///< count x regions x 3V
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> makeBlendStage(Model& model) {
+  return std::make_unique<BlendStage>(model);
+}
+
+}  // namespace drivenshape::pipeline

@@ -1,0 +1,33 @@
+// Audit of the world blend before any correction: how many cloth vertices the blend alone puts
+// inside the (aligned) shot driver, the figure the correction exists to fix.
+
+#include "../stage.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+class BlendAuditStage final : public Stage {
+ public:
+  explicit BlendAuditStage(Model& model) : mModel(model) { model.audit(); }
+
+  const char* name() const override { return "audit"; }
+
+  void run(Batch& batch) override {
+    countInside(mModel, batch, batch.alignedBlock(mModel.driverValues), batch.driven.data(),
+                &FrameRecord::insideBefore);
+  }
+
+ private:
+  Model& mModel;
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> makeBlendAuditStage(Model& model) {
+  if (!model.settings.audit || model.local) {
+    return nullptr;
+  }
+  return std::make_unique<BlendAuditStage>(model);
+}
+
+}  // namespace drivenshape::pipeline

@@ -1,0 +1,61 @@
+// Layers after the correction and resolution (DESIGN.md §3 step 7): the mix with another cache,
+// then wind limited by each vertex's clearance from the shot's driver (exact closest points,
+// every triangle).
+
+#include <cmath>
+
+#include "../stage.h"
+#include "json_text.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+class LayersStage final : public Stage {
+ public:
+  explicit LayersStage(Model& model) : mModel(model) {
+    model.layerStack.emplace(model.settings.layers, model.db.drivenMesh, model.layers());
+    if (model.settings.layers.hasWind()) {
+      model.audit();  // the wind's clearance
+    }
+  }
+
+  const char* name() const override { return "layers"; }
+
+  void addToHash(Hasher& hasher) const override { mModel.layerStack->addToHash(hasher); }
+
+  void describe(nlohmann::json& settings) const override {
+    settings["layers"] = parseJsonText(mModel.layerStack->describe(), "the layer description");
+  }
+
+  void run(Batch& batch) override {
+    const std::size_t points = static_cast<std::size_t>(batch.count) * mModel.vd;
+    mClearance.clear();
+    if (mModel.settings.layers.hasWind()) {
+      batch.auditHits.resize(points);
+      mModel.audit().closest(batch.count, batch.driverBlock(mModel.driverValues), batch.cloth,
+                             batch.auditHits.data());
+      mClearance.resize(points);
+      for (std::size_t i = 0; i < points; ++i) {
+        mClearance[i] = std::sqrt(batch.auditHits[i].distance2);
+      }
+    }
+    mModel.layerStack->apply(batch.count, batch.frames + batch.warm, batch.cloth,
+                             mClearance.empty() ? nullptr : mClearance.data());
+    batch.layersApplied = true;
+  }
+
+ private:
+  Model& mModel;
+  std::vector<float> mClearance;
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> makeLayersStage(Model& model) {
+  if (model.settings.layers.empty()) {
+    return nullptr;
+  }
+  return std::make_unique<LayersStage>(model);
+}
+
+}  // namespace drivenshape::pipeline

@@ -1,0 +1,51 @@
+// Penetration resolution on the shot's driver (every triangle): cloth inside the body or closer
+// than the skin offset moves out to the offset along the pseudo-normal at its closest point.
+// With the audit on, the cloth inside before the move is counted here too.
+
+#include "../stage.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+class ResolveStage final : public Stage {
+ public:
+  explicit ResolveStage(Model& model) : mModel(model) { model.audit(); }
+
+  const char* name() const override { return "resolve"; }
+
+  void addToHash(Hasher& hasher) const override {
+    hasher.addValue(mModel.settings.resolve);
+    hasher.addValue(mModel.settings.skinOffset);
+  }
+
+  void run(Batch& batch) override {
+    const float* shotDriver = batch.driverBlock(mModel.driverValues);
+    if (mModel.settings.audit) {
+      countInside(mModel, batch, shotDriver, batch.cloth, &FrameRecord::insideCorrected);
+    } else {
+      batch.auditHits.resize(static_cast<std::size_t>(batch.count) * mModel.vd);
+      mModel.audit().closest(batch.count, shotDriver, batch.cloth, batch.auditHits.data());
+    }
+    batch.moved.assign(batch.count, 0);
+    mModel.audit().resolve(batch.count, shotDriver, batch.auditHits.data(),
+                           static_cast<float>(mModel.settings.skinOffset), batch.cloth,
+                           batch.moved.data());
+    for (int i = 0; i < batch.count; ++i) {
+      batch.records[i].resolved = batch.moved[i];
+    }
+  }
+
+ private:
+  Model& mModel;
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> makeResolveStage(Model& model) {
+  if (!model.settings.resolve) {
+    return nullptr;
+  }
+  return std::make_unique<ResolveStage>(model);
+}
+
+}  // namespace drivenshape::pipeline

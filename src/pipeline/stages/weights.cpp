@@ -1,0 +1,182 @@
+// The blend weights of each frame (DESIGN.md §3 step 3): the DrivenShape QP per weight problem
+// (min ||A w - b||, sum w = 1, 0 <= w <= 1, optionally within maxWeightChange of the previous
+// frame's weights), or the nearest-shape baseline.
+
+#include <algorithm>
+#include <cmath>
+
+#include <drivenshape/error.h>
+#include "parallel.h"
+
+#include "../stage.h"
+
+namespace drivenshape::pipeline {
+namespace {
+
+class WeightsStage final : public Stage {
+ public:
+  explicit WeightsStage(Model& model) : mModel(model) {
+    if (model.settings.weightMode == WeightMode::kNearest) {
+      mShapes = driverMatrix(model.driverShapes, model.k, model.vp, {});
+    }
+  }
+
+  const char* name() const override { return "weights"; }
+
+  void addToHash(Hasher& hasher) const override {
+    const EvaluatorSettings& settings = mModel.settings;
+    hasher.addValue(settings.regions.has_value());
+    if (settings.regions) {
+      hasher.addValue(settings.regions->falloff);
+      for (const Region& region : settings.regions->regions) {
+        hasher.add(region.driverVertices.data(), region.driverVertices.size() * sizeof(int));
+        hasher.add(region.drivenVertices.data(), region.drivenVertices.size() * sizeof(int));
+      }
+    }
+    hasher.addValue(settings.maxWeightChange);
+  }
+
+  void describe(nlohmann::json& settings) const override {
+    if (!mModel.settings.regions) {
+      return;
+    }
+    nlohmann::json regions = nlohmann::json::array();
+    for (const Region& region : mModel.settings.regions->regions) {
+      regions.push_back({{"name", region.name},
+                         {"driver_vertices", region.driverVertices.size()},
+                         {"driven_vertices", region.drivenVertices.size()}});
+    }
+    settings["regions"] = regions;
+    settings["region_falloff"] = mModel.settings.regions->falloff;
+  }
+
+  void reset(bool /*all*/) override { mPrevious.clear(); }
+
+  void run(Batch& batch) override {
+    if (mModel.settings.weightMode == WeightMode::kQp) {
+      solve(batch);
+    }
+    const int k = mModel.k, regionCount = mModel.regionCount();
+    batch.weights.assign(static_cast<std::size_t>(batch.count) * regionCount * k, 0.0f);
+    parallelFor(batch.count, mModel.threads, [&](int i) {
+      FrameRecord& record = batch.records[i];
+      if (mModel.settings.weightMode == WeightMode::kQp) {
+        recordSolutions(batch, i, record);
+      } else {
+        nearest(batch.alignedBlock(mModel.driverValues) + i * mModel.driverValues, record);
+      }
+      for (std::size_t s = 0; s < record.weights.size(); ++s) {
+        batch.weights[i * regionCount * k + s] = static_cast<float>(record.weights[s]);
+      }
+    });
+  }
+
+ private:
+  /// The QP of every solve frame and region. With the temporal bound, frames are solved in
+  /// order, each bounded by the one before it (the first by the previous call's last frame,
+  /// unless the state was reset).
+  void solve(Batch& batch) {
+    const int n = batch.solveCount, regionCount = mModel.regionCount();
+    const bool temporal = mModel.settings.maxWeightChange > 0;
+    batch.solutions.assign(static_cast<std::size_t>(n) * regionCount, SimplexSolution{});
+    if (temporal) {
+      for (int i = 0; i < n; ++i) {
+        parallelFor(regionCount, std::min(mModel.threads, regionCount),
+                    [&](int r) { solveOne(batch, i, r); });
+      }
+      mPrevious.assign(batch.solutions.end() - regionCount, batch.solutions.end());
+    } else {
+      parallelFor(n * regionCount, mModel.threads,
+                  [&](int item) { solveOne(batch, item / regionCount, item % regionCount); });
+    }
+  }
+
+  void solveOne(Batch& batch, int i, int r) {
+    const int k = mModel.k, regionCount = mModel.regionCount();
+    const int item = i * regionCount + r;
+    Eigen::VectorXd p(k - 1);
+    double rr = 0, bb = 0;
+    if (batch.hostProjections.empty()) {
+      p = Eigen::Map<const Eigen::VectorXf>(&batch.projections[i * (k - 1)], k - 1).cast<double>();
+      rr = batch.norms[2 * i];
+      bb = batch.norms[2 * i + 1];
+    } else {
+      const double* in = &batch.hostProjections[static_cast<std::size_t>(item) * (k + 1)];
+      p = Eigen::Map<const Eigen::VectorXd>(in, k - 1);
+      rr = in[k - 1];
+      bb = in[k];
+    }
+    const WeightProblem& problem = mModel.problems()[r];
+    const double tau = mModel.settings.maxWeightChange;
+    const SimplexSolution* previous = nullptr;
+    if (tau > 0) {
+      previous = i > 0 ? &batch.solutions[item - regionCount]
+                       : (mPrevious.empty() ? nullptr : &mPrevious[r]);
+    }
+    try {
+      if (previous != nullptr) {
+        const Eigen::VectorXd lower = (previous->weights.array() - tau).cwiseMax(0.0).matrix();
+        const Eigen::VectorXd upper = (previous->weights.array() + tau).cwiseMin(1.0).matrix();
+        batch.solutions[item] = problem.solver->solveProjected(p, rr, bb, lower, upper);
+      } else {
+        batch.solutions[item] = problem.solver->solveProjected(p, rr, bb);
+      }
+    } catch (const Error& error) {
+      DS_THROW(kNumerical, "frame ", batch.frames[i],
+               regionCount > 1 ? " region '" + problem.name + "'" : std::string(), ": ",
+               error.what());
+    }
+  }
+
+  void recordSolutions(const Batch& batch, int i, FrameRecord& record) {
+    const int k = mModel.k, regionCount = mModel.regionCount();
+    record.weights.clear();
+    record.atZero.clear();
+    record.atOne.clear();
+    record.relativeResidual = record.kktResidual = 0.0;
+    record.iterations = 0;
+    for (int r = 0; r < regionCount; ++r) {
+      const SimplexSolution& s = batch.solutions[(batch.warm + i) * regionCount + r];
+      record.weights.insert(record.weights.end(), s.weights.data(), s.weights.data() + k);
+      for (int z : s.atZero) {
+        record.atZero.push_back(r * k + z);
+      }
+      for (int o : s.atOne) {
+        record.atOne.push_back(r * k + o);
+      }
+      record.relativeResidual = std::max(record.relativeResidual, s.relativeResidual);
+      record.kktResidual = std::max(record.kktResidual, s.kktResidual);
+      record.iterations += s.iterations;
+    }
+  }
+
+  /// The nearest-shape baseline: weight 1 on the closest database driver shape.
+  void nearest(const float* frame, FrameRecord& record) const {
+    const Eigen::VectorXd b =
+        Eigen::Map<const Eigen::VectorXf>(frame, mModel.driverValues).cast<double>();
+    Eigen::Index best = 0;
+    const double distance = (mShapes.colwise() - b).colwise().squaredNorm().minCoeff(&best);
+    record.weights.assign(mModel.k, 0.0);
+    record.weights[best] = 1.0;
+    record.atZero.clear();
+    record.atOne.clear();
+    record.kktResidual = 0.0;
+    record.iterations = 0;
+    record.relativeResidual = b.norm() > 0 ? std::sqrt(distance) / b.norm() : 0.0;
+  }
+
+  Model& mModel;
+  Eigen::MatrixXd mShapes;                 ///< nearest: the aligned driver shapes, 3Vp x k
+  std::vector<SimplexSolution> mPrevious;  ///< temporal bound: the last frame's solutions
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> makeWeightsStage(Model& model) {
+  if (model.settings.weightMode == WeightMode::kBind) {
+    return nullptr;
+  }
+  return std::make_unique<WeightsStage>(model);
+}
+
+}  // namespace drivenshape::pipeline

@@ -1,0 +1,197 @@
+// The Evaluator against the command line's bake of the bundled sample: the same frames,
+// bitwise, whatever the batch size or thread count; its temporal state; its device use.
+
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include <drivenshape/bake.h>
+#include <drivenshape/database.h>
+#include <drivenshape/device.h>
+#include <drivenshape/device_cl.h>
+#include <drivenshape/error.h>
+#include <drivenshape/evaluator.h>
+#include <drivenshape/point_cache.h>
+
+#include "cli_test_util.h"
+
+namespace drivenshape {
+namespace {
+
+using testing::CliRun;
+using testing::runCli;
+using testing::sample;
+using testing::TempDir;
+
+/// The sample shot's frames (the test clip).
+std::vector<int> shotFrames() {
+  std::vector<int> frames;
+  for (int f = 1; f <= 48; ++f) {
+    frames.push_back(f);
+  }
+  return frames;
+}
+
+/// Frames [begin, begin + count) of a frame-major block of `values` floats per frame.
+std::vector<float> slice(const std::vector<float>& block, std::size_t values, int begin,
+                         int count) {
+  return std::vector<float>(block.begin() + begin * values,
+                            block.begin() + (begin + count) * values);
+}
+
+/// Number of floats of `a` and `b` whose bits differ.
+int bitDifferences(const std::vector<float>& a, const std::vector<float>& b) {
+  if (a.size() != b.size()) {
+    return -1;
+  }
+  int differences = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    differences += std::memcmp(&a[i], &b[i], sizeof(float)) != 0 ? 1 : 0;
+  }
+  return differences;
+}
+
+class EvaluatorTest : public testing::OpenClTest {
+ protected:
+  /// A 30-shape database of the sample, built by the CLI, and its bake of the test clip with
+  /// the defaults on the OpenCL device (once per test binary).
+  static void SetUpTestSuite() {
+    testing::OpenClTest::SetUpTestSuite();
+    sDir = new TempDir();
+    const CliRun db =
+        runCli(*sDir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+                       sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"),
+                       "--driven", sample("train.driven.pc2"), "--count", "30", "--quiet", "-o",
+                       sDir->file("sleeve.dsdb")});
+    ASSERT_EQ(db.code, 0) << db.err;
+    const CliRun bake = runCli(*sDir, {"bake", "--db", sDir->file("sleeve.dsdb"), "--driver",
+                                       sample("test.driver.pc2"), "--frames", "1-48", "--device",
+                                       "cpu", "--quiet", "-o", sDir->file("cli.####.exr")});
+    ASSERT_EQ(bake.code, 0) << bake.err;
+  }
+  static void TearDownTestSuite() {
+    delete sDir;
+    sDir = nullptr;
+  }
+
+  static std::string file(const std::string& name) { return sDir->file(name); }
+
+  static TempDir* sDir;
+};
+
+TempDir* EvaluatorTest::sDir = nullptr;
+
+TEST_F(EvaluatorTest, MatchesTheCliBakeBitwiseForEveryBatchSizeAndThreadCount) {
+  const Database db = loadDatabase(file("sleeve.dsdb"));
+  const std::vector<int> frames = shotFrames();
+  const std::vector<float> driver = readFrames(*openPointCache(sample("test.driver.pc2")), frames);
+  const std::vector<float> cli = readFrames(*openPointCache(file("cli.####.exr")), frames);
+  const std::size_t vp = 3 * static_cast<std::size_t>(db.driverVertexCount());
+  const std::size_t vd = 3 * static_cast<std::size_t>(db.drivenVertexCount());
+  std::unique_ptr<Device> device = makeOpenClDevice(context(), this->device(), queue());
+  for (const int threads : {1, 2}) {
+    EvaluatorSettings settings;
+    settings.threads = threads;
+    Evaluator evaluator(db, settings, *device);
+    for (const int batch : {1, 7, 64}) {
+      std::vector<float> cloth;
+      for (int begin = 0; begin < static_cast<int>(frames.size()); begin += batch) {
+        const int count = std::min<int>(batch, static_cast<int>(frames.size()) - begin);
+        const Evaluation out = evaluator.evaluate(
+            std::vector<int>(frames.begin() + begin, frames.begin() + begin + count),
+            slice(driver, vp, begin, count));
+        ASSERT_EQ(out.records.size(), static_cast<std::size_t>(count));
+        EXPECT_EQ(out.records.front().frame, frames[begin]);
+        cloth.insert(cloth.end(), out.cloth.begin(), out.cloth.end());
+      }
+      EXPECT_EQ(bitDifferences(cloth, cli), 0) << "batch " << batch << ", threads " << threads;
+    }
+  }
+  ASSERT_EQ(cli.size(), frames.size() * vd);
+}
+
+TEST_F(EvaluatorTest, TemporalBoundCarriesAcrossCallsUntilReset) {
+  // One frame per call, bound by the frame before, equals the bake that solves the same frames
+  // in one batch; after resetTemporalBound() a frame is solved free again.
+  const Database db = loadDatabase(file("sleeve.dsdb"));
+  const std::vector<int> frames = shotFrames();
+  const std::vector<float> driver = readFrames(*openPointCache(sample("test.driver.pc2")), frames);
+  const std::size_t vp = 3 * static_cast<std::size_t>(db.driverVertexCount());
+  std::unique_ptr<Device> host = makeHostDevice();
+
+  BakeOptions options;
+  options.frames = frames;
+  options.maxWeightChange = 0.02;
+  options.temporalWarmup = 0;
+  options.chunkSize = 48;
+  options.outputPattern = file("bounded.####.exr");
+  const BakeResult bounded = bake(db, *openPointCache(sample("test.driver.pc2")), *host, options);
+
+  EvaluatorSettings settings = evaluatorSettings(db, options);
+  Evaluator evaluator(db, settings, *host);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const Evaluation out =
+        evaluator.evaluate({frames[i]}, slice(driver, vp, static_cast<int>(i), 1));
+    EXPECT_EQ(out.records[0].weights, bounded.frames[i].weights) << "frame " << frames[i];
+  }
+  // A free solve of frame 30 differs from the bounded one (the bound is active there), and a
+  // reset gives exactly the free solve.
+  EvaluatorSettings freeSettings = settings;
+  freeSettings.maxWeightChange = 0.0;
+  Evaluator unbounded(db, freeSettings, *host);
+  const Evaluation free = unbounded.evaluate({30}, slice(driver, vp, 29, 1));
+  ASSERT_NE(free.records[0].weights, bounded.frames[29].weights)
+      << "the bound should be active at frame 30 with maxWeightChange 0.02";
+  evaluator.resetTemporalBound();
+  const Evaluation reset = evaluator.evaluate({30}, slice(driver, vp, 29, 1));
+  EXPECT_EQ(reset.records[0].weights, free.records[0].weights);
+}
+
+TEST_F(EvaluatorTest, CompilesEachProgramOncePerDeviceAndCountsTransfers) {
+  const Database db = loadDatabase(file("sleeve.dsdb"));
+  const std::vector<float> driver =
+      readFrames(*openPointCache(sample("test.driver.pc2")), {1, 2, 3});
+  std::unique_ptr<Device> device = makeOpenClDevice(context(), this->device(), queue());
+  Evaluator first(db, EvaluatorSettings(), *device);
+  // Projection + blend, and one closest-point program shared by the binding and the audit.
+  EXPECT_EQ(device->programsBuilt(), 2);
+  Evaluator second(db, EvaluatorSettings(), *device);
+  EXPECT_EQ(device->programsBuilt(), 2);
+  const TransferCounts before = device->transfers();
+  second.evaluate({1, 2, 3}, driver);
+  const TransferCounts after = device->transfers();
+  EXPECT_GT(after.uploads, before.uploads);
+  EXPECT_GT(after.downloads, before.downloads);
+  // At least the driver frames went in and the cloth came out.
+  EXPECT_GE(after.uploadBytes - before.uploadBytes,
+            static_cast<std::int64_t>(driver.size() * sizeof(float)));
+  EXPECT_GE(after.downloadBytes - before.downloadBytes,
+            static_cast<std::int64_t>(3 * 3 * db.drivenVertexCount() * sizeof(float)));
+}
+
+TEST_F(EvaluatorTest, MessagesNameSettingsAndTheFrameAtFault) {
+  const Database db = loadDatabase(file("sleeve.dsdb"));
+  std::unique_ptr<Device> host = makeHostDevice();
+  EvaluatorSettings settings;
+  settings.skinOffset = -1.0;
+  testing::expectThrows([&] { Evaluator evaluator(db, settings, *host); }, ErrorCode::kUsage,
+                        "skin offset");
+  settings = EvaluatorSettings();
+  settings.weightMode = WeightMode::kBind;
+  settings.correct = false;
+  testing::expectThrows([&] { Evaluator evaluator(db, settings, *host); }, ErrorCode::kUsage,
+                        "correction off");
+
+  Evaluator evaluator(db, EvaluatorSettings(), *host);
+  std::vector<float> driver = readFrames(*openPointCache(sample("test.driver.pc2")), {5});
+  driver[3 * 11 + 2] = std::numeric_limits<float>::infinity();
+  testing::expectThrows([&] { evaluator.evaluate({5}, driver); }, ErrorCode::kInput,
+                        "driver frame 5 vertex 11");
+  testing::expectThrows([&] { evaluator.evaluate({5, 6}, driver); }, ErrorCode::kUsage, "2 frames");
+}
+
+}  // namespace
+}  // namespace drivenshape
