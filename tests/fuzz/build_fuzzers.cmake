@@ -13,6 +13,7 @@ endif()
 execute_process(
   COMMAND "${CMAKE_COMMAND}" -S "${SOURCE}" -B "${BINARY}" ${generator_args}
           "-DCMAKE_CXX_COMPILER=${CXX}" -DDRIVENSHAPE_FUZZ_INSTRUMENT=sanitize
+          -DCMAKE_UNITY_BUILD=ON
   RESULT_VARIABLE status)
 if(NOT status EQUAL 0)
   message(FATAL_ERROR "configuring the fuzz targets in ${BINARY} failed (${status})")
