@@ -158,11 +158,10 @@ class Evaluator {
   /// position, Error(kNumerical) when a solve fails, Error(kDevice) on OpenCL failures.
   Evaluation evaluate(const std::vector<int>& frames, const std::vector<float>& driver);
 
-  /// The same into caller-owned memory: driver F x 3Vp, cloth F x 3Vd, records F.
-  ///
-  /// With maxWeightChange > 0, the first `warmup` frames are solved in order to settle the
-  /// weight bound but not evaluated further: cloth and records hold the other F - warmup
-  /// frames. Returns the seconds per stage of this call.
+  /// The same into caller-owned memory: driver F x 3Vp, cloth (F - warmup) x 3Vd, records
+  /// F - warmup. The first `warmup` frames are aligned and solved, to settle the temporal
+  /// bound (maxWeightChange), then dropped: cloth and records hold the other frames. Returns
+  /// the seconds per stage of this call.
   StageSeconds evaluate(int frameCount, const int* frames, const float* driver, float* cloth,
                         FrameRecord* records, int warmup = 0);
 
