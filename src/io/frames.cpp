@@ -7,6 +7,8 @@
 
 #include <drivenshape/error.h>
 
+#include "text.h"
+
 #include "frame_token.h"
 
 namespace drivenshape {
@@ -17,18 +19,9 @@ constexpr std::int64_t kMaxFrames = 10'000'000;
 
 const char* const kRangeHelp = "write e.g. 1001, 1001-1100, 1001-1100x2 or 1001,1005,1010-1020";
 
-std::string trim(const std::string& text) {
-  const std::size_t first = text.find_first_not_of(" \t");
-  if (first == std::string::npos) {
-    return {};
-  }
-  const std::size_t last = text.find_last_not_of(" \t");
-  return text.substr(first, last - first + 1);
-}
-
 /// Where an item sits in the whole text, for messages: "" when the item is the whole text.
 std::string inText(const std::string& item, const std::string& text) {
-  return item == trim(text) ? std::string() : " (in '" + text + "')";
+  return item == trimSpaces(text) ? std::string() : " (in '" + text + "')";
 }
 
 /// Parses an int at `pos` (optional leading '-'); advances `pos`. False if there is none.
@@ -175,7 +168,7 @@ std::string formatFrameNumber(int frame, int width) {
 }  // namespace io
 
 std::vector<int> parseFrameRange(const std::string& text) {
-  if (trim(text).empty()) {
+  if (trimSpaces(text).empty()) {
     DS_THROW(kUsage, "empty frame range '", text, "'; ", kRangeHelp);
   }
   std::vector<int> frames;
@@ -183,8 +176,8 @@ std::vector<int> parseFrameRange(const std::string& text) {
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = text.find(',', start);
-    const std::string item =
-        trim(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    const std::string item = trimSpaces(
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
     appendItem(item, text, frames, seen);
     if (comma == std::string::npos) {
       break;

@@ -9,7 +9,9 @@
 #include <numeric>
 
 #include <drivenshape/error.h>
+
 #include "parallel.h"
+#include "text.h"
 
 namespace drivenshape {
 namespace {
@@ -26,14 +28,6 @@ bool isIndexItem(const std::string& item) {
   return !item.empty() && std::all_of(item.begin(), item.end(), [](char c) {
     return std::isdigit(static_cast<unsigned char>(c)) || c == '-';
   }) && std::isdigit(static_cast<unsigned char>(item.front()));
-}
-
-std::string trim(const std::string& text) {
-  const auto first = text.find_first_not_of(" \t");
-  if (first == std::string::npos) {
-    return "";
-  }
-  return text.substr(first, text.find_last_not_of(" \t") - first + 1);
 }
 
 }  // namespace
@@ -86,7 +80,7 @@ std::vector<int> selectVertices(const Mesh& mesh, const std::string& spec,
                                 const std::string& source) {
   const int count = mesh.vertexCount();
   std::vector<int> vertices;
-  if (trim(spec).empty() || trim(spec) == "all") {
+  if (trimSpaces(spec).empty() || trimSpaces(spec) == "all") {
     vertices.resize(static_cast<std::size_t>(count));
     for (int v = 0; v < count; ++v) {
       vertices[v] = v;
@@ -96,7 +90,7 @@ std::vector<int> selectVertices(const Mesh& mesh, const std::string& spec,
   std::size_t start = 0;
   while (start <= spec.size()) {
     const std::size_t comma = std::min(spec.find(',', start), spec.size());
-    const std::string item = trim(spec.substr(start, comma - start));
+    const std::string item = trimSpaces(spec.substr(start, comma - start));
     start = comma + 1;
     if (item.empty()) {
       continue;
