@@ -37,11 +37,6 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-int threadsFor(const BakeOptions& options) {
-  return options.threads > 0 ? options.threads
-                             : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-}
-
 /// The checks of the shot itself (the evaluator checks its settings): frames, output, driver.
 void validate(const Database& db, const PointCacheReader& driver, const BakeOptions& options) {
   if (options.frames.empty()) {
@@ -421,7 +416,7 @@ EvaluatorSettings evaluatorSettings(const Database& db, const BakeOptions& optio
   }
   settings.resolve = options.resolve;
   settings.skinOffset = options.skinOffset;
-  if (!options.regionsPath.empty() && options.weightMode != WeightMode::kBind) {
+  if (!options.regionsPath.empty()) {
     settings.regions = readRegions(options.regionsPath, db.driverMesh, db.drivenMesh);
   }
   settings.maxWeightChange = options.maxWeightChange;
@@ -437,7 +432,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
                 const BakeOptions& options, BakeObserver* observer) {
   const auto bakeStart = Clock::now();
   validate(db, driver, options);
-  const int threads = threadsFor(options);
+  const int threads = resolveThreads(options.threads);
   const int vd = db.drivenVertexCount();
   Evaluator evaluator(db, evaluatorSettings(db, options), device);
   evaluator.checkFrames(options.frames);

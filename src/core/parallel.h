@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <exception>
+#include <limits>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -17,6 +18,11 @@ namespace drivenshape {
 inline int resolveThreads(int requested, int work) {
   int threads = requested > 0 ? requested : static_cast<int>(std::thread::hardware_concurrency());
   return std::max(1, std::min(threads, work));
+}
+
+/// Threads to use for `requested` (0 = one per hardware thread), at least 1.
+inline int resolveThreads(int requested) {
+  return resolveThreads(requested, std::numeric_limits<int>::max());
 }
 
 /// Calls body(i) for i in [0, count) on `threads` threads (0 = hardware). If bodies throw, the

@@ -12,11 +12,6 @@
 namespace drivenshape::pipeline {
 namespace {
 
-int threadsFor(const EvaluatorSettings& settings) {
-  return settings.threads > 0 ? settings.threads
-                              : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-}
-
 /// Throws Error(kUsage) naming the setting when `settings` cannot run on `db`.
 void validate(const Database& db, const EvaluatorSettings& settings) {
   if (db.shapeCount() < 1) {
@@ -66,7 +61,7 @@ Model::Model(const Database& database, EvaluatorSettings evaluatorSettings, Devi
     : db(database),
       settings((validate(database, evaluatorSettings), std::move(evaluatorSettings))),
       device(target),
-      threads(threadsFor(settings)),
+      threads(resolveThreads(settings.threads)),
       k(database.shapeCount()),
       vp(database.driverVertexCount()),
       vd(database.drivenVertexCount()),
@@ -144,7 +139,7 @@ const InsideAudit& Model::inside() {
 
 std::vector<WeightProblem>& Model::problems() {
   if (mProblems.empty()) {
-    if (settings.weightMode != WeightMode::kBind && settings.regions) {
+    if (settings.regions) {
       for (const Region& region : settings.regions->regions) {
         mProblems.push_back({region.name, region.driverVertices, nullptr});
       }

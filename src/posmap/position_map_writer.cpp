@@ -27,10 +27,6 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-int hardwareThreads() {
-  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-}
-
 }  // namespace
 
 PositionMapWriter::PositionMapWriter(const Mesh& mesh, const PositionMapOptions& options,
@@ -112,7 +108,7 @@ void PositionMapWriter::writeChunk(int count, const int* frames, const float* xy
   mEvaluateSeconds += secondsSince(evaluateStart);
 
   const auto writeStart = std::chrono::steady_clock::now();
-  const int threads = mOptions.threads > 0 ? mOptions.threads : hardwareThreads();
+  const int threads = resolveThreads(mOptions.threads);
   parallelFor(count, threads, [&](int i) {
     const std::size_t f = static_cast<std::size_t>(i);
     PositionMapFrameHeader header;

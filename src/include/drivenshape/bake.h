@@ -79,12 +79,6 @@ struct BakeOptions {
   bool syncOutputs = false;
 };
 
-/// Whether a bake with these options blends in local frames (see blendsLocally).
-inline bool blendsLocally(const BakeOptions& options) {
-  return options.blend == BlendMode::kLocal && options.correct &&
-         options.weightMode != WeightMode::kBind;
-}
-
 /// Seconds spent per stage, summed over batches. Reading and writing run on I/O tasks beside
 /// the other stages (the bake is pipelined), so the stages can add up to more than `total`;
 /// readWait and writeWait are the time the bake thread waited for them.

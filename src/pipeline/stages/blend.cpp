@@ -31,7 +31,7 @@ class BlendStage final : public Stage {
       });
     }
     // The backend's projection tables are those of the one QP on every (aligned) row.
-    const bool regions = model.settings.regions && model.settings.weightMode != WeightMode::kBind;
+    const bool regions = model.settings.regions.has_value();
     const std::unique_ptr<SimplexLeastSquares> full =
         regions ? std::make_unique<SimplexLeastSquares>(
                       driverMatrix(model.driverShapes, model.k, model.vp, {}))
