@@ -26,7 +26,7 @@
 
 #include "cli_args.h"
 #include "device_choice.h"
-#include "upload_every_call.h"
+#include "host_staging.h"
 
 namespace ds = drivenshape;
 
@@ -161,12 +161,12 @@ int run(const std::vector<std::string>& args) {
   json["opencl"] = report(device->description(),
                           measure(db, settings, *device, frames, driver, batch, repeat), batch);
   if (device->isOpenCl()) {
-    // The same device with every call uploading its own poses: the transfers before the
-    // batch's driver was kept on the device.
-    ds::cli::UploadEveryCallDevice everyCall(*device);
-    json["opencl_upload_every_call"] =
-        report("same, poses uploaded by every call",
-               measure(db, settings, everyCall, frames, driver, batch, repeat), batch);
+    // The same device with every block staged through host memory: the transfers before
+    // blocks stayed on the device.
+    ds::cli::HostStagingDevice staging(*device);
+    json["opencl_host_staging"] =
+        report("same, staged on host",
+               measure(db, settings, staging, frames, driver, batch, repeat), batch);
   }
   if (!parser.has("--no-host")) {
     const std::unique_ptr<ds::Device> host = ds::makeHostDevice();

@@ -61,12 +61,13 @@ inline ds_real dsBoxDistance2(ds_real3 p, __global const float* box) {
 //   triangles  T x 3 int         vertex ids (for the seeds)
 //   points     F x 3Vd float
 //   pointRoot  Vd int            root node of point i's tree (its mask class)
-//   seeds      Vd int            a triangle of point i's class (the first upper bound)
+//   seeds      Vd DsSurfaceHit   .triangle: a triangle of point i's class (the first upper bound;
+//                                the previous block's last hits, copied on the device)
 //   hits       F x Vd DsSurfaceHit
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhClosest(
     __global const float* poses, __global const int* triangles, __global const DsBvhNode* nodes,
     __global const int4* leafTriangles, __global const float* boxes, __global const float* points,
-    __global const int* pointRoot, __global const int* seeds, __global DsSurfaceHit* hits,
+    __global const int* pointRoot, __global const DsSurfaceHit* seeds, __global DsSurfaceHit* hits,
     const DsBvhQueryParams params) {
   const int item = (int)get_global_id(0);
   if (item >= params.frameCount * params.pointCount) {
@@ -85,7 +86,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhCl
 
   ds_real u;
   ds_real v;
-  const int seed = seeds[point];
+  const int seed = seeds[point].triangle;
   int bestTriangle = seed;
   ds_real best = dsCandidateDistance2(p, pose, triangles, seed, &u, &v);
   ds_real band = best + tieRelative * best + tieAbsolute;

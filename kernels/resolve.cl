@@ -31,26 +31,21 @@ inline ds_real3 dsFaceNormal(__global const float* pose, __global const int* tri
   return length > 0 ? n / length : (ds_real3)(0, 0, 0);
 }
 
-__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResolve(
-    __global const float* poses, __global const int* triangles, __global const int* edgeStart,
-    __global const int* edgeTriangles, __global const int* vertexStart,
-    __global const int* vertexTriangles, __global const DsSurfaceHit* hits, __global float* points,
-    __global int* moved, const DsResolveParams params) {
-  const int item = (int)get_global_id(0);
-  if (item >= params.frameCount * params.pointCount) {
-    return;
-  }
-  const int frame = item / params.pointCount;
-  __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
-  const DsSurfaceHit hit = hits[item];
+// The signed distance of p from its hit on `pose` (see above); q receives the closest point and
+// normal the pseudo-normal there (not unit length; zero where every triangle around is
+// degenerate).
+inline ds_real dsSignedDistance(__global const float* pose, __global const int* triangles,
+                                __global const int* edgeStart, __global const int* edgeTriangles,
+                                __global const int* vertexStart,
+                                __global const int* vertexTriangles, const DsSurfaceHit hit,
+                                const ds_real3 p, ds_real3* q, ds_real3* normal) {
   const int t = hit.triangle;
   const ds_real u = (ds_real)hit.u;
   const ds_real v = (ds_real)hit.v;
   const ds_real3 a = dsLoadPoint(pose, triangles[3 * t]);
-  const ds_real3 q = a + u * (dsLoadPoint(pose, triangles[3 * t + 1]) - a) +
-                     v * (dsLoadPoint(pose, triangles[3 * t + 2]) - a);
-  const ds_real3 p = dsLoadPoint(points, item);
-  const ds_real3 offset = p - q;
+  *q = a + u * (dsLoadPoint(pose, triangles[3 * t + 1]) - a) +
+       v * (dsLoadPoint(pose, triangles[3 * t + 2]) - a);
+  const ds_real3 offset = p - *q;
 
   const ds_real weight[3] = {1 - u - v, u, v};
   int zeros = 0;
@@ -64,7 +59,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
       nonZero = k;
     }
   }
-  ds_real3 normal = (ds_real3)(0, 0, 0);
+  *normal = (ds_real3)(0, 0, 0);
   if (zeros >= 2) {
     const int vertex = triangles[3 * t + nonZero];
     for (int k = vertexStart[vertex]; k < vertexStart[vertex + 1]; ++k) {
@@ -79,21 +74,39 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
       const ds_real lengths = sqrt(dot(e1, e1)) * sqrt(dot(e2, e2));
       if (lengths > 0) {
         const ds_real angle = acos(clamp(dot(e1, e2) / lengths, (ds_real)-1, (ds_real)1));
-        normal += angle * dsFaceNormal(pose, triangles, s);
+        *normal += angle * dsFaceNormal(pose, triangles, s);
       }
     }
   } else if (zeros == 1) {
     const int edge = 3 * t + (zero + 1) % 3;
     for (int k = edgeStart[edge]; k < edgeStart[edge + 1]; ++k) {
-      normal += dsFaceNormal(pose, triangles, edgeTriangles[k]);
+      *normal += dsFaceNormal(pose, triangles, edgeTriangles[k]);
     }
   } else {
-    normal = dsFaceNormal(pose, triangles, t);
+    *normal = dsFaceNormal(pose, triangles, t);
   }
 
   const ds_real distance = sqrt(dot(offset, offset));
-  const ds_real side = dot(offset, normal);
-  const ds_real signedDistance = side < 0 ? -distance : distance;
+  const ds_real side = dot(offset, *normal);
+  return side < 0 ? -distance : distance;
+}
+
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResolve(
+    __global const float* poses, __global const int* triangles, __global const int* edgeStart,
+    __global const int* edgeTriangles, __global const int* vertexStart,
+    __global const int* vertexTriangles, __global const DsSurfaceHit* hits, __global float* points,
+    __global int* moved, const DsResolveParams params) {
+  const int item = (int)get_global_id(0);
+  if (item >= params.frameCount * params.pointCount) {
+    return;
+  }
+  const int frame = item / params.pointCount;
+  __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
+  ds_real3 q;
+  ds_real3 normal;
+  const ds_real signedDistance =
+      dsSignedDistance(pose, triangles, edgeStart, edgeTriangles, vertexStart, vertexTriangles,
+                       hits[item], dsLoadPoint(points, item), &q, &normal);
   const ds_real length = sqrt(dot(normal, normal));
   if (signedDistance < (ds_real)params.offset && length > 0) {
     const ds_real3 result = q + ((ds_real)params.offset / length) * normal;
@@ -101,5 +114,30 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
     points[3 * item + 1] = (float)result.y;
     points[3 * item + 2] = (float)result.z;
     atomic_inc(&moved[frame]);
+  }
+}
+
+// Inside counts (contract: ClosestBackend::countInside; host reference: InsideAudit in
+// src/correction/inside_audit.cpp): inside[f] counts the points of frame f whose signed
+// distance, rounded to float as the host rounds it, is negative. Same mapping and arguments
+// as dsResolve, with `points` read only and `inside` in place of `moved`.
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCountInside(
+    __global const float* poses, __global const int* triangles, __global const int* edgeStart,
+    __global const int* edgeTriangles, __global const int* vertexStart,
+    __global const int* vertexTriangles, __global const DsSurfaceHit* hits,
+    __global const float* points, __global int* inside, const DsResolveParams params) {
+  const int item = (int)get_global_id(0);
+  if (item >= params.frameCount * params.pointCount) {
+    return;
+  }
+  const int frame = item / params.pointCount;
+  __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
+  ds_real3 q;
+  ds_real3 normal;
+  const ds_real signedDistance =
+      dsSignedDistance(pose, triangles, edgeStart, edgeTriangles, vertexStart, vertexTriangles,
+                       hits[item], dsLoadPoint(points, item), &q, &normal);
+  if ((float)signedDistance < 0.0f) {
+    atomic_inc(&inside[frame]);
   }
 }

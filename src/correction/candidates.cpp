@@ -87,6 +87,9 @@ double frameMagnitude(const float* xyz, long count) {
 
 void checkFinite(const char* stage, const char* what, int frameCount, int count,
                  const float* data) {
+  if (data == nullptr) {
+    return;
+  }
   const std::size_t stride = 3 * static_cast<std::size_t>(count);
   for (int f = 0; f < frameCount; ++f) {
     const float* frame = data + static_cast<std::size_t>(f) * stride;
@@ -117,6 +120,9 @@ void checkTransfer(const CandidateSearch& search, int frameCount, const SurfaceH
 
 void checkHits(const char* stage, int triangleCount, std::size_t count, int perFrame,
                const SurfaceHit* hits) {
+  if (hits == nullptr) {
+    return;
+  }
   for (std::size_t k = 0; k < count; ++k) {
     const int t = hits[k].triangle;
     if (t < 0 || t >= triangleCount || !std::isfinite(hits[k].u) || !std::isfinite(hits[k].v)) {
@@ -142,14 +148,18 @@ void checkRebuild(const CandidateSearch& search, int frameCount, const SurfaceHi
   }
 }
 
-void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
-                  const SurfaceHit* hits, float offset, const float* points) {
-  search.checkChunk("penetration resolution", frameCount,
-                    poses != nullptr && hits != nullptr && points != nullptr);
+void checkOffset(float offset) {
   if (!std::isfinite(offset) || offset < 0.0f) {
     DS_THROW(kInput, "penetration resolution: the offset is ", offset,
              "; it must be a finite distance >= 0 in scene units");
   }
+}
+
+void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
+                  const SurfaceHit* hits, float offset, const float* points) {
+  search.checkChunk("penetration resolution", frameCount,
+                    poses != nullptr && hits != nullptr && points != nullptr);
+  checkOffset(offset);
   checkFinite("penetration resolution", "driver vertex", frameCount, search.vertexCount(), poses);
   checkFinite("penetration resolution", "driven point", frameCount, search.pointCount(), points);
   checkHits("penetration resolution", search.triangleCount(),

@@ -28,7 +28,8 @@ struct CandidateTable {
 
 /// Throws Error(kNumerical) naming `stage`, the frame of the chunk and the vertex when one of
 /// frameCount x count xyz triples is NaN or infinite; `what` names the vertex kind
-/// ("driver vertex", "driven point").
+/// ("driver vertex", "driven point"). Null data: nothing to check (a block that is only on the
+/// device was made there by this library's kernels and checked where it came in).
 void checkFinite(const char* stage, const char* what, int frameCount, int count, const float* data);
 
 class CandidateSearch;
@@ -41,7 +42,7 @@ void checkTransfer(const CandidateSearch& search, int frameCount, const SurfaceH
 
 /// Throws Error(kInput) naming `stage` when one of `count` hits has a triangle out of
 /// [0, triangleCount) or a non-finite (u, v); `perFrame` (> 0) is the hit count of one frame,
-/// for the frame number in the message.
+/// for the frame number in the message. Null hits: nothing to check (as for checkFinite).
 void checkHits(const char* stage, int triangleCount, std::size_t count, int perFrame,
                const SurfaceHit* hits);
 
@@ -49,7 +50,10 @@ void checkHits(const char* stage, int triangleCount, std::size_t count, int perF
 void checkRebuild(const CandidateSearch& search, int frameCount, const SurfaceHit* hits,
                   const float* toPoses, const float* local, const float* out);
 
-/// Checks a resolve call (see ClosestBackend::resolve): also the offset (finite, >= 0).
+/// Throws Error(kInput) unless the resolution's offset is finite and >= 0.
+void checkOffset(float offset);
+
+/// Checks a resolve call (see ClosestBackend::resolve): also the offset (checkOffset).
 void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
                   const SurfaceHit* hits, float offset, const float* points);
 

@@ -60,9 +60,29 @@ bool blendsLocally(const EvaluatorSettings& settings) {
          settings.weightMode != WeightMode::kBind;
 }
 
+namespace {
+
+/// The evaluator's output check: a non-finite position is an error naming the frame and the
+/// vertex, never a silent output (blocks computed on the device skip the backends' checks).
+void checkCloth(const pipeline::Model& model, const pipeline::Batch& batch, const float* cloth) {
+  const std::size_t dd = model.drivenValues;
+  for (int i = 0; i < batch.count; ++i) {
+    for (std::size_t j = 0; j < dd; ++j) {
+      const float value = cloth[static_cast<std::size_t>(i) * dd + j];
+      if (!std::isfinite(value)) {
+        DS_THROW(kNumerical, "frame ", batch.frames[batch.warm + i], ": cloth vertex ", j / 3,
+                 " came out of the pipeline as ", std::isnan(value) ? "NaN" : "infinity",
+                 "; the database or the settings give non-finite positions for this pose");
+      }
+    }
+  }
+}
+
+}  // namespace
+
 struct Evaluator::Impl {
   Impl(const Database& database, EvaluatorSettings settings, Device& device)
-      : model(database, std::move(settings), device) {
+      : model(database, std::move(settings), device), batch(device) {
     for (pipeline::StageFactory factory : pipeline::stageFactories()) {
       if (std::unique_ptr<pipeline::Stage> stage = factory(model)) {
         stages.push_back(std::move(stage));
@@ -133,24 +153,24 @@ StageSeconds Evaluator::evaluate(int frameCount, const int* frames, const float*
   batch.driver = driver;
   batch.aligned = driver;
   batch.records = records;
-  batch.cloth = cloth;
   batch.layersApplied = false;
+  const std::size_t dv = model.driverValues;
+  const std::size_t shotValues = static_cast<std::size_t>(batch.count) * dv;
+  batch.driverFrames.view(driver, static_cast<std::size_t>(frameCount) * dv);
+  batch.shotFrames.view(batch.driverBlock(dv), shotValues);
+  batch.cloth.view(cloth, static_cast<std::size_t>(batch.count) * model.drivenValues);
   for (int i = 0; i < batch.count; ++i) {
     records[i].frame = frames[warmup + i];
   }
-  // The shot's driver stays on the device for the whole batch (released even on an error, so
-  // that no later call can match a stale copy by its address).
-  struct KeptPoses {
-    pipeline::Model& model;
-    ~KeptPoses() { model.releaseShotPoses(); }
-  } kept{model};
-  model.keepShotPoses(batch.count, batch.driverBlock(model.driverValues));
   for (const auto& stage : mImpl->stages) {
     const auto start = std::chrono::steady_clock::now();
     stage->run(batch);
     seconds[stage->name()] +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
+  // The cloth comes back from the device here unless a stage (the audit) read it already.
+  const float* result = batch.cloth.read<float>();
+  checkCloth(model, batch, result);
   return seconds;
 }
 

@@ -99,22 +99,6 @@ ClosestBackend& Model::audit() {
   return *mAudit;
 }
 
-void Model::keepShotPoses(int count, const float* poses) {
-  for (ClosestBackend* backend : {mBinding.get(), mAudit.get()}) {
-    if (backend != nullptr) {
-      backend->keepPoses(count, poses);
-    }
-  }
-}
-
-void Model::releaseShotPoses() {
-  for (ClosestBackend* backend : {mBinding.get(), mAudit.get()}) {
-    if (backend != nullptr) {
-      backend->releasePoses();
-    }
-  }
-}
-
 std::unique_ptr<ClosestBackend> Model::makeClosest(const BindingMask& mask) {
   ClosestOptions options;
   options.threads = threads;
@@ -128,13 +112,6 @@ LayerBackend& Model::layers() {
     mLayers = device.makeLayers();
   }
   return *mLayers;
-}
-
-const InsideAudit& Model::inside() {
-  if (!mInside) {
-    mInside = std::make_unique<InsideAudit>(db.driverMesh);
-  }
-  return *mInside;
 }
 
 std::vector<WeightProblem>& Model::problems() {
@@ -198,16 +175,35 @@ ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
   return tables;
 }
 
-void countInside(Model& model, Batch& batch, const float* poses, const float* cloth,
+void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                  int FrameRecord::*field) {
-  batch.auditHits.resize(static_cast<std::size_t>(batch.count) * model.vd);
-  model.audit().closest(batch.count, poses, cloth, batch.auditHits.data());
-  const InsideAudit& inside = model.inside();
-  parallelFor(batch.count, model.threads, [&](int i) {
-    batch.records[i].*field =
-        inside.countInside(poses + i * model.driverValues, model.vd, cloth + i * model.drivenValues,
-                           &batch.auditHits[static_cast<std::size_t>(i) * model.vd]);
-  });
+  batch.auditHits.resize<SurfaceHit>(static_cast<std::size_t>(batch.count) * model.vd);
+  model.audit().closestBlock(batch.count, poses, cloth, batch.auditHits);
+  batch.counts.assign(static_cast<std::size_t>(batch.count), 0);
+  model.audit().countInside(batch.count, poses, batch.auditHits, cloth, batch.counts.data());
+  for (int i = 0; i < batch.count; ++i) {
+    batch.records[i].*field = batch.counts[static_cast<std::size_t>(i)];
+  }
+}
+
+Batch::Batch(Device& device)
+    : driverFrames(device.makeArray()),
+      shotFrames(device.makeArray()),
+      cloth(device.makeArray()),
+      alignedFrames(device.makeArray()),
+      alignedShotFrames(device.makeArray()),
+      driven(device.makeArray()),
+      blendedDriver(device.makeArray()),
+      hits(device.makeArray()),
+      auditHits(device.makeArray()) {}
+
+DeviceArray& Batch::alignedShot(std::size_t driverValues) {
+  if (warm == 0) {
+    return alignedAll();
+  }
+  alignedShotFrames.view(alignedBlock(driverValues),
+                         static_cast<std::size_t>(count) * driverValues);
+  return alignedShotFrames;
 }
 
 }  // namespace drivenshape::pipeline

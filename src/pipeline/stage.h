@@ -51,13 +51,6 @@ class Model {
   ClosestBackend& binding();
   ClosestBackend& audit();
   LayerBackend& layers();
-  const InsideAudit& inside();
-
-  /// Tells the closest-point backends made so far that `poses` (count x 3Vp: a batch's shot
-  /// driver) stays unchanged until releaseShotPoses(), so an OpenCL device holds one copy for
-  /// every search, rebuild and resolution of the batch (ClosestBackend::keepPoses).
-  void keepShotPoses(int count, const float* poses);
-  void releaseShotPoses();
 
   // Tables the stages prepare (configure order: align, project/weights, blend, ...).
   /// k x 3Vp database driver shapes, rigidly aligned to the rest driver by the align stage.
@@ -67,8 +60,10 @@ class Model {
   std::unique_ptr<RigidAligner> aligner;  ///< set by the align stage
   std::vector<int> alignVertices;
   /// Local blending: every driven vertex's closest point on the rest driver (mask respected),
-  /// set by the blend stage, used by the correction's rebuild.
+  /// set by the blend stage, used by the correction's rebuild (restHitsBlock: the same on the
+  /// device, uploaded once).
   std::vector<SurfaceHit> restHits;
+  DeviceArray restHitsBlock;
   /// The layers, set by the layers stage.
   std::optional<LayerStack> layerStack;
   /// The weight problems: one per region, or one on every row. Built on first use, from the
@@ -84,36 +79,55 @@ class Model {
   std::unique_ptr<StageBackend> mStages;
   std::unique_ptr<ClosestBackend> mBinding, mAudit;
   std::unique_ptr<LayerBackend> mLayers;
-  std::unique_ptr<InsideAudit> mInside;
   std::vector<WeightProblem> mProblems;
 };
 
 /// One block of frames on its way through the pipeline. The first `warm` frames are solved
 /// (align, project, weights) to settle the temporal bound, then dropped; the other `count`
-/// frames go all the way. Frame blocks are frame-major.
+/// frames go all the way. Frame blocks are frame-major. The blocks of frames the stages hand to
+/// each other are DeviceArrays of the model's device: each stays where the last stage wrote it
+/// (device memory on OpenCL), so that the shot's driver goes to the device once and the cloth
+/// comes back once, when the audit or the caller reads it.
 struct Batch {
+  explicit Batch(Device& device);
+
   int solveCount = 0;  ///< n = warm + count
   int warm = 0;
   int count = 0;
   const int* frames = nullptr;     ///< n frame numbers
-  const float* driver = nullptr;   ///< n x 3Vp, world space
+  const float* driver = nullptr;   ///< n x 3Vp, world space (the caller's memory)
   FrameRecord* records = nullptr;  ///< count
-  float* cloth = nullptr;          ///< count x 3Vd: the result
+
+  /// n x 3Vp: a view of `driver`.
+  DeviceArray driverFrames;
+  /// count x 3Vp: a view of the shot's frames in `driver` when there are warm-up frames.
+  DeviceArray shotFrames;
+  /// count x 3Vd: a view of the caller's cloth memory, the result.
+  DeviceArray cloth;
 
   // Filled by the stages, in order.
   const float* aligned = nullptr;          ///< n x 3Vp in the database's frame (or = driver)
-  std::vector<float> alignedStore;         ///< backs `aligned` when the align stage runs
+  DeviceArray alignedFrames;               ///< backs `aligned` when the align stage runs
+  DeviceArray alignedShotFrames;           ///< its last count frames, with warm-up frames
   std::vector<RigidTransform> motions;     ///< n, when the align stage runs
   std::vector<float> projections, norms;   ///< device projection: n x (k-1), n x 2
   std::vector<double> hostProjections;     ///< region projections: n x regions x (k+1)
   std::vector<SimplexSolution> solutions;  ///< n x regions
   std::vector<float> weights;              ///< count x regions x k
-  std::vector<float> driven;               ///< count x 3Vd blended cloth (world or local offsets)
-  std::vector<float> blendedDriver;        ///< count x 3Vp blended driver (world blending)
-  std::vector<SurfaceHit> hits;            ///< count x Vd binding hits (world blending)
-  std::vector<SurfaceHit> auditHits;       ///< count x Vd closest points over every triangle
+  DeviceArray driven;                      ///< count x 3Vd blended cloth (world or local offsets)
+  DeviceArray blendedDriver;               ///< count x 3Vp blended driver (world blending)
+  DeviceArray hits;                        ///< count x Vd binding hits (world blending)
+  DeviceArray auditHits;                   ///< count x Vd closest points over every triangle
+  std::vector<int> counts;                 ///< count, per-frame counters read back from the device
   std::vector<int> moved;                  ///< count, by the resolution
   bool layersApplied = false;
+
+  /// The shot's driver, world space: count x 3Vp.
+  DeviceArray& shot() { return warm == 0 ? driverFrames : shotFrames; }
+  /// Every frame in the database's frame: n x 3Vp (the projection's input).
+  DeviceArray& alignedAll() { return aligned == driver ? driverFrames : alignedFrames; }
+  /// The shot's frames in the database's frame: count x 3Vp.
+  DeviceArray& alignedShot(std::size_t driverValues);
 
   const float* driverBlock(std::size_t driverValues) const {
     return driver + static_cast<std::size_t>(warm) * driverValues;
@@ -154,9 +168,10 @@ Eigen::MatrixXd driverMatrix(const std::vector<float>& shapes, int k, int vertex
 ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
                        std::vector<float> driverShapes, std::vector<float> drivenShapes);
 
-/// Counts how many of `count` points of each frame are inside the driver, from closest points
-/// over every triangle computed here: poses F x 3Vp, cloth F x 3Vd, into (records[f].*field).
-void countInside(Model& model, Batch& batch, const float* poses, const float* cloth,
+/// Counts how many cloth points of each frame of the batch are inside the driver, from
+/// closest points over every triangle found here (left in batch.auditHits): poses count x
+/// 3Vp, cloth count x 3Vd, into (records[f].*field).
+void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                  int FrameRecord::*field);
 
 }  // namespace drivenshape::pipeline

@@ -172,6 +172,38 @@ TEST_F(EvaluatorTest, CompilesEachProgramOncePerDeviceAndCountsTransfers) {
             static_cast<std::int64_t>(3 * 3 * db.drivenVertexCount() * sizeof(float)));
 }
 
+TEST_F(EvaluatorTest, KeepsABlockOnTheDeviceFromProjectionToTheLastKernel) {
+  // After the first call (which also seeds the closest-point search from the host), a block
+  // of F frames moves the driver in once per frame of reference it needs (world space for the
+  // correction; with rigid alignment also the database's frame, which the host computes) and
+  // the cloth out once; everything else is per-frame records.
+  const Database db = loadDatabase(file("sleeve.dsdb"));
+  const std::vector<int> frames = {1, 2, 3, 4, 5, 6, 7, 8};
+  const std::vector<float> driver = readFrames(*openPointCache(sample("test.driver.pc2")), frames);
+  const std::int64_t driverBytes = static_cast<std::int64_t>(driver.size() * sizeof(float));
+  const std::int64_t clothBytes =
+      static_cast<std::int64_t>(frames.size() * 3 * db.drivenVertexCount() * sizeof(float));
+  // Records: projections, norms, weights and counters, far below one cloth frame per frame.
+  const std::int64_t recordBytes = static_cast<std::int64_t>(frames.size()) * 1024;
+  std::unique_ptr<Device> device = makeOpenClDevice(context(), this->device(), queue());
+  for (const AlignMode align : {AlignMode::kRigid, AlignMode::kNone}) {
+    EvaluatorSettings settings;
+    settings.align = align;
+    Evaluator evaluator(db, settings, *device);
+    evaluator.evaluate(frames, driver);
+    const TransferCounts before = device->transfers();
+    evaluator.evaluate(frames, driver);
+    const TransferCounts after = device->transfers();
+    const std::int64_t driverCopies = align == AlignMode::kRigid ? 2 : 1;
+    EXPECT_GE(after.uploadBytes - before.uploadBytes, driverCopies * driverBytes);
+    EXPECT_LE(after.uploadBytes - before.uploadBytes, driverCopies * driverBytes + recordBytes)
+        << alignModeName(align);
+    EXPECT_GE(after.downloadBytes - before.downloadBytes, clothBytes);
+    EXPECT_LE(after.downloadBytes - before.downloadBytes, clothBytes + recordBytes)
+        << alignModeName(align);
+  }
+}
+
 TEST_F(EvaluatorTest, MessagesNameSettingsAndTheFrameAtFault) {
   const Database db = loadDatabase(file("sleeve.dsdb"));
   std::unique_ptr<Device> host = makeHostDevice();

@@ -35,6 +35,11 @@ static_assert(offsetof(SurfaceHit, triangle) == offsetof(DsSurfaceHit, triangle)
                   offsetof(SurfaceHit, distance2) == offsetof(DsSurfaceHit, distance2),
               "SurfaceHit must match DsSurfaceHit field by field");
 
+/// The device side of a view array (see ClClosest::onDevice).
+std::unique_ptr<DeviceStorage> storage(const cl_util::ClTarget& target) {
+  return std::make_unique<cl_util::ClStorage>(target.context, target.queue, target.transfers);
+}
+
 bool hasFp64(const cl::Device& device) {
   const std::string extensions = device.getInfo<CL_DEVICE_EXTENSIONS>();
   return extensions.find("cl_khr_fp64") != std::string::npos;
@@ -48,7 +53,12 @@ class ClClosest final : public ClosestBackend {
         mQueue(target.queue),
         mTransfers(target.transfers),
         mUseBvh(options.deviceSearch == ClosestOptions::DeviceSearch::kBvh),
-        mSearch(options.threads) {
+        mSearch(options.threads),
+        mViewPoses(storage(target)),
+        mViewToPoses(storage(target)),
+        mViewPoints(storage(target)),
+        mViewHits(storage(target)),
+        mViewOut(storage(target)) {
     mDouble = !options.forceSinglePrecision && hasFp64(mDevice);
     std::vector<std::string> defines;
     if (mDouble) {
@@ -67,6 +77,7 @@ class ClClosest final : public ClosestBackend {
       mTransferKernel = cl::Kernel(mProgram, "dsTransfer");
       mRebuildKernel = cl::Kernel(mProgram, "dsRebuild");
       mResolveKernel = cl::Kernel(mProgram, "dsResolve");
+      mCountInsideKernel = cl::Kernel(mProgram, "dsCountInside");
       mRefitKernel = cl::Kernel(mProgram, "dsBvhRefit");
       mBvhKernel = cl::Kernel(mProgram, "dsBvhClosest");
       mName = mDevice.getInfo<CL_DEVICE_NAME>();
@@ -92,186 +103,186 @@ class ClClosest final : public ClosestBackend {
       mNodes = uploadBytes(mBvh.nodes.data(), mBvh.nodes.size() * sizeof(DsBvhNode));
       mLeafTriangles = upload(mBvh.leafTriangles);
       mPointRoot = upload(mBvh.pointRoot);
-      mSeeds = upload(std::vector<std::int32_t>(mBvh.pointRoot.size(), 0));
+      mSeeds = uploadBytes(std::vector<SurfaceHit>(mBvh.pointRoot.size()).data(),
+                           mBvh.pointRoot.size() * sizeof(SurfaceHit));
       mSeeded = false;
     });
   }
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
     mSearch.checkChunk("closest triangle", frameCount, hits != nullptr);
-    if (mUseBvh) {
-      closestBvh(frameCount, poses, points, hits);
+    if (!mUseBvh) {
+      closestCandidates(frameCount, poses, points, hits);
       return;
     }
-    mSearch.find(frameCount, poses, points, mCandidates);
-    if (frameCount == 0 || mSearch.pointCount() == 0) {
-      return;
-    }
+    mSearch.checkChunk("closest triangle", frameCount, poses != nullptr && points != nullptr);
     const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
-    const std::size_t poseBytes =
-        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
-    const std::size_t pointBytes = items * 3 * sizeof(float);
-    const double scale2 = mSearch.sceneScale() * mSearch.sceneScale();
-
-    DsClosestParams params{};
-    params.frameCount = frameCount;
-    params.pointCount = mSearch.pointCount();
-    params.vertexCount = mSearch.vertexCount();
-    params.triangleCount = mSearch.triangleCount();
-    params.tieRelative =
-        static_cast<float>(mDouble ? DS_TIE_RELATIVE_DOUBLE : DS_TIE_RELATIVE_SINGLE);
-    params.tieAbsolute =
-        static_cast<float>((mDouble ? DS_TIE_SCALE2_DOUBLE : DS_TIE_SCALE2_SINGLE) * scale2);
-
-    cl_util::guard("running the closest-triangle kernel", [&] {
-      const cl::Buffer& posesBuffer = posesOnDevice(mPoses, poses, poseBytes);
-      cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
-      cl::Buffer& startBuffer =
-          mStart.reserve(mContext, mCandidates.start.size() * sizeof(std::int32_t));
-      cl::Buffer& candidateBuffer = mCandidateTriangles.reserve(
-          mContext, mCandidates.triangles.size() * sizeof(std::int32_t));
-      cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
-      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_TRUE, 0, pointBytes, points);
-      cl_util::upload(mQueue, mTransfers, startBuffer, CL_TRUE, 0,
-                      mCandidates.start.size() * sizeof(std::int32_t), mCandidates.start.data());
-      cl_util::upload(mQueue, mTransfers, candidateBuffer, CL_TRUE, 0,
-                      mCandidates.triangles.size() * sizeof(std::int32_t),
-                      mCandidates.triangles.data());
-      cl_util::setArgs(mClosestKernel, posesBuffer, mTriangles, pointsBuffer, startBuffer,
-                       candidateBuffer, hitBuffer, params);
-      cl_util::enqueue1d(mQueue, mClosestKernel, items, DS_LOCAL_SIZE);
-      cl_util::download(mQueue, mTransfers, hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit),
-                        hits);
-    });
+    mViewPoses.view(poses, static_cast<std::size_t>(frameCount) * poseValues());
+    mViewPoints.view(points, items * 3);
+    mViewHits.view(hits, items);
+    checkInputs("closest triangle", frameCount, &mViewPoses, &mViewPoints, nullptr, 0);
+    closestBvh(frameCount, mViewPoses, mViewPoints, mViewHits);
+    mViewHits.read<SurfaceHit>();  // into `hits`
   }
 
   void transfer(int frameCount, const SurfaceHit* hits, const float* fromPoses,
                 const float* toPoses, const float* points, float* out) override {
     correction::checkTransfer(mSearch, frameCount, hits, fromPoses, toPoses, points, out);
-    if (frameCount == 0 || mSearch.pointCount() == 0) {
-      return;
-    }
     const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
-    const std::size_t poseBytes =
-        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
-    const std::size_t pointBytes = items * 3 * sizeof(float);
-    const DsTransferParams params = transferParams(frameCount);
-
-    cl_util::guard("running the transfer kernel", [&] {
-      cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
-      cl::Buffer& fromBuffer = mPoses.reserve(mContext, poseBytes);
-      const cl::Buffer& toBuffer = posesOnDevice(mToPoses, toPoses, poseBytes);
-      cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
-      cl::Buffer& outBuffer = mOut.reserve(mContext, pointBytes);
-      cl_util::upload(mQueue, mTransfers, hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit), hits);
-      cl_util::upload(mQueue, mTransfers, fromBuffer, CL_TRUE, 0, poseBytes, fromPoses);
-      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_TRUE, 0, pointBytes, points);
-      cl_util::setArgs(mTransferKernel, hitBuffer, fromBuffer, toBuffer, mTriangles, pointsBuffer,
-                       outBuffer, params);
-      cl_util::enqueue1d(mQueue, mTransferKernel, items, DS_LOCAL_SIZE);
-      cl_util::download(mQueue, mTransfers, outBuffer, CL_TRUE, 0, pointBytes, out);
-    });
+    mViewHits.view(hits, items);
+    mViewPoses.view(fromPoses, static_cast<std::size_t>(frameCount) * poseValues());
+    mViewToPoses.view(toPoses, static_cast<std::size_t>(frameCount) * poseValues());
+    mViewPoints.view(points, items * 3);
+    mViewOut.view(out, items * 3);
+    transferOnDevice(frameCount, mViewHits, mViewPoses, mViewToPoses, mViewPoints, mViewOut);
+    mViewOut.read<float>();  // into `out`
   }
 
   void rebuild(int frameCount, const SurfaceHit* hits, const float* toPoses, const float* local,
                float* out) override {
     correction::checkRebuild(mSearch, frameCount, hits, toPoses, local, out);
-    if (frameCount == 0 || mSearch.pointCount() == 0) {
-      return;
-    }
     const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
-    const std::size_t hitBytes =
-        static_cast<std::size_t>(mSearch.pointCount()) * sizeof(SurfaceHit);
-    const std::size_t poseBytes =
-        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
-    const std::size_t pointBytes = items * 3 * sizeof(float);
-    const DsTransferParams params = transferParams(frameCount);
-
-    cl_util::guard("running the rebuild kernel", [&] {
-      cl::Buffer& hitBuffer = mHits.reserve(mContext, hitBytes);
-      const cl::Buffer& toBuffer = posesOnDevice(mToPoses, toPoses, poseBytes);
-      cl::Buffer& localBuffer = mPoints.reserve(mContext, pointBytes);
-      cl::Buffer& outBuffer = mOut.reserve(mContext, pointBytes);
-      cl_util::upload(mQueue, mTransfers, hitBuffer, CL_FALSE, 0, hitBytes, hits);
-      cl_util::upload(mQueue, mTransfers, localBuffer, CL_FALSE, 0, pointBytes, local);
-      cl_util::setArgs(mRebuildKernel, hitBuffer, toBuffer, mTriangles, localBuffer, outBuffer,
-                       params);
-      cl_util::enqueue1d(mQueue, mRebuildKernel, items, DS_LOCAL_SIZE);
-      cl_util::download(mQueue, mTransfers, outBuffer, CL_TRUE, 0, pointBytes, out);
-    });
+    mViewHits.view(hits, static_cast<std::size_t>(mSearch.pointCount()));
+    mViewToPoses.view(toPoses, static_cast<std::size_t>(frameCount) * poseValues());
+    mViewPoints.view(local, items * 3);
+    mViewOut.view(out, items * 3);
+    rebuildOnDevice(frameCount, mViewHits, mViewToPoses, mViewPoints, mViewOut);
+    mViewOut.read<float>();
   }
 
   void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                float* points, int* moved) override {
     correction::checkResolve(mSearch, frameCount, poses, hits, offset, points);
-    if (frameCount == 0) {
-      return;
-    }
-    if (mSearch.pointCount() == 0) {
-      std::fill(moved, moved + (moved != nullptr ? frameCount : 0), 0);
-      return;
-    }
     const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
-    const std::size_t poseBytes =
-        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
-    const std::size_t pointBytes = items * 3 * sizeof(float);
-    const std::size_t countBytes = static_cast<std::size_t>(frameCount) * sizeof(cl_int);
-    DsResolveParams params{};
-    params.frameCount = frameCount;
-    params.pointCount = mSearch.pointCount();
-    params.vertexCount = mSearch.vertexCount();
-    params.triangleCount = mSearch.triangleCount();
-    params.offset = offset;
-
-    cl_util::guard("running the penetration-resolution kernel", [&] {
-      const cl::Buffer& posesBuffer = posesOnDevice(mPoses, poses, poseBytes);
-      cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
-      cl::Buffer& pointsBuffer = mOut.reserve(mContext, pointBytes);
-      cl::Buffer& countBuffer = mCounts.reserve(mContext, countBytes);
-      cl_util::upload(mQueue, mTransfers, hitBuffer, CL_FALSE, 0, items * sizeof(SurfaceHit), hits);
-      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_FALSE, 0, pointBytes, points);
-      mQueue.enqueueFillBuffer(countBuffer, cl_int(0), 0, countBytes);
-      cl_util::setArgs(mResolveKernel, posesBuffer, mTriangles, mEdgeStart, mEdgeTriangles,
-                       mVertexStart, mVertexTriangles, hitBuffer, pointsBuffer, countBuffer,
-                       params);
-      cl_util::enqueue1d(mQueue, mResolveKernel, items, DS_LOCAL_SIZE);
-      cl_util::download(mQueue, mTransfers, pointsBuffer, CL_TRUE, 0, pointBytes, points);
-      std::vector<cl_int> counts(static_cast<std::size_t>(frameCount));
-      cl_util::download(mQueue, mTransfers, countBuffer, CL_TRUE, 0, countBytes, counts.data());
-      if (moved != nullptr) {
-        std::copy(counts.begin(), counts.end(), moved);
-      }
-    });
+    mViewPoses.view(poses, static_cast<std::size_t>(frameCount) * poseValues());
+    mViewHits.view(hits, items);
+    mViewOut.view(points, items * 3);
+    resolveOnDevice(frameCount, mViewPoses, mViewHits, offset, mViewOut, moved);
+    mViewOut.read<float>();
   }
 
-  void keepPoses(int frameCount, const float* poses) override {
-    mKeptHost = nullptr;
-    const std::size_t bytes =
-        static_cast<std::size_t>(frameCount) * 3 * mSearch.vertexCount() * sizeof(float);
-    if (frameCount <= 0 || poses == nullptr) {
+  void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
+                   int* inside) override {
+    mSearch.checkChunk("inside count", frameCount, inside != nullptr);
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    checkInputs("inside count", frameCount, &poses, &points, &hits, items);
+    std::fill(inside, inside + frameCount, 0);
+    if (items == 0) {
       return;
     }
-    cl_util::guard("uploading the batch's driver poses", [&] {
-      cl::Buffer& buffer = mKeptPoses.reserve(mContext, bytes);
-      cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, poses);
-    });
-    mKeptHost = poses;
-    mKeptBytes = bytes;
+    DeviceArray& posesOn = onDevice(poses, mViewPoses);
+    DeviceArray& hitsOn = onDevice(hits, mViewHits);
+    DeviceArray& pointsOn = onDevice(points, mViewPoints);
+    launchSigned(mCountInsideKernel, frameCount, posesOn, hitsOn, cl_util::readBuffer(pointsOn),
+                 0.0f, inside, "running the inside-count kernel");
   }
 
-  void releasePoses() override { mKeptHost = nullptr; }
+  void closestBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
+                    DeviceArray& hits) override {
+    if (!mUseBvh) {
+      ClosestBackend::closestBlock(frameCount, poses, points, hits);
+      return;
+    }
+    mSearch.checkChunk("closest triangle", frameCount, true);
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    checkInputs("closest triangle", frameCount, &poses, &points, nullptr, 0);
+    DeviceArray& out = outputOnDevice(hits, mViewHits, items * sizeof(SurfaceHit), false);
+    closestBvh(frameCount, onDevice(poses, mViewPoses), onDevice(points, mViewPoints), out);
+    finishOutput(out, mViewHits);
+  }
+
+  void transferBlock(int frameCount, DeviceArray& hits, DeviceArray& fromPoses,
+                     DeviceArray& toPoses, DeviceArray& points, DeviceArray& out) override {
+    mSearch.checkChunk("transfer", frameCount, true);
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    checkInputs("transfer", frameCount, &fromPoses, &points, &hits, items);
+    checkInputs("transfer", frameCount, &toPoses, nullptr, nullptr, 0);
+    DeviceArray& result = outputOnDevice(out, mViewOut, items * 3 * sizeof(float), false);
+    transferOnDevice(frameCount, onDevice(hits, mViewHits), onDevice(fromPoses, mViewPoses),
+                     onDevice(toPoses, mViewToPoses), onDevice(points, mViewPoints), result);
+    finishOutput(result, mViewOut);
+  }
+
+  void rebuildBlock(int frameCount, DeviceArray& hits, DeviceArray& toPoses, DeviceArray& local,
+                    DeviceArray& out) override {
+    mSearch.checkChunk("rebuild", frameCount, true);
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    checkInputs("rebuild", frameCount, &toPoses, &local, nullptr, 0);
+    if (frameCount > 0) {
+      correction::checkHits("rebuild", mSearch.triangleCount(),
+                            static_cast<std::size_t>(mSearch.pointCount()),
+                            std::max(mSearch.pointCount(), 1), hits.hostIfCurrent<SurfaceHit>());
+    }
+    DeviceArray& result = outputOnDevice(out, mViewOut, items * 3 * sizeof(float), false);
+    rebuildOnDevice(frameCount, onDevice(hits, mViewHits), onDevice(toPoses, mViewToPoses),
+                    onDevice(local, mViewPoints), result);
+    finishOutput(result, mViewOut);
+  }
+
+  void resolveBlock(int frameCount, DeviceArray& poses, DeviceArray& hits, float offset,
+                    DeviceArray& points, int* moved) override {
+    mSearch.checkChunk("penetration resolution", frameCount, true);
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    correction::checkOffset(offset);
+    checkInputs("penetration resolution", frameCount, &poses, &points, &hits, items);
+    DeviceArray& result = outputOnDevice(points, mViewOut, items * 3 * sizeof(float), true);
+    resolveOnDevice(frameCount, onDevice(poses, mViewPoses), onDevice(hits, mViewHits), offset,
+                    result, moved);
+    finishOutput(result, mViewOut);
+  }
 
  private:
-  /// The device copy of `poses` (`bytes` long): the kept one (keepPoses) when it is that
-  /// block, else `scratch` after a blocking upload.
-  const cl::Buffer& posesOnDevice(cl_util::GrowingBuffer& scratch, const float* poses,
-                                  std::size_t bytes) {
-    if (poses == mKeptHost && bytes == mKeptBytes) {
-      return mKeptPoses.reserve(mContext, bytes);
+  /// 3Vp: the floats of one pose.
+  std::size_t poseValues() const { return 3 * static_cast<std::size_t>(mSearch.vertexCount()); }
+
+  /// `array` itself when its device side is on this context; else `view` over its host copy
+  /// (an array of another device, or of the host), uploaded by the kernel call that reads it.
+  DeviceArray& onDevice(DeviceArray& array, DeviceArray& view) {
+    if (cl_util::onContext(mContext, array)) {
+      return array;
     }
-    cl::Buffer& buffer = scratch.reserve(mContext, bytes);
-    cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, poses);
-    return buffer;
+    view.view(array.read<unsigned char>(), array.bytes());
+    return view;
+  }
+
+  /// An output array as the kernels see it: `target` itself when it is on this context, else
+  /// `view` over its host copy (`keep`: with its current values, for updates in place), which
+  /// finishOutput() brings back. The caller sizes `target` (at least `bytes`).
+  DeviceArray& outputOnDevice(DeviceArray& target, DeviceArray& view, std::size_t bytes,
+                              bool keep) {
+    if (target.bytes() < bytes) {
+      DS_THROW(kInternal, "an output block of ", target.bytes(), " bytes was given for ", bytes);
+    }
+    if (cl_util::onContext(mContext, target)) {
+      return target;
+    }
+    view.view(keep ? target.modify<unsigned char>() : target.write<unsigned char>(),
+              target.bytes());
+    return view;
+  }
+  /// Downloads an output that went through a view into its target's host copy.
+  static void finishOutput(DeviceArray& used, DeviceArray& view) {
+    if (&used == &view) {
+      view.read<unsigned char>();
+    }
+  }
+
+  /// The raw calls' NaN and range checks on the host copies that are current (see
+  /// correction::checkFinite): poses F x 3Vp, points F x 3Vd, `hitCount` hits.
+  void checkInputs(const char* stage, int frameCount, DeviceArray* poses, DeviceArray* points,
+                   DeviceArray* hits, std::size_t hitCount) const {
+    if (poses != nullptr) {
+      correction::checkFinite(stage, "driver vertex", frameCount, mSearch.vertexCount(),
+                              poses->hostIfCurrent<float>());
+    }
+    if (points != nullptr) {
+      correction::checkFinite(stage, "driven point", frameCount, mSearch.pointCount(),
+                              points->hostIfCurrent<float>());
+    }
+    if (hits != nullptr && hitCount > 0) {
+      correction::checkHits(stage, mSearch.triangleCount(), hitCount,
+                            std::max(mSearch.pointCount(), 1), hits->hostIfCurrent<SurfaceHit>());
+    }
   }
 
   /// The sizes the transfer and rebuild kernels share.
@@ -287,13 +298,54 @@ class ClClosest final : public ClosestBackend {
   /// At most this many triangles per BVH leaf (measured on W1: 4 and 8 are within noise).
   static constexpr int kLeafSize = 4;
 
-  /// ClosestBackend::closest through the BVH (see src/correction/bvh.cpp and kernels/bvh.cl).
-  void closestBvh(int frameCount, const float* poses, const float* points, SurfaceHit* hits) {
-    mSearch.checkChunk("closest triangle", frameCount, poses != nullptr && points != nullptr);
-    correction::checkFinite("closest triangle", "driver vertex", frameCount, mSearch.vertexCount(),
-                            poses);
-    correction::checkFinite("closest triangle", "driven point", frameCount, mSearch.pointCount(),
-                            points);
+  /// ClosestBackend::closest with the host candidate lists (ClosestOptions::kCandidates).
+  void closestCandidates(int frameCount, const float* poses, const float* points,
+                         SurfaceHit* hits) {
+    mSearch.find(frameCount, poses, points, mCandidates);
+    if (frameCount == 0 || mSearch.pointCount() == 0) {
+      return;
+    }
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    const std::size_t poseBytes = static_cast<std::size_t>(frameCount) * poseValues() * 4;
+    const std::size_t pointBytes = items * 3 * sizeof(float);
+    const double scale2 = mSearch.sceneScale() * mSearch.sceneScale();
+
+    DsClosestParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = mSearch.pointCount();
+    params.vertexCount = mSearch.vertexCount();
+    params.triangleCount = mSearch.triangleCount();
+    params.tieRelative =
+        static_cast<float>(mDouble ? DS_TIE_RELATIVE_DOUBLE : DS_TIE_RELATIVE_SINGLE);
+    params.tieAbsolute =
+        static_cast<float>((mDouble ? DS_TIE_SCALE2_DOUBLE : DS_TIE_SCALE2_SINGLE) * scale2);
+
+    cl_util::guard("running the closest-triangle kernel", [&] {
+      cl::Buffer& posesBuffer = mPoses.reserve(mContext, poseBytes);
+      cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
+      cl::Buffer& startBuffer =
+          mStart.reserve(mContext, mCandidates.start.size() * sizeof(std::int32_t));
+      cl::Buffer& candidateBuffer = mCandidateTriangles.reserve(
+          mContext, mCandidates.triangles.size() * sizeof(std::int32_t));
+      cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
+      cl_util::upload(mQueue, mTransfers, posesBuffer, CL_TRUE, 0, poseBytes, poses);
+      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_TRUE, 0, pointBytes, points);
+      cl_util::upload(mQueue, mTransfers, startBuffer, CL_TRUE, 0,
+                      mCandidates.start.size() * sizeof(std::int32_t), mCandidates.start.data());
+      cl_util::upload(mQueue, mTransfers, candidateBuffer, CL_TRUE, 0,
+                      mCandidates.triangles.size() * sizeof(std::int32_t),
+                      mCandidates.triangles.data());
+      cl_util::setArgs(mClosestKernel, posesBuffer, mTriangles, pointsBuffer, startBuffer,
+                       candidateBuffer, hitBuffer, params);
+      cl_util::enqueue1d(mQueue, mClosestKernel, items, DS_LOCAL_SIZE);
+      cl_util::download(mQueue, mTransfers, hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit),
+                        hits);
+    });
+  }
+
+  /// ClosestBackend::closest through the BVH (see src/correction/bvh.cpp and kernels/bvh.cl)
+  /// on arrays of this context; `hits` sized F x Vd.
+  void closestBvh(int frameCount, DeviceArray& poses, DeviceArray& points, DeviceArray& hits) {
     const int pointCount = mSearch.pointCount();
     if (frameCount == 0 || pointCount == 0) {
       return;
@@ -301,9 +353,6 @@ class ClClosest final : public ClosestBackend {
     const int vertexCount = mSearch.vertexCount();
     const int nodeCount = static_cast<int>(mBvh.nodes.size());
     const std::size_t items = static_cast<std::size_t>(frameCount) * pointCount;
-    const std::size_t poseBytes =
-        static_cast<std::size_t>(frameCount) * 3 * vertexCount * sizeof(float);
-    const std::size_t pointBytes = items * 3 * sizeof(float);
     const std::size_t boxBytes = static_cast<std::size_t>(frameCount) *
                                  static_cast<std::size_t>(nodeCount) * 6 * sizeof(float);
     const double scale2 = mSearch.sceneScale() * mSearch.sceneScale();
@@ -322,20 +371,26 @@ class ClClosest final : public ClosestBackend {
     params.pruneAbsolute = static_cast<float>(prune * scale2);
 
     if (!mSeeded) {
-      correction::seedTriangles(mBvh, mSearch.triangles().data(), poses, points, mSeedHost);
+      // The first block starts from the host's guess on its first frame (a warm start only).
+      std::vector<std::int32_t> seeds;
+      correction::seedTriangles(mBvh, mSearch.triangles().data(), poses.read<float>(),
+                                points.read<float>(), seeds);
+      std::vector<SurfaceHit> seedHits(seeds.size());
+      for (std::size_t i = 0; i < seeds.size(); ++i) {
+        seedHits[i].triangle = seeds[i];
+      }
       cl_util::guard("uploading the closest-triangle warm start", [&] {
         cl_util::upload(mQueue, mTransfers, mSeeds, CL_TRUE, 0,
-                        mSeedHost.size() * sizeof(std::int32_t), mSeedHost.data());
+                        seedHits.size() * sizeof(SurfaceHit), seedHits.data());
       });
       mSeeded = true;
     }
 
     cl_util::guard("running the closest-triangle kernels", [&] {
-      const cl::Buffer& posesBuffer = posesOnDevice(mPoses, poses, poseBytes);
-      cl::Buffer& pointsBuffer = mPoints.reserve(mContext, pointBytes);
+      const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
+      const cl::Buffer& pointsBuffer = cl_util::readBuffer(points);
       cl::Buffer& boxBuffer = mBoxes.reserve(mContext, boxBytes);
-      cl::Buffer& hitBuffer = mHits.reserve(mContext, items * sizeof(SurfaceHit));
-      cl_util::upload(mQueue, mTransfers, pointsBuffer, CL_FALSE, 0, pointBytes, points);
+      cl::Buffer& hitBuffer = cl_util::writeBuffer(hits);
       DsBvhRefitParams refit{};
       refit.frameCount = frameCount;
       refit.vertexCount = vertexCount;
@@ -352,15 +407,86 @@ class ClClosest final : public ClosestBackend {
       cl_util::setArgs(mBvhKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles, boxBuffer,
                        pointsBuffer, mPointRoot, mSeeds, hitBuffer, params);
       cl_util::enqueue1d(mQueue, mBvhKernel, items, DS_LOCAL_SIZE);
-      cl_util::download(mQueue, mTransfers, hitBuffer, CL_TRUE, 0, items * sizeof(SurfaceHit),
-                        hits);
-      // The next chunk starts from this chunk's last frame (a warm start only; see bvh.cpp).
-      const SurfaceHit* last = hits + (items - static_cast<std::size_t>(pointCount));
-      for (int i = 0; i < pointCount; ++i) {
-        mSeedHost[static_cast<std::size_t>(i)] = last[i].triangle;
-      }
-      cl_util::upload(mQueue, mTransfers, mSeeds, CL_TRUE, 0,
-                      mSeedHost.size() * sizeof(std::int32_t), mSeedHost.data());
+      // The next block starts from this block's last frame, copied on the device.
+      mQueue.enqueueCopyBuffer(hitBuffer, mSeeds, (items - pointCount) * sizeof(SurfaceHit), 0,
+                               static_cast<std::size_t>(pointCount) * sizeof(SurfaceHit));
+    });
+  }
+
+  void transferOnDevice(int frameCount, DeviceArray& hits, DeviceArray& fromPoses,
+                        DeviceArray& toPoses, DeviceArray& points, DeviceArray& out) {
+    if (frameCount == 0 || mSearch.pointCount() == 0) {
+      return;
+    }
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    const DsTransferParams params = transferParams(frameCount);
+    cl_util::guard("running the transfer kernel", [&] {
+      const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);
+      const cl::Buffer& fromBuffer = cl_util::readBuffer(fromPoses);
+      const cl::Buffer& toBuffer = cl_util::readBuffer(toPoses);
+      const cl::Buffer& pointsBuffer = cl_util::readBuffer(points);
+      cl::Buffer& outBuffer = cl_util::writeBuffer(out);
+      cl_util::setArgs(mTransferKernel, hitBuffer, fromBuffer, toBuffer, mTriangles, pointsBuffer,
+                       outBuffer, params);
+      cl_util::enqueue1d(mQueue, mTransferKernel, items, DS_LOCAL_SIZE);
+    });
+  }
+
+  void rebuildOnDevice(int frameCount, DeviceArray& hits, DeviceArray& toPoses, DeviceArray& local,
+                       DeviceArray& out) {
+    if (frameCount == 0 || mSearch.pointCount() == 0) {
+      return;
+    }
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    const DsTransferParams params = transferParams(frameCount);
+    cl_util::guard("running the rebuild kernel", [&] {
+      const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);
+      const cl::Buffer& toBuffer = cl_util::readBuffer(toPoses);
+      const cl::Buffer& localBuffer = cl_util::readBuffer(local);
+      cl::Buffer& outBuffer = cl_util::writeBuffer(out);
+      cl_util::setArgs(mRebuildKernel, hitBuffer, toBuffer, mTriangles, localBuffer, outBuffer,
+                       params);
+      cl_util::enqueue1d(mQueue, mRebuildKernel, items, DS_LOCAL_SIZE);
+    });
+  }
+
+  void resolveOnDevice(int frameCount, DeviceArray& poses, DeviceArray& hits, float offset,
+                       DeviceArray& points, int* moved) {
+    if (frameCount == 0) {
+      return;
+    }
+    std::vector<int> counts(static_cast<std::size_t>(frameCount), 0);
+    if (mSearch.pointCount() > 0) {
+      launchSigned(mResolveKernel, frameCount, poses, hits, cl_util::modifyBuffer(points), offset,
+                   counts.data(), "running the penetration-resolution kernel");
+    }
+    if (moved != nullptr) {
+      std::copy(counts.begin(), counts.end(), moved);
+    }
+  }
+
+  /// Runs dsResolve or dsCountInside (same arguments) over every point of `frameCount` frames
+  /// and reads back their per-frame counters into `counts`.
+  void launchSigned(cl::Kernel& kernel, int frameCount, DeviceArray& poses, DeviceArray& hits,
+                    const cl::Buffer& pointsBuffer, float offset, int* counts, const char* what) {
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    const std::size_t countBytes = static_cast<std::size_t>(frameCount) * sizeof(cl_int);
+    DsResolveParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = mSearch.pointCount();
+    params.vertexCount = mSearch.vertexCount();
+    params.triangleCount = mSearch.triangleCount();
+    params.offset = offset;
+    cl_util::guard(what, [&] {
+      const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
+      const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);
+      cl::Buffer& countBuffer = mCounts.reserve(mContext, countBytes);
+      mQueue.enqueueFillBuffer(countBuffer, cl_int(0), 0, countBytes);
+      cl_util::setArgs(kernel, posesBuffer, mTriangles, mEdgeStart, mEdgeTriangles, mVertexStart,
+                       mVertexTriangles, hitBuffer, pointsBuffer, countBuffer, params);
+      cl_util::enqueue1d(mQueue, kernel, items, DS_LOCAL_SIZE);
+      static_assert(sizeof(cl_int) == sizeof(int), "counts are read as int");
+      cl_util::download(mQueue, mTransfers, countBuffer, CL_TRUE, 0, countBytes, counts);
     });
   }
 
@@ -395,6 +521,7 @@ class ClClosest final : public ClosestBackend {
   cl::Kernel mTransferKernel;
   cl::Kernel mRebuildKernel;
   cl::Kernel mResolveKernel;
+  cl::Kernel mCountInsideKernel;
   cl::Kernel mRefitKernel;
   cl::Kernel mBvhKernel;
   correction::CandidateSearch mSearch;
@@ -409,20 +536,16 @@ class ClClosest final : public ClosestBackend {
   cl::Buffer mLeafTriangles;
   cl::Buffer mPointRoot;
   cl::Buffer mSeeds;
-  std::vector<std::int32_t> mSeedHost;
   bool mSeeded = false;
   cl_util::GrowingBuffer mBoxes{CL_MEM_READ_WRITE};
-  cl_util::GrowingBuffer mPoses{CL_MEM_READ_ONLY};
-  cl_util::GrowingBuffer mToPoses{CL_MEM_READ_ONLY};
+  cl_util::GrowingBuffer mPoses{CL_MEM_READ_ONLY};  // the candidate path's
   cl_util::GrowingBuffer mPoints{CL_MEM_READ_ONLY};
   cl_util::GrowingBuffer mStart{CL_MEM_READ_ONLY};
   cl_util::GrowingBuffer mCandidateTriangles{CL_MEM_READ_ONLY};
   cl_util::GrowingBuffer mHits{CL_MEM_READ_WRITE};
-  cl_util::GrowingBuffer mOut{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mCounts{CL_MEM_READ_WRITE};
-  cl_util::GrowingBuffer mKeptPoses{CL_MEM_READ_ONLY};  // keepPoses(): F x 3Vp
-  const float* mKeptHost = nullptr;                     // the host block it copies, or null
-  std::size_t mKeptBytes = 0;
+  // Views of the raw calls' memory (and of arrays of other devices) for the array path.
+  DeviceArray mViewPoses, mViewToPoses, mViewPoints, mViewHits, mViewOut;
 };
 
 }  // namespace

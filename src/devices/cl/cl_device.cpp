@@ -35,6 +35,10 @@ class ClDevice final : public Device {
   std::unique_ptr<PositionMapBackend> makePositionMaps() override {
     return makeClPositionMaps(mTarget);
   }
+  DeviceArray makeArray() override {
+    return DeviceArray(
+        std::make_unique<cl_util::ClStorage>(mTarget.context, mTarget.queue, &mTransfers));
+  }
   TransferCounts transfers() const override {
     return {mTransfers.uploads.load(), mTransfers.downloads.load(), mTransfers.uploadBytes.load(),
             mTransfers.downloadBytes.load()};

@@ -1,5 +1,6 @@
 #include "cl_program.h"
 
+#include <algorithm>
 #include <sstream>
 
 #include <drivenshape/error.h>
@@ -12,8 +13,32 @@ void rethrowClError(const char* what, const cl::Error& error) {
   DS_THROW(kDevice, "OpenCL failed while ", what, ": ", error.what(), " returned ",
            clErrorName(error.err()),
            error.err() == CL_OUT_OF_RESOURCES || error.err() == CL_MEM_OBJECT_ALLOCATION_FAILURE
-               ? "; bake fewer frames per launch (--batch) or use another --device"
+               ? "; evaluate fewer frames per call (a smaller batch) or use another device"
                : "");
+}
+
+void ClStorage::reserve(std::size_t bytes) {
+  bytes = std::max<std::size_t>(bytes, 16);
+  if (bytes > mBytes) {
+    guard("allocating a frame block on the device",
+          [&] { mBuffer = cl::Buffer(mContext, CL_MEM_READ_WRITE, bytes); });
+    mBytes = bytes;
+  }
+}
+
+void ClStorage::upload(const void* host, std::size_t bytes) {
+  guard("copying a frame block to the device",
+        [&] { cl_util::upload(mQueue, mTransfers, mBuffer, CL_TRUE, 0, bytes, host); });
+}
+
+void ClStorage::download(void* host, std::size_t bytes) {
+  guard("copying a frame block from the device",
+        [&] { cl_util::download(mQueue, mTransfers, mBuffer, CL_TRUE, 0, bytes, host); });
+}
+
+cl::Buffer* bufferOf(DeviceStorage* storage, const cl::Context& context) {
+  auto* cl = dynamic_cast<ClStorage*>(storage);
+  return cl != nullptr && cl->context()() == context() ? &cl->buffer() : nullptr;
 }
 
 namespace {

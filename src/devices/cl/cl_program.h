@@ -11,6 +11,8 @@
 
 #include <CL/opencl.hpp>
 
+#include <drivenshape/device_array.h>
+
 namespace drivenshape::cl_util {
 
 /// Host<->device copies made by the backends of one device: counted so that benchmarks can
@@ -156,5 +158,49 @@ class GrowingBuffer {
   cl::Buffer mBuffer;
   std::size_t mBytes = 0;
 };
+
+/// The device side of a DeviceArray on one OpenCL context: a growing buffer, copies counted
+/// in the device's transfers.
+class ClStorage final : public DeviceStorage {
+ public:
+  ClStorage(const cl::Context& context, const cl::CommandQueue& queue, Transfers* transfers)
+      : mContext(context), mQueue(queue), mTransfers(transfers) {}
+
+  void reserve(std::size_t bytes) override;
+  void upload(const void* host, std::size_t bytes) override;
+  void download(void* host, std::size_t bytes) override;
+
+  cl::Buffer& buffer() { return mBuffer; }
+  const cl::Context& context() const { return mContext; }
+
+ private:
+  cl::Context mContext;
+  cl::CommandQueue mQueue;
+  Transfers* mTransfers;
+  cl::Buffer mBuffer;
+  std::size_t mBytes = 0;
+};
+
+/// The OpenCL buffer behind `storage` when it is a ClStorage on `context`, else null (an array
+/// of the host device, or of another context: the caller then works on the host copy).
+cl::Buffer* bufferOf(DeviceStorage* storage, const cl::Context& context);
+
+/// True when every array has an OpenCL side on `context`.
+template <typename... Arrays>
+bool onContext(const cl::Context& context, Arrays&... arrays) {
+  return ((bufferOf(arrays.storage(), context) != nullptr) && ...);
+}
+
+/// The buffer of `array` for reading, writing or modifying it on the device (see
+/// DeviceArray::deviceForRead etc.); only for arrays onContext() accepted.
+inline cl::Buffer& readBuffer(DeviceArray& array) {
+  return static_cast<ClStorage*>(array.deviceForRead())->buffer();
+}
+inline cl::Buffer& writeBuffer(DeviceArray& array) {
+  return static_cast<ClStorage*>(array.deviceForWrite())->buffer();
+}
+inline cl::Buffer& modifyBuffer(DeviceArray& array) {
+  return static_cast<ClStorage*>(array.deviceForModify())->buffer();
+}
 
 }  // namespace drivenshape::cl_util

@@ -103,87 +103,68 @@ class ClStages final : public StageBackend {
 
   void project(int frameCount, const float* driverFrames, float* projections,
                float* norms) override {
-    stage_checks::checkCall("project", mUploaded, frameCount);
+    checkProject(frameCount, driverFrames != nullptr, projections, norms);
     if (frameCount == 0) {
       return;
     }
-    if (driverFrames == nullptr || norms == nullptr || (mRowCount > 0 && projections == nullptr)) {
-      DS_THROW(kInternal, "StageBackend::project called with a null buffer");
-    }
     const std::size_t frames = static_cast<std::size_t>(frameCount);
-    const std::size_t outStride = static_cast<std::size_t>(mRowCount) + 2;
-
-    reserve(mFrames, frames * mDriverPadded * sizeof(float), CL_MEM_READ_ONLY, true,
-            "allocating the driver frame buffer");
-    reserve(mProjected, frames * outStride * sizeof(float), CL_MEM_WRITE_ONLY, false,
-            "allocating the projection buffer");
+    reserveFrames(frames);
     guard("uploading a chunk of driver frames",
           [&] { writeRows(mFrames.buffer, driverFrames, frames, mDriverCount, mDriverPadded); });
+    projectFrames(frameCount, projections, norms);
+  }
 
-    DsProjectParams params{};
-    params.quadCount = static_cast<int>(mDriverPadded / 4);
-    params.rowCount = mRowCount;
-    params.tileCount = mTileCount;
-    params.frameCount = frameCount;
-    params.outStride = static_cast<int>(outStride);
-    guard("running dsProject on a chunk of frames", [&] {
-      mProject.setArg(0, mFrames.buffer);
-      mProject.setArg(1, mCenter);
-      mProject.setArg(2, mRows);
-      mProject.setArg(3, mProjected.buffer);
-      mProject.setArg(4, params);
-      const std::size_t groups = frames * static_cast<std::size_t>(mTileCount);
-      mQueue.enqueueNDRangeKernel(mProject, cl::NullRange, cl::NDRange(groups * DS_LOCAL_SIZE),
-                                  cl::NDRange(DS_LOCAL_SIZE));
-    });
-
-    mStaging.resize(frames * outStride);
-    guard("reading back the projections", [&] {
-      cl_util::download(mQueue, mTransfers, mProjected.buffer, CL_TRUE, 0,
-                        mStaging.size() * sizeof(float), mStaging.data());
-    });
-    const std::size_t rows = static_cast<std::size_t>(mRowCount);
-    for (std::size_t f = 0; f < frames; ++f) {
-      const float* in = mStaging.data() + f * outStride;
-      std::copy(in, in + rows, projections + f * rows);
-      norms[2 * f] = in[rows];
-      norms[2 * f + 1] = in[rows + 1];
+  void projectBlock(int frameCount, DeviceArray& driverFrames, float* projections,
+                    float* norms) override {
+    if (!cl_util::onContext(mContext, driverFrames)) {
+      StageBackend::projectBlock(frameCount, driverFrames, projections, norms);
+      return;
     }
+    checkProject(frameCount, true, projections, norms);
+    if (frameCount == 0) {
+      return;
+    }
+    const std::size_t frames = static_cast<std::size_t>(frameCount);
+    reserveFrames(frames);
+    guard("copying a block of driver frames on the device", [&] {
+      copyRows(cl_util::readBuffer(driverFrames), mDriverCount, mFrames.buffer, mDriverPadded,
+               frames, mDriverCount);
+    });
+    projectFrames(frameCount, projections, norms);
   }
 
   void blend(int frameCount, const float* weights, float* driven, float* driver) override {
-    stage_checks::checkCall("blend", mUploaded, frameCount);
+    checkBlend(frameCount, weights, driven != nullptr);
     if (frameCount == 0) {
       return;
     }
-    if (weights == nullptr || driven == nullptr) {
-      DS_THROW(kInternal, "StageBackend::blend called with a null buffer");
-    }
+    uploadWeights(frameCount, weights);
     const std::size_t frames = static_cast<std::size_t>(frameCount);
-    const std::size_t k = static_cast<std::size_t>(mShapeCount);
-
-    // Weights plus, per frame, sum(w) - 1 summed in double: the term that carries the
-    // reference shape in blend.cl, where float rounding of the sum would cost whole ulps of
-    // positions far from the origin.
-    mStaging.resize(frames * (k + 1));
-    for (std::size_t f = 0; f < frames; ++f) {
-      double sum = 0.0;
-      for (std::size_t i = 0; i < k; ++i) {
-        mStaging[f * (k + 1) + i] = weights[f * k + i];
-        sum += static_cast<double>(weights[f * k + i]);
-      }
-      mStaging[f * (k + 1) + k] = static_cast<float>(sum - 1.0);
-    }
-    reserve(mWeights, mStaging.size() * sizeof(float), CL_MEM_READ_ONLY, false,
-            "allocating the weight buffer");
-    guard("uploading a chunk of blend weights", [&] {
-      cl_util::upload(mQueue, mTransfers, mWeights.buffer, CL_TRUE, 0,
-                      mStaging.size() * sizeof(float), mStaging.data());
-    });
-
-    blendInto(mDriven, frameCount, mDrivenOut, driven, "blending the driven shapes");
+    blendInto(mDriven, frameCount, mDrivenOut, "blending the driven shapes");
+    guard("reading back blended shapes",
+          [&] { readRows(mDrivenOut.buffer, driven, frames, mDriven.count, mDriven.padded); });
     if (driver != nullptr) {
-      blendInto(mDriver, frameCount, mDriverOut, driver, "blending the driver shapes");
+      blendInto(mDriver, frameCount, mDriverOut, "blending the driver shapes");
+      guard("reading back blended shapes",
+            [&] { readRows(mDriverOut.buffer, driver, frames, mDriver.count, mDriver.padded); });
+    }
+  }
+
+  void blendBlock(int frameCount, const float* weights, DeviceArray& driven,
+                  DeviceArray* driver) override {
+    if (!cl_util::onContext(mContext, driven) ||
+        (driver != nullptr && !cl_util::onContext(mContext, *driver))) {
+      StageBackend::blendBlock(frameCount, weights, driven, driver);
+      return;
+    }
+    checkBlend(frameCount, weights, true);
+    if (frameCount == 0) {
+      return;
+    }
+    uploadWeights(frameCount, weights);
+    blendOnDevice(mDriven, frameCount, mDrivenOut, driven, "blending the driven shapes");
+    if (driver != nullptr) {
+      blendOnDevice(mDriver, frameCount, mDriverOut, *driver, "blending the driver shapes");
     }
   }
 
@@ -277,10 +258,116 @@ class ClStages final : public StageBackend {
     cl_util::countTransfer(mTransfers, false, rows * count * sizeof(float));
   }
 
-  void blendInto(const BlendTable& table, int frameCount, ChunkBuffer& out, float* result,
-                 const char* what) {
+  void checkProject(int frameCount, bool framesPresent, const float* projections,
+                    const float* norms) const {
+    stage_checks::checkCall("project", mUploaded, frameCount);
+    if (frameCount > 0 &&
+        (!framesPresent || norms == nullptr || (mRowCount > 0 && projections == nullptr))) {
+      DS_THROW(kInternal, "StageBackend::project called with a null buffer");
+    }
+  }
+
+  void checkBlend(int frameCount, const float* weights, bool drivenPresent) const {
+    stage_checks::checkCall("blend", mUploaded, frameCount);
+    if (frameCount > 0 && (weights == nullptr || !drivenPresent)) {
+      DS_THROW(kInternal, "StageBackend::blend called with a null buffer");
+    }
+  }
+
+  void reserveFrames(std::size_t frames) {
+    reserve(mFrames, frames * mDriverPadded * sizeof(float), CL_MEM_READ_ONLY, true,
+            "allocating the driver frame buffer");
+  }
+
+  /// dsProject on the frames in mFrames, then one read back of projections and norms.
+  void projectFrames(int frameCount, float* projections, float* norms) {
     const std::size_t frames = static_cast<std::size_t>(frameCount);
-    reserve(out, frames * table.padded * sizeof(float), CL_MEM_WRITE_ONLY, false,
+    const std::size_t outStride = static_cast<std::size_t>(mRowCount) + 2;
+    reserve(mProjected, frames * outStride * sizeof(float), CL_MEM_WRITE_ONLY, false,
+            "allocating the projection buffer");
+    DsProjectParams params{};
+    params.quadCount = static_cast<int>(mDriverPadded / 4);
+    params.rowCount = mRowCount;
+    params.tileCount = mTileCount;
+    params.frameCount = frameCount;
+    params.outStride = static_cast<int>(outStride);
+    guard("running dsProject on a chunk of frames", [&] {
+      mProject.setArg(0, mFrames.buffer);
+      mProject.setArg(1, mCenter);
+      mProject.setArg(2, mRows);
+      mProject.setArg(3, mProjected.buffer);
+      mProject.setArg(4, params);
+      const std::size_t groups = frames * static_cast<std::size_t>(mTileCount);
+      mQueue.enqueueNDRangeKernel(mProject, cl::NullRange, cl::NDRange(groups * DS_LOCAL_SIZE),
+                                  cl::NDRange(DS_LOCAL_SIZE));
+    });
+
+    mStaging.resize(frames * outStride);
+    guard("reading back the projections", [&] {
+      cl_util::download(mQueue, mTransfers, mProjected.buffer, CL_TRUE, 0,
+                        mStaging.size() * sizeof(float), mStaging.data());
+    });
+    const std::size_t rows = static_cast<std::size_t>(mRowCount);
+    for (std::size_t f = 0; f < frames; ++f) {
+      const float* in = mStaging.data() + f * outStride;
+      std::copy(in, in + rows, projections + f * rows);
+      norms[2 * f] = in[rows];
+      norms[2 * f + 1] = in[rows + 1];
+    }
+  }
+
+  /// Weights plus, per frame, sum(w) - 1 summed in double (the term that carries the reference
+  /// shape in blend.cl, where float rounding of the sum would cost whole ulps of positions far
+  /// from the origin), to the device.
+  void uploadWeights(int frameCount, const float* weights) {
+    const std::size_t frames = static_cast<std::size_t>(frameCount);
+    const std::size_t k = static_cast<std::size_t>(mShapeCount);
+    mStaging.resize(frames * (k + 1));
+    for (std::size_t f = 0; f < frames; ++f) {
+      double sum = 0.0;
+      for (std::size_t i = 0; i < k; ++i) {
+        mStaging[f * (k + 1) + i] = weights[f * k + i];
+        sum += static_cast<double>(weights[f * k + i]);
+      }
+      mStaging[f * (k + 1) + k] = static_cast<float>(sum - 1.0);
+    }
+    reserve(mWeights, mStaging.size() * sizeof(float), CL_MEM_READ_ONLY, false,
+            "allocating the weight buffer");
+    guard("uploading a chunk of blend weights", [&] {
+      cl_util::upload(mQueue, mTransfers, mWeights.buffer, CL_TRUE, 0,
+                      mStaging.size() * sizeof(float), mStaging.data());
+    });
+  }
+
+  /// Blends `table` with the uploaded weights into `out` (padded rows) and copies the rows,
+  /// packed, into `result` on the device.
+  void blendOnDevice(const BlendTable& table, int frameCount, ChunkBuffer& out, DeviceArray& result,
+                     const char* what) {
+    blendInto(table, frameCount, out, what);
+    guard("copying blended shapes on the device", [&] {
+      copyRows(out.buffer, table.padded, cl_util::writeBuffer(result), table.count,
+               static_cast<std::size_t>(frameCount), table.count);
+    });
+  }
+
+  /// Device-to-device copy of `rows` rows of `count` floats between blocks with row pitches
+  /// `fromPitch` and `toPitch` (floats).
+  void copyRows(const cl::Buffer& from, std::size_t fromPitch, const cl::Buffer& to,
+                std::size_t toPitch, std::size_t rows, std::size_t count) {
+    if (fromPitch == count && toPitch == count) {
+      mQueue.enqueueCopyBuffer(from, to, 0, 0, rows * count * sizeof(float));
+      return;
+    }
+    const std::array<cl::size_type, 3> origin{0, 0, 0};
+    const std::array<cl::size_type, 3> region{count * sizeof(float), rows, 1};
+    mQueue.enqueueCopyBufferRect(from, to, origin, origin, region, fromPitch * sizeof(float), 0,
+                                 toPitch * sizeof(float), 0);
+  }
+
+  /// dsBlend of `table` with the uploaded weights into `out` (F x padded).
+  void blendInto(const BlendTable& table, int frameCount, ChunkBuffer& out, const char* what) {
+    const std::size_t frames = static_cast<std::size_t>(frameCount);
+    reserve(out, frames * table.padded * sizeof(float), CL_MEM_READ_WRITE, false,
             "allocating a blend output buffer");
     DsBlendParams params{};
     params.quadCount = static_cast<int>(table.padded / 4);
@@ -300,8 +387,6 @@ class ClStages final : public StageBackend {
                       blocks),
           cl::NDRange(DS_LOCAL_SIZE, 1));
     });
-    guard("reading back blended shapes",
-          [&] { readRows(out.buffer, result, frames, table.count, table.padded); });
   }
 
   cl::Context mContext;

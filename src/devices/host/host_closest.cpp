@@ -33,6 +33,22 @@ class HostClosest final : public ClosestBackend {
     mSearch.setSurface(driver, mask);
     mFeatures = correction::buildFeatureTables(mSearch.triangles().data(), mSearch.triangleCount(),
                                                mSearch.vertexCount());
+    mInside = std::make_unique<InsideAudit>(driver);
+  }
+
+  void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
+                   int* inside) override {
+    mSearch.checkChunk("inside count", frameCount, inside != nullptr && mInside != nullptr);
+    const float* pose = poses.read<float>();
+    const float* xyz = points.read<float>();
+    const SurfaceHit* hit = hits.read<SurfaceHit>();
+    const int pointCount = mSearch.pointCount();
+    const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
+    parallelFor(frameCount, mSearch.threads(), [&](int f) {
+      const std::size_t first = static_cast<std::size_t>(f) * pointCount;
+      inside[f] =
+          mInside->countInside(pose + f * poseStride, pointCount, xyz + 3 * first, hit + first);
+    });
   }
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
@@ -187,6 +203,7 @@ class HostClosest final : public ClosestBackend {
   correction::CandidateSearch mSearch;
   correction::FeatureTables mFeatures;
   correction::CandidateTable mCandidates;
+  std::unique_ptr<InsideAudit> mInside;
 };
 
 }  // namespace

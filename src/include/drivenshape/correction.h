@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/device_array.h>
 #include <drivenshape/mesh.h>
 
 namespace drivenshape {
@@ -174,13 +175,40 @@ class ClosestBackend {
   virtual void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                        float* points, int* moved) = 0;
 
-  /// Declares that `poses` (F x 3Vp) stays unchanged until releasePoses(): calls that pass this
-  /// same pointer with the same frame count as their poses (closest's poses, transfer's and
-  /// rebuild's toPoses, resolve's poses) may use a copy made here instead of their own. The
-  /// OpenCL backend uploads the poses once here rather than once per call; the host backend
-  /// needs no copy. The caller must not change that memory before releasePoses().
-  virtual void keepPoses(int /*frameCount*/, const float* /*poses*/) {}
-  virtual void releasePoses() {}
+  /// How many points of each frame are inside the driver: inside[f] counts the points of frame
+  /// f whose signed distance is negative, by InsideAudit's rule (angle-weighted pseudo-normal
+  /// at the closest point), from their exact closest points `hits` over every triangle.
+  ///   poses  F x 3Vp;  hits  F x Vd;  points  F x 3Vd;  inside  F
+  virtual void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits,
+                           DeviceArray& points, int* inside) = 0;
+
+  // The steps above on DeviceArrays (drivenshape/device_array.h), for a block of frames that
+  // stays on the device between stages: an OpenCL backend reads and writes the arrays' device
+  // memory and copies nothing back; these defaults work on the host copies through the calls
+  // above. Output arrays are sized by the caller. NaN and infinity are refused in the host
+  // copies that are current when the call starts (a block made on the device was checked where
+  // it came in).
+  virtual void closestBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
+                            DeviceArray& hits) {
+    closest(frameCount, poses.read<float>(), points.read<float>(), hits.write<SurfaceHit>());
+  }
+  virtual void transferBlock(int frameCount, DeviceArray& hits, DeviceArray& fromPoses,
+                             DeviceArray& toPoses, DeviceArray& points, DeviceArray& out) {
+    const float* in = points.read<float>();
+    transfer(frameCount, hits.read<SurfaceHit>(), fromPoses.read<float>(), toPoses.read<float>(),
+             in, out.write<float>());
+  }
+  /// rebuild() with the bindings `hits` (Vd, made once) in an array too.
+  virtual void rebuildBlock(int frameCount, DeviceArray& hits, DeviceArray& toPoses,
+                            DeviceArray& local, DeviceArray& out) {
+    const float* in = local.read<float>();
+    rebuild(frameCount, hits.read<SurfaceHit>(), toPoses.read<float>(), in, out.write<float>());
+  }
+  virtual void resolveBlock(int frameCount, DeviceArray& poses, DeviceArray& hits, float offset,
+                            DeviceArray& points, int* moved) {
+    resolve(frameCount, poses.read<float>(), hits.read<SurfaceHit>(), offset,
+            points.modify<float>(), moved);
+  }
 };
 
 /// Host-side encoding for local-frame blending (the inverse of ClosestBackend::rebuild, in

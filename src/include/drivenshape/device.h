@@ -12,6 +12,7 @@
 #include <vector>
 
 #include <drivenshape/correction.h>
+#include <drivenshape/device_array.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/position_map.h>
 #include <drivenshape/stages.h>
@@ -46,6 +47,10 @@ class Device {
   virtual std::unique_ptr<LayerBackend> makeLayers() = 0;
   /// Position maps.
   virtual std::unique_ptr<PositionMapBackend> makePositionMaps() = 0;
+
+  /// An empty array whose device side (if this device has one) the backends made here read
+  /// and write in place: the evaluator keeps a block of frames in such arrays between stages.
+  virtual DeviceArray makeArray() { return DeviceArray(); }
 
   /// Copies between host and device so far (benchmarks show them per batch).
   virtual TransferCounts transfers() const { return {}; }

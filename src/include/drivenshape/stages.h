@@ -1,8 +1,11 @@
 #pragma once
 
+#include <cstddef>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <drivenshape/device_array.h>
 
 namespace drivenshape {
 
@@ -52,6 +55,21 @@ class StageBackend {
   ///   driven[f] = sum_i weights[f][i] D_i    (F x 3Vd)
   ///   driver[f] = sum_i weights[f][i] P_i    (F x 3Vp; skipped when `driver` is null)
   virtual void blend(int frameCount, const float* weights, float* driven, float* driver) = 0;
+
+  // The same on DeviceArrays (drivenshape/device_array.h), for a block of frames that stays on
+  // the device between stages: an OpenCL backend reads and writes the arrays' device memory and
+  // copies nothing back; the defaults work on the host copies through the calls above.
+  /// project() of `driverFrames` (F x 3Vp floats).
+  virtual void projectBlock(int frameCount, DeviceArray& driverFrames, float* projections,
+                            float* norms) {
+    project(frameCount, driverFrames.read<float>(), projections, norms);
+  }
+  /// blend() into `driven` (F x 3Vd) and `driver` (F x 3Vp, or null), sized by the caller.
+  virtual void blendBlock(int frameCount, const float* weights, DeviceArray& driven,
+                          DeviceArray* driver) {
+    blend(frameCount, weights, driven.write<float>(),
+          driver != nullptr ? driver->write<float>() : nullptr);
+  }
 };
 
 /// The host reference implementation (plain C++, no OpenCL).

@@ -52,13 +52,14 @@ class AlignStage final : public Stage {
 
   void run(Batch& batch) override {
     const std::size_t dv = mModel.driverValues;
-    batch.alignedStore.resize(static_cast<std::size_t>(batch.solveCount) * dv);
+    batch.alignedFrames.resize<float>(static_cast<std::size_t>(batch.solveCount) * dv);
+    float* aligned = batch.alignedFrames.write<float>();
     batch.motions.resize(batch.solveCount);
     parallelFor(batch.solveCount, mModel.threads, [&](int i) {
       batch.motions[i] = mModel.aligner->fit(&batch.driver[i * dv]);
-      batch.motions[i].apply(&batch.driver[i * dv], mModel.vp, &batch.alignedStore[i * dv]);
+      batch.motions[i].apply(&batch.driver[i * dv], mModel.vp, &aligned[i * dv]);
     });
-    batch.aligned = batch.alignedStore.data();
+    batch.aligned = aligned;
     for (int i = 0; i < batch.count; ++i) {
       const RigidTransform& motion = batch.motions[batch.warm + i];
       FrameRecord& record = batch.records[i];

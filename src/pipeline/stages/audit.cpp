@@ -28,10 +28,13 @@ class AuditStage final : public Stage {
     const bool switches = mModel.settings.correct && !mModel.local;
     const std::size_t dd = mModel.drivenValues;
     const int vd = mModel.vd;
+    // The cloth's one trip back from the device (into the caller's memory).
+    const float* cloth = batch.cloth.read<float>();
+    const SurfaceHit* hits = switches ? batch.hits.read<SurfaceHit>() : nullptr;
     for (int i = 0; i < batch.count; ++i) {
       FrameRecord& record = batch.records[i];
-      const float* now = batch.cloth + i * dd;
-      const float* before = i > 0                     ? batch.cloth + (i - 1) * dd
+      const float* now = cloth + i * dd;
+      const float* before = i > 0                     ? cloth + (i - 1) * dd
                             : mPreviousOutput.empty() ? nullptr
                                                       : mPreviousOutput.data();
       if (before != nullptr) {
@@ -47,8 +50,8 @@ class AuditStage final : public Stage {
         }
       }
       if (switches) {
-        const SurfaceHit* nowHits = &batch.hits[static_cast<std::size_t>(i) * vd];
-        const SurfaceHit* beforeHits = i > 0 ? &batch.hits[static_cast<std::size_t>(i - 1) * vd]
+        const SurfaceHit* nowHits = &hits[static_cast<std::size_t>(i) * vd];
+        const SurfaceHit* beforeHits = i > 0 ? &hits[static_cast<std::size_t>(i - 1) * vd]
                                        : mPreviousHits.empty() ? nullptr
                                                                : mPreviousHits.data();
         if (beforeHits != nullptr) {
@@ -59,9 +62,10 @@ class AuditStage final : public Stage {
         }
       }
     }
-    mPreviousOutput.assign(batch.cloth + (batch.count - 1) * dd, batch.cloth + batch.count * dd);
+    mPreviousOutput.assign(cloth + (batch.count - 1) * dd, cloth + batch.count * dd);
     if (switches) {
-      mPreviousHits.assign(batch.hits.end() - vd, batch.hits.end());
+      const std::size_t last = static_cast<std::size_t>(batch.count - 1) * vd;
+      mPreviousHits.assign(hits + last, hits + last + vd);
     }
   }
 
@@ -74,8 +78,7 @@ class AuditStage final : public Stage {
                                                   [](int moved) { return moved > 0; })) ||
                           batch.layersApplied;
     if (!resolve || anyMoved) {
-      countInside(mModel, batch, batch.driverBlock(mModel.driverValues), batch.cloth,
-                  &FrameRecord::insideAfter);
+      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideAfter);
     }
     for (int i = 0; i < batch.count; ++i) {
       FrameRecord& record = batch.records[i];

@@ -23,6 +23,8 @@ class BlendStage final : public Stage {
       model.restHits.resize(static_cast<std::size_t>(model.vd));
       model.binding().closest(1, db.driverMesh.positions.data(), db.drivenMesh.positions.data(),
                               model.restHits.data());
+      model.restHitsBlock = model.device.makeArray();
+      model.restHitsBlock.view(model.restHits.data(), model.restHits.size());
       localShapes.resize(db.drivenShapes.size());
       parallelFor(model.k, model.threads, [&](int i) {
         encodeLocal(db.driverMesh, &db.driverShapes[i * model.driverValues], model.vd,
@@ -48,21 +50,25 @@ class BlendStage final : public Stage {
     const int count = batch.count;
     const std::size_t dv = mModel.driverValues, dd = mModel.drivenValues;
     const bool needDriver = !mModel.local && mModel.settings.correct;
-    batch.driven.resize(count * dd);
-    batch.blendedDriver.resize(needDriver ? count * dv : 0);
+    batch.driven.resize<float>(count * dd);
+    batch.blendedDriver.resize<float>(needDriver ? count * dv : 0);
     if (mModel.settings.weightMode == WeightMode::kBind) {
       // The rest shapes stand in for the blend: every frame binds the rest cloth to the rest
       // driver and carries it to the shot's pose.
+      float* driven = batch.driven.write<float>();
+      float* driver = needDriver ? batch.blendedDriver.write<float>() : nullptr;
       for (int i = 0; i < count; ++i) {
-        std::copy_n(mModel.db.drivenMesh.positions.data(), dd, &batch.driven[i * dd]);
-        std::copy_n(mModel.db.driverMesh.positions.data(), dv, &batch.blendedDriver[i * dv]);
+        std::copy_n(mModel.db.drivenMesh.positions.data(), dd, &driven[i * dd]);
+        if (driver != nullptr) {
+          std::copy_n(mModel.db.driverMesh.positions.data(), dv, &driver[i * dv]);
+        }
       }
       return;
     }
     const int regionCount = mModel.regionCount();
     if (regionCount == 1) {
-      mModel.stages().blend(count, batch.weights.data(), batch.driven.data(),
-                            needDriver ? batch.blendedDriver.data() : nullptr);
+      mModel.stages().blendBlock(count, batch.weights.data(), batch.driven,
+                                 needDriver ? &batch.blendedDriver : nullptr);
       return;
     }
     mDrivenRegions.resize(static_cast<std::size_t>(count) * regionCount * dd);
@@ -70,16 +76,16 @@ class BlendStage final : public Stage {
     mModel.stages().blend(count * regionCount, batch.weights.data(), mDrivenRegions.data(),
                           needDriver ? mDriverRegions.data() : nullptr);
     const RegionSet& regions = *mModel.settings.regions;
-    mix(count, mDrivenRegions, regions.drivenMix, mModel.vd, batch.driven);
+    mix(count, mDrivenRegions, regions.drivenMix, mModel.vd, batch.driven.write<float>());
     if (needDriver) {
-      mix(count, mDriverRegions, regions.driverMix, mModel.vp, batch.blendedDriver);
+      mix(count, mDriverRegions, regions.driverMix, mModel.vp, batch.blendedDriver.write<float>());
     }
   }
 
  private:
   /// out[f] = sum_r mix_r * perRegion[f][r], per vertex (the partition of unity).
   void mix(int count, const std::vector<float>& perRegion, const std::vector<float>& weightsOf,
-           int vertices, std::vector<float>& out) const {
+           int vertices, float* out) const {
     const int regionCount = mModel.settings.regions->count();
     const std::size_t values = static_cast<std::size_t>(vertices) * 3;
     parallelFor(count, mModel.threads, [&](int i) {

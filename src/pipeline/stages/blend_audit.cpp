@@ -13,7 +13,7 @@ class BlendAuditStage final : public Stage {
   const char* name() const override { return "audit"; }
 
   void run(Batch& batch) override {
-    countInside(mModel, batch, batch.alignedBlock(mModel.driverValues), batch.driven.data(),
+    countInside(mModel, batch, batch.alignedShot(mModel.driverValues), batch.driven,
                 &FrameRecord::insideBefore);
   }
 

@@ -17,7 +17,7 @@ class CorrectStage final : public Stage {
  public:
   explicit CorrectStage(Model& model) : mModel(model) {
     if (model.settings.correct) {
-      model.binding();  // made now, so that it holds each batch's shot driver (keepShotPoses)
+      model.binding();
     }
   }
 
@@ -34,26 +34,28 @@ class CorrectStage final : public Stage {
 
   void run(Batch& batch) override {
     const int count = batch.count;
-    const float* shotDriver = batch.driverBlock(mModel.driverValues);
     if (mModel.local) {
-      mModel.binding().rebuild(count, mModel.restHits.data(), shotDriver, batch.driven.data(),
-                               batch.cloth);
+      mModel.binding().rebuildBlock(count, mModel.restHitsBlock, batch.shot(), batch.driven,
+                                    batch.cloth);
     } else if (mModel.settings.correct) {
-      batch.hits.resize(static_cast<std::size_t>(count) * mModel.vd);
-      mModel.binding().closest(count, batch.blendedDriver.data(), batch.driven.data(),
-                               batch.hits.data());
+      batch.hits.resize<SurfaceHit>(static_cast<std::size_t>(count) * mModel.vd);
+      mModel.binding().closestBlock(count, batch.blendedDriver, batch.driven, batch.hits);
       // P~ is in the aligned frame, the shot's driver in world space: the transfer carries the
       // cloth through the inverse alignment too.
-      mModel.binding().transfer(count, batch.hits.data(), batch.blendedDriver.data(), shotDriver,
-                                batch.driven.data(), batch.cloth);
-    } else if (mModel.aligner) {
-      const std::size_t dd = mModel.drivenValues;
-      parallelFor(count, mModel.threads, [&](int i) {
-        batch.motions[batch.warm + i].applyInverse(&batch.driven[i * dd], mModel.vd,
-                                                   &batch.cloth[i * dd]);
-      });
+      mModel.binding().transferBlock(count, batch.hits, batch.blendedDriver, batch.shot(),
+                                     batch.driven, batch.cloth);
     } else {
-      std::copy(batch.driven.begin(), batch.driven.end(), batch.cloth);
+      // No correction: the blend is the cloth, taken back through the inverse alignment.
+      const float* driven = batch.driven.read<float>();
+      float* cloth = batch.cloth.write<float>();
+      const std::size_t dd = mModel.drivenValues;
+      if (mModel.aligner) {
+        parallelFor(count, mModel.threads, [&](int i) {
+          batch.motions[batch.warm + i].applyInverse(&driven[i * dd], mModel.vd, &cloth[i * dd]);
+        });
+      } else {
+        std::copy_n(driven, static_cast<std::size_t>(count) * dd, cloth);
+      }
     }
   }
 

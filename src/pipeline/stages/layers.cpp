@@ -31,15 +31,16 @@ class LayersStage final : public Stage {
     const std::size_t points = static_cast<std::size_t>(batch.count) * mModel.vd;
     mClearance.clear();
     if (mModel.settings.layers.hasWind()) {
-      batch.auditHits.resize(points);
-      mModel.audit().closest(batch.count, batch.driverBlock(mModel.driverValues), batch.cloth,
-                             batch.auditHits.data());
+      batch.auditHits.resize<SurfaceHit>(points);
+      mModel.audit().closestBlock(batch.count, batch.shot(), batch.cloth, batch.auditHits);
+      const SurfaceHit* hits = batch.auditHits.read<SurfaceHit>();
       mClearance.resize(points);
       for (std::size_t i = 0; i < points; ++i) {
-        mClearance[i] = std::sqrt(batch.auditHits[i].distance2);
+        mClearance[i] = std::sqrt(hits[i].distance2);
       }
     }
-    mModel.layerStack->apply(batch.count, batch.frames + batch.warm, batch.cloth,
+    // The layers run on the host copy (their backend takes host memory).
+    mModel.layerStack->apply(batch.count, batch.frames + batch.warm, batch.cloth.modify<float>(),
                              mClearance.empty() ? nullptr : mClearance.data());
     batch.layersApplied = true;
   }

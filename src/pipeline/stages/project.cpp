@@ -21,7 +21,8 @@ class ProjectStage final : public Stage {
     batch.norms.assign(static_cast<std::size_t>(n) * regionCount * 2, 0.0f);
     batch.hostProjections.clear();
     if (!mModel.settings.regions) {
-      mModel.stages().project(n, batch.aligned, batch.projections.data(), batch.norms.data());
+      mModel.stages().projectBlock(n, batch.alignedAll(), batch.projections.data(),
+                                   batch.norms.data());
       return;
     }
     batch.hostProjections.assign(static_cast<std::size_t>(n) * regionCount * (k + 1), 0.0);

@@ -19,17 +19,16 @@ class ResolveStage final : public Stage {
   }
 
   void run(Batch& batch) override {
-    const float* shotDriver = batch.driverBlock(mModel.driverValues);
     if (mModel.settings.audit) {
-      countInside(mModel, batch, shotDriver, batch.cloth, &FrameRecord::insideCorrected);
+      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideCorrected);
     } else {
-      batch.auditHits.resize(static_cast<std::size_t>(batch.count) * mModel.vd);
-      mModel.audit().closest(batch.count, shotDriver, batch.cloth, batch.auditHits.data());
+      batch.auditHits.resize<SurfaceHit>(static_cast<std::size_t>(batch.count) * mModel.vd);
+      mModel.audit().closestBlock(batch.count, batch.shot(), batch.cloth, batch.auditHits);
     }
     batch.moved.assign(batch.count, 0);
-    mModel.audit().resolve(batch.count, shotDriver, batch.auditHits.data(),
-                           static_cast<float>(mModel.settings.skinOffset), batch.cloth,
-                           batch.moved.data());
+    mModel.audit().resolveBlock(batch.count, batch.shot(), batch.auditHits,
+                                static_cast<float>(mModel.settings.skinOffset), batch.cloth,
+                                batch.moved.data());
     for (int i = 0; i < batch.count; ++i) {
       batch.records[i].resolved = batch.moved[i];
     }
