@@ -245,15 +245,16 @@ int runBench(const std::vector<std::string>& args) {
   options.chunkSize = parser.getInt("--batch", 1);
   options.threads = parser.getInt("--threads", 0);
   options.compression = ds::parseExrCompression(parser.get("--compression"));
-  options.correct = !parser.has("--no-correct");
-  options.audit = !parser.has("--no-audit");
-  options.resolve = !parser.has("--no-resolve");
+  options.evaluator.correct = !parser.has("--no-correct");
+  options.evaluator.audit = !parser.has("--no-audit");
+  options.evaluator.resolve = !parser.has("--no-resolve");
   options.syncOutputs = parser.has("--sync");
-  options.blend = parser.get("--blend") == "world" ? ds::BlendMode::kWorld : ds::BlendMode::kLocal;
+  options.evaluator.blend =
+      parser.get("--blend") == "world" ? ds::BlendMode::kWorld : ds::BlendMode::kLocal;
   const std::string align = parser.get("--align");
-  options.align = align == "none"        ? ds::AlignMode::kNone
-                  : align == "rigid-all" ? ds::AlignMode::kRigidAll
-                                         : ds::AlignMode::kRigid;
+  options.evaluator.align = align == "none"        ? ds::AlignMode::kNone
+                            : align == "rigid-all" ? ds::AlignMode::kRigidAll
+                                                   : ds::AlignMode::kRigid;
 
   const std::unique_ptr<ds::Device> clDevice =
       ds::cli::openCliDevice(parser.get("--device"), std::cerr);
@@ -262,8 +263,8 @@ int runBench(const std::vector<std::string>& args) {
       "workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
       "compression %s, correction %s, audit %s\n",
       w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(), w.frames,
-      options.chunkSize, parser.get("--compression").c_str(), options.correct ? "on" : "off",
-      options.audit ? "on" : "off");
+      options.chunkSize, parser.get("--compression").c_str(),
+      options.evaluator.correct ? "on" : "off", options.evaluator.audit ? "on" : "off");
   printHeader();
 
   nlohmann::json report{{"workload", w.name},
@@ -272,8 +273,8 @@ int runBench(const std::vector<std::string>& args) {
                         {"shapes", db.shapeCount()},
                         {"frames", w.frames},
                         {"batch", options.chunkSize},
-                        {"correct", options.correct},
-                        {"audit", options.audit}};
+                        {"correct", options.evaluator.correct},
+                        {"audit", options.evaluator.audit}};
   // Warm-up: builds the kernels (PoCL compiles on first use) outside the timed bakes.
   {
     ds::BakeOptions warm = options;

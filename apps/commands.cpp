@@ -470,52 +470,53 @@ int bakeParsed(const ArgParser& parser) {
   options.framesPerSecond = parser.getDouble("--fps", 1e-3);
   options.layers = readLayerFlags(parser, options.framesPerSecond);
   options.skipExisting = parser.has("--skip-existing");
-  options.correct = !parser.has("--no-correct");
-  options.audit = !parser.has("--no-audit");
+  options.evaluator.correct = !parser.has("--no-correct");
+  options.evaluator.audit = !parser.has("--no-audit");
   options.syncOutputs = parser.has("--sync");
   if (parser.has("--bind")) {
-    if (!options.correct) {
+    if (!options.evaluator.correct) {
       DS_THROW(kUsage, "--bind has no effect with --no-correct; drop one of them");
     }
     options.bindingMaskPath = parser.get("--bind");
   }
   const std::string align = parser.get("--align");
   if (align == "rigid") {
-    options.align = AlignMode::kRigid;
+    options.evaluator.align = AlignMode::kRigid;
   } else if (align == "rigid-all") {
-    options.align = AlignMode::kRigidAll;
+    options.evaluator.align = AlignMode::kRigidAll;
   } else if (align == "none") {
-    options.align = AlignMode::kNone;
+    options.evaluator.align = AlignMode::kNone;
   } else {
     DS_THROW(kUsage, "--align takes none, rigid or rigid-all (got '", align, "')");
   }
   if (parser.has("--align-group")) {
-    if (options.align == AlignMode::kNone) {
+    if (options.evaluator.align == AlignMode::kNone) {
       DS_THROW(kUsage, "--align-group has no effect with --align none; drop one of them");
     }
-    options.alignGroup = parser.get("--align-group");
+    options.evaluator.alignGroup = parser.get("--align-group");
   }
   const std::string blend = parser.get("--blend");
   if (blend == "world") {
-    options.blend = BlendMode::kWorld;
+    options.evaluator.blend = BlendMode::kWorld;
   } else if (blend == "local") {
-    options.blend = BlendMode::kLocal;
+    options.evaluator.blend = BlendMode::kLocal;
   } else {
     DS_THROW(kUsage, "--blend takes world or local (got '", blend, "')");
   }
-  if (!options.correct && parser.has("--blend") && options.blend == BlendMode::kLocal) {
+  if (!options.evaluator.correct && parser.has("--blend") &&
+      options.evaluator.blend == BlendMode::kLocal) {
     DS_THROW(kUsage,
              "--blend local rebuilds the blended offsets on the shot's driver, which is the "
              "correction; it cannot run with --no-correct (which blends world positions)");
   }
-  options.resolve = !parser.has("--no-resolve");
-  options.skinOffset = parser.getDouble("--skin-offset", 0.0);
+  options.evaluator.resolve = !parser.has("--no-resolve");
+  options.evaluator.skinOffset = parser.getDouble("--skin-offset", 0.0);
   if (parser.has("--regions")) {
     options.regionsPath = parser.get("--regions");
   }
-  options.maxWeightChange = parser.getDouble("--max-weight-change", 0.0);
+  options.evaluator.maxWeightChange = parser.getDouble("--max-weight-change", 0.0);
   options.temporalWarmup = parser.getInt("--temporal-warmup", 0);
-  if (options.maxWeightChange > 0 && parser.has("--chunk-size")) {
+  if (options.evaluator.maxWeightChange > 0 && parser.has("--chunk-size")) {
     const int farmChunk = parser.getInt("--chunk-size", 1);
     if (farmChunk % options.chunkSize != 0) {
       DS_THROW(kUsage, "with --max-weight-change, --chunk-size (", farmChunk,
@@ -526,11 +527,11 @@ int bakeParsed(const ArgParser& parser) {
   }
   const std::string mode = parser.get("--weights");
   if (mode == "qp") {
-    options.weightMode = WeightMode::kQp;
+    options.evaluator.weightMode = WeightMode::kQp;
   } else if (mode == "nearest") {
-    options.weightMode = WeightMode::kNearest;
+    options.evaluator.weightMode = WeightMode::kNearest;
   } else if (mode == "bind") {
-    options.weightMode = WeightMode::kBind;
+    options.evaluator.weightMode = WeightMode::kBind;
   } else {
     DS_THROW(kUsage, "--weights takes qp, nearest or bind (got '", mode, "')");
   }
@@ -600,7 +601,7 @@ int bakeParsed(const ArgParser& parser) {
   if (!options.reportPath.empty()) {
     std::cout << "report:  " << absolute(options.reportPath) << "\n";
   }
-  if (options.audit && result.baked > 0) {
+  if (options.evaluator.audit && result.baked > 0) {
     // Counts that a mode does not measure are -1 in the records (local blending has no
     // blended cloth to audit, world blending no binding switches to report).
     long before = 0, corrected = 0, after = 0, switches = 0;
@@ -622,8 +623,9 @@ int bakeParsed(const ArgParser& parser) {
     if (hasBefore) {
       std::cout << before / frames << " blended, ";
     }
-    std::cout << corrected / frames << (options.correct ? " corrected" : " (no correction)") << ", "
-              << after / frames << (options.resolve ? " after resolution" : " written");
+    std::cout << corrected / frames
+              << (options.evaluator.correct ? " corrected" : " (no correction)") << ", "
+              << after / frames << (options.evaluator.resolve ? " after resolution" : " written");
     if (hasSwitches) {
       std::cout << "; binding switches " << switches;
     }

@@ -40,19 +40,19 @@ double secondsSince(Clock::time_point start) {
 /// The checks of the shot itself (the evaluator checks its settings): frames, output, driver.
 void validate(const Database& db, const PointCacheReader& driver, const BakeOptions& options) {
   if (options.frames.empty()) {
-    DS_THROW(kUsage, "the frame range is empty; pass --frames, e.g. --frames 1001-1100");
+    DS_THROW(kUsage, "the frame range to bake is empty; give frames, e.g. 1001-1100");
   }
-  if (options.weightMode != WeightMode::kQp &&
-      (!options.regionsPath.empty() || options.maxWeightChange > 0)) {
+  if (options.evaluator.weightMode != WeightMode::kQp &&
+      (!options.regionsPath.empty() || options.evaluator.maxWeightChange > 0)) {
     DS_THROW(kUsage,
-             "--regions and --max-weight-change apply to the QP weights only "
-             "(--weights qp)");
+             "regions and the temporal bound (maximum weight change) apply to the QP weights "
+             "only, not to the nearest or bind baselines");
   }
   if (options.temporalWarmup < 0) {
-    DS_THROW(kUsage, "--temporal-warmup must be >= 0 (got ", options.temporalWarmup, ")");
+    DS_THROW(kUsage, "the temporal warm-up must be >= 0 frames (got ", options.temporalWarmup, ")");
   }
   if (options.chunkSize < 1) {
-    DS_THROW(kUsage, "--batch must be at least 1 (got ", options.chunkSize, ")");
+    DS_THROW(kUsage, "the batch size must be at least 1 frame (got ", options.chunkSize, ")");
   }
   if (!hasFramePattern(options.outputPattern)) {
     DS_THROW(kUsage, "output '", options.outputPattern,
@@ -68,7 +68,7 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeOpti
       const std::vector<int> frames = driver.frames();
       DS_THROW(kInput, "driver cache '", driver.path(), "' has no frame ", frame, " (it holds ",
                frames.empty() ? std::string("no frames") : formatFrameRange(frames),
-               "); pass --frames within that range");
+               "); bake frames within that range");
     }
   }
   checkOutputFolderWritable(expandFramePattern(options.outputPattern, options.frames.front()));
@@ -81,7 +81,7 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeOpti
 /// frame blocks stay within kBatchMemoryBudget. The temporal bound restarts at every batch, so
 /// with it on the batch is exactly options.chunkSize (results depend on it).
 int batchFrames(const BakeOptions& options, std::size_t bytesPerFrame) {
-  if (options.maxWeightChange > 0) {
+  if (options.evaluator.maxWeightChange > 0) {
     return options.chunkSize;
   }
   const std::size_t fit =
@@ -92,14 +92,11 @@ int batchFrames(const BakeOptions& options, std::size_t bytesPerFrame) {
 /// The evaluator's hash plus what the bake adds: the EXR layout and, with the temporal bound,
 /// where batches start.
 std::uint64_t bakeHash(const Evaluator& evaluator, const BakeOptions& options) {
-  Hasher hasher;
-  hasher.addValue(evaluator.settingsHash());
-  hasher.addValue(options.exrWidth);
-  if (options.maxWeightChange > 0) {
-    hasher.addValue(options.temporalWarmup);
-    hasher.addValue(options.chunkSize);
-  }
-  return hasher.value();
+  OutputHashFields output;
+  output.exrWidth = options.exrWidth;
+  output.temporalWarmup = options.temporalWarmup;
+  output.batchSize = options.chunkSize;
+  return evaluator.settingsHash(output);
 }
 
 /// The frame records of the bake, and which of them to bake: a resume keeps an existing
@@ -157,7 +154,7 @@ class DriverReader {
                int batch, int threads)
       : mDriver(driver),
         mFrames(std::move(frames)),
-        mWarmup(options.maxWeightChange > 0 ? options.temporalWarmup : 0),
+        mWarmup(options.evaluator.maxWeightChange > 0 ? options.temporalWarmup : 0),
         mBatch(batch),
         mThreads(threads) {
     if (mWarmup > 0) {
@@ -203,7 +200,7 @@ class DriverReader {
       for (std::size_t j = 0; j < values; ++j) {
         if (!std::isfinite(xyz[j])) {
           DS_THROW(kInput, "driver cache '", mDriver.path(), "' frame ", frame, " vertex ", j / 3,
-                   " is not a finite number; fix the cache or leave the frame out of --frames");
+                   " is not a finite number; fix the cache or leave the frame out");
         }
       }
     });
@@ -361,7 +358,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   json settings = parseJsonText(evaluator.describeSettings(), "the evaluator settings");
   settings["binding_mask"] = options.bindingMaskPath;
   settings["regions_file"] = options.regionsPath;
-  settings["temporal_warmup"] = options.maxWeightChange > 0 ? options.temporalWarmup : 0;
+  settings["temporal_warmup"] = options.evaluator.maxWeightChange > 0 ? options.temporalWarmup : 0;
   settings["batch"] = options.chunkSize;
   settings["compression"] = exrCompressionName(options.compression);
   settings["exr_width"] = options.exrWidth;
@@ -405,25 +402,28 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
 }  // namespace
 
 EvaluatorSettings evaluatorSettings(const Database& db, const BakeOptions& options) {
-  EvaluatorSettings settings;
-  settings.weightMode = options.weightMode;
-  settings.align = options.align;
-  settings.alignGroup = options.alignGroup;
-  settings.blend = options.blend;
-  settings.correct = options.correct;
+  EvaluatorSettings settings = options.evaluator;
   if (!options.bindingMaskPath.empty()) {
+    if (settings.bindingMask) {
+      DS_THROW(kUsage, "the binding mask is given twice (the file ", options.bindingMaskPath,
+               " and an in-memory mask); give one");
+    }
     settings.bindingMask = readBindingMask(options.bindingMaskPath, db.driverMesh, db.drivenMesh);
   }
-  settings.resolve = options.resolve;
-  settings.skinOffset = options.skinOffset;
   if (!options.regionsPath.empty()) {
+    if (settings.regions) {
+      DS_THROW(kUsage, "the regions are given twice (the file ", options.regionsPath,
+               " and an in-memory region set); give one");
+    }
     settings.regions = readRegions(options.regionsPath, db.driverMesh, db.drivenMesh);
   }
-  settings.maxWeightChange = options.maxWeightChange;
-  settings.audit = options.audit;
-  LayerOptions layers = options.layers;
-  layers.framesPerSecond = options.framesPerSecond;
-  settings.layers = loadLayers(layers, db.drivenMesh);
+  if (settings.layers.empty()) {
+    LayerOptions layers = options.layers;
+    layers.framesPerSecond = options.framesPerSecond;
+    settings.layers = loadLayers(layers, db.drivenMesh);
+  } else if (options.layers.hasMix() || options.layers.hasWind()) {
+    DS_THROW(kUsage, "the layers are given twice (layer files and in-memory layers); give one");
+  }
   settings.threads = options.threads;
   return settings;
 }
@@ -467,7 +467,8 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
     if (observer != nullptr && observer->stopRequested()) {
       writer.finish();
       DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
-               " frames; finished frames are complete, rerun with --skip-existing to resume");
+               " frames; finished frames are complete, resume by baking again with existing "
+               "outputs kept (--skip-existing)");
     }
     const auto batchStart = Clock::now();
     const int count = static_cast<int>(std::min<std::size_t>(chunk, todo.size() - begin));

@@ -38,7 +38,7 @@ void checkFrame(const PointCacheReader& cache, int frame, const char* role) {
     const std::vector<int> frames = cache.frames();
     DS_THROW(kInput, role, " cache '", cache.path(), "' has no frame ", frame, " (it holds ",
              frames.empty() ? std::string("no frames") : formatFrameRange(frames),
-             "); pass --frames within that range");
+             "); choose candidate frames within that range");
   }
 }
 
@@ -48,7 +48,7 @@ void checkBuildInputs(const Mesh& driverMesh, const Mesh& drivenMesh,
                       const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
                       const DatabaseBuildOptions& options) {
   if (options.count < 1) {
-    DS_THROW(kUsage, "--count must be at least 1 (got ", options.count, ")");
+    DS_THROW(kUsage, "the shape count must be at least 1 (got ", options.count, ")");
   }
   if (driverCache.vertexCount() != driverMesh.vertexCount()) {
     DS_THROW(kInput, "driver cache '", driverCache.path(), "' has ", driverCache.vertexCount(),
@@ -63,7 +63,7 @@ void checkBuildInputs(const Mesh& driverMesh, const Mesh& drivenMesh,
   const std::set<int> removed(options.removeFrames.begin(), options.removeFrames.end());
   for (int frame : options.addFrames) {
     if (removed.count(frame) != 0) {
-      DS_THROW(kUsage, "frame ", frame, " is in both --add-frames and --remove-frames");
+      DS_THROW(kUsage, "frame ", frame, " is both an added and a removed frame");
     }
   }
 }
@@ -92,7 +92,7 @@ std::vector<int> candidateFrames(const PointCacheReader& driverCache,
   }
   if (candidates.empty()) {
     DS_THROW(kUsage, "no candidate frames left for the database (frames ",
-             formatFrameRange(options.frames), " minus --remove-frames)");
+             formatFrameRange(options.frames), " minus the removed frames)");
   }
   for (int frame : candidates) {
     checkFrame(driverCache, frame, "driver");

@@ -244,7 +244,7 @@ void CandidateSearch::checkChunk(const char* stage, int frameCount, bool buffers
   if (static_cast<long long>(frameCount) * widest > INT_MAX) {
     DS_THROW(kInput, stage, ": a chunk of ", frameCount, " frames of ",
              std::max(mVertexCount, mPointCount),
-             " vertices is too large for one launch; use a smaller --chunk");
+             " vertices is too large for one launch; evaluate fewer frames per call");
   }
 }
 
@@ -638,7 +638,7 @@ void CandidateSearch::find(int frameCount, const float* poses, const float* poin
   const std::size_t total = frameFirst.back();
   if (total > static_cast<std::size_t>(INT_MAX)) {
     DS_THROW(kInput, "closest triangle: ", total, " candidates in a chunk of ", frameCount,
-             " frames exceed one launch; use a smaller --chunk");
+             " frames exceed one launch; evaluate fewer frames per call");
   }
   table.triangles.resize(total);
   table.start[items] = static_cast<std::int32_t>(total);

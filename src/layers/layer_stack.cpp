@@ -25,27 +25,27 @@ void checkFinite(double value, const char* flag) {
 
 void validate(const LayerOptions& options) {
   if (options.hasMix() && options.mixWeight.empty()) {
-    DS_THROW(kUsage, "--mix ", options.mixCache,
-             " needs --mix-weight MAP (1 keeps DrivenShape, 0 takes the mix cache)");
+    DS_THROW(kUsage, "the mix cache ", options.mixCache,
+             " needs a mix weight map (1 keeps DrivenShape, 0 takes the mix cache)");
   }
   if (!options.hasMix() && !options.mixWeight.empty()) {
-    DS_THROW(kUsage, "--mix-weight needs --mix CACHE (the cache to mix with)");
+    DS_THROW(kUsage, "a mix weight map needs a mix cache (the cache to mix with)");
   }
   if (options.mixFalloff < 0 || options.mixFalloff > 64) {
-    DS_THROW(kUsage, "--mix-falloff ", options.mixFalloff, " must be 0..64 edge rings");
+    DS_THROW(kUsage, "the mix falloff ", options.mixFalloff, " must be 0..64 edge rings");
   }
   if (options.windFalloff < 0 || options.windFalloff > 64) {
-    DS_THROW(kUsage, "--wind-falloff ", options.windFalloff, " must be 0..64 edge rings");
+    DS_THROW(kUsage, "the wind falloff ", options.windFalloff, " must be 0..64 edge rings");
   }
-  checkFinite(options.windAmplitude, "--wind-amplitude");
-  checkFinite(options.windFrequency, "--wind-frequency");
-  checkFinite(options.windSpeed, "--wind-speed");
+  checkFinite(options.windAmplitude, "the wind amplitude");
+  checkFinite(options.windFrequency, "the wind frequency");
+  checkFinite(options.windSpeed, "the wind speed");
   if (options.windAmplitude < 0.0) {
-    DS_THROW(kUsage, "--wind-amplitude ", options.windAmplitude,
+    DS_THROW(kUsage, "the wind amplitude ", options.windAmplitude,
              " must be >= 0 (scene units; 0 = no wind)");
   }
   if (!options.hasWind() && !options.windWeight.empty()) {
-    DS_THROW(kUsage, "--wind-weight needs --wind-amplitude > 0");
+    DS_THROW(kUsage, "a wind weight map needs a wind amplitude > 0");
   }
   if (!(options.framesPerSecond > 0.0) || !std::isfinite(options.framesPerSecond)) {
     DS_THROW(kUsage, "frames per second ", options.framesPerSecond, " must be positive");
@@ -54,23 +54,23 @@ void validate(const LayerOptions& options) {
     return;
   }
   if (!(options.windFrequency > 0.0)) {
-    DS_THROW(kUsage, "--wind-frequency ", options.windFrequency,
+    DS_THROW(kUsage, "the wind frequency ", options.windFrequency,
              " must be > 0 (noise cells per scene unit)");
   }
   if (options.windSpeed < 0.0) {
-    DS_THROW(kUsage, "--wind-speed ", options.windSpeed,
+    DS_THROW(kUsage, "the wind speed ", options.windSpeed,
              " must be >= 0 (scene units per second; 0 = a still pattern)");
   }
   if (options.windOctaves < 1 || options.windOctaves > DS_WIND_MAX_OCTAVES) {
-    DS_THROW(kUsage, "--wind-octaves ", options.windOctaves, " must be 1..", DS_WIND_MAX_OCTAVES);
+    DS_THROW(kUsage, "the wind octaves ", options.windOctaves, " must be 1..", DS_WIND_MAX_OCTAVES);
   }
   double length2 = 0.0;
   for (double value : options.windDirection) {
-    checkFinite(value, "--wind-direction");
+    checkFinite(value, "the wind direction");
     length2 += value * value;
   }
   if (!(length2 > 0.0)) {
-    DS_THROW(kUsage, "--wind-direction must not be 0,0,0 (give X,Y,Z, e.g. 1,0,0)");
+    DS_THROW(kUsage, "the wind direction must not be 0,0,0 (give X,Y,Z, e.g. 1,0,0)");
   }
 }
 
@@ -102,14 +102,14 @@ LayerSettings loadLayers(const LayerOptions& options, const Mesh& drivenMesh) {
   settings.options = options;
   if (options.hasMix()) {
     settings.mixWeights =
-        smoothWeightMap(readWeightMap(options.mixWeight, drivenMesh, "--mix-weight"), drivenMesh,
+        smoothWeightMap(readWeightMap(options.mixWeight, drivenMesh, "mix weight map"), drivenMesh,
                         options.mixFalloff);
     settings.mixCache = openPointCache(options.mixCache, topologyHash(drivenMesh));
   }
   if (options.hasWind() && !options.windWeight.empty()) {
     settings.windWeights =
-        smoothWeightMap(readWeightMap(options.windWeight, drivenMesh, "--wind-weight"), drivenMesh,
-                        options.windFalloff);
+        smoothWeightMap(readWeightMap(options.windWeight, drivenMesh, "wind weight map"),
+                        drivenMesh, options.windFalloff);
   }
   return settings;
 }
@@ -141,8 +141,9 @@ LayerStack::LayerStack(LayerSettings settings, const Mesh& drivenMesh, LayerBack
   mTables.rest = centredRest(drivenMesh);
   if (mMixCache) {
     if (mMixCache->vertexCount() != drivenMesh.vertexCount()) {
-      DS_THROW(kInput, "--mix ", mOptions.mixCache, ": the cache has ", mMixCache->vertexCount(),
-               " vertices but the driven mesh has ", drivenMesh.vertexCount(),
+      DS_THROW(kInput, "mix cache ", mOptions.mixCache, ": the cache has ",
+               mMixCache->vertexCount(), " vertices but the driven mesh has ",
+               drivenMesh.vertexCount(),
                "; mix with a cache of the same garment (same vertex count and order)");
     }
     if (settings.mixWeights.size() != vertices) {
@@ -187,7 +188,7 @@ void LayerStack::checkFrames(const std::vector<int>& frames) const {
   for (int frame : frames) {
     if (!mMixCache->hasFrame(frame)) {
       const std::vector<int> has = mMixCache->frames();
-      DS_THROW(kInput, "--mix ", mOptions.mixCache, ": frame ", frame,
+      DS_THROW(kInput, "mix cache ", mOptions.mixCache, ": frame ", frame,
                " is missing; the mix cache holds ",
                has.empty() ? std::string("no frames") : "frames " + formatFrameRange(has),
                "; mix with a cache that covers every baked frame");
@@ -211,7 +212,7 @@ void LayerStack::apply(int frameCount, const int* frames, float* positions,
         if (mTables.mixWeights[v] < 1.0f &&
             !(std::isfinite(other[3 * v]) && std::isfinite(other[3 * v + 1]) &&
               std::isfinite(other[3 * v + 2]))) {
-          DS_THROW(kInput, "--mix ", mOptions.mixCache, ": frame ", frames[f], " vertex ", v,
+          DS_THROW(kInput, "mix cache ", mOptions.mixCache, ": frame ", frames[f], " vertex ", v,
                    " is not a finite number; fix the cache or give the vertex mix weight 1");
         }
       }

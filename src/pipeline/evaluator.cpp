@@ -88,21 +88,65 @@ struct Evaluator::Impl {
         stages.push_back(std::move(stage));
       }
     }
+  }
+
+  /// The settings hash in the layout the bake's EXR headers have had since version 0.1 (a
+  /// file-format contract: a resume compares it, so it is written here in one fixed order).
+  /// Database, weight mode, [output width], correction and mask, alignment, blend, resolution,
+  /// regions, temporal bound, [warm-up and batch size], version; then the layers; then what
+  /// stages added since append (Stage::addToHash).
+  std::uint64_t settingsHash(const OutputHashFields* output) const {
+    const EvaluatorSettings& settings = model.settings;
+    const BindingMask& mask = model.mask();
     Hasher hasher;
-    hasher.addValue(database.contentHash());
-    hasher.addValue(static_cast<int>(model.settings.weightMode));
+    hasher.addValue(model.db.contentHash());
+    hasher.addValue(static_cast<int>(settings.weightMode));
+    if (output != nullptr) {
+      hasher.addValue(output->exrWidth);
+    }
+    hasher.addValue(settings.correct);
+    for (int c = 0; c < mask.classCount(); ++c) {
+      hasher.add(mask.classTriangles(c).data(), mask.classTriangles(c).size() * sizeof(int));
+    }
+    hasher.add(mask.vertexClasses().data(), mask.vertexClasses().size() * sizeof(int));
+    hasher.addValue(static_cast<int>(settings.align));
+    hasher.add(model.alignVertices.data(), model.alignVertices.size() * sizeof(int));
+    if (model.aligner) {
+      hasher.add(model.aligner->weights().data(), model.aligner->weights().size() * sizeof(double));
+    }
     hasher.addValue(model.local);
-    for (const auto& stage : stages) {
-      hasher.addString(stage->name());
-      stage->addToHash(hasher);
+    hasher.addValue(settings.resolve);
+    hasher.addValue(settings.resolve ? settings.skinOffset : 0.0);
+    hasher.addValue(settings.regions.has_value());
+    if (settings.regions) {
+      hasher.addValue(settings.regions->falloff);
+      for (const Region& region : settings.regions->regions) {
+        hasher.add(region.driverVertices.data(), region.driverVertices.size() * sizeof(int));
+        hasher.add(region.drivenVertices.data(), region.drivenVertices.size() * sizeof(int));
+      }
+    }
+    hasher.addValue(settings.maxWeightChange);
+    if (output != nullptr && settings.maxWeightChange > 0) {
+      hasher.addValue(output->temporalWarmup);
+      hasher.addValue(output->batchSize);
     }
     hasher.addString(kVersion);
-    hash = hasher.value();
+    std::uint64_t value = hasher.value();
+    if (model.layerStack) {
+      Hasher layers;
+      layers.addValue(value);
+      model.layerStack->addToHash(layers);
+      value = layers.value();
+    }
+    Hasher tail(value);  // stages added since then append (none of the built-in ones does)
+    for (const auto& stage : stages) {
+      stage->addToHash(tail);
+    }
+    return tail.value();
   }
 
   pipeline::Model model;
   std::vector<std::unique_ptr<pipeline::Stage>> stages;
-  std::uint64_t hash = 0;
   pipeline::Batch batch;  ///< reused: its buffers keep their capacity between calls
 };
 
@@ -193,7 +237,11 @@ void Evaluator::resetHistory() {
 }
 
 std::uint64_t Evaluator::settingsHash() const {
-  return mImpl->hash;
+  return mImpl->settingsHash(nullptr);
+}
+
+std::uint64_t Evaluator::settingsHash(const OutputHashFields& output) const {
+  return mImpl->settingsHash(&output);
 }
 
 std::string Evaluator::describeSettings() const {

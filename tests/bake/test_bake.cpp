@@ -68,7 +68,7 @@ TEST_F(BakeTest, OpenClBlendMatchesHostReferenceOnEveryFrame) {
   BakeOptions options;
   options.frames = driver->frames();
   options.chunkSize = 16;
-  options.correct = false;
+  options.evaluator.correct = false;
   options.outputPattern = dir.file("host.####.exr");
   const Backends host = hostBackends();
   const BakeResult hostResult = bake(db, *driver, host.view(), options);
@@ -115,12 +115,12 @@ TEST_F(BakeTest, CorrectionReducesPenetrationsAndErrorOnTheSample) {
   const auto truth = openPointCache(sample("test.driven.pc2"));
   TempDir dir;
   BakeOptions options;
-  options.blend = BlendMode::kWorld;  // the correction of the talk's world-space blend
+  options.evaluator.blend = BlendMode::kWorld;  // the correction of the talk's world-space blend
   options.frames = driver->frames();
   const Backends cl = clBackends();
   options.outputPattern = dir.file("corrected.####.exr");
   const BakeResult corrected = bake(db, *driver, cl.view(), options);
-  options.correct = false;
+  options.evaluator.correct = false;
   options.outputPattern = dir.file("blended.####.exr");
   bake(db, *driver, cl.view(), options);
   long before = 0, after = 0;
@@ -148,11 +148,11 @@ TEST_F(BakeTest, QpBeatsNearestShapeBaselineAgainstSimulatedTruth) {
   BakeOptions options;
   options.frames = driver->frames();
   const Backends cl = clBackends();
-  options.correct = false;  // compare the weights alone
+  options.evaluator.correct = false;  // compare the weights alone
   options.outputPattern = dir.file("qp.####.exr");
   bake(db, *driver, cl.view(), options);
   options.outputPattern = dir.file("nearest.####.exr");
-  options.weightMode = WeightMode::kNearest;
+  options.evaluator.weightMode = WeightMode::kNearest;
   bake(db, *driver, cl.view(), options);
   const auto qp = evaluateCaches(*truth, *openPointCache(dir.file("qp.####.exr")), options.frames);
   const auto nearest =

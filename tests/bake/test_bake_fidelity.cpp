@@ -312,7 +312,7 @@ TEST_F(FidelityTest, WorldSpaceShotGivesTheSameBakeUpToTheMotion) {
   }
 
   // Without alignment the talk's method does see the motion: the check above is not vacuous.
-  options.align = AlignMode::kNone;
+  options.evaluator.align = AlignMode::kNone;
   options.outputPattern = dir.file("unaligned.####.exr");
   bake(db, *movedDriver, cl.view(), options);
   const double unaligned =
@@ -383,7 +383,7 @@ TEST_F(FidelityTest, OpenClMatchesHostWithAlignmentLocalBlendRegionsAndResolutio
   BakeOptions options;
   options.frames = driver->frames();
   options.chunkSize = 16;
-  options.blend = BlendMode::kLocal;
+  options.evaluator.blend = BlendMode::kLocal;
   options.regionsPath = dir.file("regions.json");
   const Backends host = hostBackends();
   const Backends cl = clBackends();
@@ -410,7 +410,7 @@ TEST_F(FidelityTest, OpenClMatchesHostWithAlignmentLocalBlendRegionsAndResolutio
 
   // World blending with the correction: same blended inputs for both correction backends
   // (ties on the blended pose may otherwise bind differently), resolution on both.
-  options.blend = BlendMode::kWorld;
+  options.evaluator.blend = BlendMode::kWorld;
   options.regionsPath.clear();
   options.outputPattern = dir.file("host-world.####.exr");
   testing::MixedDevice mixed(cl.view(), host.view());
@@ -434,10 +434,10 @@ TEST_F(FidelityTest, ResolutionRemovesPenetrationsWithoutPopping) {
   const Backends cl = clBackends();
   BakeOptions options;
   options.frames = driver->frames();
-  options.align = AlignMode::kNone;  // the talk's bake leaves the most cloth inside
+  options.evaluator.align = AlignMode::kNone;  // the talk's bake leaves the most cloth inside
   options.outputPattern = dir.file("resolved.####.exr");
   const BakeResult resolved = bake(db, *driver, cl.view(), options);
-  options.resolve = false;
+  options.evaluator.resolve = false;
   options.outputPattern = dir.file("raw.####.exr");
   const BakeResult raw = bake(db, *driver, cl.view(), options);
   long before = 0, after = 0;
@@ -453,13 +453,13 @@ TEST_F(FidelityTest, ResolutionRemovesPenetrationsWithoutPopping) {
   std::printf(
       "[ measured ] inside the driver: %ld before resolution, %ld after; largest jump "
       "%.5f resolved vs %.5f raw (skin offset %.4f)\n",
-      before, after, jumpResolved, jumpRaw, options.skinOffset);
+      before, after, jumpResolved, jumpRaw, options.evaluator.skinOffset);
   EXPECT_GT(before, 0) << "nothing to resolve on the sample: the test is vacuous";
   EXPECT_LT(after, before);
   // Moving a point to the surface changes it by at most its depth plus the offset, so the
   // frame-to-frame jump may grow by at most twice that; here it must not grow by more than
   // the offset (no popping).
-  EXPECT_LE(jumpResolved, jumpRaw + 2 * options.skinOffset);
+  EXPECT_LE(jumpResolved, jumpRaw + 2 * options.evaluator.skinOffset);
 }
 
 // ---- Local-frame blending ----
@@ -479,8 +479,8 @@ TEST_F(FidelityTest, LocalBlendOfOneShapeIsTheBindingOfThatShape) {
     const Backends backends = useCl ? clBackends() : hostBackends();
     BakeOptions options;
     options.frames = frames;
-    options.blend = BlendMode::kLocal;
-    options.resolve = false;
+    options.evaluator.blend = BlendMode::kLocal;
+    options.evaluator.resolve = false;
     options.outputPattern = dir.file(std::string(useCl ? "cl" : "host") + ".####.exr");
     bake(db, *driver, backends.view(), options);
 
@@ -515,8 +515,8 @@ TEST_F(FidelityTest, LocalBlendReproducesDatabaseFrames) {
   const Backends cl = clBackends();
   BakeOptions options;
   options.frames = {db.frames[3], db.frames[17]};
-  options.blend = BlendMode::kLocal;
-  options.resolve = false;
+  options.evaluator.blend = BlendMode::kLocal;
+  options.evaluator.resolve = false;
   options.outputPattern = dir.file("db.####.exr");
   const BakeResult result = bake(db, *train, cl.view(), options);
   const std::vector<float> baked = readBake(options.outputPattern, options.frames);
@@ -667,7 +667,7 @@ TEST_F(FidelityTest, TemporalBoundHoldsAndChunkedBakesEqualTheSingleBake) {
   BakeOptions options;
   options.frames = frames;
   options.chunkSize = 12;
-  options.maxWeightChange = 0.02;
+  options.evaluator.maxWeightChange = 0.02;
   options.temporalWarmup = 6;
   options.threads = 2;
   options.outputPattern = dir.file("single.####.exr");
@@ -681,13 +681,13 @@ TEST_F(FidelityTest, TemporalBoundHoldsAndChunkedBakesEqualTheSingleBake) {
     }
     for (int s = 0; s < k; ++s) {
       const double change = std::abs(single.frames[i].weights[s] - single.frames[i - 1].weights[s]);
-      EXPECT_LE(change, options.maxWeightChange + testing::kWeightBoundTol)
+      EXPECT_LE(change, options.evaluator.maxWeightChange + testing::kWeightBoundTol)
           << "frame " << single.frames[i].frame << " shape " << s;
-      bounded += change >= options.maxWeightChange - 1e-9 ? 1 : 0;
+      bounded += change >= options.evaluator.maxWeightChange - 1e-9 ? 1 : 0;
     }
   }
   BakeOptions free = options;
-  free.maxWeightChange = 0;
+  free.evaluator.maxWeightChange = 0;
   free.outputPattern = dir.file("free.####.exr");
   const BakeResult unconstrained = bake(db, *driver, cl.view(), free);
   for (std::size_t i = 1; i < unconstrained.frames.size(); ++i) {
@@ -700,8 +700,8 @@ TEST_F(FidelityTest, TemporalBoundHoldsAndChunkedBakesEqualTheSingleBake) {
   std::printf(
       "[ measured ] temporal bound %.3f: %d shape-frames at the bound; largest change "
       "without it %.3f\n",
-      options.maxWeightChange, bounded, unconstrainedChange);
-  EXPECT_GT(unconstrainedChange, options.maxWeightChange) << "the bound is never active";
+      options.evaluator.maxWeightChange, bounded, unconstrainedChange);
+  EXPECT_GT(unconstrainedChange, options.evaluator.maxWeightChange) << "the bound is never active";
   EXPECT_GT(bounded, 0);
 
   // Farm chunks of two batches each, on one thread, give the single bake bit for bit.
@@ -740,7 +740,7 @@ TEST_F(FidelityTest, ReportAndSettingsHashRecordEveryFidelitySetting) {
   EXPECT_EQ(settings.at("align_group"), "all");
   EXPECT_EQ(settings.at("blend"), "local");
   EXPECT_EQ(settings.at("resolve"), true);
-  EXPECT_DOUBLE_EQ(settings.at("skin_offset").get<double>(), options.skinOffset);
+  EXPECT_DOUBLE_EQ(settings.at("skin_offset").get<double>(), options.evaluator.skinOffset);
   EXPECT_EQ(settings.at("max_weight_change"), 0.0);
   for (const auto& frame : report.at("frames")) {
     EXPECT_TRUE(frame.contains("align_rotation"));
@@ -748,13 +748,13 @@ TEST_F(FidelityTest, ReportAndSettingsHashRecordEveryFidelitySetting) {
     EXPECT_TRUE(frame.contains("resolved"));
   }
   std::vector<std::function<void(BakeOptions&)>> changes = {
-      [](BakeOptions& o) { o.align = AlignMode::kNone; },
-      [](BakeOptions& o) { o.alignGroup = "0-500"; },
-      [](BakeOptions& o) { o.align = AlignMode::kRigidAll; },
-      [](BakeOptions& o) { o.blend = BlendMode::kWorld; },
-      [](BakeOptions& o) { o.resolve = false; },
-      [](BakeOptions& o) { o.skinOffset = 0.004; },
-      [](BakeOptions& o) { o.maxWeightChange = 0.1; },
+      [](BakeOptions& o) { o.evaluator.align = AlignMode::kNone; },
+      [](BakeOptions& o) { o.evaluator.alignGroup = "0-500"; },
+      [](BakeOptions& o) { o.evaluator.align = AlignMode::kRigidAll; },
+      [](BakeOptions& o) { o.evaluator.blend = BlendMode::kWorld; },
+      [](BakeOptions& o) { o.evaluator.resolve = false; },
+      [](BakeOptions& o) { o.evaluator.skinOffset = 0.004; },
+      [](BakeOptions& o) { o.evaluator.maxWeightChange = 0.1; },
   };
   for (std::size_t c = 0; c < changes.size(); ++c) {
     BakeOptions changed = options;

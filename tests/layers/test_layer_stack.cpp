@@ -164,30 +164,30 @@ TEST_F(LayerStackTest, MixCacheMissingAFrameIsRefusedBeforeBaking) {
       contains(error.what(), "frame 1010 is missing; the mix cache holds frames 1001-1005"));
 }
 
-TEST_F(LayerStackTest, BadSettingsNameTheFlag) {
+TEST_F(LayerStackTest, BadSettingsNameTheSetting) {
   auto host = makeHostLayers();
-  const auto usage = [&](const std::function<void(LayerOptions&)>& edit, const char* flag) {
+  const auto usage = [&](const std::function<void(LayerOptions&)>& edit, const char* setting) {
     LayerOptions options;
     options.windAmplitude = 0.1;
     edit(options);
     const Error error =
         catchError([&] { LayerStack stack(loadLayers(options, mMesh), mMesh, *host); });
-    EXPECT_EQ(error.code(), ErrorCode::kUsage) << flag;
-    EXPECT_TRUE(contains(error.what(), flag));
+    EXPECT_EQ(error.code(), ErrorCode::kUsage) << setting;
+    EXPECT_TRUE(contains(error.what(), setting));
   };
-  usage([](LayerOptions& o) { o.windOctaves = 9; }, "--wind-octaves 9 must be 1..8");
-  usage([](LayerOptions& o) { o.windDirection = {0, 0, 0}; }, "--wind-direction");
-  usage([](LayerOptions& o) { o.windFrequency = 0; }, "--wind-frequency");
-  usage([](LayerOptions& o) { o.windSpeed = -1; }, "--wind-speed");
-  usage([](LayerOptions& o) { o.windAmplitude = -1; }, "--wind-amplitude");
-  usage([&](LayerOptions& o) { o.mixCache = mOtherPath; }, "--mix-weight");
-  usage([](LayerOptions& o) { o.mixWeight = "group:left"; }, "--mix CACHE");
+  usage([](LayerOptions& o) { o.windOctaves = 9; }, "the wind octaves 9 must be 1..8");
+  usage([](LayerOptions& o) { o.windDirection = {0, 0, 0}; }, "the wind direction");
+  usage([](LayerOptions& o) { o.windFrequency = 0; }, "the wind frequency");
+  usage([](LayerOptions& o) { o.windSpeed = -1; }, "the wind speed");
+  usage([](LayerOptions& o) { o.windAmplitude = -1; }, "the wind amplitude");
+  usage([&](LayerOptions& o) { o.mixCache = mOtherPath; }, "needs a mix weight map");
+  usage([](LayerOptions& o) { o.mixWeight = "group:left"; }, "needs a mix cache");
   usage(
       [](LayerOptions& o) {
         o.windAmplitude = 0;
         o.windWeight = "group:left";
       },
-      "--wind-weight needs --wind-amplitude");
+      "a wind weight map needs a wind amplitude");
 }
 
 TEST_F(LayerStackTest, DescribeAndHashRecordTheSettings) {

@@ -124,7 +124,7 @@ TEST_F(EvaluatorTest, TemporalBoundCarriesAcrossCallsUntilReset) {
 
   BakeOptions options;
   options.frames = frames;
-  options.maxWeightChange = 0.02;
+  options.evaluator.maxWeightChange = 0.02;
   options.temporalWarmup = 0;
   options.chunkSize = 48;
   options.outputPattern = file("bounded.####.exr");

@@ -25,53 +25,29 @@ struct BakeOptions {
   int chunkSize = 64;
   int threads = 0;            ///< host threads (QP, EXR); 0 = all cores
   bool skipExisting = false;  ///< keep complete outputs of this database and settings
-  WeightMode weightMode = WeightMode::kQp;
   int exrWidth = 1024;
   ExrCompression compression = ExrCompression::kZip;
   double framesPerSecond = 24.0;
-  /// Collision correction: bind every blended cloth vertex to its exact closest triangle of
-  /// the blended driver P~ and carry it to the shot's driver P_new in that triangle's frame.
-  bool correct = true;
-  /// Binding mask file (see readBindingMask); empty = every vertex may bind anywhere.
+  /// Every evaluator setting but the three that come from files here (see
+  /// drivenshape/evaluator.h; `threads` is set from the bake's own): weights, alignment, blend,
+  /// correction, resolution, temporal bound, audit. The defaults are the command line's.
+  EvaluatorSettings evaluator;
+  /// Binding mask file (see readBindingMask); empty = evaluator.bindingMask (every triangle
+  /// when that is empty too).
   std::string bindingMaskPath;
-  /// Per-frame audit: cloth vertices inside the shot's driver before and after correction,
-  /// binding switches, the largest frame-to-frame jump.
-  bool audit = true;
-
-  // ---- Fidelity (issue 4); see docs/method.md for how the defaults were chosen. ----
-
-  /// Rigid alignment: each shot driver frame is fitted (Kabsch, no scale; weighted by
-  /// rigidity (kRigid) or area (kRigidAll)) to the database's rest driver on the vertices
-  /// named by `alignGroup`; so is every database shape (at bake start, driver and driven with
-  /// the same motion, so databases built by earlier versions keep working). Weights and blends are
-  /// computed in that frame and the result goes back through the inverse motion (the correction
-  /// rebuilds directly on the shot's world-space driver).
-  AlignMode align = AlignMode::kRigid;
-  /// Driver vertices of the fit: comma-separated `g` group names and/or vertex indices and
-  /// ranges ("0-99,250"); empty or "all" = every vertex (see selectVertices).
-  std::string alignGroup;
-  /// Where the shapes are blended. Local blending rebuilds the offsets on the shot's driver,
-  /// which is the correction: with `correct` off (blend only) or the bind baseline the bake
-  /// blends world positions whatever this says (see blendsLocally).
-  BlendMode blend = BlendMode::kLocal;
-  /// Penetration resolution after the correction: cloth vertices inside the shot's driver or
-  /// closer than `skinOffset` (scene units) move to skinOffset along the pseudo-normal at
-  /// their exact closest point on the driver (every triangle, no mask).
-  bool resolve = true;
-  double skinOffset = 0.002;
-  /// Region file (see readRegions); empty = one QP on every driver row.
+  /// Region file (see readRegions); empty = evaluator.regions (one QP on every driver row when
+  /// that is empty too).
   std::string regionsPath;
-  /// Temporal stability: |w_t - w_{t-1}| <= maxWeightChange per shape (0 = off). Frames are
-  /// solved in order within each launch batch (`chunkSize` frames); before each batch,
-  /// `temporalWarmup` driver-cache frames preceding its first frame are solved (the first of
-  /// them without the bound) but not written. The output therefore depends on chunkSize and
-  /// temporalWarmup, never on the thread count, and a farm chunk whose size is a multiple of
-  /// chunkSize reproduces the single bake exactly.
-  double maxWeightChange = 0.0;
+  /// With the temporal bound (evaluator.maxWeightChange > 0) frames are solved in order within
+  /// each launch batch (`chunkSize` frames); before each batch, `temporalWarmup` driver-cache
+  /// frames preceding its first frame are solved (the first of them without the bound) but not
+  /// written. The output therefore depends on chunkSize and temporalWarmup, never on the thread
+  /// count, and a farm chunk whose size is a multiple of chunkSize reproduces the single bake
+  /// exactly.
   int temporalWarmup = 8;
   /// Layers after the correction and resolution (DESIGN.md section 3 step 7): a mix with
-  /// another cache of the cloth, procedural wind. Off by default. Recorded in the settings hash,
-  /// the report and the EXR header (`dsLayers`).
+  /// another cache of the cloth, procedural wind, from files. Off by default. Recorded in the
+  /// settings hash, the report and the EXR header (`dsLayers`).
   LayerOptions layers;
   /// fsync every output EXR before its atomic rename (`--sync`). Off by default: the rename
   /// alone already means readers never see a partial file, and a file cut short by a power

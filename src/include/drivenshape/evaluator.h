@@ -137,6 +137,14 @@ struct Evaluation {
   StageSeconds seconds;              ///< of this call
 };
 
+/// What a writer of outputs adds to Evaluator::settingsHash: the EXR width, and with the
+/// temporal bound the warm-up frames and the batch size (they decide which frame bounds which).
+struct OutputHashFields {
+  int exrWidth = 0;
+  int temporalWarmup = 0;
+  int batchSize = 0;
+};
+
 /// Evaluates frames of one character's driver with one database and one set of settings.
 ///
 /// Thread safety: an Evaluator is not thread-safe (it owns device buffers and temporal state);
@@ -177,8 +185,11 @@ class Evaluator {
   void resetHistory();
 
   /// A hash of everything that changes the result (database, settings, loaded masks, regions
-  /// and layer weights, the library version): equal hashes, equal cloth.
+  /// and layer weights, the library version): equal hashes, equal cloth. Its layout is that of
+  /// the bake's EXR headers (docs/formats.md), which a resume compares.
   std::uint64_t settingsHash() const;
+  /// The same with what a writer of outputs adds (the bake's `dsSettingsHash`).
+  std::uint64_t settingsHash(const OutputHashFields& output) const;
   /// The settings as the bake report writes them (JSON object text).
   std::string describeSettings() const;
   /// The layers as the EXR header's dsLayers attribute writes them ("{}" when none).

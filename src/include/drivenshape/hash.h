@@ -10,6 +10,9 @@ namespace drivenshape {
 /// checksums of database blocks: stable across platforms and versions.
 class Hasher {
  public:
+  Hasher() = default;
+  /// Continues a stream whose value so far is `value` (FNV-1a's state is its value).
+  explicit Hasher(std::uint64_t value) : mState(value) {}
   Hasher& add(const void* data, std::size_t bytes);
   template <typename T>
   Hasher& addValue(const T& value) {

@@ -40,12 +40,6 @@ class AlignStage final : public Stage {
 
   const char* name() const override { return "align"; }
 
-  void addToHash(Hasher& hasher) const override {
-    hasher.addValue(static_cast<int>(mModel.settings.align));
-    hasher.add(mModel.alignVertices.data(), mModel.alignVertices.size() * sizeof(int));
-    hasher.add(mModel.aligner->weights().data(), mModel.aligner->weights().size() * sizeof(double));
-  }
-
   void describe(nlohmann::json& settings) const override {
     settings["align_vertices"] = mModel.alignVertices.size();
   }

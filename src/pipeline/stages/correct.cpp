@@ -23,15 +23,6 @@ class CorrectStage final : public Stage {
 
   const char* name() const override { return "correct"; }
 
-  void addToHash(Hasher& hasher) const override {
-    const BindingMask& mask = mModel.mask();
-    hasher.addValue(mModel.settings.correct);
-    for (int c = 0; c < mask.classCount(); ++c) {
-      hasher.add(mask.classTriangles(c).data(), mask.classTriangles(c).size() * sizeof(int));
-    }
-    hasher.add(mask.vertexClasses().data(), mask.vertexClasses().size() * sizeof(int));
-  }
-
   void run(Batch& batch) override {
     const int count = batch.count;
     if (mModel.local) {

@@ -21,8 +21,6 @@ class LayersStage final : public Stage {
 
   const char* name() const override { return "layers"; }
 
-  void addToHash(Hasher& hasher) const override { mModel.layerStack->addToHash(hasher); }
-
   void describe(nlohmann::json& settings) const override {
     settings["layers"] = parseJsonText(mModel.layerStack->describe(), "the layer description");
   }

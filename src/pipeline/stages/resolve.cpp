@@ -13,11 +13,6 @@ class ResolveStage final : public Stage {
 
   const char* name() const override { return "resolve"; }
 
-  void addToHash(Hasher& hasher) const override {
-    hasher.addValue(mModel.settings.resolve);
-    hasher.addValue(mModel.settings.skinOffset);
-  }
-
   void run(Batch& batch) override {
     if (mModel.settings.audit) {
       countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideCorrected);

@@ -23,19 +23,6 @@ class WeightsStage final : public Stage {
 
   const char* name() const override { return "weights"; }
 
-  void addToHash(Hasher& hasher) const override {
-    const EvaluatorSettings& settings = mModel.settings;
-    hasher.addValue(settings.regions.has_value());
-    if (settings.regions) {
-      hasher.addValue(settings.regions->falloff);
-      for (const Region& region : settings.regions->regions) {
-        hasher.add(region.driverVertices.data(), region.driverVertices.size() * sizeof(int));
-        hasher.add(region.drivenVertices.data(), region.drivenVertices.size() * sizeof(int));
-      }
-    }
-    hasher.addValue(settings.maxWeightChange);
-  }
-
   void describe(nlohmann::json& settings) const override {
     if (!mModel.settings.regions) {
       return;
