@@ -10,15 +10,16 @@ stage's timeCodesPerSecond is --fps (for EXR input, the files' framesPerSecond b
       --exr out/pants.####.exr --frames 1001-1100 -o pants.usdc
   .venv/bin/python scripts/export_usd.py --mesh driven_rest.obj --pc2 guides.pc2 -o guides.usda
 
-Needs usd-core, numpy and OpenEXR (scripts/requirements.txt, installed into .venv by
-scripts/setup.sh). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
+The stage is written by the drivenshape Python module's `drivenshape.usd.write_mesh_usd` (the
+one USD writer; found on PYTHONPATH or in build/python), with Z up and metersPerUnit 1 unless
+--up-axis says otherwise. Needs usd-core, numpy and OpenEXR (scripts/requirements.txt, installed
+into .venv by scripts/setup.sh). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
 """
 
 import argparse
 import os
 import re
 import sys
-import tempfile
 
 import numpy as np
 
@@ -178,65 +179,31 @@ def read_exr_frame(path, vertex_count):
 
 # ---- output ----------------------------------------------------------------------------------
 
-def write_usd(path, mesh, frames, positions, fps, prim_path, up_axis):
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
-
-    extension = os.path.splitext(path)[1].lower()
-    if extension not in (".usd", ".usda", ".usdc"):
-        raise ExportError(EXIT_USAGE, f"-o '{path}': use a .usd, .usda or .usdc file name")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise ExportError(EXIT_OUTPUT, f"-o '{path}': folder '{folder}' does not exist")
-    # Written beside the target and renamed into place, so readers never see half a file.
-    handle, temp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".tmp-", suffix=extension,
-                                    dir=folder)
-    os.close(handle)
+def drivenshape_usd():
+    """drivenshape.usd, the one USD writer of the project (apps/python/drivenshape/usd.py): from
+    PYTHONPATH, else from this checkout's build folder (build/python)."""
     try:
-        stage = Usd.Stage.CreateNew(temp)
-        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
-        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-        stage.SetStartTimeCode(frames[0])
-        stage.SetEndTimeCode(frames[-1])
-        stage.SetTimeCodesPerSecond(fps)
-        stage.SetFramesPerSecond(fps)
-        root = prim_path.rsplit("/", 1)[0]
-        if root:
-            UsdGeom.Xform.Define(stage, root)
-        geom = UsdGeom.Mesh.Define(stage, prim_path)
-        stage.SetDefaultPrim(stage.GetPrimAtPath("/" + prim_path.strip("/").split("/")[0]))
-        geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(mesh["counts"]))
-        geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(mesh["indices"]))
-        geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
-        points = geom.CreatePointsAttr()
-        extent = geom.CreateExtentAttr()
-        for frame, xyz in zip(frames, positions):
-            points.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(xyz)), frame)
-            lo, hi = xyz.min(axis=0), xyz.max(axis=0)
-            extent.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), frame)
-        if mesh["uvs"] is not None:
-            values, uv_indices = mesh["uvs"]
-            primvar = UsdGeom.PrimvarsAPI(geom).CreatePrimvar(
-                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
-            primvar.Set(Vt.Vec2fArray.FromNumpy(values))
-            primvar.SetIndices(Vt.IntArray.FromNumpy(uv_indices))
-        if len(mesh["groups"]) > 1:
-            for name, faces in mesh["groups"].items():
-                token = re.sub(r"[^A-Za-z0-9_]", "_", name)
-                if not token or token[0].isdigit():
-                    token = "g_" + token
-                UsdGeom.Subset.CreateGeomSubset(geom, token, UsdGeom.Tokens.face,
-                                                Vt.IntArray(faces))
-        stage.GetRootLayer().Save()
-        del stage
-        os.replace(temp, path)
-    except ExportError:
-        raise
-    except Exception as error:
-        raise ExportError(EXIT_OUTPUT, f"cannot write USD '{path}': {error}")
-    finally:
-        if os.path.exists(temp):
-            os.remove(temp)
+        from drivenshape import usd
+    except ImportError:
+        build = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "build",
+                             "python")
+        sys.path.insert(0, os.path.normpath(build))
+        try:
+            from drivenshape import usd
+        except ImportError as error:
+            raise ExportError(EXIT_USAGE, f"the drivenshape Python module is not available "
+                                          f"({error}): build it (scripts/setup.sh) or set "
+                                          "PYTHONPATH to the build's python folder")
+    return usd
+
+
+def write_usd(path, mesh, frames, positions, fps, prim_path, up_axis):
+    usd = drivenshape_usd()
+    try:
+        usd.write_mesh_usd(path, mesh, frames, positions, prim_path=prim_path, fps=fps,
+                           up_axis=up_axis, meters_per_unit=1.0)
+    except usd.Error as error:
+        raise ExportError(error.code, str(error))
 
 
 def main(argv=None):

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs what is missing (Debian 12 packages, the Python venv for scripts and Python tests),
 # then configures and builds drivenshape (Release, -march=x86-64, warnings as errors) in ./build.
-# clang and libclang-rt-14-dev are for the fuzz targets (libFuzzer, ASan, UBSan) of the tests.
+# clang and libclang-rt-14-dev are for the fuzz targets (libFuzzer, ASan, UBSan) of the tests;
+# pybind11-dev and python3-dev build the Python module, which Debian's Blender (its add-on tests)
+# imports with python3-numpy.
 # Safe to run again: it installs nothing that is already there and rebuilds incrementally.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,7 +14,8 @@ PACKAGES=(
   libeigen3-dev libopenexr-dev openexr libflann-dev liblz4-dev nlohmann-json3-dev
   libgtest-dev openimageio-tools clang-format git slurm-wlm munge
   clang libclang-rt-14-dev llvm
-  python3 python3-venv python3-pip
+  python3 python3-venv python3-pip python3-dev python3-numpy pybind11-dev
+  blender
 )
 
 missing=()

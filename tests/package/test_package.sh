@@ -34,3 +34,24 @@ mkdir "$work/bake"
   --device cpu --quiet -o "$work/bake/cloth.####.exr" > /dev/null
 "$work/consumer-build/consumer" "$work/sleeve.dsdb" "$data/test.driver.pc2" \
   "$work/bake/cloth.####.exr" 1 12
+
+# The Python module (when built): the installed package imports from the prefix alone, with the
+# interpreter it was built for (Debian's python3, which Blender embeds), and evaluates a frame
+# bitwise as the installed CLI baked it.
+packages="$work/prefix/lib/python3/dist-packages"
+if [[ -f "$build/python/drivenshape/__init__.py" ]]; then
+  test -f "$packages/drivenshape/usd.py"
+  (cd "$work" && PYTHONPATH="$packages" /usr/bin/python3 - "$work" "$data" <<'PY'
+import sys
+import drivenshape as ds
+work, data = sys.argv[1], sys.argv[2]
+assert ds.__file__.startswith(work), ds.__file__
+evaluator = ds.Evaluator(ds.load_database(f"{work}/sleeve.dsdb"), None, ds.open_device("cpu"))
+driver = ds.open_point_cache(f"{data}/test.driver.pc2").read_frames([7])
+cloth, _ = evaluator.evaluate([7], driver)
+baked, _ = ds.read_point_cache_exr(f"{work}/bake/cloth.0007.exr")
+assert cloth[0].tobytes() == baked.tobytes(), "installed module differs from the installed CLI"
+print(f"installed module {ds.__version__} from {ds.__file__}: frame 7 bitwise as the CLI")
+PY
+  )
+fi

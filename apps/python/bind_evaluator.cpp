@@ -1,0 +1,704 @@
+// Databases, devices, evaluator settings (binding masks, regions, layers) and the Evaluator.
+#include "binding.h"
+
+#include <array>
+#include <mutex>
+#include <sstream>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/database.h>
+#include <drivenshape/device.h>
+#include <drivenshape/evaluator.h>
+#include <drivenshape/layers.h>
+#include <drivenshape/regions.h>
+
+namespace drivenshape::python {
+
+namespace {
+
+using Index = py::ssize_t;
+
+/// A Device and the note openDevice("auto") leaves when it falls back to the host path.
+struct DeviceHandle {
+  std::unique_ptr<Device> device;
+  std::string note;
+};
+
+/// An Evaluator with what the binding adds: the seconds of the last call, and a lock so that
+/// two Python threads calling one evaluator (the GIL is released while it runs) take turns.
+struct EvaluatorHandle {
+  EvaluatorHandle(const Database& database, EvaluatorSettings settings, Device& device)
+      : evaluator(database, std::move(settings), device) {}
+  Evaluator evaluator;
+  StageSeconds lastSeconds;
+  std::mutex mutex;
+};
+
+// ---- Names of the settings' enums ----------------------------------------------------------
+
+WeightMode parseWeightMode(const std::string& text) {
+  if (text == "qp") {
+    return WeightMode::kQp;
+  }
+  if (text == "nearest") {
+    return WeightMode::kNearest;
+  }
+  if (text == "bind") {
+    return WeightMode::kBind;
+  }
+  DS_THROW(kUsage, "weight_mode '", text, "' is not one of qp, nearest, bind");
+}
+
+AlignMode parseAlignMode(const std::string& text) {
+  if (text == "none") {
+    return AlignMode::kNone;
+  }
+  if (text == "rigid") {
+    return AlignMode::kRigid;
+  }
+  if (text == "rigid-all") {
+    return AlignMode::kRigidAll;
+  }
+  DS_THROW(kUsage, "align '", text, "' is not one of none, rigid, rigid-all");
+}
+
+BlendMode parseBlendMode(const std::string& text) {
+  if (text == "world") {
+    return BlendMode::kWorld;
+  }
+  if (text == "local") {
+    return BlendMode::kLocal;
+  }
+  DS_THROW(kUsage, "blend '", text, "' is not one of world, local");
+}
+
+const char* blendModeName(BlendMode mode) {
+  return mode == BlendMode::kLocal ? "local" : "world";
+}
+
+// ---- Inputs -------------------------------------------------------------------------------
+
+const Mesh& meshArgument(py::handle object, std::optional<Mesh>& storage, const char* what) {
+  if (isPathLike(object)) {
+    const std::string path = pathString(object);
+    py::gil_scoped_release release;
+    storage = readObj(path);
+    return *storage;
+  }
+  try {
+    return object.cast<const Mesh&>();
+  } catch (const py::cast_error&) {
+    DS_THROW(kUsage, what, " must be a drivenshape.Mesh or an OBJ path, not ",
+             std::string(py::str(object.get_type().attr("__name__"))));
+  }
+}
+
+/// A PointCache, a path (PC2 or EXR pattern) or an array (F, V, 3) starting at `startFrame`.
+std::shared_ptr<PointCacheReader> cacheArgument(py::handle object, int startFrame) {
+  if (isPathLike(object)) {
+    const std::string spec = pathString(object);
+    py::gil_scoped_release release;
+    return openPointCache(spec);
+  }
+  if (py::isinstance<PointCacheReader>(object)) {
+    return object.cast<std::shared_ptr<PointCacheReader>>();
+  }
+  return makeArrayCache(object, startFrame, py::none());
+}
+
+std::vector<int> optionalFrames(py::handle object) {
+  return object.is_none() ? std::vector<int>() : frameList(object);
+}
+
+py::object parseJson(const std::string& text) {
+  return py::module_::import("json").attr("loads")(text);
+}
+
+// ---- Records ----------------------------------------------------------------------------
+
+py::dict recordDict(const FrameRecord& record) {
+  py::dict out;
+  out["frame"] = record.frame;
+  out["weights"] = record.weights;
+  out["at_zero"] = record.atZero;
+  out["at_one"] = record.atOne;
+  out["relative_residual"] = record.relativeResidual;
+  out["kkt_residual"] = record.kktResidual;
+  out["iterations"] = record.iterations;
+  out["align_rotation"] = record.alignRotation;
+  out["align_translation"] = record.alignTranslation;
+  out["inside_before"] = record.insideBefore;
+  out["inside_corrected"] = record.insideCorrected;
+  out["inside_after"] = record.insideAfter;
+  out["resolved"] = record.resolved;
+  out["binding_switches"] = record.bindingSwitches;
+  out["max_jump"] = record.maxJump;
+  out["max_jump_vertex"] = record.maxJumpVertex;
+  return out;
+}
+
+py::list recordList(std::vector<FrameRecord>&& records) {
+  py::list out(records.size());
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    out[i] = py::cast(std::move(records[i]));
+  }
+  return out;
+}
+
+// ---- Evaluation ---------------------------------------------------------------------------
+
+struct DriverInput {
+  std::vector<int> frames;
+  std::optional<FloatArray> array;
+};
+
+DriverInput driverInput(const EvaluatorHandle& handle, py::handle frames, py::handle driver,
+                        int warmup) {
+  DriverInput input;
+  input.frames = frameList(frames);
+  input.array.emplace(driver, "driver");
+  const FrameBlockShape shape = frameBlockShape(*input.array, "driver");
+  const int expected = handle.evaluator.driverVertexCount();
+  if (shape.vertices != expected) {
+    DS_THROW(kInput, "driver: ", shape.vertices,
+             " vertices per frame, but the database's driver mesh has ", expected,
+             "; pass the positions of the driver the database was built from");
+  }
+  if (shape.frames != static_cast<int>(input.frames.size())) {
+    DS_THROW(kUsage, "driver holds ", shape.frames, " frames but ", input.frames.size(),
+             " frame numbers were given");
+  }
+  if (warmup < 0 || (warmup > 0 && warmup >= shape.frames)) {
+    DS_THROW(kUsage, "warmup ", warmup, " must be at least 0 and below the frame count ",
+             shape.frames);
+  }
+  return input;
+}
+
+std::vector<FrameRecord> runEvaluator(EvaluatorHandle& handle, const DriverInput& input,
+                                      float* cloth, int warmup) {
+  const int count = static_cast<int>(input.frames.size());
+  std::vector<FrameRecord> records(static_cast<std::size_t>(count - warmup));
+  if (count == 0) {
+    handle.lastSeconds.clear();
+    return records;
+  }
+  StageSeconds seconds;
+  {
+    py::gil_scoped_release release;
+    const std::lock_guard<std::mutex> lock(handle.mutex);
+    seconds = handle.evaluator.evaluate(count, input.frames.data(), input.array->data(), cloth,
+                                        records.data(), warmup);
+    handle.lastSeconds = seconds;
+  }
+  return records;
+}
+
+py::tuple evaluate(EvaluatorHandle& handle, py::handle frames, py::handle driver, int warmup) {
+  const DriverInput input = driverInput(handle, frames, driver, warmup);
+  const Index count = static_cast<Index>(input.frames.size()) - warmup;
+  const Index drivenCount = handle.evaluator.drivenVertexCount();
+  // Not zero-filled: the evaluator writes every value.
+  std::shared_ptr<float[]> cloth(new float[static_cast<std::size_t>(count * drivenCount * 3)]);
+  std::vector<FrameRecord> records = runEvaluator(handle, input, cloth.get(), warmup);
+  return py::make_tuple(ownedFloatArray(std::move(cloth), {count, drivenCount, 3}),
+                        recordList(std::move(records)));
+}
+
+py::list evaluateInto(EvaluatorHandle& handle, py::handle frames, py::handle driver, py::handle out,
+                      int warmup) {
+  const DriverInput input = driverInput(handle, frames, driver, warmup);
+  const FloatArray target(out, "out", true);
+  const Index count = static_cast<Index>(input.frames.size()) - warmup;
+  const Index drivenCount = handle.evaluator.drivenVertexCount();
+  const bool oneFrame = target.ndim() == 2 && count == 1;
+  const bool fits = (target.ndim() == 3 && target.dim(0) == count && target.dim(1) == drivenCount &&
+                     target.dim(2) == 3) ||
+                    (oneFrame && target.dim(0) == drivenCount && target.dim(1) == 3);
+  if (!fits) {
+    DS_THROW(kUsage, "out must be shaped (", count, ", ", drivenCount, ", 3) float32 (frames ",
+             "after warm-up, driven vertices, xyz); got ", target.describe());
+  }
+  return recordList(runEvaluator(handle, input, target.mutableData(), warmup));
+}
+
+void bindSettings(py::module_& module) {
+  py::class_<BindingMask>(module, "BindingMask",
+                          "Which driver triangles each driven vertex may bind to "
+                          "(load_binding_mask / parse_binding_mask).")
+      .def(py::init<std::vector<int>, std::vector<std::vector<int>>>(), py::arg("vertex_class"),
+           py::arg("class_triangles"),
+           "vertex_class: one class id per driven vertex (-1 = any triangle); class_triangles: "
+           "the driver triangle ids of each class")
+      .def_static("all", &BindingMask::all, py::arg("driven_vertex_count"))
+      .def_property_readonly("driven_vertex_count", &BindingMask::drivenVertexCount)
+      .def_property_readonly("class_count", &BindingMask::classCount)
+      .def_property_readonly("vertex_classes", &BindingMask::vertexClasses)
+      .def(
+          "class_triangles",
+          [](const BindingMask& mask, int index) {
+            if (index < 0 || index >= mask.classCount()) {
+              DS_THROW(kUsage, "binding-mask class ", index, " does not exist; the mask has ",
+                       mask.classCount(), " classes");
+            }
+            return mask.classTriangles(index);
+          },
+          py::arg("class_index"), "the sorted driver triangle ids of one class")
+      .def_property_readonly("is_all", &BindingMask::isAll);
+
+  py::class_<RegionSet>(module, "RegionSet",
+                        "Regions with their own weights (load_regions / parse_regions).")
+      .def_property_readonly("count", &RegionSet::count)
+      .def_property_readonly("names",
+                             [](const RegionSet& set) {
+                               std::vector<std::string> names;
+                               for (const Region& region : set.regions) {
+                                 names.push_back(region.name);
+                               }
+                               return names;
+                             })
+      .def_readonly("falloff", &RegionSet::falloff);
+
+  py::class_<LayerSettings>(module, "LayerSettings",
+                            "Layers after the correction: a mix with another cache, wind "
+                            "(load_layers). The default is no layer.")
+      .def(py::init<>())
+      .def_property_readonly("has_mix", &LayerSettings::hasMix)
+      .def_property_readonly("has_wind", &LayerSettings::hasWind)
+      .def_property_readonly("empty", &LayerSettings::empty)
+      .def_property_readonly("mix_cache",
+                             [](const LayerSettings& layers) { return layers.options.mixCache; })
+      .def_property_readonly("mix_weights",
+                             [](const LayerSettings& layers) {
+                               std::vector<float> copy = layers.mixWeights;
+                               const Index size = static_cast<Index>(copy.size());
+                               return ownedArray(std::move(copy), {size});
+                             })
+      .def_property_readonly("wind_weights", [](const LayerSettings& layers) {
+        std::vector<float> copy = layers.windWeights;
+        const Index size = static_cast<Index>(copy.size());
+        return ownedArray(std::move(copy), {size});
+      });
+
+  const EvaluatorSettings defaults;
+  py::class_<EvaluatorSettings>(
+      module, "EvaluatorSettings",
+      "Everything that decides the cloth of a frame; the defaults are those of `drivenshape "
+      "bake`. Enums are strings: weight_mode qp|nearest|bind, align none|rigid|rigid-all, "
+      "blend world|local. binding_mask, regions and layers come from load_binding_mask, "
+      "load_regions and load_layers (the loaders of the command line).")
+      .def(py::init([](const std::string& weightMode, const std::string& align,
+                       std::string alignGroup, const std::string& blend, bool correct,
+                       std::optional<BindingMask> bindingMask, bool resolve, double skinOffset,
+                       std::optional<RegionSet> regions, double maxWeightChange, bool audit,
+                       std::optional<LayerSettings> layers, int threads) {
+             EvaluatorSettings settings;
+             settings.weightMode = parseWeightMode(weightMode);
+             settings.align = parseAlignMode(align);
+             settings.alignGroup = std::move(alignGroup);
+             settings.blend = parseBlendMode(blend);
+             settings.correct = correct;
+             settings.bindingMask = std::move(bindingMask);
+             settings.resolve = resolve;
+             settings.skinOffset = skinOffset;
+             settings.regions = std::move(regions);
+             settings.maxWeightChange = maxWeightChange;
+             settings.audit = audit;
+             if (layers) {
+               settings.layers = std::move(*layers);
+             }
+             settings.threads = threads;
+             return settings;
+           }),
+           py::kw_only(), py::arg("weight_mode") = weightModeName(defaults.weightMode),
+           py::arg("align") = alignModeName(defaults.align),
+           py::arg("align_group") = defaults.alignGroup,
+           py::arg("blend") = blendModeName(defaults.blend), py::arg("correct") = defaults.correct,
+           py::arg("binding_mask") = py::none(), py::arg("resolve") = defaults.resolve,
+           py::arg("skin_offset") = defaults.skinOffset, py::arg("regions") = py::none(),
+           py::arg("max_weight_change") = defaults.maxWeightChange,
+           py::arg("audit") = defaults.audit, py::arg("layers") = py::none(),
+           py::arg("threads") = defaults.threads)
+      .def_property(
+          "weight_mode", [](const EvaluatorSettings& s) { return weightModeName(s.weightMode); },
+          [](EvaluatorSettings& s, const std::string& text) {
+            s.weightMode = parseWeightMode(text);
+          })
+      .def_property(
+          "align", [](const EvaluatorSettings& s) { return alignModeName(s.align); },
+          [](EvaluatorSettings& s, const std::string& text) { s.align = parseAlignMode(text); })
+      .def_readwrite("align_group", &EvaluatorSettings::alignGroup)
+      .def_property(
+          "blend", [](const EvaluatorSettings& s) { return blendModeName(s.blend); },
+          [](EvaluatorSettings& s, const std::string& text) { s.blend = parseBlendMode(text); })
+      .def_readwrite("correct", &EvaluatorSettings::correct)
+      .def_property(
+          "binding_mask", [](const EvaluatorSettings& s) { return s.bindingMask; },
+          [](EvaluatorSettings& s, std::optional<BindingMask> mask) {
+            s.bindingMask = std::move(mask);
+          })
+      .def_readwrite("resolve", &EvaluatorSettings::resolve)
+      .def_readwrite("skin_offset", &EvaluatorSettings::skinOffset)
+      .def_property(
+          "regions", [](const EvaluatorSettings& s) { return s.regions; },
+          [](EvaluatorSettings& s, std::optional<RegionSet> regions) {
+            s.regions = std::move(regions);
+          })
+      .def_readwrite("max_weight_change", &EvaluatorSettings::maxWeightChange)
+      .def_readwrite("audit", &EvaluatorSettings::audit)
+      .def_property(
+          "layers", [](const EvaluatorSettings& s) { return s.layers; },
+          [](EvaluatorSettings& s, LayerSettings layers) { s.layers = std::move(layers); })
+      .def_readwrite("threads", &EvaluatorSettings::threads)
+      .def("__repr__", [](const EvaluatorSettings& s) {
+        std::ostringstream text;
+        text << "EvaluatorSettings(weight_mode='" << weightModeName(s.weightMode) << "', align='"
+             << alignModeName(s.align) << "', align_group='" << s.alignGroup << "', blend='"
+             << blendModeName(s.blend) << "', correct=" << (s.correct ? "True" : "False")
+             << ", binding_mask=" << (s.bindingMask ? "<BindingMask>" : "None")
+             << ", resolve=" << (s.resolve ? "True" : "False") << ", skin_offset=" << s.skinOffset
+             << ", regions=" << (s.regions ? "<RegionSet>" : "None")
+             << ", max_weight_change=" << s.maxWeightChange
+             << ", audit=" << (s.audit ? "True" : "False")
+             << ", layers=" << (s.layers.empty() ? "None" : "<LayerSettings>")
+             << ", threads=" << s.threads << ")";
+        return text.str();
+      });
+
+  // The loaders the command line uses (bake's --bind, --regions, --mix..., --wind...).
+  module.def(
+      "load_binding_mask",
+      [](py::handle path, const Database& db) {
+        return readBindingMask(pathString(path), db.driverMesh, db.drivenMesh);
+      },
+      py::arg("path"), py::arg("database"),
+      "readBindingMask: the binding-mask JSON file (bake --bind) for the database's meshes");
+  module.def(
+      "parse_binding_mask",
+      [](const std::string& text, const Database& db, const std::string& source) {
+        return parseBindingMask(text, source, db.driverMesh, db.drivenMesh);
+      },
+      py::arg("text"), py::arg("database"), py::arg("source") = "(string)",
+      "parseBindingMask: the same from JSON text");
+  module.def(
+      "load_regions",
+      [](py::handle path, const Database& db) {
+        return readRegions(pathString(path), db.driverMesh, db.drivenMesh);
+      },
+      py::arg("path"), py::arg("database"), "readRegions: a region JSON file (bake --regions)");
+  module.def(
+      "parse_regions",
+      [](const std::string& text, const Database& db, const std::string& source) {
+        return parseRegions(text, source, db.driverMesh, db.drivenMesh);
+      },
+      py::arg("text"), py::arg("database"), py::arg("source") = "(string)",
+      "parseRegions: the same from JSON text");
+  const LayerOptions layerDefaults;
+  module.def(
+      "load_layers",
+      [](const Database& db, std::optional<std::string> mixCache,
+         std::optional<std::string> mixWeight, int mixFalloff, double windAmplitude,
+         double windFrequency, std::array<double, 3> windDirection, double windSpeed,
+         int windOctaves, std::uint32_t windSeed, std::optional<std::string> windWeight,
+         int windFalloff, double framesPerSecond) {
+        LayerOptions options;
+        options.mixCache = mixCache.value_or("");
+        options.mixWeight = mixWeight.value_or(options.mixWeight);
+        options.mixFalloff = mixFalloff;
+        options.windAmplitude = windAmplitude;
+        options.windFrequency = windFrequency;
+        options.windDirection = windDirection;
+        options.windSpeed = windSpeed;
+        options.windOctaves = windOctaves;
+        options.windSeed = windSeed;
+        options.windWeight = windWeight.value_or("");
+        options.windFalloff = windFalloff;
+        options.framesPerSecond = framesPerSecond;
+        py::gil_scoped_release release;
+        return loadLayers(options, db.drivenMesh);
+      },
+      py::arg("database"), py::kw_only(), py::arg("mix_cache") = py::none(),
+      py::arg("mix_weight") = py::none(), py::arg("mix_falloff") = layerDefaults.mixFalloff,
+      py::arg("wind_amplitude") = layerDefaults.windAmplitude,
+      py::arg("wind_frequency") = layerDefaults.windFrequency,
+      py::arg("wind_direction") = layerDefaults.windDirection,
+      py::arg("wind_speed") = layerDefaults.windSpeed,
+      py::arg("wind_octaves") = layerDefaults.windOctaves,
+      py::arg("wind_seed") = layerDefaults.windSeed, py::arg("wind_weight") = py::none(),
+      py::arg("wind_falloff") = layerDefaults.windFalloff,
+      py::arg("frames_per_second") = layerDefaults.framesPerSecond,
+      "loadLayers: the bake's --mix, --mix-weight, --mix-falloff, --wind-* and --fps as "
+      "keywords; weight maps are .json, .exr or group:NAME specs (see docs/commands.md)");
+}
+
+}  // namespace
+
+void bindDatabase(py::module_& module) {
+  py::class_<Database>(module, "Database",
+                       "N pairs of driver and driven shapes with their meshes "
+                       "(load_database / build_database).")
+      .def_property_readonly("shape_count", &Database::shapeCount)
+      .def_readonly("frames", &Database::frames, "source frame of each shape, in pick order")
+      .def_property_readonly("reasons",
+                             [](const Database& db) {
+                               std::vector<std::string> names;
+                               for (PickReason reason : db.reasons) {
+                                 names.push_back(pickReasonName(reason));
+                               }
+                               return names;
+                             })
+      .def_readonly("pick_distances", &Database::pickDistances)
+      .def_readonly("driver_mesh", &Database::driverMesh)
+      .def_readonly("driven_mesh", &Database::drivenMesh)
+      .def_property_readonly("driver_vertex_count", &Database::driverVertexCount)
+      .def_property_readonly("driven_vertex_count", &Database::drivenVertexCount)
+      .def_property_readonly("content_hash", &Database::contentHash,
+                             "hash of the shapes and topologies (identifies the database)")
+      .def_property_readonly(
+          "driver_shapes",
+          [](py::object self) {
+            const Database& db = self.cast<const Database&>();
+            return viewArray(db.driverShapes.data(), {db.shapeCount(), db.driverVertexCount(), 3},
+                             self);
+          },
+          "(N, Vp, 3) float32, read-only view")
+      .def_property_readonly(
+          "driven_shapes",
+          [](py::object self) {
+            const Database& db = self.cast<const Database&>();
+            return viewArray(db.drivenShapes.data(), {db.shapeCount(), db.drivenVertexCount(), 3},
+                             self);
+          },
+          "(N, Vd, 3) float32, read-only view")
+      .def_readonly("driver_source", &Database::driverSource)
+      .def_readonly("driven_source", &Database::drivenSource)
+      .def_readonly("tool_version", &Database::toolVersion)
+      .def_readonly("created", &Database::created)
+      .def(
+          "save",
+          [](const Database& db, py::handle path) {
+            const std::string file = pathString(path);
+            py::gil_scoped_release release;
+            saveDatabase(file, db);
+          },
+          py::arg("path"), "Writes the database file atomically.")
+      .def("__repr__", [](const Database& db) {
+        return "<drivenshape.Database " + std::to_string(db.shapeCount()) + " shapes, driver " +
+               std::to_string(db.driverVertexCount()) + " vertices, driven " +
+               std::to_string(db.drivenVertexCount()) + " vertices>";
+      });
+
+  module.def(
+      "load_database",
+      [](py::handle path) {
+        const std::string file = pathString(path);
+        py::gil_scoped_release release;
+        return loadDatabase(file);
+      },
+      py::arg("path"), "Reads and verifies a database file.");
+  module.def(
+      "save_database",
+      [](py::handle path, const Database& db) {
+        const std::string file = pathString(path);
+        py::gil_scoped_release release;
+        saveDatabase(file, db);
+      },
+      py::arg("path"), py::arg("database"));
+  const DatabaseBuildOptions buildDefaults;
+  module.def(
+      "build_database",
+      [](py::handle driverMesh, py::handle drivenMesh, py::handle driverCache,
+         py::handle drivenCache, int count, py::handle frames, py::handle addFrames,
+         py::handle removeFrames, double duplicateTolerance, int startFrame, py::handle log) {
+        std::optional<Mesh> driverStorage;
+        std::optional<Mesh> drivenStorage;
+        const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
+        const Mesh& driven = meshArgument(drivenMesh, drivenStorage, "driven_mesh");
+        const std::shared_ptr<PointCacheReader> driverFrames =
+            cacheArgument(driverCache, startFrame);
+        const std::shared_ptr<PointCacheReader> drivenFrames =
+            cacheArgument(drivenCache, startFrame);
+        DatabaseBuildOptions options;
+        options.count = count;
+        options.frames = optionalFrames(frames);
+        options.addFrames = optionalFrames(addFrames);
+        options.removeFrames = optionalFrames(removeFrames);
+        options.duplicateTolerance = duplicateTolerance;
+        std::ostringstream text;
+        std::optional<Database> database;
+        {
+          py::gil_scoped_release release;
+          database = buildDatabase(driver, driven, *driverFrames, *drivenFrames, options,
+                                   log.is_none() ? nullptr : &text);
+        }
+        if (!log.is_none()) {
+          log.attr("write")(text.str());
+        }
+        return std::move(*database);
+      },
+      py::arg("driver_mesh"), py::arg("driven_mesh"), py::arg("driver_cache"),
+      py::arg("driven_cache"), py::kw_only(), py::arg("count") = buildDefaults.count,
+      py::arg("frames") = py::none(), py::arg("add_frames") = py::none(),
+      py::arg("remove_frames") = py::none(),
+      py::arg("duplicate_tolerance") = buildDefaults.duplicateTolerance, py::arg("start_frame") = 1,
+      py::arg("log") = py::none(),
+      "The database of reference caches (drivenshape db build). Meshes are Mesh objects or "
+      "OBJ paths; caches are PointCache objects, paths (PC2, EXR pattern) or arrays (F, V, 3) "
+      "whose first frame is start_frame. frames: candidates (default every frame of the driver "
+      "cache); add_frames are always kept, remove_frames never. log: a file-like object that "
+      "receives the pick log.");
+}
+
+void bindEvaluator(py::module_& module) {
+  py::class_<DeviceHandle>(module, "Device",
+                           "Where the stages run: the host reference path or one OpenCL "
+                           "device (open_device).")
+      .def_property_readonly("description",
+                             [](const DeviceHandle& d) { return d.device->description(); })
+      .def_property_readonly("is_opencl",
+                             [](const DeviceHandle& d) { return d.device->isOpenCl(); })
+      .def_readonly("note", &DeviceHandle::note,
+                    "why open_device('auto') fell back to the host path, else ''")
+      .def_property_readonly("programs_built",
+                             [](const DeviceHandle& d) { return d.device->programsBuilt(); })
+      .def("transfers",
+           [](const DeviceHandle& d) {
+             const TransferCounts counts = d.device->transfers();
+             py::dict out;
+             out["uploads"] = counts.uploads;
+             out["downloads"] = counts.downloads;
+             out["upload_bytes"] = counts.uploadBytes;
+             out["download_bytes"] = counts.downloadBytes;
+             return out;
+           })
+      .def("__repr__", [](const DeviceHandle& d) {
+        return "<drivenshape.Device " + d.device->description() + ">";
+      });
+
+  module.def(
+      "open_device",
+      [](const std::string& spec) {
+        auto handle = std::make_unique<DeviceHandle>();
+        py::gil_scoped_release release;
+        handle->device = openDevice(spec, &handle->note);
+        return handle;
+      },
+      py::arg("spec") = "auto",
+      "'auto' (first GPU, else first OpenCL device, else host: see Device.note), 'host', "
+      "'cpu', 'gpu', an index from list_devices() or a substring of a device name; as "
+      "--device on the command line.");
+  module.def(
+      "list_devices",
+      []() {
+        py::list out;
+        for (const OpenClDeviceInfo& info : listOpenClDevices()) {
+          py::dict entry;
+          entry["index"] = info.index;
+          entry["name"] = info.name;
+          entry["type"] = info.type;
+          entry["platform"] = info.platform;
+          entry["version"] = info.version;
+          entry["compute_units"] = info.computeUnits;
+          entry["global_memory_bytes"] = info.globalMemoryBytes;
+          entry["max_allocation_bytes"] = info.maxAllocationBytes;
+          entry["description"] = info.description;
+          out.append(entry);
+        }
+        return out;
+      },
+      "Every OpenCL device as a dict (index, name, type, platform, version, ...); the host "
+      "path is always there too, as open_device('host').");
+
+  bindSettings(module);
+
+  py::class_<FrameRecord>(module, "FrameRecord", "What happened to one frame (read-only).")
+      .def_readonly("frame", &FrameRecord::frame)
+      .def_readonly("weights", &FrameRecord::weights, "k per region, region-major")
+      .def_readonly("at_zero", &FrameRecord::atZero, "shapes held at weight 0")
+      .def_readonly("at_one", &FrameRecord::atOne)
+      .def_readonly("relative_residual", &FrameRecord::relativeResidual)
+      .def_readonly("kkt_residual", &FrameRecord::kktResidual)
+      .def_readonly("iterations", &FrameRecord::iterations)
+      .def_readonly("align_rotation", &FrameRecord::alignRotation, "R row-major (9) or empty")
+      .def_readonly("align_translation", &FrameRecord::alignTranslation)
+      .def_readonly("inside_before", &FrameRecord::insideBefore, "-1 where not measured")
+      .def_readonly("inside_corrected", &FrameRecord::insideCorrected)
+      .def_readonly("inside_after", &FrameRecord::insideAfter)
+      .def_readonly("resolved", &FrameRecord::resolved)
+      .def_readonly("binding_switches", &FrameRecord::bindingSwitches)
+      .def_readonly("max_jump", &FrameRecord::maxJump)
+      .def_readonly("max_jump_vertex", &FrameRecord::maxJumpVertex)
+      .def("to_dict", &recordDict)
+      .def("__repr__", [](const FrameRecord& record) {
+        std::ostringstream text;
+        text << "<drivenshape.FrameRecord frame " << record.frame << ", residual "
+             << record.relativeResidual << ", inside after " << record.insideAfter << ">";
+        return text.str();
+      });
+
+  py::class_<EvaluatorHandle>(
+      module, "Evaluator",
+      "Frames of driver positions in, cloth positions out (drivenshape/evaluator.h). Keeps "
+      "the database and the device alive. Not for two threads at once: calls from several "
+      "threads take turns.")
+      .def(py::init([](const Database& db, std::optional<EvaluatorSettings> settings,
+                       DeviceHandle& device) {
+             EvaluatorSettings chosen = settings.value_or(EvaluatorSettings());
+             py::gil_scoped_release release;
+             return std::make_unique<EvaluatorHandle>(db, std::move(chosen), *device.device);
+           }),
+           py::arg("database"), py::arg("settings"), py::arg("device"), py::keep_alive<1, 2>(),
+           py::keep_alive<1, 4>(),
+           "Prepares everything that depends only on the database (settings None = the "
+           "bake's defaults).")
+      .def("evaluate", &evaluate, py::arg("frames"), py::arg("driver"), py::arg("warmup") = 0,
+           "(cloth (F - warmup, Vd, 3) float32, [FrameRecord]) of driver positions (F, Vp, 3) "
+           "for the frame numbers `frames` (an int for one frame (Vp, 3) or (1, Vp, 3)). The "
+           "first `warmup` frames only settle the temporal bound and are dropped. The GIL is "
+           "released while it runs; the cloth array owns C++ memory (no copy).")
+      .def("evaluate_into", &evaluateInto, py::arg("frames"), py::arg("driver"), py::arg("out"),
+           py::arg("warmup") = 0,
+           "The same into `out`, a writable C-contiguous float32 array (F - warmup, Vd, 3): "
+           "no cloth allocation per call. Returns the records.")
+      .def("check_frames", [](EvaluatorHandle& h,
+                              py::handle frames) { h.evaluator.checkFrames(frameList(frames)); })
+      .def("reset_temporal_bound",
+           [](EvaluatorHandle& h) {
+             // Waits for a call on another thread without holding the GIL it needs to finish.
+             py::gil_scoped_release release;
+             const std::lock_guard<std::mutex> lock(h.mutex);
+             h.evaluator.resetTemporalBound();
+           })
+      .def("reset_history",
+           [](EvaluatorHandle& h) {
+             // Waits for a call on another thread without holding the GIL it needs to finish.
+             py::gil_scoped_release release;
+             const std::lock_guard<std::mutex> lock(h.mutex);
+             h.evaluator.resetHistory();
+           })
+      .def_property_readonly("settings_hash",
+                             [](const EvaluatorHandle& h) { return h.evaluator.settingsHash(); })
+      .def("describe_settings",
+           [](const EvaluatorHandle& h) { return parseJson(h.evaluator.describeSettings()); })
+      .def("describe_layers",
+           [](const EvaluatorHandle& h) { return parseJson(h.evaluator.describeLayers()); })
+      .def_property_readonly("stage_names",
+                             [](const EvaluatorHandle& h) { return h.evaluator.stageNames(); })
+      .def_property_readonly("settings",
+                             [](const EvaluatorHandle& h) { return h.evaluator.settings(); })
+      .def_property_readonly(
+          "driver_vertex_count",
+          [](const EvaluatorHandle& h) { return h.evaluator.driverVertexCount(); })
+      .def_property_readonly(
+          "driven_vertex_count",
+          [](const EvaluatorHandle& h) { return h.evaluator.drivenVertexCount(); })
+      .def_property_readonly("device_name",
+                             [](const EvaluatorHandle& h) { return h.evaluator.deviceName(); })
+      .def_property_readonly("bytes_per_frame",
+                             [](const EvaluatorHandle& h) { return h.evaluator.bytesPerFrame(); })
+      .def_property_readonly(
+          "last_stage_seconds", [](const EvaluatorHandle& h) { return h.lastSeconds; },
+          "seconds per stage of the last evaluate call");
+}
+
+}  // namespace drivenshape::python

@@ -1,0 +1,523 @@
+"""USD in and out for drivenshape (usd-core's `pxr`).
+
+Read a driver animation from the time-sampled points of a UsdGeomMesh, evaluate it, and write
+the cloth as a UsdGeomMesh with one time sample of points and extent per frame, the faces and
+UVs of the driven rest mesh, and the stage's upAxis and metersPerUnit:
+
+    import drivenshape as ds
+    from drivenshape import usd
+
+    db = ds.load_database("sleeve.dsdb")
+    shot = usd.read_mesh_animation("shot.usda", "/Character/Arm")
+    usd.check_driver(shot, db.driver_mesh)                 # vertex count and faces
+    evaluator = ds.Evaluator(db, ds.EvaluatorSettings(), ds.open_device("auto"))
+    cloth, records = ds.evaluate_cache(evaluator, shot.cache(), shot.frames)
+    usd.write_mesh_usd("cloth.usdc", db.driven_mesh, shot.frames, cloth,
+                       fps=shot.time_codes_per_second, up_axis=shot.up_axis,
+                       meters_per_unit=shot.meters_per_unit)
+
+or from a shell (python -m drivenshape.usd bake --help):
+
+    python -m drivenshape.usd bake --db sleeve.dsdb --usd shot.usda --prim /Character/Arm \\
+        --out cloth.usdc
+
+Points are read and written as float32 exactly (no unit conversion, no interpolation): the
+driver, the database and the cloth share one scene unit. Exit codes of the command: 0 ok,
+2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical (those of the drivenshape command
+line).
+"""
+
+import argparse
+import os
+import re
+import sys
+import tempfile
+
+import numpy as np
+
+from . import Error, Mesh, PointCache
+
+EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 0, 2, 3, 4
+_CODES = {"usage": EXIT_USAGE, "input": EXIT_INPUT, "output": EXIT_OUTPUT}
+
+#: Scene conventions of drivenshape's data (Blender: Z up, metres) when a stage says nothing.
+DEFAULT_UP_AXIS = "Z"
+DEFAULT_METERS_PER_UNIT = 1.0
+
+
+def _error(kind, message):
+    error = Error(message)
+    error.kind = kind
+    error.code = _CODES[kind]
+    return error
+
+
+def _pxr():
+    try:
+        from pxr import Sdf, Usd, UsdGeom, Vt
+    except ImportError as error:
+        raise _error("usage", f"drivenshape.usd needs usd-core (pip install usd-core): {error}")
+    return Sdf, Usd, UsdGeom, Vt
+
+
+# ---- Reading -------------------------------------------------------------------------------
+
+class MeshAnimation:
+    """Time-sampled points of one UsdGeomMesh.
+
+    frames: list of int frame numbers (the points' time samples); positions: (F, V, 3)
+    float32; face_counts, face_indices: int32 topology of the prim; up_axis ('Y' or 'Z') and
+    meters_per_unit: the stage's, or None where the stage does not author them;
+    time_codes_per_second: the stage's.
+    """
+
+    def __init__(self, path, prim_path, frames, positions, face_counts, face_indices, up_axis,
+                 meters_per_unit, time_codes_per_second):
+        self.path = path
+        self.prim_path = prim_path
+        self.frames = frames
+        self.positions = positions
+        self.face_counts = face_counts
+        self.face_indices = face_indices
+        self.up_axis = up_axis
+        self.meters_per_unit = meters_per_unit
+        self.time_codes_per_second = time_codes_per_second
+
+    @property
+    def vertex_count(self):
+        return self.positions.shape[1]
+
+    def cache(self):
+        """A drivenshape.PointCache over the positions (no copy)."""
+        return PointCache.from_array(self.positions, frames=self.frames)
+
+    def __repr__(self):
+        return (f"<MeshAnimation {self.path}:{self.prim_path}, {self.vertex_count} points, "
+                f"{len(self.frames)} frames>")
+
+
+def read_mesh_animation(path, prim_path, frames=None, space="local"):
+    """Reads the points of the UsdGeomMesh at `prim_path` at every whole-frame time sample (or
+    at `frames`, each of which must be a time sample: nothing is interpolated). space 'local'
+    reads the points as authored; 'world' applies the prim's local-to-world transform per frame
+    (in double, then float32). Raises drivenshape.Error (kind 'input') naming the file, the prim
+    and the frame."""
+    Sdf, Usd, UsdGeom, Vt = _pxr()
+    path = os.fspath(path)
+    if space not in ("local", "world"):
+        raise _error("usage", f"space '{space}' is not one of local, world")
+    if not os.path.isfile(path):
+        raise _error("input", f"USD file '{path}' does not exist")
+    try:
+        stage = Usd.Stage.Open(path)
+    except Exception as error:  # pxr raises Tf.ErrorException
+        raise _error("input", f"cannot open USD '{path}': {error}")
+    if stage is None:
+        raise _error("input", f"cannot open USD '{path}'")
+    try:
+        prim = stage.GetPrimAtPath(prim_path)
+    except Exception:
+        raise _error("usage", f"'{prim_path}' is not a valid prim path")
+    if not prim or not prim.IsValid():
+        meshes = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+        raise _error("input", f"{path}: no prim at '{prim_path}'; the stage's meshes: "
+                              f"{', '.join(meshes[:20]) or 'none'}")
+    if not prim.IsA(UsdGeom.Mesh):
+        raise _error("input", f"{path}: '{prim_path}' is a {prim.GetTypeName() or 'typeless'} "
+                              "prim, not a Mesh")
+    mesh = UsdGeom.Mesh(prim)
+    points = mesh.GetPointsAttr()
+    samples = points.GetTimeSamples()
+    whole = [int(round(t)) for t in samples if abs(t - round(t)) < 1e-6]
+    if frames is None:
+        if not whole:
+            raise _error("input", f"{path}: {prim_path}.points has no time samples at whole "
+                                  f"frames ({len(samples)} samples); drivenshape needs one per "
+                                  "frame")
+        frames = whole
+    else:
+        frames = [int(f) for f in frames]
+        have = set(whole)
+        missing = [f for f in frames if f not in have]
+        if missing:
+            raise _error("input", f"{path}: {prim_path}.points has no time sample at frame "
+                                  f"{missing[0]} ({len(missing)} of the {len(frames)} frames "
+                                  f"asked are missing; the samples cover "
+                                  f"{_frame_text(whole)}); nothing is interpolated")
+    if not frames:
+        raise _error("usage", "no frames to read")
+    counts = mesh.GetFaceVertexCountsAttr().Get()
+    indices = mesh.GetFaceVertexIndicesAttr().Get()
+    counts = np.asarray(counts if counts is not None else [], dtype=np.int32)
+    indices = np.asarray(indices if indices is not None else [], dtype=np.int32)
+    positions = None
+    cache = UsdGeom.XformCache()
+    for index, frame in enumerate(frames):
+        value = points.Get(float(frame))
+        xyz = np.asarray(value if value is not None else [], dtype=np.float32).reshape(-1, 3)
+        if positions is None:
+            positions = np.empty((len(frames), len(xyz), 3), dtype=np.float32)
+        elif len(xyz) != positions.shape[1]:
+            raise _error("input", f"{path}: {prim_path}.points has {len(xyz)} points at frame "
+                                  f"{frame} but {positions.shape[1]} at frame {frames[0]}; the "
+                                  "topology must not change over the shot")
+        if space == "world":
+            cache.SetTime(float(frame))
+            matrix = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)
+            xyz = (xyz.astype(np.float64) @ matrix[:3, :3] + matrix[3, :3]).astype(np.float32)
+        positions[index] = xyz
+    if positions.shape[1] == 0:
+        raise _error("input", f"{path}: {prim_path} has no points")
+    up_axis = None
+    if stage.HasAuthoredMetadata("upAxis"):
+        up_axis = str(UsdGeom.GetStageUpAxis(stage))
+    meters = None
+    if stage.HasAuthoredMetadata("metersPerUnit"):
+        meters = float(UsdGeom.GetStageMetersPerUnit(stage))
+    return MeshAnimation(path, prim_path, frames, positions, counts, indices, up_axis, meters,
+                         float(stage.GetTimeCodesPerSecond()))
+
+
+def check_driver(animation, mesh):
+    """Raises drivenshape.Error (kind 'input') unless the animation's prim has the vertex count
+    and the faces of `mesh` (the database's driver mesh), saying what differs."""
+    where = f"{animation.path}: {animation.prim_path}"
+    if animation.vertex_count != mesh.vertex_count:
+        raise _error("input", f"{where} has {animation.vertex_count} points but the database's "
+                              f"driver mesh has {mesh.vertex_count} vertices; give the prim of "
+                              "the driver the database was built from")
+    counts = np.diff(mesh.face_start)
+    if len(animation.face_counts) != len(counts):
+        raise _error("input", f"{where} has {len(animation.face_counts)} faces but the "
+                              f"database's driver mesh has {len(counts)}; same vertex count, "
+                              "other topology (triangulated or re-exported?)")
+    if not np.array_equal(animation.face_counts, counts):
+        face = int(np.flatnonzero(animation.face_counts != counts)[0])
+        raise _error("input", f"{where}: face {face} has {animation.face_counts[face]} corners, "
+                              f"{counts[face]} in the database's driver mesh; the topology "
+                              "differs")
+    if not np.array_equal(animation.face_indices, mesh.face_vertices):
+        corner = int(np.flatnonzero(animation.face_indices != mesh.face_vertices)[0])
+        face = int(np.searchsorted(mesh.face_start, corner, side="right") - 1)
+        raise _error("input", f"{where}: face {face} uses other vertices than in the database's "
+                              f"driver mesh (corner {corner}: vertex "
+                              f"{animation.face_indices[corner]}, expected "
+                              f"{mesh.face_vertices[corner]}); the vertex order differs")
+
+
+def _frame_text(frames):
+    if not frames:
+        return "no frames"
+    return f"{frames[0]}-{frames[-1]} ({len(frames)} frames)"
+
+
+# ---- Writing -------------------------------------------------------------------------------
+
+def _mesh_arrays(mesh):
+    """(face counts, face indices, (uv values, uv indices) or None, {group: [faces]})."""
+    if isinstance(mesh, Mesh):
+        counts = np.diff(mesh.face_start).astype(np.int32)
+        indices = np.ascontiguousarray(mesh.face_vertices, dtype=np.int32)
+        uvs = None
+        if mesh.has_uvs and len(mesh.face_uvs) and mesh.face_uvs.min() >= 0:
+            uvs = (np.ascontiguousarray(mesh.uvs), np.ascontiguousarray(mesh.face_uvs))
+        groups = {}
+        for face, group in enumerate(mesh.face_groups.tolist()):
+            groups.setdefault(mesh.group_names[group], []).append(face)
+        return counts, indices, uvs, groups
+    return (np.asarray(mesh["counts"], dtype=np.int32), np.asarray(mesh["indices"],
+                                                                   dtype=np.int32),
+            mesh.get("uvs"), mesh.get("groups", {}))
+
+
+def _check_prim_path(prim_path):
+    Sdf = _pxr()[0]
+    if not prim_path.startswith("/") or not Sdf.Path.IsValidPathString(prim_path):
+        raise _error("usage", f"'{prim_path}' is not an absolute prim path")
+
+
+def _check_output(path):
+    """(extension, folder) of an output stage; Error unless both are usable."""
+    path = os.fspath(path)
+    extension = os.path.splitext(path)[1].lower()
+    if extension not in (".usd", ".usda", ".usdc"):
+        raise _error("usage", f"'{path}': use a .usd, .usda or .usdc file name")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise _error("output", f"'{path}': folder '{folder}' does not exist; create it first")
+    return extension, folder
+
+
+def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", fps=24.0,
+                   up_axis=DEFAULT_UP_AXIS, meters_per_unit=DEFAULT_METERS_PER_UNIT):
+    """Writes a UsdGeomMesh at `prim_path` (its parent an Xform, the root the default prim)
+    with points (F, V, 3) at time codes `frames` and their extent per sample, faces, UVs
+    (primvars:st, face-varying) and face groups (UsdGeomSubsets, when there are several) of
+    `mesh` (a drivenshape.Mesh, or a dict with counts, indices, uvs, groups), the stage's
+    upAxis, metersPerUnit, time codes per second and frame range. The file (.usd, .usda,
+    .usdc) appears atomically. Points are written as float32 exactly."""
+    Sdf, Usd, UsdGeom, Vt = _pxr()
+    path = os.fspath(path)
+    counts, indices, uvs, groups = _mesh_arrays(mesh)
+    positions = np.asarray(positions, dtype=np.float32)
+    if positions.ndim == 2:
+        positions = positions[np.newaxis]
+    frames = [float(f) for f in frames]
+    vertex_count = int(indices.max()) + 1 if len(indices) else 0
+    if positions.ndim != 3 or positions.shape[2] != 3 or len(frames) != len(positions):
+        raise _error("usage", f"positions {positions.shape} do not match {len(frames)} frames "
+                              "of (vertices, 3)")
+    if positions.shape[1] < vertex_count:
+        raise _error("input", f"positions hold {positions.shape[1]} points but the faces use "
+                              f"{vertex_count} vertices")
+    if not frames:
+        raise _error("usage", "no frames to write")
+    if not np.isfinite(positions).all():
+        frame, vertex = np.argwhere(~np.isfinite(positions))[0][:2]
+        raise _error("input", f"the positions of frame {frames[frame]:g} vertex {vertex} are "
+                              "not finite")
+    if up_axis not in ("Y", "Z"):
+        raise _error("usage", f"up axis '{up_axis}' is not Y or Z")
+    if not meters_per_unit > 0:
+        raise _error("usage", f"meters per unit {meters_per_unit} is not positive")
+    _check_prim_path(prim_path)
+    extension, folder = _check_output(path)
+    try:
+        # Written beside the target and renamed into place: readers never see half a file.
+        handle, temp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".tmp-",
+                                        suffix=extension, dir=folder)
+        os.close(handle)
+    except OSError as error:
+        raise _error("output", f"cannot write in '{folder}': {error.strerror}")
+    try:
+        stage = Usd.Stage.CreateNew(temp)
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
+        UsdGeom.SetStageMetersPerUnit(stage, float(meters_per_unit))
+        stage.SetStartTimeCode(min(frames))
+        stage.SetEndTimeCode(max(frames))
+        stage.SetTimeCodesPerSecond(float(fps))
+        stage.SetFramesPerSecond(float(fps))
+        names = prim_path.strip("/").split("/")
+        for depth in range(1, len(names)):
+            UsdGeom.Xform.Define(stage, "/" + "/".join(names[:depth]))
+        geom = UsdGeom.Mesh.Define(stage, prim_path)
+        stage.SetDefaultPrim(stage.GetPrimAtPath("/" + names[0]))
+        geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(counts))
+        geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(indices))
+        geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+        points = geom.CreatePointsAttr()
+        extent = geom.CreateExtentAttr()
+        for frame, xyz in zip(frames, positions):
+            points.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(xyz)), frame)
+            bounds = np.stack([xyz.min(axis=0), xyz.max(axis=0)])
+            extent.Set(Vt.Vec3fArray.FromNumpy(bounds), frame)
+        if uvs is not None:
+            values, uv_indices = uvs
+            primvar = UsdGeom.PrimvarsAPI(geom).CreatePrimvar(
+                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+            primvar.Set(Vt.Vec2fArray.FromNumpy(np.asarray(values, dtype=np.float32)))
+            primvar.SetIndices(Vt.IntArray.FromNumpy(np.asarray(uv_indices, dtype=np.int32)))
+        if len(groups) > 1:
+            for name, faces in groups.items():
+                token = re.sub(r"[^A-Za-z0-9_]", "_", name)
+                if not token or token[0].isdigit():
+                    token = "g_" + token
+                UsdGeom.Subset.CreateGeomSubset(geom, token, UsdGeom.Tokens.face,
+                                                Vt.IntArray(list(faces)))
+        stage.GetRootLayer().Save()
+        del stage
+        os.replace(temp, path)
+    except Error:
+        raise
+    except Exception as error:
+        raise _error("output", f"cannot write USD '{path}': {error}")
+    finally:
+        if os.path.exists(temp):
+            os.remove(temp)
+
+
+# ---- The bake command ----------------------------------------------------------------------
+
+def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto",
+         settings=None, out_prim="/Garment/Mesh", up_axis=None, meters_per_unit=None, fps=None,
+         space="local", check_topology=True, batch=64, temporal_warmup=8):
+    """The shot from a USD driver to a USD cloth: reads the driver prim's points (`shot` is a
+    MeshAnimation, or a USD path with `prim_path`), checks them against the database's driver
+    mesh, evaluates them as `drivenshape bake` does (evaluate_cache: batches of `batch` frames,
+    the temporal bound restarted per batch after `temporal_warmup` frames) and writes the cloth
+    with write_mesh_usd. up_axis, meters_per_unit and fps default to the input stage's (Z, 1
+    and its time codes per second where it authors none). Returns a dict summary (frames,
+    device, note, seconds per stage, records)."""
+    import drivenshape as ds
+
+    _check_output(out_path)  # before the evaluation, not after it
+    _check_prim_path(out_prim)
+    db = database if isinstance(database, ds.Database) else ds.load_database(database)
+    if not isinstance(shot, MeshAnimation):
+        if prim_path is None:
+            raise _error("usage", "bake() needs prim_path with a USD path")
+        shot = read_mesh_animation(shot, prim_path, frames, space)
+    if check_topology:
+        check_driver(shot, db.driver_mesh)
+    elif shot.vertex_count != db.driver_vertex_count:
+        check_driver(shot, db.driver_mesh)  # the vertex count is never optional
+    target = device if isinstance(device, ds.Device) else ds.open_device(device)
+    evaluator = ds.Evaluator(db, settings or ds.EvaluatorSettings(), target)
+    cloth, records, seconds = ds.evaluate_cache(evaluator, shot.cache(), shot.frames,
+                                                batch=batch, temporal_warmup=temporal_warmup,
+                                                with_seconds=True)
+    write_mesh_usd(out_path, db.driven_mesh, shot.frames, cloth, prim_path=out_prim,
+                   fps=fps or shot.time_codes_per_second,
+                   up_axis=up_axis or shot.up_axis or DEFAULT_UP_AXIS,
+                   meters_per_unit=meters_per_unit or shot.meters_per_unit or
+                   DEFAULT_METERS_PER_UNIT)
+    return {"frames": shot.frames, "device": evaluator.device_name, "seconds": seconds,
+            "records": records, "note": target.note}
+
+
+def _parser():
+    parser = argparse.ArgumentParser(
+        prog="python -m drivenshape.usd",
+        description="USD in and out for drivenshape.",
+        epilog="Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical.")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    bake_parser = commands.add_parser(
+        "bake", help="bake a driver UsdGeomMesh into a cloth UsdGeomMesh",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Reads the time-sampled points of the driver mesh --prim in --usd, checks its "
+                    "vertex count and faces against the database's driver mesh, evaluates every "
+                    "frame exactly as `drivenshape bake` does (bitwise the same cloth for the "
+                    "same settings and device) and writes the cloth as a UsdGeomMesh with one "
+                    "time sample of points and extent per frame, the faces, UVs and groups of "
+                    "the database's driven rest mesh, and the stage's upAxis and metersPerUnit. "
+                    "Points are never rescaled or interpolated.",
+        epilog="Exit codes: 0 ok, 2 usage, 3 input (a missing file or prim, a wrong vertex count "
+               "or topology, a non-finite point), 4 output, 5 OpenCL device, 6 numerical.\n\n"
+               "example:\n  python -m drivenshape.usd bake --db sleeve.dsdb --usd shot.usda "
+               "--prim /Character/Arm --out cloth.usdc --frames 1001-1100")
+    add = bake_parser.add_argument
+    add("--db", metavar="DB", required=True, help="database from `drivenshape db build`")
+    add("--usd", metavar="STAGE", required=True,
+        help="stage holding the driver animation (.usd, .usda, .usdc)")
+    add("--prim", metavar="PATH", required=True,
+        help="path of the driver UsdGeomMesh, e.g. /Character/Legs")
+    add("--out", "-o", metavar="OUT", required=True,
+        help="cloth stage to write (.usd, .usda or .usdc)")
+    add("--frames", metavar="RANGE",
+        help="frames to bake: 1001-1100, 1001-1100x2, 1001,1005 [default: every whole-frame "
+             "time sample of the prim's points]")
+    add("--device", metavar="SPEC", default="auto",
+        help="auto, host, cpu, gpu, an index or a name substring [default: auto]")
+    add("--out-prim", metavar="PATH", default="/Garment/Mesh",
+        help="cloth prim path [default: /Garment/Mesh]")
+    add("--up-axis", choices=("Y", "Z"),
+        help="upAxis of the output [default: the input stage's, else Z]")
+    add("--meters-per-unit", metavar="M", type=float,
+        help="metersPerUnit of the output [default: the input stage's, else 1]")
+    add("--fps", metavar="FPS", type=float,
+        help="time codes per second of the output and the wind's time [default: the input "
+             "stage's]")
+    add("--space", choices=("local", "world"), default="local",
+        help="driver points as authored (local) or through the prim's transform (world) "
+             "[default: local]")
+    add("--ignore-topology", action="store_true",
+        help="accept a driver whose faces differ from the database's (the vertex count must "
+             "still match)")
+    add("--weights", choices=("qp", "nearest", "bind"), default="qp", help="[default: qp]")
+    add("--align", choices=("none", "rigid", "rigid-all"), default="rigid",
+        help="[default: rigid]")
+    add("--align-group", metavar="LIST", default="",
+        help="driver vertices of the rigid fit [default: all]")
+    add("--blend", choices=("world", "local"), default="local", help="[default: local]")
+    add("--no-correct", action="store_true", help="skip the collision correction")
+    add("--bind", metavar="MAP", help="binding mask (JSON)")
+    add("--skin-offset", metavar="D", type=float, default=0.002, help="[default: 0.002]")
+    add("--no-resolve", action="store_true", help="skip the penetration resolution")
+    add("--regions", metavar="FILE.json", help="region-local weights")
+    add("--max-weight-change", metavar="TAU", type=float, default=0.0,
+        help="[default: 0 = off]")
+    add("--temporal-warmup", metavar="N", type=int, default=8, help="[default: 8]")
+    add("--no-audit", action="store_true", help="skip the per-frame audit")
+    add("--threads", metavar="N", type=int, default=0,
+        help="host threads (0 = all cores) [default: 0]")
+    add("--batch", metavar="N", type=int, default=64,
+        help="frames per evaluate call, as bake's --batch [default: 64]")
+    add("--mix", metavar="CACHE", help="mix with another cache of the driven mesh")
+    add("--mix-weight", metavar="MAP", help="where DrivenShape is kept (1) or --mix taken (0)")
+    add("--mix-falloff", metavar="RINGS", type=int, default=3, help="[default: 3]")
+    add("--wind-amplitude", metavar="UNITS", type=float, default=0.0,
+        help="[default: 0 = no wind]")
+    add("--wind-frequency", metavar="PER_UNIT", type=float, default=1.0, help="[default: 1]")
+    add("--wind-direction", metavar="X,Y,Z", default="1,0,0", help="[default: 1,0,0]")
+    add("--wind-speed", metavar="UNITS_PER_S", type=float, default=1.0, help="[default: 1]")
+    add("--wind-octaves", metavar="N", type=int, default=3, help="[default: 3]")
+    add("--wind-seed", metavar="N", type=int, default=1, help="[default: 1]")
+    add("--wind-weight", metavar="MAP", help="where the wind blows [default: everywhere]")
+    add("--wind-falloff", metavar="RINGS", type=int, default=0, help="[default: 0]")
+    add("--quiet", action="store_true", help="print nothing but errors")
+    return parser
+
+
+def _settings(args, db):
+    import drivenshape as ds
+
+    try:
+        direction = [float(v) for v in args.wind_direction.split(",")]
+    except ValueError:
+        direction = []
+    if len(direction) != 3:
+        raise _error("usage", f"--wind-direction '{args.wind_direction}' is not X,Y,Z")
+    layers = ds.load_layers(
+        db, mix_cache=args.mix, mix_weight=args.mix_weight, mix_falloff=args.mix_falloff,
+        wind_amplitude=args.wind_amplitude, wind_frequency=args.wind_frequency,
+        wind_direction=direction, wind_speed=args.wind_speed, wind_octaves=args.wind_octaves,
+        wind_seed=args.wind_seed, wind_weight=args.wind_weight, wind_falloff=args.wind_falloff,
+        frames_per_second=args.fps or 24.0)
+    return ds.EvaluatorSettings(
+        weight_mode=args.weights, align=args.align, align_group=args.align_group,
+        blend=args.blend, correct=not args.no_correct,
+        binding_mask=ds.load_binding_mask(args.bind, db) if args.bind else None,
+        resolve=not args.no_resolve, skin_offset=args.skin_offset,
+        regions=ds.load_regions(args.regions, db) if args.regions else None,
+        max_weight_change=args.max_weight_change, audit=not args.no_audit, layers=layers,
+        threads=args.threads)
+
+
+def main(argv=None):
+    import time
+
+    import drivenshape as ds
+
+    args = _parser().parse_args(argv)
+    try:
+        if args.batch < 1 or args.temporal_warmup < 0:
+            raise _error("usage", "--batch must be at least 1 and --temporal-warmup at least 0")
+        frames = ds.parse_frame_range(args.frames) if args.frames else None
+        start = time.perf_counter()
+        db = ds.load_database(args.db)
+        shot = read_mesh_animation(args.usd, args.prim, frames, args.space)
+        # The output's time codes and the wind's time (frame / fps) follow the stage's rate.
+        args.fps = args.fps or shot.time_codes_per_second
+        settings = _settings(args, db)
+        result = bake(db, shot, args.out, device=args.device, settings=settings,
+                      out_prim=args.out_prim, up_axis=args.up_axis,
+                      meters_per_unit=args.meters_per_unit, fps=args.fps,
+                      check_topology=not args.ignore_topology, batch=args.batch,
+                      temporal_warmup=args.temporal_warmup)
+        if result["note"] and not args.quiet:
+            print(f"warning: {result['note']}", file=sys.stderr)
+        if not args.quiet:
+            baked = result["frames"]
+            seconds = time.perf_counter() - start
+            print(f"wrote {args.out}: {args.out_prim}, {db.driven_vertex_count} points, "
+                  f"{len(baked)} frames ({ds.format_frame_range(baked)}) in {seconds:.2f} s on "
+                  f"{result['device']}")
+        return EXIT_OK
+    except Error as error:
+        print(f"drivenshape.usd: {error.kind} error: {error}", file=sys.stderr)
+        return error.code if error.code > 1 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

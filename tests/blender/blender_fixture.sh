@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Shared data of the Blender add-on tests (CTest fixture blender_data), made with the command
+# line, independently of the add-on:
+#   WORK/sleeve.dsdb                  db build from the bundled sleeve's training clip
+#   WORK/cli/default/sleeve.####.exr  bake of the test clip, frames 1-48, default settings
+#   WORK/cli/bound/sleeve.####.exr    the same with a temporal bound, one batch from frame 1
+#   WORK/cli/bound_jump/...           the same bound, one batch from frame 30 (a timeline jump)
+#   WORK/drivenshape_blender.zip      the add-on, packed by scripts/blender_package.py
+# Usage: blender_fixture.sh CLI SOURCE_DIR WORK
+set -euo pipefail
+cli=$1
+source_dir=$2
+work=$3
+data=$source_dir/tests/data/sleeve
+
+rm -rf "$work"
+mkdir -p "$work/cli/default" "$work/cli/bound" "$work/cli/bound_jump"
+
+"$cli" db build --driver-mesh "$data/driver_rest.obj" --driven-mesh "$data/driven_rest.obj" \
+  --driver "$data/train.driver.pc2" --driven "$data/train.driven.pc2" --count 30 --quiet \
+  -o "$work/sleeve.dsdb"
+"$cli" bake --db "$work/sleeve.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
+  -o "$work/cli/default/sleeve.####.exr"
+# The temporal bound holds between consecutive frames; the bake starts each batch afresh
+# (no warm-up frames here), as live mode does after a jump.
+bound=(--max-weight-change 0.02 --temporal-warmup 0 --batch 64)
+"$cli" bake --db "$work/sleeve.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
+  "${bound[@]}" -o "$work/cli/bound/sleeve.####.exr"
+"$cli" bake --db "$work/sleeve.dsdb" --driver "$data/test.driver.pc2" --frames 30-40 --quiet \
+  "${bound[@]}" -o "$work/cli/bound_jump/sleeve.####.exr"
+
+python3 "$source_dir/scripts/blender_package.py" -o "$work/drivenshape_blender.zip"

@@ -1,0 +1,131 @@
+"""The module's database and frames against the command line's, bitwise.
+
+`drivenshape db build` and build_database() (from files and from in-memory arrays) must pick
+the same shapes; `drivenshape bake` (host and the default OpenCL device, EXR outputs) and the
+Python Evaluator on the same frames (one call, one frame per call, batches of 7, and
+evaluate_cache) must give the same float32 bit patterns. The EXRs are read by the module and by
+the OpenEXR PyPI package, which must agree with each other too."""
+
+import json
+
+import numpy as np
+import pytest
+
+import drivenshape as ds
+from conftest import TEST_FRAMES, assert_bitwise, parse_pc2
+
+
+@pytest.fixture(scope="module")
+def python_database(data):
+    return ds.build_database(data / "driver_rest.obj", data / "driven_rest.obj",
+                             data / "train.driver.pc2", data / "train.driven.pc2")
+
+
+@pytest.fixture(scope="module")
+def test_driver(data):
+    return parse_pc2(data / "test.driver.pc2")[0]
+
+
+def test_database_equals_the_command_lines(cli_database, python_database, data):
+    cli = ds.load_database(cli_database)
+    for db, how in ((python_database, "files"), (_from_arrays(data), "arrays")):
+        assert db.frames == cli.frames, f"build_database from {how} picked other frames"
+        assert db.reasons == cli.reasons
+        assert db.content_hash == cli.content_hash
+        assert_bitwise(db.driver_shapes, cli.driver_shapes, f"driver shapes ({how})")
+        assert_bitwise(db.driven_shapes, cli.driven_shapes, f"driven shapes ({how})")
+
+
+def _from_arrays(data):
+    # What Blender hands over: meshes from polygons, caches as arrays with a start frame.
+    meshes = [ds.read_obj(data / f"{side}_rest.obj") for side in ("driver", "driven")]
+    meshes = [ds.Mesh.from_polygons(m.positions, m.face_start, m.face_vertices, m.uvs,
+                                    m.face_uvs if m.has_uvs else None, m.face_groups,
+                                    m.group_names) for m in meshes]
+    caches = [parse_pc2(data / f"train.{side}.pc2") for side in ("driver", "driven")]
+    return ds.build_database(meshes[0], meshes[1], caches[0][0], caches[1][0],
+                             start_frame=int(caches[0][1]))
+
+
+def test_the_two_exr_readers_agree(cli_bakes):
+    for device in ("host", "auto"):
+        module = cli_bakes.frames(device, TEST_FRAMES)
+        independent = cli_bakes.frames(device, TEST_FRAMES, reader="openexr")
+        assert_bitwise(module, independent, f"module vs OpenEXR reader ({device} bake)")
+
+
+@pytest.mark.parametrize("device_name", ["host", "auto"])
+def test_evaluator_equals_the_bake(device_name, cli_bakes, python_database, test_driver,
+                                   opencl_device, host_device):
+    device = host_device if device_name == "host" else opencl_device
+    reference = cli_bakes.frames(device_name, TEST_FRAMES, reader="openexr")
+    evaluator = ds.Evaluator(python_database, ds.EvaluatorSettings(), device)
+    assert evaluator.device_name == device.description
+
+    cloth, records = evaluator.evaluate(TEST_FRAMES, test_driver)
+    assert_bitwise(cloth, reference, f"one call of {len(TEST_FRAMES)} frames on {device_name}")
+    assert [r.frame for r in records] == TEST_FRAMES
+
+    evaluator.reset_history()
+    out = np.empty((1, evaluator.driven_vertex_count, 3), dtype=np.float32)
+    for index, frame in enumerate(TEST_FRAMES):
+        evaluator.evaluate_into(frame, test_driver[index], out)
+        assert_bitwise(out[0], reference[index], f"frame {frame} alone on {device_name}")
+
+    batched = np.empty_like(reference)
+    for begin in range(0, len(TEST_FRAMES), 7):
+        end = min(begin + 7, len(TEST_FRAMES))
+        evaluator.evaluate_into(TEST_FRAMES[begin:end], test_driver[begin:end],
+                                batched[begin:end])
+    assert_bitwise(batched, reference, f"batches of 7 on {device_name}")
+
+
+def test_records_match_the_bake_report(cli_bakes, python_database, test_driver, opencl_device):
+    report = json.loads((cli_bakes.folder("auto") / "sleeve.report.json").read_text())
+    by_frame = {entry["frame"]: entry for entry in report["frames"]}
+    evaluator = ds.Evaluator(python_database, ds.EvaluatorSettings(), opencl_device)
+    _, records = evaluator.evaluate(TEST_FRAMES, test_driver)
+    for record in records:
+        # The report writes doubles so that they read back exactly.
+        expected = by_frame[record.frame]
+        assert record.weights == expected["weights"], f"frame {record.frame} weights"
+        assert record.relative_residual == expected["relative_residual"]
+        assert record.iterations == expected["iterations"]
+        assert record.at_zero == expected["active_at_zero"]
+        assert record.at_one == expected["active_at_one"]
+        assert record.align_rotation == expected["align_rotation"]
+        assert record.inside_after == expected["inside_after"]
+        assert record.resolved == expected["resolved"]
+
+
+def test_evaluate_cache_equals_a_temporal_bake(cli_bakes, python_database, data, tmp_path,
+                                               host_device):
+    # Binding mask, regions, wind and the temporal bound with its per-batch warm-up: the file
+    # loaders the command line uses, and the bake's batching, give its frames bitwise.
+    mask = tmp_path / "mask.json"
+    mask.write_text(json.dumps({"bindings": [
+        {"driven": {"vertices": ["0-999"]}, "driver": {"faces": ["0-1199"]}}]}))
+    regions = tmp_path / "regions.json"
+    regions.write_text(json.dumps({"regions": [
+        {"name": "upper", "driver": {"vertices": ["0-1072"]},
+         "driven": {"vertices": ["0-1121"]}}]}))
+    extra = ("--bind", mask, "--regions", regions, "--wind-amplitude", "0.003",
+             "--wind-weight", "group:sleeve", "--max-weight-change", "0.05", "--batch", "5",
+             "--temporal-warmup", "3", "--fps", "30")
+    frames = list(range(4, 21))
+    reference = cli_bakes.frames("host", frames, *extra, frame_text="4-20")
+
+    db = python_database
+    settings = ds.EvaluatorSettings(
+        binding_mask=ds.load_binding_mask(mask, db), regions=ds.load_regions(regions, db),
+        layers=ds.load_layers(db, wind_amplitude=0.003, wind_weight="group:sleeve",
+                              frames_per_second=30.0),
+        max_weight_change=0.05)
+    evaluator = ds.Evaluator(db, settings, host_device)
+    cache = ds.open_point_cache(data / "test.driver.pc2")
+    cloth, records = ds.evaluate_cache(evaluator, cache, frames, batch=5, temporal_warmup=3)
+    assert_bitwise(cloth, reference, "masked, regional, windy, temporally bound bake")
+    assert [r.frame for r in records] == frames
+    plain, _ = ds.evaluate_cache(ds.Evaluator(db, ds.EvaluatorSettings(), host_device), cache,
+                                 frames)
+    assert not np.array_equal(plain, cloth)  # the settings did change the result

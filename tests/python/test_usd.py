@@ -1,0 +1,184 @@
+"""USD in and out (drivenshape.usd): the sample's test driver PC2 written as a UsdGeomMesh, baked
+through `python -m drivenshape.usd bake`, and read back with usd-core: the cloth's points must
+be bitwise the command line's bake of the PC2 (its EXRs read by the OpenEXR PyPI package).
+Written stages are checked by usd-core's validators (UsdValidation, the successor of
+UsdUtils.ComplianceChecker, which usd-core 26 no longer ships)."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from pxr import Usd, UsdGeom, UsdValidation
+
+import drivenshape as ds
+from conftest import TEST_FRAMES, assert_bitwise, parse_obj, parse_pc2
+from drivenshape import usd
+
+
+def validation_errors(path):
+    """What every registered usd-core validator says about the stage, as text lines."""
+    validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
+    errors = UsdValidation.ValidationContext(validators).Validate(Usd.Stage.Open(str(path)))
+    return [f"{e.GetName()} ({e.GetType()}): {e.GetMessage()}" for e in errors]
+
+
+def usd_bake(*args, expect=0):
+    command = [sys.executable, "-m", "drivenshape.usd", "bake", *map(str, args)]
+    result = subprocess.run(command, capture_output=True, text=True, env=os.environ)
+    assert result.returncode == expect, (f"{' '.join(command)} exited {result.returncode}, "
+                                         f"expected {expect}:\n{result.stdout}{result.stderr}")
+    return result
+
+
+@pytest.fixture(scope="module")
+def database(cli_database):
+    return ds.load_database(cli_database)
+
+
+@pytest.fixture(scope="module")
+def driver_usd(database, data, tmp_path_factory):
+    """The test driver PC2 as a UsdGeomMesh (written by the module) with the driver's faces."""
+    positions, _, _ = parse_pc2(data / "test.driver.pc2")
+    path = tmp_path_factory.mktemp("usd") / "shot.usda"
+    usd.write_mesh_usd(path, database.driver_mesh, TEST_FRAMES, positions,
+                       prim_path="/Character/Arm", fps=24.0)
+    return path
+
+
+def test_driver_stage_holds_the_pc2_exactly(driver_usd, data):
+    positions, _, _ = parse_pc2(data / "test.driver.pc2")
+    stage = Usd.Stage.Open(str(driver_usd))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Character/Arm"))
+    assert [round(t) for t in mesh.GetPointsAttr().GetTimeSamples()] == TEST_FRAMES
+    for frame in (1, 17, 48):
+        points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(points, positions[frame - 1], f"driver points at {frame}")
+    assert validation_errors(driver_usd) == []
+
+
+def test_usd_bake_equals_the_pc2_bake(driver_usd, cli_bakes, data, tmp_path, opencl_device):
+    out = tmp_path / "cloth.usdc"
+    result = usd_bake("--db", cli_bakes.database, "--usd", driver_usd, "--prim",
+                      "/Character/Arm", "--out", out)
+    assert "48 frames" in result.stdout and opencl_device.description in result.stdout
+    reference = cli_bakes.frames("auto", TEST_FRAMES, reader="openexr")
+
+    stage = Usd.Stage.Open(str(out))
+    assert validation_errors(out) == []
+    assert UsdGeom.GetStageUpAxis(stage) == "Z" and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetTimeCodesPerSecond() == 24.0
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (1.0, 48.0)
+    assert stage.GetDefaultPrim().GetPath() == "/Garment"
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Mesh"))
+    assert [round(t) for t in mesh.GetPointsAttr().GetTimeSamples()] == TEST_FRAMES
+    for index, frame in enumerate(TEST_FRAMES):
+        points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(points, reference[index], f"USD cloth at frame {frame}")
+        extent = np.asarray(mesh.GetExtentAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(extent, np.stack([reference[index].min(0), reference[index].max(0)]),
+                       f"extent at frame {frame}")
+    # Faces and UVs of the driven rest mesh, parsed here from its OBJ.
+    _, sizes, corners = parse_obj(data / "driven_rest.obj")
+    assert list(mesh.GetFaceVertexCountsAttr().Get()) == sizes.tolist()
+    assert list(mesh.GetFaceVertexIndicesAttr().Get()) == corners.tolist()
+    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    assert st and st.GetInterpolation() == UsdGeom.Tokens.faceVarying
+    assert len(st.GetIndices()) == len(corners)
+
+
+def test_usd_bake_through_the_api_on_the_host(driver_usd, cli_bakes, database, tmp_path,
+                                              host_device):
+    out = tmp_path / "cloth_host.usda"
+    shot = usd.read_mesh_animation(driver_usd, "/Character/Arm", frames=[3, 4, 5, 9])
+    summary = usd.bake(database, shot, out, device=host_device, up_axis="Y",
+                       meters_per_unit=0.01, fps=25.0, out_prim="/Cloth")
+    assert summary["frames"] == [3, 4, 5, 9] and len(summary["records"]) == 4
+    reference = cli_bakes.frames("host", [3, 4, 5, 9], reader="openexr")
+    stage = Usd.Stage.Open(str(out))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Cloth"))
+    for index, frame in enumerate([3, 4, 5, 9]):
+        points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(points, reference[index], f"host USD cloth at frame {frame}")
+    assert UsdGeom.GetStageUpAxis(stage) == "Y" and UsdGeom.GetStageMetersPerUnit(stage) == 0.01
+    assert stage.GetTimeCodesPerSecond() == 25.0
+    assert validation_errors(out) == []
+
+
+def test_the_validators_do_find_problems(tmp_path):
+    # A stage without upAxis, metersPerUnit and a default prim: proof the checks run.
+    path = tmp_path / "bare.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.Mesh.Define(stage, "/Bare")
+    stage.GetRootLayer().Save()
+    errors = "\n".join(validation_errors(path))
+    for missing in ("upAxis", "metersPerUnit", "defaultPrim"):
+        assert missing in errors, f"no complaint about {missing}: {errors}"
+
+
+def test_driver_problems_are_input_errors(driver_usd, database, cli_bakes, data, tmp_path):
+    args = ("--db", cli_bakes.database, "--out", tmp_path / "never.usdc")
+    result = usd_bake(*args, "--usd", driver_usd, "--prim", "/Character/Leg", expect=3)
+    assert "no prim at '/Character/Leg'" in result.stderr and "/Character/Arm" in result.stderr
+    result = usd_bake(*args, "--usd", tmp_path / "missing.usda", "--prim", "/A", expect=3)
+    assert "missing.usda" in result.stderr
+    result = usd_bake(*args, "--usd", driver_usd, "--prim", "/Character/Arm", "--frames",
+                      "40-60", expect=3)
+    assert "frame 49" in result.stderr
+    # The cloth mesh given as the driver: a vertex count the database's driver does not have.
+    cloth = tmp_path / "cloth_as_driver.usda"
+    driven, _, _ = parse_pc2(data / "test.driven.pc2")
+    usd.write_mesh_usd(cloth, database.driven_mesh, [1, 2], driven[:2], prim_path="/Cloth")
+    result = usd_bake(*args, "--usd", cloth, "--prim", "/Cloth", expect=3)
+    assert "2244 points but the database's driver mesh has 2146" in result.stderr
+    # The right vertex count with other faces (every face's corners rotated).
+    mesh = database.driver_mesh
+    starts, corners = mesh.face_start, mesh.face_vertices.copy()
+    for face in range(mesh.face_count):
+        corners[starts[face]:starts[face + 1]] = np.roll(corners[starts[face]:starts[face + 1]],
+                                                         1)
+    rotated = {"counts": np.diff(starts), "indices": corners, "uvs": None, "groups": {}}
+    other = tmp_path / "rotated.usda"
+    usd.write_mesh_usd(other, rotated, [1], mesh.positions, prim_path="/Arm")
+    result = usd_bake(*args, "--usd", other, "--prim", "/Arm", expect=3)
+    assert "face 0 uses other vertices" in result.stderr
+    assert not (tmp_path / "never.usdc").exists()
+    # --ignore-topology accepts it (the vertex count matches).
+    usd_bake("--db", cli_bakes.database, "--out", tmp_path / "ok.usdc", "--usd", other,
+             "--prim", "/Arm", "--ignore-topology", "--device", "host", "--quiet")
+
+
+def test_usage_and_output_errors(driver_usd, cli_bakes, tmp_path):
+    result = usd_bake("--help")
+    assert "Exit codes: 0 ok, 2 usage, 3 input" in result.stdout and "--prim" in result.stdout
+    usd_bake("--db", cli_bakes.database, "--usd", driver_usd, expect=2)  # no --prim, --out
+    result = usd_bake("--db", cli_bakes.database, "--usd", driver_usd, "--prim",
+                      "/Character/Arm", "--out", tmp_path / "cloth.usdc", "--frames", "5-1",
+                      expect=2)
+    assert "5-1" in result.stderr
+    result = usd_bake("--db", cli_bakes.database, "--usd", driver_usd, "--prim",
+                      "/Character/Arm", "--out", tmp_path / "no" / "cloth.usdc", "--device",
+                      "host", expect=4)
+    assert "does not exist" in result.stderr
+
+
+def test_world_space_applies_the_prims_transform(database, data, tmp_path):
+    from pxr import Gf
+
+    positions, _, _ = parse_pc2(data / "test.driver.pc2")
+    path = tmp_path / "moved.usda"
+    usd.write_mesh_usd(path, database.driver_mesh, [1, 2], positions[:2],
+                       prim_path="/Character/Arm")
+    stage = Usd.Stage.Open(str(path))
+    xform = UsdGeom.Xformable(stage.GetPrimAtPath("/Character"))
+    xform.AddTranslateOp().Set(Gf.Vec3d(1.0, 2.0, 3.0))
+    xform.AddRotateZOp().Set(90.0)  # applied first: (x, y, z) -> (-y, x, z), then translated
+    stage.Save()
+    local = usd.read_mesh_animation(path, "/Character/Arm")
+    world = usd.read_mesh_animation(path, "/Character/Arm", space="world")
+    assert_bitwise(local.positions, positions[:2], "local points")
+    expected = np.stack([-positions[:2, :, 1] + 1.0, positions[:2, :, 0] + 2.0,
+                         positions[:2, :, 2] + 3.0], axis=-1)
+    # Tolerance: the matrix's cos(90 degrees) is 6e-17, not 0; float32 rounding after it.
+    assert np.abs(world.positions - expected).max() < 1e-6
