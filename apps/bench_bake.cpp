@@ -249,12 +249,8 @@ int runBench(const std::vector<std::string>& args) {
   options.evaluator.audit = !parser.has("--no-audit");
   options.evaluator.resolve = !parser.has("--no-resolve");
   options.syncOutputs = parser.has("--sync");
-  options.evaluator.blend =
-      parser.get("--blend") == "world" ? ds::BlendMode::kWorld : ds::BlendMode::kLocal;
-  const std::string align = parser.get("--align");
-  options.evaluator.align = align == "none"        ? ds::AlignMode::kNone
-                            : align == "rigid-all" ? ds::AlignMode::kRigidAll
-                                                   : ds::AlignMode::kRigid;
+  options.evaluator.blend = ds::parseBlendMode(parser.get("--blend"), "--blend");
+  options.evaluator.align = ds::parseAlignMode(parser.get("--align"), "--align");
 
   const std::unique_ptr<ds::Device> clDevice =
       ds::cli::openCliDevice(parser.get("--device"), std::cerr);

@@ -479,30 +479,14 @@ int bakeParsed(const ArgParser& parser) {
     }
     options.bindingMaskPath = parser.get("--bind");
   }
-  const std::string align = parser.get("--align");
-  if (align == "rigid") {
-    options.evaluator.align = AlignMode::kRigid;
-  } else if (align == "rigid-all") {
-    options.evaluator.align = AlignMode::kRigidAll;
-  } else if (align == "none") {
-    options.evaluator.align = AlignMode::kNone;
-  } else {
-    DS_THROW(kUsage, "--align takes none, rigid or rigid-all (got '", align, "')");
-  }
+  options.evaluator.align = parseAlignMode(parser.get("--align"), "--align");
   if (parser.has("--align-group")) {
     if (options.evaluator.align == AlignMode::kNone) {
       DS_THROW(kUsage, "--align-group has no effect with --align none; drop one of them");
     }
     options.evaluator.alignGroup = parser.get("--align-group");
   }
-  const std::string blend = parser.get("--blend");
-  if (blend == "world") {
-    options.evaluator.blend = BlendMode::kWorld;
-  } else if (blend == "local") {
-    options.evaluator.blend = BlendMode::kLocal;
-  } else {
-    DS_THROW(kUsage, "--blend takes world or local (got '", blend, "')");
-  }
+  options.evaluator.blend = parseBlendMode(parser.get("--blend"), "--blend");
   if (!options.evaluator.correct && parser.has("--blend") &&
       options.evaluator.blend == BlendMode::kLocal) {
     DS_THROW(kUsage,
@@ -525,16 +509,7 @@ int bakeParsed(const ArgParser& parser) {
                std::gcd(farmChunk, options.chunkSize), " to both");
     }
   }
-  const std::string mode = parser.get("--weights");
-  if (mode == "qp") {
-    options.evaluator.weightMode = WeightMode::kQp;
-  } else if (mode == "nearest") {
-    options.evaluator.weightMode = WeightMode::kNearest;
-  } else if (mode == "bind") {
-    options.evaluator.weightMode = WeightMode::kBind;
-  } else {
-    DS_THROW(kUsage, "--weights takes qp, nearest or bind (got '", mode, "')");
-  }
+  options.evaluator.weightMode = parseWeightMode(parser.get("--weights"), "--weights");
   if (!hasFramePattern(options.outputPattern)) {
     DS_THROW(kUsage, "-o '", options.outputPattern,
              "' has no frame token; use e.g. out/cloth.####.exr");

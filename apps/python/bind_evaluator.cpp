@@ -34,48 +34,6 @@ struct EvaluatorHandle {
   std::mutex mutex;
 };
 
-// ---- Names of the settings' enums ----------------------------------------------------------
-
-WeightMode parseWeightMode(const std::string& text) {
-  if (text == "qp") {
-    return WeightMode::kQp;
-  }
-  if (text == "nearest") {
-    return WeightMode::kNearest;
-  }
-  if (text == "bind") {
-    return WeightMode::kBind;
-  }
-  DS_THROW(kUsage, "weight_mode '", text, "' is not one of qp, nearest, bind");
-}
-
-AlignMode parseAlignMode(const std::string& text) {
-  if (text == "none") {
-    return AlignMode::kNone;
-  }
-  if (text == "rigid") {
-    return AlignMode::kRigid;
-  }
-  if (text == "rigid-all") {
-    return AlignMode::kRigidAll;
-  }
-  DS_THROW(kUsage, "align '", text, "' is not one of none, rigid, rigid-all");
-}
-
-BlendMode parseBlendMode(const std::string& text) {
-  if (text == "world") {
-    return BlendMode::kWorld;
-  }
-  if (text == "local") {
-    return BlendMode::kLocal;
-  }
-  DS_THROW(kUsage, "blend '", text, "' is not one of world, local");
-}
-
-const char* blendModeName(BlendMode mode) {
-  return mode == BlendMode::kLocal ? "local" : "world";
-}
-
 // ---- Inputs -------------------------------------------------------------------------------
 
 const Mesh& meshArgument(py::handle object, std::optional<Mesh>& storage, const char* what) {
@@ -293,10 +251,10 @@ void bindSettings(py::module_& module) {
                        std::optional<RegionSet> regions, double maxWeightChange, bool audit,
                        std::optional<LayerSettings> layers, int threads) {
              EvaluatorSettings settings;
-             settings.weightMode = parseWeightMode(weightMode);
-             settings.align = parseAlignMode(align);
+             settings.weightMode = parseWeightMode(weightMode, "weight_mode");
+             settings.align = parseAlignMode(align, "align");
              settings.alignGroup = std::move(alignGroup);
-             settings.blend = parseBlendMode(blend);
+             settings.blend = parseBlendMode(blend, "blend");
              settings.correct = correct;
              settings.bindingMask = std::move(bindingMask);
              settings.resolve = resolve;
@@ -322,15 +280,19 @@ void bindSettings(py::module_& module) {
       .def_property(
           "weight_mode", [](const EvaluatorSettings& s) { return weightModeName(s.weightMode); },
           [](EvaluatorSettings& s, const std::string& text) {
-            s.weightMode = parseWeightMode(text);
+            s.weightMode = parseWeightMode(text, "weight_mode");
           })
       .def_property(
           "align", [](const EvaluatorSettings& s) { return alignModeName(s.align); },
-          [](EvaluatorSettings& s, const std::string& text) { s.align = parseAlignMode(text); })
+          [](EvaluatorSettings& s, const std::string& text) {
+            s.align = parseAlignMode(text, "align");
+          })
       .def_readwrite("align_group", &EvaluatorSettings::alignGroup)
       .def_property(
           "blend", [](const EvaluatorSettings& s) { return blendModeName(s.blend); },
-          [](EvaluatorSettings& s, const std::string& text) { s.blend = parseBlendMode(text); })
+          [](EvaluatorSettings& s, const std::string& text) {
+            s.blend = parseBlendMode(text, "blend");
+          })
       .def_readwrite("correct", &EvaluatorSettings::correct)
       .def_property(
           "binding_mask", [](const EvaluatorSettings& s) { return s.bindingMask; },

@@ -55,6 +55,43 @@ const char* weightModeName(WeightMode mode) {
   return "?";
 }
 
+const char* blendModeName(BlendMode mode) {
+  return mode == BlendMode::kLocal ? "local" : "world";
+}
+
+namespace {
+
+/// The mode of `modes` spelled `text` (by `name`), or Error(kUsage) listing the spellings.
+template <typename Mode, std::size_t N>
+Mode parseMode(const std::string& text, const std::string& what, const Mode (&modes)[N],
+               const char* (*name)(Mode)) {
+  std::string spellings;
+  for (const Mode mode : modes) {
+    if (text == name(mode)) {
+      return mode;
+    }
+    spellings += (spellings.empty() ? "" : ", ") + std::string(name(mode));
+  }
+  DS_THROW(kUsage, what, " takes ", spellings, " (got '", text, "')");
+}
+
+}  // namespace
+
+AlignMode parseAlignMode(const std::string& text, const std::string& what) {
+  static const AlignMode modes[] = {AlignMode::kNone, AlignMode::kRigid, AlignMode::kRigidAll};
+  return parseMode(text, what, modes, &alignModeName);
+}
+
+WeightMode parseWeightMode(const std::string& text, const std::string& what) {
+  static const WeightMode modes[] = {WeightMode::kQp, WeightMode::kNearest, WeightMode::kBind};
+  return parseMode(text, what, modes, &weightModeName);
+}
+
+BlendMode parseBlendMode(const std::string& text, const std::string& what) {
+  static const BlendMode modes[] = {BlendMode::kWorld, BlendMode::kLocal};
+  return parseMode(text, what, modes, &blendModeName);
+}
+
 bool blendsLocally(const EvaluatorSettings& settings) {
   return settings.blend == BlendMode::kLocal && settings.correct &&
          settings.weightMode != WeightMode::kBind;
@@ -253,7 +290,7 @@ std::string Evaluator::describeSettings() const {
       {"align", alignModeName(settings.align)},
       {"align_group", settings.alignGroup.empty() ? std::string("all") : settings.alignGroup},
       {"align_vertices", 0},
-      {"blend", mImpl->model.local ? "local" : "world"},
+      {"blend", blendModeName(mImpl->model.local ? BlendMode::kLocal : BlendMode::kWorld)},
       {"resolve", settings.resolve},
       {"skin_offset", settings.skinOffset},
       {"regions", nlohmann::json::array()},
