@@ -306,6 +306,11 @@ class CliObserver : public BakeObserver {
     }
     mMaps->writeFrames(frames, positions, paths);
   }
+  void warning(const std::string& message) override {
+    // Warnings are shown even with --quiet: they question the inputs.
+    std::fprintf(stderr, "%swarning: %s\n", mProgress.isTerminal() && !mQuiet ? "\n" : "",
+                 message.c_str());
+  }
   void frameDone(const FrameRecord& record, double seconds) override {
     if (mQuiet) {
       return;
@@ -379,6 +384,9 @@ int runBake(const std::vector<std::string>& args) {
       .option("--posmap-padding", "N", "texels of padding around UV islands", "8")
       .flag("--posmap-normals", "add N.X N.Y N.Z to the position maps")
       .flag("--skip-existing", "keep outputs that are complete and match this bake")
+      .flag("--force",
+            "bake a driver the sanity check refuses (another scale than the database's, or "
+            "edges that do not correspond); its findings become warnings")
       .option("--bind", "MAP", "binding mask (JSON): which driver groups each cloth group binds to")
       .flag("--no-correct", "skip the collision correction (blend only)")
       .option("--align", "MODE",
@@ -470,6 +478,7 @@ int bakeParsed(const ArgParser& parser) {
   options.framesPerSecond = parser.getDouble("--fps", 1e-3);
   options.layers = readLayerFlags(parser, options.framesPerSecond);
   options.skipExisting = parser.has("--skip-existing");
+  options.force = parser.has("--force");
   options.evaluator.correct = !parser.has("--no-correct");
   options.evaluator.audit = !parser.has("--no-audit");
   options.syncOutputs = parser.has("--sync");

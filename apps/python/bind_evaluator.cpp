@@ -81,6 +81,7 @@ py::dict recordDict(const FrameRecord& record) {
   out["at_zero"] = record.atZero;
   out["at_one"] = record.atOne;
   out["relative_residual"] = record.relativeResidual;
+  out["relative_residual_direct"] = record.directResidual;
   out["kkt_residual"] = record.kktResidual;
   out["iterations"] = record.iterations;
   out["align_rotation"] = record.alignRotation;
@@ -579,6 +580,7 @@ void bindEvaluator(py::module_& module) {
       .def_readonly("at_zero", &FrameRecord::atZero, "shapes held at weight 0")
       .def_readonly("at_one", &FrameRecord::atOne)
       .def_readonly("relative_residual", &FrameRecord::relativeResidual)
+      .def_readonly("relative_residual_direct", &FrameRecord::directResidual)
       .def_readonly("kkt_residual", &FrameRecord::kktResidual)
       .def_readonly("iterations", &FrameRecord::iterations)
       .def_readonly("align_rotation", &FrameRecord::alignRotation, "R row-major (9) or empty")

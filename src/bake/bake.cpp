@@ -5,6 +5,8 @@
 
 #include <drivenshape/bake.h>
 
+#include <drivenshape/driver_check.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -317,6 +319,9 @@ nlohmann::json frameJson(const FrameRecord& record, int shapeCount) {
     return entry;
   }
   entry["relative_residual"] = record.relativeResidual;
+  if (record.directResidual >= 0.0) {
+    entry["relative_residual_direct"] = record.directResidual;
+  }
   entry["kkt_residual"] = record.kktResidual;
   entry["iterations"] = record.iterations;
   entry["active_at_zero"] = record.atZero;
@@ -379,7 +384,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   for (const FrameRecord& record : result.frames) {
     frames.push_back(frameJson(record, db.shapeCount()));
   }
-  const json report{
+  json report{
       {"tool", "drivenshape"},
       {"tool_version", kVersion},
       {"device", result.device},
@@ -396,6 +401,9 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
       {"seconds", seconds},
       {"frames", frames},
   };
+  if (!result.warnings.empty()) {
+    report["warnings"] = result.warnings;
+  }
   writeFileAtomically(path, jsonText(report, 1) + "\n");
 }
 
@@ -438,6 +446,18 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   evaluator.checkFrames(options.frames);
 
   BakeResult result;
+  const auto warn = [&](const std::string& message) {
+    result.warnings.push_back(message);
+    if (observer != nullptr) {
+      observer->warning(message);
+    }
+  };
+  for (const DriverFinding& finding : checkDriver(db, driver, options.frames)) {
+    if (finding.refuse && !options.force) {
+      DS_THROW(kInput, finding.message);
+    }
+    warn(finding.refuse ? "forced: " + finding.message : finding.message);
+  }
   result.device = evaluator.deviceName();
   result.settingsHash = bakeHash(evaluator, options);
   const std::uint64_t topology = topologyHash(db.drivenMesh);
@@ -490,6 +510,16 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
                            input.driver.data(), writer.block(count), records.data(), input.warm);
     for (const auto& [stage, value] : seconds) {
       result.times.stages[stage] += value;
+    }
+    if (begin == 0) {
+      std::vector<const FrameRecord*> first;
+      for (const FrameRecord& record : records) {
+        first.push_back(&record);
+      }
+      const std::string fit = residualWarning(first);
+      if (!fit.empty()) {
+        warn(fit);
+      }
     }
     for (int i = 0; i < count; ++i) {
       result.frames[todo[begin + i]] = std::move(records[i]);

@@ -90,6 +90,7 @@ def test_records_match_the_bake_report(cli_bakes, python_database, test_driver, 
         expected = by_frame[record.frame]
         assert record.weights == expected["weights"], f"frame {record.frame} weights"
         assert record.relative_residual == expected["relative_residual"]
+        assert record.relative_residual_direct == expected["relative_residual_direct"]
         assert record.iterations == expected["iterations"]
         assert record.at_zero == expected["active_at_zero"]
         assert record.at_one == expected["active_at_one"]

@@ -53,6 +53,9 @@ struct BakeOptions {
   /// alone already means readers never see a partial file, and a file cut short by a power
   /// loss is rebaked by --skip-existing; the fsync costs a disk (or NFS) round trip per frame.
   bool syncOutputs = false;
+  /// Bake a driver that checkDriver (drivenshape/driver_check.h) refuses: another scale than
+  /// the database's, or edges that do not correspond (`--force`). Its findings become warnings.
+  bool force = false;
 };
 
 /// Seconds spent per stage, summed over batches. Reading and writing run on I/O tasks beside
@@ -81,13 +84,16 @@ struct BakeResult {
   std::uint64_t settingsHash = 0;
   int baked = 0;
   int skipped = 0;
-  int staleTempFilesRemoved = 0;  ///< by a resume (options.skipExisting), of its own frames
+  int staleTempFilesRemoved = 0;      ///< by a resume (options.skipExisting), of its own frames
+  std::vector<std::string> warnings;  ///< checkDriver's findings and fit warnings
 };
 
 /// Receives progress from a bake (called on the bake's thread).
 struct BakeObserver {
   virtual ~BakeObserver() = default;
   virtual void frameDone(const FrameRecord& /*record*/, double /*seconds*/) {}
+  /// A warning about the bake's inputs (also kept in BakeResult::warnings and the report).
+  virtual void warning(const std::string& /*message*/) {}
   /// Polled between chunks; return true to stop (finished frames are kept).
   virtual bool stopRequested() { return false; }
   /// Called after each launch batch is written, with the baked positions of its frames

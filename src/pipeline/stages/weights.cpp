@@ -47,10 +47,13 @@ class WeightsStage final : public Stage {
     batch.weights.assign(static_cast<std::size_t>(batch.count) * regionCount * k, 0.0f);
     parallelFor(batch.count, mModel.threads, [&](int i) {
       FrameRecord& record = batch.records[i];
+      const float* frame = batch.alignedBlock(mModel.driverValues) + i * mModel.driverValues;
       if (mModel.settings.weightMode == WeightMode::kQp) {
         recordSolutions(batch, i, record);
+        record.directResidual = directResidual(frame, record.weights);
       } else {
-        nearest(batch.alignedBlock(mModel.driverValues) + i * mModel.driverValues, record);
+        nearest(frame, record);
+        record.directResidual = record.relativeResidual;  // computed directly there
       }
       for (std::size_t s = 0; s < record.weights.size(); ++s) {
         batch.weights[i * regionCount * k + s] = static_cast<float>(record.weights[s]);
@@ -135,6 +138,43 @@ class WeightsStage final : public Stage {
       record.kktResidual = std::max(record.kktResidual, s.kktResidual);
       record.iterations += s.iterations;
     }
+  }
+
+  /// ||sum_i w_i P_i - b|| / ||b|| on each weight problem's rows (the aligned shapes P_i and
+  /// frame b), in double, the largest over regions: the fit error without the QP objective's
+  /// cancellation.
+  double directResidual(const float* frame, const std::vector<double>& weights) const {
+    const int k = mModel.k;
+    const std::size_t dv = mModel.driverValues;
+    double worst = 0.0;
+    std::vector<double> fit;
+    const std::vector<WeightProblem>& problems = mModel.problems();  // built by solve()
+    for (std::size_t r = 0; r < problems.size(); ++r) {
+      const std::vector<int>& rows = problems[r].rows;
+      const std::size_t count = rows.empty() ? static_cast<std::size_t>(mModel.vp) : rows.size();
+      fit.assign(3 * count, 0.0);
+      for (int s = 0; s < k; ++s) {
+        const double w = weights[r * k + static_cast<std::size_t>(s)];
+        const float* shape = &mModel.driverShapes[static_cast<std::size_t>(s) * dv];
+        for (std::size_t j = 0; j < count; ++j) {
+          const std::size_t v = rows.empty() ? j : static_cast<std::size_t>(rows[j]);
+          for (int c = 0; c < 3; ++c) {
+            fit[3 * j + c] += w * shape[3 * v + c];
+          }
+        }
+      }
+      double error2 = 0.0, norm2 = 0.0;
+      for (std::size_t j = 0; j < count; ++j) {
+        const std::size_t v = rows.empty() ? j : static_cast<std::size_t>(rows[j]);
+        for (int c = 0; c < 3; ++c) {
+          const double b = frame[3 * v + c];
+          error2 += (fit[3 * j + c] - b) * (fit[3 * j + c] - b);
+          norm2 += b * b;
+        }
+      }
+      worst = std::max(worst, norm2 > 0.0 ? std::sqrt(error2 / norm2) : 0.0);
+    }
+    return worst;
   }
 
   /// The nearest-shape baseline: weight 1 on the closest database driver shape.
