@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The main job on the bundled sample shot (a slice of the sleeve scene in tests/data/sleeve):
 # builds a 30-shape database from the range-of-motion clip, bakes the test clip through OpenCL
-# into point-cache EXRs, compares the bake with the simulated truth, and prints where it all is.
+# into point-cache EXRs, compares the bake with the simulated truth, writes a QC page (HTML and
+# plots), and prints where it all is.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -21,5 +22,11 @@ ds=build/apps/drivenshape
 "$ds" eval --truth $data/test.driven.pc2 --bake "$out/bake/sleeve.####.exr" --frames 1-48 \
   --driver $data/test.driver.pc2 --db $out/sleeve.dsdb --baseline \
   --json $out/eval.json
+# The QC page (plots of the weights, residual, penetrations, popping, the error per frame and a
+# per-vertex error heat map; scripts/qc_report.py), for a supervisor's browser. The sample is in
+# metres: lengths are shown in mm.
+.venv/bin/python scripts/qc_report.py --report $out/bake/sleeve.report.json \
+  --eval $out/eval.json --mesh $data/driven_rest.obj --units m -o $out/qc >/dev/null
 echo "log:      $PWD/$out/bake.log"
 echo "accuracy: $PWD/$out/eval.json"
+echo "qc:       $PWD/$out/qc/index.html"

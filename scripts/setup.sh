@@ -3,7 +3,8 @@
 # then configures and builds drivenshape (Release, -march=x86-64, warnings as errors) in ./build.
 # clang and libclang-rt-14-dev are for the fuzz targets (libFuzzer, ASan, UBSan) of the tests;
 # pybind11-dev and python3-dev build the Python module, which Debian's Blender (its add-on tests)
-# imports with python3-numpy.
+# imports with python3-numpy. chromium renders the QC page (scripts/qc_report.py) headless in its
+# test.
 # Safe to run again: it installs nothing that is already there and rebuilds incrementally.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,7 +16,7 @@ PACKAGES=(
   libgtest-dev openimageio-tools clang-format git slurm-wlm munge
   clang libclang-rt-14-dev llvm
   python3 python3-venv python3-pip python3-dev python3-numpy pybind11-dev
-  blender
+  blender chromium
 )
 
 missing=()

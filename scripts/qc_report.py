@@ -1,0 +1,938 @@
+#!/usr/bin/env python3
+"""QC report of a bake: one HTML page with PNG plots that a supervisor opens in a browser.
+
+  .venv/bin/python scripts/qc_report.py --report out/cloth.report.json \
+      [--eval eval.json] [--mesh driven_rest.obj [--truth sim.pc2] [--bake out/cloth.####.exr]] \
+      [--units m] [--title "sh010 cloth"] -o qc/sh010
+
+From the bake report (`drivenshape bake`, one or more --report: farm chunks are merged): the
+weights over time (stacked), the relative residual, the audit counts (inside the driver before
+and after the correction and after the resolution, vertices resolved) and the largest
+frame-to-frame jump per frame. From `drivenshape eval --json` (--eval): the error to the truth
+per frame. With --mesh (the driven rest OBJ) and a truth: the mean error per vertex over the
+frames as a heat map on the mesh, seen from two sides. Truth and bake caches default to the
+paths the eval JSON and the report name. Frames a coverage check flagged (a `coverage` entry in
+a frame record) are listed and marked on the plots.
+
+The page (DIR/index.html, images DIR/*.png, relative links, no JavaScript) is written into a
+temporary folder beside DIR and renamed into place, so DIR never holds a half-written report.
+An existing DIR is replaced only if it holds an earlier QC report. Needs numpy and matplotlib
+(scripts/requirements.txt) and, for the heat map, the drivenshape Python module (PYTHONPATH,
+else this checkout's build/python). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
+"""
+
+import argparse
+import datetime
+import html
+import json
+import os
+import shutil
+import sys
+import tempfile
+
+import numpy as np
+
+EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 2, 3, 4
+GENERATOR = "drivenshape qc_report"
+WORST_FRAMES = 5
+FRAMES_PER_READ = 32
+# Relative tolerance of the per-frame mean error computed here against the eval JSON's (both
+# are means of float32 distances; a larger gap means the caches are not the ones eval compared).
+EVAL_MATCH_TOLERANCE = 1e-3
+UNITS = {"scene": (1.0, "scene units"), "m": (1000.0, "mm"), "cm": (10.0, "mm"),
+         "mm": (1.0, "mm")}
+
+
+class QcError(Exception):
+    def __init__(self, code, message):
+        super().__init__(message)
+        self.code = code
+
+
+# ---- inputs ----------------------------------------------------------------------------------
+
+def load_json(path, what):
+    try:
+        with open(path, encoding="utf-8") as stream:
+            return json.load(stream)
+    except FileNotFoundError:
+        raise QcError(EXIT_INPUT, f"{what} '{path}' does not exist")
+    except IsADirectoryError:
+        raise QcError(EXIT_INPUT, f"{what} '{path}' is a folder, not a JSON file")
+    except OSError as error:
+        raise QcError(EXIT_INPUT, f"cannot read {what} '{path}': {error.strerror}")
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise QcError(EXIT_INPUT, f"{what} '{path}' is not valid JSON: {error}")
+
+
+def require(condition, path, message):
+    if not condition:
+        raise QcError(EXIT_INPUT, f"'{path}': {message}")
+
+
+def is_number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def load_report(path):
+    report = load_json(path, "bake report")
+    require(isinstance(report, dict) and isinstance(report.get("frames"), list), path,
+            "not a drivenshape bake report (no 'frames' list)")
+    for key in ("database", "settings"):
+        require(isinstance(report.get(key), dict), path, f"no '{key}' object; is this a "
+                "report written by `drivenshape bake`?")
+    for index, record in enumerate(report["frames"]):
+        require(isinstance(record, dict) and isinstance(record.get("frame"), int), path,
+                f"frame record {index} has no integer 'frame'")
+        if record.get("skipped"):
+            continue
+        for key in ("weights", "relative_residual"):
+            require(key in record, path, f"frame {record['frame']} has no '{key}'")
+        check_weights(record, report["database"].get("shape_count"), path)
+    return report
+
+
+def check_weights(record, shape_count, path):
+    """A frame's weights: k numbers, one list of k per region, or none (--weights bind)."""
+    weights = record["weights"]
+    rows = weights if weights and isinstance(weights[0], list) else [weights]
+    for row in rows:
+        require(isinstance(row, list) and all(is_number(w) for w in row)
+                and len(row) in (0, shape_count), path,
+                f"frame {record['frame']}: the weights are not {shape_count} numbers (the "
+                "database's shape_count) per region")
+
+
+def merge_reports(paths):
+    """One report from farm chunks: the same database and settings, frames in order."""
+    reports = [load_report(path) for path in paths]
+    first = reports[0]
+    frames = {}
+    for path, report in zip(paths, reports):
+        require(report.get("settings_hash") == first.get("settings_hash"), path,
+                f"settings_hash {report.get('settings_hash')} differs from "
+                f"{first.get('settings_hash')} in '{paths[0]}': merge only the chunk reports "
+                "of one bake")
+        require(report["database"].get("content_hash") == first["database"].get("content_hash"),
+                path, "another database than the first report's: merge only the chunk "
+                      "reports of one bake")
+        for record in report["frames"]:
+            known = frames.get(record["frame"])
+            if known is None or known.get("skipped"):
+                frames[record["frame"]] = record
+    merged = dict(first)
+    merged["frames"] = [frames[f] for f in sorted(frames)]
+    merged["baked"] = sum(1 for r in merged["frames"] if not r.get("skipped"))
+    merged["skipped"] = len(merged["frames"]) - merged["baked"]
+    if len(reports) > 1:
+        merged["seconds"] = {key: sum(r.get("seconds", {}).get(key, 0.0) for r in reports)
+                             for key in first.get("seconds", {})}
+    return merged
+
+
+def load_eval(path):
+    data = load_json(path, "eval JSON")
+    require(isinstance(data, dict) and isinstance(data.get("frames"), list), path,
+            "not the JSON of `drivenshape eval --json` (no 'frames' list)")
+    for index, record in enumerate(data["frames"]):
+        require(isinstance(record, dict) and isinstance(record.get("frame"), int), path,
+                f"frame record {index} has no integer 'frame'")
+        for key in ("mean", "max"):
+            require(is_number(record.get(key)), path,
+                    f"frame {record['frame']} has no number '{key}'")
+    for key in ("mean", "rms", "max", "max_frame"):
+        require(is_number(data.get(key)), path, f"no number '{key}' (the bake's error)")
+    return data
+
+
+def drivenshape_module():
+    """The project's Python module: from PYTHONPATH, else this checkout's build/python."""
+    try:
+        import drivenshape
+    except ImportError:
+        build = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "build",
+                             "python")
+        sys.path.insert(0, os.path.normpath(build))
+        try:
+            import drivenshape
+        except ImportError as error:
+            raise QcError(EXIT_USAGE, f"the drivenshape Python module is not available "
+                                      f"({error}): build it (scripts/setup.sh) or set "
+                                      "PYTHONPATH to the build's python folder")
+    return drivenshape
+
+
+def open_cache(ds, candidates, what, option):
+    """The first candidate path that opens as a point cache; an input error naming them all."""
+    errors = []
+    for path in dict.fromkeys(candidates):
+        try:
+            return ds.open_point_cache(path), path
+        except ds.Error as error:
+            errors.append(f"'{path}': {error}")
+    raise QcError(EXIT_INPUT, f"cannot open the {what} ({'; '.join(errors)}); give it with "
+                              f"{option}")
+
+
+def beside(path, json_path):
+    """Candidates for a path a JSON names: as given, then its file name beside the JSON."""
+    candidates = [path]
+    if not os.path.isabs(path):
+        candidates.append(os.path.join(os.path.dirname(os.path.abspath(json_path)),
+                                       os.path.basename(path)))
+    return candidates
+
+
+def vertex_errors(ds, args, report, evaluation, frames):
+    """Per-vertex mean error over `frames` and the per-frame mean/max/argmax, from the caches."""
+    if args.truth:
+        truth_candidates = [args.truth]
+    elif evaluation and evaluation.get("truth"):
+        truth_candidates = beside(evaluation["truth"], args.eval)
+    else:
+        raise QcError(EXIT_USAGE, "the heat map needs the truth: give --truth CACHE or --eval")
+    if args.bake:
+        bake_candidates = [args.bake]
+    else:
+        bake_candidates = []
+        if evaluation and evaluation.get("bake"):
+            bake_candidates += beside(evaluation["bake"], args.eval)
+        if report.get("output"):
+            bake_candidates += beside(report["output"], args.report[0])
+    truth, truth_path = open_cache(ds, truth_candidates, "truth cache", "--truth")
+    bake, bake_path = open_cache(ds, bake_candidates, "baked cache", "--bake")
+    try:
+        mesh = ds.read_obj(args.mesh)
+    except ds.Error as error:
+        raise QcError(EXIT_INPUT, str(error))
+    for cache, path in ((truth, truth_path), (bake, bake_path)):
+        if cache.vertex_count != mesh.vertex_count:
+            raise QcError(EXIT_INPUT, f"'{path}' holds {cache.vertex_count} vertices but the "
+                                      f"mesh '{args.mesh}' has {mesh.vertex_count}")
+    total = np.zeros(mesh.vertex_count)
+    per_frame = {}
+    for start in range(0, len(frames), FRAMES_PER_READ):
+        chunk = frames[start:start + FRAMES_PER_READ]
+        try:
+            a = bake.read_frames(chunk).astype(np.float64)
+            b = truth.read_frames(chunk).astype(np.float64)
+        except ds.Error as error:
+            raise QcError(EXIT_INPUT, str(error))
+        distance = np.linalg.norm(a - b, axis=2)
+        total += distance.sum(axis=0)
+        for frame, row in zip(chunk, distance):
+            per_frame[frame] = (float(row.mean()), float(row.max()), int(row.argmax()))
+    return {"mesh": mesh, "mean": total / len(frames), "per_frame": per_frame,
+            "truth": truth_path, "bake": bake_path, "frames": frames}
+
+
+def check_against_eval(errors, evaluation, eval_path):
+    for record in evaluation["frames"]:
+        mine = errors["per_frame"].get(record["frame"])
+        if mine is None:
+            continue
+        gap = abs(mine[0] - record["mean"])
+        if gap > EVAL_MATCH_TOLERANCE * max(abs(record["mean"]), 1e-12):
+            raise QcError(EXIT_INPUT, f"the truth '{errors['truth']}' and the bake "
+                                      f"'{errors['bake']}' give a mean error of {mine[0]:.6g} at "
+                                      f"frame {record['frame']}, '{eval_path}' says "
+                                      f"{record['mean']:.6g}: give the caches eval compared "
+                                      "(--truth, --bake)")
+
+
+# ---- figures ---------------------------------------------------------------------------------
+
+# Every plot over time has the same width, axes margins (room on the right for the legend) and
+# frame range, so a frame sits at the same place in every plot down the page.
+FIGURE_WIDTH = 11.0
+MARGINS = {"left": 0.07, "right": 0.79}
+SHAPE_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
+                 "tab:pink", "tab:olive", "tab:cyan", "#393b79")
+OTHERS_COLOUR = "0.82"
+MIN_SHOWN_WEIGHT = 0.01  # shapes whose weight never reaches it are summed into "others"
+
+
+class Plots:
+    """Writes the PNGs into one folder; each method returns the file name, or None when the
+    inputs hold nothing to draw."""
+
+    def __init__(self, folder, frames, flagged, units):
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        plt.rcParams.update({"font.size": 10, "axes.grid": True, "grid.alpha": 0.3,
+                             "axes.spines.top": False, "axes.spines.right": False})
+        self.plt = plt
+        self.folder = folder
+        self.frame_range = (min(frames), max(frames)) if frames else (0, 1)
+        self.flagged = flagged
+        self.scale, self.unit = units
+
+    def figure(self, height, rows=1):
+        fig, axes = self.plt.subplots(rows, 1, figsize=(FIGURE_WIDTH, height), sharex=True,
+                                      squeeze=False)
+        top = 1.0 - 0.4 / height
+        fig.subplots_adjust(bottom=0.5 / height, top=top, hspace=0.35, **MARGINS)
+        return fig, list(axes[:, 0])
+
+    def dress(self, axes, ylabel, title):
+        """The common dressing of a plot over frames; flagged frames are shaded."""
+        for frame in self.flagged:
+            axes.axvspan(frame - 0.5, frame + 0.5, color="tab:red", alpha=0.15, lw=0)
+        axes.set_xlim(self.frame_range[0] - 0.5, self.frame_range[1] + 0.5)
+        axes.set_ylabel(ylabel)
+        axes.set_title(title, loc="left")
+        if axes.get_legend_handles_labels()[0]:
+            axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+
+    def save(self, fig, axes, name):
+        axes.set_xlabel("frame")
+        fig.savefig(os.path.join(self.folder, name), dpi=100)
+        self.plt.close(fig)
+        return name
+
+    def weights(self, report):
+        blocks = weight_blocks(report)
+        if not blocks:
+            return None
+        db_frames = report["database"].get("frames") or []
+        # One colour per shape on every region's plot: the shapes with the largest peak weight
+        # over all regions get the colours, the rest is summed as "others".
+        peak = np.max([weights.max(axis=0) for _, _, weights in blocks], axis=0)
+        ranked = [s for s in np.argsort(-peak, kind="stable") if peak[s] >= MIN_SHOWN_WEIGHT]
+        colour = {s: c for s, c in zip(sorted(ranked[:len(SHAPE_COLOURS)]), SHAPE_COLOURS)}
+        fig, axes_list = self.figure(3.4 * len(blocks), rows=len(blocks))
+        for (title, frames, weights), axes in zip(blocks, axes_list):
+            k = weights.shape[1]
+            shown = [s for s in colour if weights[:, s].max() >= MIN_SHOWN_WEIGHT]
+            rest = [s for s in range(k) if s not in shown]
+            layers = [weights[:, s] for s in shown]
+            labels = [f"shape {s}" + (f" (db frame {db_frames[s]})" if s < len(db_frames)
+                                      else "") for s in shown]
+            colours = [colour[s] for s in shown]
+            if rest:
+                layers.append(weights[:, rest].sum(axis=1))
+                labels.append(f"{len(rest)} others")
+                colours.append(OTHERS_COLOUR)
+            # Each frame a full-width block: steps at the midpoints between frames.
+            edges = np.concatenate([[frames[0] - 0.5], (frames[:-1] + frames[1:]) / 2.0,
+                                    [frames[-1] + 0.5]])
+            layers = [np.append(layer, layer[-1]) for layer in layers]
+            axes.stackplot(edges, *layers, labels=labels, colors=colours, step="post")
+            axes.set_ylim(0, max(1.0, float(weights.sum(axis=1).max())))
+            self.dress(axes, "weight", f"Weights per frame, stacked"
+                       f"{' in ' + title if title else ''} ({k} shapes"
+                       + (f"; {len(shown)} shown, the others summed)" if rest else ")"))
+        return self.save(fig, axes_list[-1], "weights.png")
+
+    def residual(self, report):
+        frames, values = records_series(report, "relative_residual")
+        if len(frames) == 0 or not solves(report):
+            return None
+        fig, (axes,) = self.figure(3.0)
+        axes.semilogy(frames, np.maximum(values, 1e-16), ".-", color="tab:blue")
+        self.dress(axes, "relative residual", "Relative residual ||A w - b|| / ||b||: how far "
+                   "the blend of database poses is from the shot's pose")
+        return self.save(fig, axes, "residual.png")
+
+    def audit(self, report):
+        fig, (axes,) = self.figure(3.2)
+        drawn = False
+        for key, label, colour, style in AUDIT_SERIES:
+            frames, values = records_series(report, key)
+            if len(frames):
+                axes.plot(frames, values, style, marker=".", color=colour, label=label)
+                drawn = True
+        frames, values = records_series(report, "resolved")
+        if len(frames):
+            axes.bar(frames, values, width=0.8, color="tab:green", alpha=0.35,
+                     label="moved out by the resolution")
+            drawn = True
+        if not drawn:
+            self.plt.close(fig)
+            return None
+        axes.set_ylim(bottom=0)
+        self.dress(axes, "vertices", "Cloth vertices inside the driver, and vertices resolved")
+        return self.save(fig, axes, "audit.png")
+
+    def jump(self, report, evaluation):
+        frames, values = records_series(report, "max_jump")
+        if len(frames) == 0:
+            return None
+        fig, (axes,) = self.figure(3.0)
+        axes.plot(frames, values * self.scale, ".-", color="tab:purple", label="bake")
+        if evaluation:
+            truth = [(r["frame"], r["truth"]["jump"]) for r in evaluation["frames"]
+                     if isinstance(r.get("truth"), dict) and is_number(r["truth"].get("jump"))]
+            if truth:
+                t_frames, t_values = zip(*truth)
+                axes.plot(t_frames, np.array(t_values) * self.scale, "--", color="0.4",
+                          label="truth")
+        axes.set_ylim(bottom=0)
+        self.dress(axes, f"max jump ({self.unit})",
+                   "Largest vertex move from the previous frame (popping shows as spikes)")
+        return self.save(fig, axes, "jump.png")
+
+    def error(self, error_frames, baseline):
+        if not error_frames:
+            return None
+        frames = np.array(sorted(error_frames))
+        mean = np.array([error_frames[f][0] for f in frames]) * self.scale
+        top = np.array([error_frames[f][1] for f in frames]) * self.scale
+        fig, (axes,) = self.figure(3.2)
+        axes.fill_between(frames, mean, top, color="tab:red", alpha=0.1)
+        axes.plot(frames, top, ".-", color="tab:red", label="bake: max over vertices")
+        axes.plot(frames, mean, ".-", color="tab:blue", label="bake: mean over vertices")
+        if baseline:
+            b_frames = sorted(baseline)
+            axes.plot(b_frames, np.array([baseline[f] for f in b_frames]) * self.scale, "--",
+                      color="0.45", label="binding baseline: mean")
+        axes.set_ylim(bottom=0)
+        self.dress(axes, f"error ({self.unit})", "Distance to the truth per frame")
+        return self.save(fig, axes, "error.png")
+
+    def coverage(self, coverage):
+        scored = [(f, c[1]) for f, c in sorted(coverage.items()) if c[1] is not None]
+        if not scored:
+            return None
+        frames, scores = zip(*scored)
+        fig, (axes,) = self.figure(2.8)
+        axes.plot(frames, scores, ".-", color="tab:brown")
+        self.dress(axes, "score", "Coverage score per frame (flagged frames shaded)")
+        return self.save(fig, axes, "coverage.png")
+
+    def heat_map(self, errors, up_axis):
+        from matplotlib.colors import Normalize
+        mesh = errors["mesh"]
+        positions = np.asarray(mesh.positions, dtype=np.float64)
+        triangles = np.asarray(mesh.triangles)
+        values = errors["mean"] * self.scale
+        norm = Normalize(vmin=0.0, vmax=max(float(values.max()), 1e-12))
+        views = view_axes(positions, up_axis)
+        right, up = views[0][1], views[0][2]
+        width = np.ptp(positions @ right)
+        height = max(np.ptp(positions @ up), 1e-12 * max(width, 1.0))
+        # Long, low meshes (a sleeve) stack their two views; tall ones sit side by side.
+        stacked = width > 2.0 * height
+        rows, columns = (2, 1) if stacked else (1, 2)
+        panel_aspect = height / width
+        fig_height = (min(2 * 8.8 * panel_aspect, 7.0) if stacked
+                      else min(4.4 * panel_aspect, 7.0)) + 1.2
+        fig, axes_grid = self.plt.subplots(rows, columns, figsize=(FIGURE_WIDTH, fig_height),
+                                           squeeze=False)
+        fig.subplots_adjust(left=0.02, right=0.86, bottom=0.04, top=1.0 - 0.7 / fig_height,
+                            wspace=0.05, hspace=0.25)
+        image = None
+        for axes, (label, right, up, toward) in zip(axes_grid.flat, views):
+            x, y = positions @ right, positions @ up
+            # Painter's order: the farthest triangles first.
+            depth = (positions @ toward)[triangles].mean(axis=1)
+            order = np.argsort(-depth, kind="stable")
+            image = axes.tripcolor(x, y, triangles[order], values, shading="gouraud",
+                                   cmap="inferno", norm=norm)
+            axes.set_aspect("equal")
+            axes.set_axis_off()
+            axes.set_title(label, fontsize=10)
+        fig.suptitle(f"Mean distance to the truth per vertex over {len(errors['frames'])} "
+                     "frames, on the rest mesh", x=0.02, ha="left")
+        bar_axes = fig.add_axes((0.89, 0.1, 0.016, 0.75))
+        fig.colorbar(image, cax=bar_axes).set_label(f"mean error ({self.unit})")
+        fig.savefig(os.path.join(self.folder, "heatmap.png"), dpi=100)
+        self.plt.close(fig)
+        return "heatmap.png"
+
+
+def weight_blocks(report):
+    """[(title, frames, weights F x k)]: one block per region (one when no regions)."""
+    records = [r for r in report["frames"] if not r.get("skipped") and r.get("weights")]
+    if not records:
+        return []
+    frames = np.array([r["frame"] for r in records])
+    first = records[0]["weights"]
+    if first and isinstance(first[0], list):
+        names = [r.get("name", f"region {i}")
+                 for i, r in enumerate(report["settings"].get("regions") or [])]
+        blocks = []
+        for region in range(len(first)):
+            weights = np.array([r["weights"][region] for r in records], dtype=float)
+            name = names[region] if region < len(names) else f"region {region}"
+            blocks.append((f"region '{name}'", frames, weights))
+        return blocks
+    return [("", frames, np.array([r["weights"] for r in records], dtype=float))]
+
+
+def solves(report):
+    """False for `--weights bind` bakes: no weights, no solve, residuals of 0."""
+    return report["settings"].get("weights") != "bind"
+
+
+def records_series(report, key):
+    frames, values = [], []
+    for record in report["frames"]:
+        if not record.get("skipped") and is_number(record.get(key)):
+            frames.append(record["frame"])
+            values.append(record[key])
+    return np.array(frames), np.array(values, dtype=float)
+
+
+AUDIT_SERIES = (("inside_before", "inside before the correction", "tab:gray", "--"),
+                ("inside_corrected", "inside after the correction", "tab:orange", "-"),
+                ("inside_after", "inside after the resolution", "tab:red", "-"))
+
+
+def view_axes(positions, up_axis):
+    """Two opposite views along the thinner horizontal axis: [(label, right, up, toward)]."""
+    up = "XYZ".index(up_axis)
+    horizontal = [a for a in range(3) if a != up]
+    extent = positions.max(axis=0) - positions.min(axis=0)
+    depth, across = sorted(horizontal, key=lambda a: extent[a])
+    unit = np.eye(3)
+    # A camera looking along `toward` with `up` up has right = toward x up (right x up points
+    # back at the camera); the opposite view mirrors it.
+    right = np.cross(unit[depth], unit[up])
+    name = "XYZ"[depth]
+    return [(f"seen from -{name}", right, unit[up], unit[depth]),
+            (f"seen from +{name}", -right, unit[up], -unit[depth])]
+
+
+def coverage_flag(value):
+    """A frame's coverage entry: (flagged, score or None, detail text)."""
+    if isinstance(value, bool):
+        return value, None, ""
+    if is_number(value):
+        return False, float(value), ""
+    if isinstance(value, dict):
+        flagged = bool(value.get("flagged", value.get("flag", False)))
+        score = next((float(value[k]) for k in ("score", "distance", "value")
+                      if is_number(value.get(k))), None)
+        detail = ", ".join(f"{k}: {v}" for k, v in value.items() if k not in ("flagged", "flag"))
+        return flagged, score, detail
+    return False, None, str(value)
+
+
+# ---- page ------------------------------------------------------------------------------------
+
+CSS = """
+body { font-family: "DejaVu Sans", Arial, sans-serif; margin: 24px auto; max-width: 1180px;
+       color: #222; background: #fff; line-height: 1.4; }
+h1 { font-size: 24px; margin-bottom: 4px; }
+h2 { font-size: 19px; border-bottom: 1px solid #ccc; padding-bottom: 3px; margin-top: 32px; }
+table { border-collapse: collapse; margin: 8px 0; }
+th, td { border: 1px solid #ddd; padding: 3px 9px; text-align: left; font-size: 14px; }
+th { background: #f2f2f2; }
+#header th { white-space: nowrap; vertical-align: top; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+td.weights { white-space: nowrap; }
+.sub { color: #666; font-size: 13px; }
+.flag { color: #b00; font-weight: bold; }
+img { max-width: 100%; border: 1px solid #eee; display: block; margin: 6px 0 16px; }
+code { background: #f4f4f4; padding: 0 3px; }
+"""
+
+
+def fmt(value, scale=1.0):
+    if value is None:
+        return "-"
+    if isinstance(value, int) and scale == 1.0:
+        return str(value)
+    return f"{value * scale:.6g}"
+
+
+def frame_link(frame):
+    return f'<a href="#frame-{frame}">{frame}</a>' if frame is not None else "-"
+
+
+class Summary:
+    """Rows of the summary table: a stable key (data-key, for tools), label, value, detail."""
+
+    def __init__(self):
+        self.rows = []
+
+    def add(self, key, label, value, detail=""):
+        self.rows.append((key, label, value, detail))
+
+    def html(self):
+        lines = ["<table id=\"summary\"><tr><th>figure</th><th>value</th><th>where</th></tr>"]
+        for key, label, value, detail in self.rows:
+            lines.append(f'<tr><td>{html.escape(label)}</td><td class="num" data-key="{key}">'
+                         f"{html.escape(value)}</td><td>{detail}</td></tr>")
+        lines.append("</table>")
+        return "\n".join(lines)
+
+
+def worst(pairs):
+    """(value, frame) of the largest value, the earliest frame on ties; (None, None) if none."""
+    best = (None, None)
+    for frame, value in pairs:
+        if best[0] is None or value > best[0]:
+            best = (value, frame)
+    return best
+
+
+def summary_rows(report, evaluation, errors, error_frames, units):
+    scale, unit = units
+    summary = Summary()
+    baked = [r for r in report["frames"] if not r.get("skipped")]
+    summary.add("frames_baked", "frames baked", str(len(baked)))
+    skipped = len(report["frames"]) - len(baked)
+    if skipped:
+        summary.add("frames_kept", "frames kept from an earlier run (no figures)", str(skipped))
+    if baked:
+        summary.add("frame_range", "first - last frame",
+                    f"{baked[0]['frame']} - {baked[-1]['frame']}")
+    total = report.get("seconds", {}).get("total")
+    if is_number(total) and total > 0:
+        summary.add("seconds", "bake seconds", fmt(total), f"{len(baked) / total:.3g} frames/s")
+
+    def series(key):
+        return [(r["frame"], r[key]) for r in baked if is_number(r.get(key))]
+
+    residual = series("relative_residual") if solves(report) else []
+    if residual:
+        summary.add("residual_mean", "relative residual, mean",
+                    fmt(sum(v for _, v in residual) / len(residual)))
+        value, frame = worst(residual)
+        summary.add("residual_max", "relative residual, max", fmt(value), frame_link(frame))
+    for key, label in (("inside_corrected", "inside the driver after the correction"),
+                       ("inside_after", "inside the driver after the resolution")):
+        values = series(key)
+        if values:
+            summary.add(f"{key}_mean", f"{label}, mean per frame",
+                        fmt(sum(v for _, v in values) / len(values)))
+            value, frame = worst(values)
+            summary.add(f"{key}_max", f"{label}, max", fmt(value),
+                        frame_link(frame) if value else "-")
+    resolved = series("resolved")
+    if resolved:
+        summary.add("resolved_total", "vertices moved out by the resolution, all frames",
+                    str(sum(v for _, v in resolved)))
+    jumps = series("max_jump")
+    if jumps:
+        value, frame = worst(jumps)
+        summary.add("max_jump", f"largest frame-to-frame jump ({unit})", fmt(value, scale),
+                    frame_link(frame))
+    if evaluation:
+        bake = evaluation.get("summary", {}).get("bake", {})
+        summary.add("error_mean", f"error to the truth, mean ({unit})",
+                    fmt(evaluation["mean"], scale))
+        summary.add("error_rms", f"error to the truth, RMS ({unit})",
+                    fmt(evaluation["rms"], scale))
+        summary.add("error_max", f"error to the truth, max ({unit})",
+                    fmt(evaluation["max"], scale), frame_link(evaluation["max_frame"]))
+        baseline = evaluation.get("summary", {}).get("baseline")
+        if isinstance(baseline, dict) and is_number(baseline.get("mean")):
+            summary.add("baseline_error_mean", f"binding baseline error, mean ({unit})",
+                        fmt(baseline["mean"], scale))
+        truth = evaluation.get("summary", {}).get("truth", {})
+        if is_number(bake.get("max_jump")) and is_number(truth.get("max_jump")) \
+                and truth["max_jump"] > 0:
+            summary.add("jump_ratio", "largest jump / the truth's",
+                        f"{bake['max_jump'] / truth['max_jump']:.4g}")
+        if is_number(bake.get("mean_inside")):
+            summary.add("eval_inside_mean", "inside the driver per frame (eval)",
+                        fmt(bake["mean_inside"]))
+    elif error_frames:
+        means = [v[0] for v in error_frames.values()]
+        value, frame = worst((f, v[1]) for f, v in error_frames.items())
+        summary.add("error_mean", f"error to the truth, mean ({unit})",
+                    fmt(sum(means) / len(means), scale))
+        summary.add("error_max", f"error to the truth, max ({unit})", fmt(value, scale),
+                    frame_link(frame))
+    if errors:
+        vertex = int(np.argmax(errors["mean"]))
+        summary.add("worst_vertex", "vertex with the largest mean error", str(vertex))
+        summary.add("worst_vertex_error", f"its mean error ({unit})",
+                    fmt(float(errors["mean"][vertex]), scale))
+    return summary
+
+
+def worst_frames(report, error_frames):
+    """The frames to look at first: by max error when known, else by relative residual."""
+    if error_frames:
+        ranked = sorted(error_frames, key=lambda f: (-error_frames[f][1], f))
+        return "max error to the truth", ranked[:WORST_FRAMES]
+    residual = [(r["frame"], r["relative_residual"]) for r in report["frames"]
+                if not r.get("skipped") and is_number(r.get("relative_residual"))
+                and solves(report)]
+    ranked = sorted(residual, key=lambda p: (-p[1], p[0]))
+    return "relative residual", [f for f, _ in ranked[:WORST_FRAMES]]
+
+
+def top_weights(record, db_frames):
+    weights = record.get("weights") or []
+    if weights and isinstance(weights[0], list):
+        return f"{len(weights)} regions"
+    ranked = sorted(range(len(weights)), key=lambda s: -weights[s])[:3]
+    parts = []
+    for s in ranked:
+        if weights[s] < 0.005:
+            break
+        label = db_frames[s] if s < len(db_frames) else f"shape {s}"
+        parts.append(f"{label}: {weights[s]:.2f}")
+    return ", ".join(parts)
+
+
+def frame_table(report, error_frames, coverage, units):
+    """One row per frame of the report (id frame-N, the target of the links above)."""
+    scale, unit = units
+    db_frames = report["database"].get("frames") or []
+    header = ["frame", "largest weights (db frame: weight)", "rel. residual",
+              "inside corrected", "inside after", "resolved", f"max jump ({unit})"]
+    if error_frames:
+        header += [f"mean error ({unit})", f"max error ({unit})"]
+    if coverage:
+        header.append("coverage")
+    lines = ['<table id="frames"><tr>' + "".join(f"<th>{html.escape(h)}</th>" for h in header)
+             + "</tr>"]
+    for record in report["frames"]:
+        frame = record["frame"]
+        if record.get("skipped"):
+            cells = [("text", "kept from an earlier run")] + [("num", "")] * (len(header) - 2)
+        else:
+            cells = [("weights", html.escape(top_weights(record, db_frames)))]
+            cells += [("num", fmt(record.get(key))) for key in
+                      ("relative_residual", "inside_corrected", "inside_after", "resolved")]
+            cells.append(("num", fmt(record.get("max_jump"), scale)))
+            if error_frames:
+                known = error_frames.get(frame)
+                cells += [("num", fmt(known[0], scale) if known else "-"),
+                          ("num", fmt(known[1], scale) if known else "-")]
+            if coverage:
+                flag = coverage.get(frame)
+                text = ""
+                if flag is not None:
+                    text = ('<span class="flag">flagged</span> ' if flag[0] else "") + \
+                        html.escape(flag[2] or ("" if flag[1] is None else fmt(flag[1])))
+                cells.append(("text", text))
+        row = "".join(f'<td class="{kind}">{text}</td>' for kind, text in cells)
+        lines.append(f'<tr id="frame-{frame}"><td>{frame}</td>{row}</tr>')
+    lines.append("</table>")
+    return "\n".join(lines)
+
+
+def settings_text(settings):
+    keys = ("weights", "align", "blend", "correct", "resolve", "skin_offset", "audit",
+            "max_weight_change", "batch", "compression")
+    parts = [f"{k}={json.dumps(settings[k])}" for k in keys if k in settings]
+    if settings.get("regions"):
+        parts.append(f"{len(settings['regions'])} regions ({settings.get('regions_file', '')})")
+    if settings.get("binding_mask"):
+        parts.append(f"binding mask {settings['binding_mask']}")
+    if settings.get("layers"):
+        parts.append("layers " + json.dumps(settings["layers"], sort_keys=True))
+    return ", ".join(parts)
+
+
+def shot_name(report):
+    output = report.get("output") or ""
+    name = os.path.basename(output)
+    for token in ("####", "%04d", "$F4"):
+        name = name.replace("." + token, "").replace(token, "")
+    return os.path.splitext(name)[0] or "bake"
+
+
+def header_html(args, report, evaluation, title):
+    db = report["database"]
+    rows = [("shot", f"{report.get('output', '-')} (driver {report.get('driver_cache', '-')})"),
+            ("database", f"{db.get('shape_count', '-')} shapes, content hash "
+                         f"{db.get('content_hash', '-')}; database frames "
+                         f"{', '.join(str(f) for f in db.get('frames', []))}"),
+            ("settings", settings_text(report["settings"])),
+            ("settings hash", str(report.get("settings_hash", "-"))),
+            ("device", str(report.get("device", "-"))),
+            ("tool", f"{report.get('tool', '-')} {report.get('tool_version', '')}"),
+            ("bake report", ", ".join(args.report))]
+    if evaluation:
+        rows.append(("eval", f"{args.eval}: truth {evaluation.get('truth')}, "
+                             f"{evaluation.get('vertices')} vertices, closest triangles on "
+                             f"{evaluation.get('device')}"))
+    rows.append(("written", datetime.datetime.now().isoformat(timespec="seconds")))
+    body = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
+                     for k, v in rows)
+    return f"<h1>{html.escape(title)}</h1>\n<table id=\"header\">\n{body}\n</table>"
+
+
+def figure(name, alt, missing):
+    if name is None:
+        return f'<p class="sub">{html.escape(missing)}</p>'
+    return f'<img src="{html.escape(name)}" alt="{html.escape(alt)}">'
+
+
+def build_page(args, report, evaluation, errors, folder):
+    units = UNITS[args.units]
+    coverage = {r["frame"]: coverage_flag(r["coverage"]) for r in report["frames"]
+                if "coverage" in r}
+    flagged = sorted(f for f, c in coverage.items() if c[0])
+    error_frames = {}
+    baseline = {}
+    if evaluation:
+        for record in evaluation["frames"]:
+            error_frames[record["frame"]] = (record["mean"], record["max"])
+            if isinstance(record.get("baseline"), dict) and is_number(
+                    record["baseline"].get("mean")):
+                baseline[record["frame"]] = record["baseline"]["mean"]
+    elif errors:
+        error_frames = {f: v[:2] for f, v in errors["per_frame"].items()}
+    plots = Plots(folder, [r["frame"] for r in report["frames"]] + list(error_frames), flagged,
+                  units)
+    title = args.title or f"QC: {shot_name(report)}"
+    summary = summary_rows(report, evaluation, errors, error_frames, units)
+    ranking, worst_list = worst_frames(report, error_frames)
+
+    parts = [header_html(args, report, evaluation, title), "<h2>Summary</h2>", summary.html()]
+    if worst_list:
+        parts.append(f'<p id="worst">Worst frames by {html.escape(ranking)}: '
+                     + ", ".join(frame_link(f) for f in worst_list) + "</p>")
+
+    parts.append('<h2 id="coverage">Coverage</h2>')
+    if not coverage:
+        parts.append('<p class="sub">No coverage check in this report.</p>')
+    else:
+        listed = ", ".join(frame_link(f) for f in flagged) or "none"
+        parts.append(f"<p>Frames the coverage check flagged ({len(flagged)} of "
+                     f"{len(coverage)} checked): {listed}</p>")
+        parts.append(figure(plots.coverage(coverage), "coverage score",
+                            "The coverage entries hold no score to plot."))
+    if args.eval or errors:
+        parts.append("<h2>Error to the truth</h2>")
+        source = (f"from {args.eval}" if evaluation
+                  else f"computed from {errors['truth']} and {errors['bake']}")
+        parts.append(f'<p class="sub">Per-vertex distance to the truth, {html.escape(source)}.'
+                     "</p>")
+        parts.append(figure(plots.error(error_frames, baseline),
+                            "error per frame", "No frames in the eval."))
+    parts.append("<h2>Error per vertex</h2>")
+    if errors:
+        parts.append(f'<p class="sub">Mean over frames {errors["frames"][0]}-'
+                     f'{errors["frames"][-1]} ({len(errors["frames"])} frames) of the distance '
+                     f'between {html.escape(errors["bake"])} and {html.escape(errors["truth"])}, '
+                     f'drawn on {html.escape(args.mesh)}.</p>')
+        parts.append(figure(plots.heat_map(errors, args.up_axis),
+                            "per-vertex error heat map", ""))
+    else:
+        parts.append('<p class="sub">No heat map: give --mesh (the driven rest OBJ) with a '
+                     "truth (--eval or --truth).</p>")
+    parts.append("<h2>Weights</h2>")
+    parts.append(figure(plots.weights(report), "weights over time",
+                        "No weights in this report (--weights bind: no solve)."))
+    parts.append("<h2>Residual</h2>")
+    parts.append(figure(plots.residual(report), "relative residual",
+                        "No residuals in this report (--weights bind: no solve)."))
+    parts.append("<h2>Penetrations</h2>")
+    parts.append(figure(plots.audit(report), "inside counts",
+                        "No audit figures in this report (baked with --no-audit)."))
+    parts.append("<h2>Popping</h2>")
+    parts.append(figure(plots.jump(report, evaluation),
+                        "max jump per frame", "No frame-to-frame jumps in this report."))
+    parts.append("<h2>Frames</h2>")
+    parts.append(frame_table(report, error_frames, coverage, units))
+    page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
+            f'<meta name="generator" content="{GENERATOR}">\n'
+            f"<title>{html.escape(title)}</title>\n<style>{CSS}</style></head>\n<body>\n"
+            + "\n".join(parts) + "\n</body></html>\n")
+    with open(os.path.join(folder, "index.html"), "w", encoding="utf-8") as stream:
+        stream.write(page)
+
+
+# ---- output ----------------------------------------------------------------------------------
+
+def is_qc_report(folder):
+    try:
+        with open(os.path.join(folder, "index.html"), encoding="utf-8") as stream:
+            return f'content="{GENERATOR}"' in stream.read(4096)
+    except OSError:
+        return False
+
+
+def write_report(args, report, evaluation, errors):
+    out = os.path.abspath(args.output)
+    parent = os.path.dirname(out)
+    if not os.path.isdir(parent):
+        raise QcError(EXIT_OUTPUT, f"the output's parent folder '{parent}' does not exist")
+    if os.path.exists(out) and not (os.path.isdir(out) and (not os.listdir(out)
+                                                            or is_qc_report(out))):
+        raise QcError(EXIT_OUTPUT, f"'{args.output}' exists and is not a QC report; it is left "
+                                   "alone: choose another -o")
+    try:
+        temp = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.tmp-", dir=parent)
+    except OSError as error:
+        raise QcError(EXIT_OUTPUT, f"cannot write in '{parent}': {error.strerror}")
+    try:
+        build_page(args, report, evaluation, errors, temp)
+        os.chmod(temp, 0o755)
+        if os.path.exists(out):
+            old = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.old-", dir=parent)
+            os.rename(out, os.path.join(old, "report"))
+            os.rename(temp, out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(temp, out)
+    except OSError as error:
+        raise QcError(EXIT_OUTPUT, f"cannot write the report into '{args.output}': {error}")
+    finally:
+        if os.path.isdir(temp):
+            shutil.rmtree(temp, ignore_errors=True)
+    return os.path.join(out, "index.html")
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(
+        prog="qc_report.py",
+        description="Write a QC page (DIR/index.html and PNG plots) for a drivenshape bake: "
+                    "weights, residual, penetrations, popping, and with --eval/--mesh the error "
+                    "to the truth per frame and per vertex.",
+        epilog="Exit codes: 0 ok, 2 usage, 3 input (a file missing or malformed), 4 output.")
+    parser.add_argument("--report", required=True, action="append", metavar="REPORT.json",
+                        help="the bake report (repeat for the chunk reports of a farm bake)")
+    parser.add_argument("--eval", metavar="EVAL.json",
+                        help="`drivenshape eval --json` of this bake: error per frame")
+    parser.add_argument("--mesh", metavar="DRIVEN_REST.obj",
+                        help="the driven rest mesh: draws the per-vertex error heat map "
+                             "(needs a truth: --eval or --truth)")
+    parser.add_argument("--truth", metavar="CACHE",
+                        help="truth cache for the heat map (default: the eval JSON's truth)")
+    parser.add_argument("--bake", metavar="CACHE",
+                        help="baked cache for the heat map (default: the eval JSON's bake, else "
+                             "the report's output pattern, as given or beside the JSON)")
+    parser.add_argument("--units", choices=sorted(UNITS), default="scene",
+                        help="the caches' unit: m, cm or mm shows lengths in mm (default: scene "
+                             "units, as stored)")
+    parser.add_argument("--up-axis", choices=("Y", "Z"), default="Z",
+                        help="up axis of the heat map views (Z, drivenshape's data)")
+    parser.add_argument("--title", help="page title (default: QC: <shot name>)")
+    parser.add_argument("-o", "--output", required=True, metavar="DIR",
+                        help="folder to write index.html and the PNGs into")
+    args = parser.parse_args(argv)
+    if (args.truth or args.bake) and not args.mesh:
+        parser.error("--truth and --bake are for the heat map: give --mesh too")
+    return args
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    try:
+        report = merge_reports(args.report)
+        evaluation = load_eval(args.eval) if args.eval else None
+        errors = None
+        if args.mesh:
+            if not os.path.isfile(args.mesh):
+                raise QcError(EXIT_INPUT, f"mesh '{args.mesh}' does not exist or is not a file")
+            if evaluation:
+                frames = [r["frame"] for r in evaluation["frames"]]
+            else:
+                frames = [r["frame"] for r in report["frames"] if not r.get("skipped")]
+            if not frames:
+                raise QcError(EXIT_INPUT, "no frames to compare with the truth")
+            errors = vertex_errors(drivenshape_module(), args, report, evaluation, frames)
+            if evaluation:
+                check_against_eval(errors, evaluation, args.eval)
+        index = write_report(args, report, evaluation, errors)
+    except QcError as error:
+        print(f"qc_report: {error}", file=sys.stderr)
+        return error.code
+    print(f"qc: {index}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
