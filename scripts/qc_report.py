@@ -92,6 +92,15 @@ def load_report(path):
     return report
 
 
+def residual_key(report):
+    """The report's relative residual: the direct figure (||A w - b|| / ||b|| from the shapes)
+    where the bake wrote it, else the QP objective's (reports of earlier versions)."""
+    baked = [r for r in report["frames"] if not r.get("skipped")]
+    if baked and all("relative_residual_direct" in r for r in baked):
+        return "relative_residual_direct"
+    return "relative_residual"
+
+
 def check_weights(record, shape_count, path):
     """A frame's weights: k numbers, one list of k per region, or none (--weights bind)."""
     weights = record["weights"]
@@ -326,7 +335,7 @@ class Plots:
         return self.save(fig, axes_list[-1], "weights.png")
 
     def residual(self, report):
-        frames, values = records_series(report, "relative_residual")
+        frames, values = records_series(report, residual_key(report))
         if len(frames) == 0 or not solves(report):
             return None
         fig, (axes,) = self.figure(3.0)
@@ -587,7 +596,7 @@ def summary_rows(report, evaluation, errors, error_frames, units):
     def series(key):
         return [(r["frame"], r[key]) for r in baked if is_number(r.get(key))]
 
-    residual = series("relative_residual") if solves(report) else []
+    residual = series(residual_key(report)) if solves(report) else []
     if residual:
         summary.add("residual_mean", "relative residual, mean",
                     fmt(sum(v for _, v in residual) / len(residual)))
@@ -651,9 +660,9 @@ def worst_frames(report, error_frames):
     if error_frames:
         ranked = sorted(error_frames, key=lambda f: (-error_frames[f][1], f))
         return "max error to the truth", ranked[:WORST_FRAMES]
-    residual = [(r["frame"], r["relative_residual"]) for r in report["frames"]
-                if not r.get("skipped") and is_number(r.get("relative_residual"))
-                and solves(report)]
+    key = residual_key(report)
+    residual = [(r["frame"], r[key]) for r in report["frames"]
+                if not r.get("skipped") and is_number(r.get(key)) and solves(report)]
     ranked = sorted(residual, key=lambda p: (-p[1], p[0]))
     return "relative residual", [f for f, _ in ranked[:WORST_FRAMES]]
 
@@ -691,7 +700,7 @@ def frame_table(report, error_frames, coverage, units):
         else:
             cells = [("weights", html.escape(top_weights(record, db_frames)))]
             cells += [("num", fmt(record.get(key))) for key in
-                      ("relative_residual", "inside_corrected", "inside_after", "resolved")]
+                      (residual_key(report), "inside_corrected", "inside_after", "resolved")]
             cells.append(("num", fmt(record.get("max_jump"), scale)))
             if error_frames:
                 known = error_frames.get(frame)
