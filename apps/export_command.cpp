@@ -8,6 +8,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+#include <drivenshape/up_axis.h>
 #include "atomic_file.h"
 
 #include "cli_args.h"
@@ -32,17 +33,33 @@ int sampleStep(const std::vector<int>& frames, const std::string& text) {
   return static_cast<int>(step);
 }
 
+/// The PC2 header stores the start frame and the rate as float32, which holds every whole number
+/// up to 2^24 exactly: past that, the frames a reader computes (start + s * rate) would not be
+/// the frames written.
+void checkFramesFitPc2(const std::vector<int>& frames, const std::string& text) {
+  constexpr int kLargestExactFrame = 1 << 24;
+  for (int frame : frames) {
+    if (frame > kLargestExactFrame || frame < -kLargestExactFrame) {
+      DS_THROW(kUsage, "--frames ", text, ": frame ", frame,
+               " cannot be stored exactly in a PC2 header (float32 start frame); PC2 frames must "
+               "lie within -16777216..16777216");
+    }
+  }
+}
+
 }  // namespace
 
 int runExport(const std::vector<std::string>& args) {
   ArgParser parser(
       "drivenshape export --cache CACHE --frames RANGE [--pc2 OUT.pc2] "
-      "[--obj FIRST.obj --mesh DRIVEN.obj]",
+      "[--obj FIRST.obj --mesh DRIVEN.obj] [--up-axis Z|Y]",
       "Writes a baked result as guides for a cloth simulation: --pc2 writes the frames as one "
       "PC2 point cache (little-endian; header POINTCACHE2, version 1, points, start frame, "
-      "sample rate, samples: what Blender's Mesh Cache modifier, Houdini's and Maya's PC2 "
-      "readers check) to use as goal or pin targets; --obj writes the first frame with the "
-      "faces, UVs and groups of the driven rest mesh, for an initial drape. Files are written "
+      "sample rate, samples: what Blender's Mesh Cache modifier and Maya's PC2 conversion "
+      "read) to use as goal or pin targets; --obj writes the first frame with the "
+      "faces, UVs and groups of the driven rest mesh, for an initial drape. --up-axis Y rotates "
+      "the points of both from drivenshape's Z up to Y up, (x, y, z) -> (x, z, -y), exactly. "
+      "Import settings for Blender, Houdini and Maya: docs/conventions.md. Files are written "
       "atomically (a temporary file renamed into place).");
   parser.option("--cache", "CACHE", "the result to export (.pc2 or name.####.exr)", "", true)
       .option("--frames", "RANGE",
@@ -52,6 +69,10 @@ int runExport(const std::vector<std::string>& args) {
       .option("--mesh", "DRIVEN.obj",
               "driven rest mesh: its faces, UVs and groups for --obj, and the topology an EXR "
               "cache must carry")
+      .option("--up-axis", "Z|Y",
+              "up axis of the written points: Z keeps them as they are (drivenshape's axis); Y "
+              "rotates them -90 degrees about X, (x, y, z) -> (x, z, -y), for Y-up tools",
+              "Z")
       .flag("--quiet", "no progress lines")
       .epilog("Exit codes: 0 ok, 2 usage, 3 input, 4 output.");
   if (!parser.parse(args)) {
@@ -66,10 +87,12 @@ int runExport(const std::vector<std::string>& args) {
   if (wantObj && !parser.has("--mesh")) {
     DS_THROW(kUsage, "--obj needs --mesh DRIVEN.obj (the rest mesh whose faces and UVs to keep)");
   }
+  const UpAxis upAxis = parseUpAxis(parser.get("--up-axis"), "--up-axis");
   const std::string rangeText = parser.get("--frames");
   const std::vector<int> frames = parseFrameRange(rangeText);
   const int step = wantPc2 ? sampleStep(frames, rangeText) : 1;
   if (wantPc2) {
+    checkFramesFitPc2(frames, rangeText);
     checkOutputFolderWritable(parser.get("--pc2"));
   }
   if (wantObj) {
@@ -98,11 +121,12 @@ int runExport(const std::vector<std::string>& args) {
   const bool quiet = parser.has("--quiet");
   if (wantObj) {
     cache->readFrame(frames.front(), xyz.data());
+    convertUpAxis(xyz.data(), static_cast<std::size_t>(vertexCount), UpAxis::kZ, upAxis);
     mesh->positions = Eigen::Map<const Positions>(xyz.data(), vertexCount, 3);
     writeObj(parser.get("--obj"), *mesh);
     std::cout << "wrote " << parser.get("--obj") << " (frame " << frames.front() << ", "
               << vertexCount << " vertices, " << mesh->faceCount() << " faces"
-              << (mesh->hasUvs() ? ", UVs" : "") << ")\n";
+              << (mesh->hasUvs() ? ", UVs" : "") << ", " << upAxisName(upAxis) << " up)\n";
   }
   if (wantPc2) {
     const std::string out = parser.get("--pc2");
@@ -110,6 +134,7 @@ int runExport(const std::vector<std::string>& args) {
                      static_cast<int>(frames.size()), static_cast<float>(step));
     for (std::size_t i = 0; i < frames.size(); ++i) {
       cache->readFrame(frames[i], xyz.data());
+      convertUpAxis(xyz.data(), static_cast<std::size_t>(vertexCount), UpAxis::kZ, upAxis);
       writer.writeFrame(xyz.data());
       if (!quiet && (i + 1) % 100 == 0) {
         std::cerr << "export: " << i + 1 << " of " << frames.size() << " frames\n";
@@ -118,7 +143,7 @@ int runExport(const std::vector<std::string>& args) {
     writer.commit();
     std::cout << "wrote " << out << " (" << frames.size() << " frames " << formatFrameRange(frames)
               << ", start " << frames.front() << ", sample rate " << step << ", " << vertexCount
-              << " points)\n";
+              << " points, " << upAxisName(upAxis) << " up)\n";
   }
   return 0;
 }

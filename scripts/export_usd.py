@@ -11,8 +11,9 @@ stage's timeCodesPerSecond is --fps (for EXR input, the files' framesPerSecond b
   .venv/bin/python scripts/export_usd.py --mesh driven_rest.obj --pc2 guides.pc2 -o guides.usda
 
 The stage is written by the drivenshape Python module's `drivenshape.usd.write_mesh_usd` (the
-one USD writer; found on PYTHONPATH or in build/python), with Z up and metersPerUnit 1 unless
---up-axis says otherwise. Needs usd-core, numpy and OpenEXR (scripts/requirements.txt, installed
+one USD writer; found on PYTHONPATH or in build/python), with metersPerUnit 1 and Z up, the
+axis of drivenshape's caches; --up-axis Y writes a Y-up stage and rotates the points to match,
+(x, y, z) -> (x, z, -y), exactly (docs/conventions.md). Needs usd-core, numpy and OpenEXR (scripts/requirements.txt, installed
 into .venv by scripts/setup.sh). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
 """
 
@@ -198,10 +199,11 @@ def drivenshape_usd():
 
 
 def write_usd(path, mesh, frames, positions, fps, prim_path, up_axis):
+    """The points (EXR or PC2 from drivenshape) are Z up; a Y-up stage gets them rotated."""
     usd = drivenshape_usd()
     try:
         usd.write_mesh_usd(path, mesh, frames, positions, prim_path=prim_path, fps=fps,
-                           up_axis=up_axis, meters_per_unit=1.0)
+                           up_axis=up_axis, meters_per_unit=1.0, points_up_axis="Z")
     except usd.Error as error:
         raise ExportError(error.code, str(error))
 
@@ -220,7 +222,9 @@ def main(argv=None):
                                                   "framesPerSecond, else 24)")
     parser.add_argument("--prim", default="/Garment/Mesh", help="mesh prim path (/Garment/Mesh)")
     parser.add_argument("--up-axis", choices=("Y", "Z"), default="Z",
-                        help="stage up axis (Z, as the caches Blender writes)")
+                        help="stage upAxis: Z (default) keeps the points as they are, the axis "
+                             "of drivenshape's caches; Y rotates them to Y up, (x, y, z) -> "
+                             "(x, z, -y), exactly")
     parser.add_argument("-o", "--output", required=True, help="OUT.usd, .usda or .usdc")
     args = parser.parse_args(argv)
     try:
@@ -249,7 +253,8 @@ def main(argv=None):
         write_usd(args.output, mesh, [float(f) for f in frames], positions, fps or 24.0,
                   args.prim, args.up_axis)
         print(f"wrote {args.output}: {args.prim}, {vertex_count} points, {len(frames)} time "
-              f"samples ({frames[0]:g}-{frames[-1]:g}) at {fps or 24.0:g} fps")
+              f"samples ({frames[0]:g}-{frames[-1]:g}) at {fps or 24.0:g} fps, "
+              f"{args.up_axis} up")
         return 0
     except ExportError as error:
         print(f"export_usd: {error}", file=sys.stderr)

@@ -11,6 +11,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+#include <drivenshape/up_axis.h>
 
 namespace drivenshape::python {
 
@@ -214,6 +215,24 @@ py::dict exrInfoDict(const ExrPointCacheInfo& info) {
   return out;
 }
 
+/// `convert_up_axis`: a float32 copy of positions (..., 3) rotated between the up axes.
+py::object convertUpAxisCopy(py::handle positions, const std::string& fromAxis,
+                             const std::string& toAxis) {
+  const UpAxis from = parseUpAxis(fromAxis, "from_axis");
+  const UpAxis to = parseUpAxis(toAxis, "to_axis");
+  const FloatArray array(positions, "positions");
+  if (array.ndim() < 1 || array.dim(array.ndim() - 1) != 3) {
+    DS_THROW(kUsage, "positions must be shaped (..., 3); got ", array.describe());
+  }
+  std::vector<py::ssize_t> shape;
+  for (int axis = 0; axis < array.ndim(); ++axis) {
+    shape.push_back(array.dim(axis));
+  }
+  std::vector<float> xyz(array.data(), array.data() + array.size());
+  convertUpAxis(xyz.data(), xyz.size() / 3, from, to);
+  return ownedArray(std::move(xyz), std::move(shape));
+}
+
 }  // namespace
 
 std::shared_ptr<PointCacheReader> makeArrayCache(py::handle positions, int startFrame,
@@ -327,6 +346,12 @@ void bindMeshes(py::module_& module) {
         writeObj(file, mesh);
       },
       py::arg("path"), py::arg("mesh"), "Writes positions, faces, UVs and groups as OBJ.");
+  module.def("convert_up_axis", &convertUpAxisCopy, py::arg("positions"), py::arg("from_axis"),
+             py::arg("to_axis"),
+             "A float32 copy of positions (..., 3) rotated from the up axis from_axis to to_axis "
+             "('Y' or 'Z'): Z -> Y is (x, y, z) -> (x, z, -y), Y -> Z its inverse (x, y, z) -> "
+             "(x, -z, y). Values are only moved and negated, never rounded: the conversion is "
+             "exact.");
 }
 
 void bindPointCaches(py::module_& module) {

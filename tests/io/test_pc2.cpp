@@ -166,6 +166,17 @@ TEST(Pc2, StartFrameAndFractionalSamples) {
   const std::string negative = dir.file("negative.pc2");
   writeBytes(negative, pc2Bytes(kPoints, -2.0f, 1.0f, 3, randomFloats(kPoints * 9, 7)));
   EXPECT_EQ(openPc2(negative)->frames(), (std::vector<int>{-2, -1, 0}));
+
+  // A rate float32 cannot hold (1/3 is stored as 0.33333334): every third sample from 1001 is
+  // still a whole frame (docs/conventions.md), the ones between are not.
+  const std::string third = dir.file("third.pc2");
+  const std::vector<float> thirds = randomFloats(kPoints * 3 * 31, testSeed() + 3);
+  writeBytes(third, pc2Bytes(kPoints, 1001.0f, 1.0f / 3.0f, 31, thirds));
+  const auto thirdCache = openPc2(third);
+  EXPECT_EQ(thirdCache->frames(),
+            (std::vector<int>{1001, 1002, 1003, 1004, 1005, 1006, 1007, 1008, 1009, 1010, 1011}));
+  thirdCache->readFrame(1010, frame.data());
+  expectBitwiseEqual(frame.data(), thirds.data() + 27 * kPoints * 3, frame.size());
 }
 
 TEST(Pc2, FrameOutsideTheCacheNamesFileFrameAndRange) {

@@ -2,7 +2,10 @@
 """scripts/export_usd.py end to end: files the tool writes (point-cache EXRs through the library,
 PC2 + OBJ through `drivenshape export`) go through the script, and usd-core (pxr) reads back the
 same points at a given time, the extents, the faces and the UVs. The expected positions come
-from the bundled PC2, decoded here byte by byte. Any mismatch exits non-zero."""
+from the bundled PC2, decoded here byte by byte. With --up-axis Y (both tools) the stage says Y
+up and its points are the Z-up points rotated, (x, y, z) -> (x, z, -y), bit for bit: the same
+bits as `drivenshape export --up-axis Y` writes, and every written stage passes usd-core's
+validators. Any mismatch exits non-zero."""
 
 import argparse
 import os
@@ -10,7 +13,7 @@ import subprocess
 import sys
 
 import numpy as np
-from pxr import Usd, UsdGeom
+from pxr import Usd, UsdGeom, UsdValidation
 
 
 def fail(message):
@@ -26,6 +29,25 @@ def pc2_frames(path):
     samples = int(np.frombuffer(data[28:32], "<i4")[0])
     xyz = np.frombuffer(data, "<f4", offset=32).reshape(samples, points, 3)
     return {round(start + s * rate): xyz[s] for s in range(samples)}
+
+
+def z_up_to_y_up(xyz):
+    """(x, y, z) -> (x, z, -y) on the float32 bit patterns: the sign flip is bit 31."""
+    bits = np.ascontiguousarray(xyz, dtype=np.float32).view(np.uint32)
+    out = np.stack([bits[..., 0], bits[..., 2], bits[..., 1] ^ np.uint32(0x80000000)], axis=-1)
+    return np.ascontiguousarray(out).view(np.float32)
+
+
+def same_bits(a, b):
+    a, b = np.asarray(a, dtype=np.float32), np.asarray(b, dtype=np.float32)
+    return a.shape == b.shape and np.array_equal(a.view(np.uint32), b.view(np.uint32))
+
+
+def validation_errors(path):
+    """What every registered usd-core validator says about the stage."""
+    validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
+    errors = UsdValidation.ValidationContext(validators).Validate(Usd.Stage.Open(str(path)))
+    return [f"{e.GetName()}: {e.GetMessage()}" for e in errors]
 
 
 def obj_faces(path):
@@ -48,10 +70,15 @@ def run(command, expect=0):
     return result
 
 
-def check_stage(path, mesh_path, expected, fps):
+def check_stage(path, mesh_path, expected, fps, up_axis="Z"):
     stage = Usd.Stage.Open(path)
     if stage is None:
         fail(f"usd-core cannot open {path}")
+    if UsdGeom.GetStageUpAxis(stage) != up_axis:
+        fail(f"{path}: upAxis {UsdGeom.GetStageUpAxis(stage)}, expected {up_axis}")
+    errors = validation_errors(path)
+    if errors:
+        fail(f"{path}: usd-core's validators complain: {errors}")
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Mesh"))
     if not mesh:
         fail(f"{path}: no UsdGeomMesh at /Garment/Mesh")
@@ -71,7 +98,7 @@ def check_stage(path, mesh_path, expected, fps):
         fail(f"{path}: time samples {times}, expected frames {sorted(expected)}")
     for frame, xyz in expected.items():
         points = np.array(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
-        if points.shape != xyz.shape or not np.array_equal(points, xyz):
+        if not same_bits(points, xyz):
             worst = np.abs(points - xyz).max() if points.shape == xyz.shape else "shape"
             fail(f"{path}: points at time {frame} differ from the cache (worst {worst})")
         extent = np.array(mesh.GetExtentAttr().Get(frame), dtype=np.float32)
@@ -116,6 +143,39 @@ def main():
     run([python, args.script, "--mesh", first, "--pc2", pc2, "--fps", "24", "-o", usda])
     check_stage(usda, rest, {f: truth[f] for f in range(10, 21, 2)}, 24.0)
 
+    # 2b. Y up: `drivenshape export --up-axis Y` rotates the PC2 and the OBJ; export_usd.py
+    #     --up-axis Y rotates the Z-up EXRs and PC2 it reads. All of them hold the truth's points
+    #     rotated, (x, y, z) -> (x, z, -y), bit for bit, and the stages say upAxis = "Y".
+    pc2_y = os.path.join(args.work, "guides_y.pc2")
+    first_y = os.path.join(args.work, "drape_y.obj")
+    run([args.cli, "export", "--cache", cache, "--frames", "10-20x2", "--pc2", pc2_y, "--obj",
+         first_y, "--mesh", rest, "--up-axis", "Y", "--quiet"])
+    rotated = {f: z_up_to_y_up(truth[f]) for f in range(10, 21, 2)}
+    exported = pc2_frames(pc2_y)
+    if sorted(exported) != sorted(rotated) or not all(same_bits(exported[f], rotated[f])
+                                                      for f in rotated):
+        fail("`drivenshape export --up-axis Y` PC2 is not the rotated truth bit for bit")
+    obj_points = np.array([line.split()[1:4] for line in open(first_y) if line.startswith("v ")],
+                          dtype=np.float32)
+    if not same_bits(obj_points, rotated[10]):
+        fail("`drivenshape export --up-axis Y` OBJ is not the rotated first frame bit for bit")
+    usd_y = os.path.join(args.work, "from_exr_y.usda")
+    run([python, args.script, "--mesh", rest, "--exr", exr, "--frames", "3-7", "--up-axis", "Y",
+         "-o", usd_y])
+    check_stage(usd_y, rest, {f: z_up_to_y_up(truth[f]) for f in range(3, 8)}, 25.0, "Y")
+    usd_y = os.path.join(args.work, "from_pc2_y.usdc")
+    run([python, args.script, "--mesh", first, "--pc2", pc2, "--fps", "24", "--up-axis", "Y",
+         "-o", usd_y])
+    check_stage(usd_y, rest, exported, 24.0, "Y")  # the CLI's Y-up PC2, bit for bit
+    result = run([args.cli, "export", "--cache", cache, "--frames", "10-20", "--pc2",
+                  os.path.join(args.work, "never.pc2"), "--up-axis", "X"], expect=2)
+    if "--up-axis 'X'" not in result.stderr:
+        fail(f"a bad --up-axis is not named in the error: {result.stderr}")
+    result = run([python, args.script, "--mesh", rest, "--pc2", pc2, "--up-axis", "X", "-o",
+                  os.path.join(args.work, "never.usda")], expect=2)
+    if "--up-axis" not in result.stderr:
+        fail(f"export_usd.py's bad --up-axis error does not name the flag: {result.stderr}")
+
     # 3. Bad input: a mesh with another vertex count is an input error (exit 3), no file left.
     bad = os.path.join(args.work, "bad.usda")
     result = run([python, args.script, "--mesh", os.path.join(args.data, "sleeve",
@@ -139,7 +199,8 @@ def main():
     leftovers = [n for n in os.listdir(args.work) if ".tmp-" in n]
     if leftovers:
         fail(f"temporary files left behind: {leftovers}")
-    print("test_export_usd: EXR and PC2 exports read back identically with usd-core")
+    print("test_export_usd: EXR and PC2 exports, Z and Y up, read back identically with "
+          "usd-core")
 
 
 if __name__ == "__main__":

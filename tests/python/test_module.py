@@ -127,6 +127,28 @@ def test_pc2_round_trip(tmp_path):
         assert_bitwise(parse_pc2(tmp_path / name)[0], positions, name)
 
 
+def test_convert_up_axis_is_exact(data):
+    positions, _, _ = parse_pc2(data / "test.driven.pc2")
+    positions = positions[:4].copy()
+    positions[0, 0] = [-0.0, 0.0, 1e-42]  # signed zeros and a denormal keep their bits too
+    # The expected rotation on the bit patterns: Z up -> Y up is (x, y, z) -> (x, z, -y).
+    bits = positions.view(np.uint32)
+    expected = np.stack([bits[..., 0], bits[..., 2], bits[..., 1] ^ np.uint32(0x80000000)],
+                        axis=-1).view(np.float32)
+    rotated = ds.convert_up_axis(positions, "Z", "Y")
+    assert_bitwise(rotated, expected, "convert_up_axis Z -> Y")
+    assert_bitwise(ds.convert_up_axis(rotated, "Y", "Z"), positions, "Y -> Z round trip")
+    assert_bitwise(ds.convert_up_axis(positions[1], "Z", "Z"), positions[1], "Z -> Z")
+    assert_bitwise(ds.convert_up_axis(positions.astype(np.float64), "Z", "Y"), expected,
+                   "float64 input")
+    assert rotated.base is not positions  # a copy: the input is never changed
+    with pytest.raises(ds.Error, match="to_axis 'X'") as error:
+        ds.convert_up_axis(positions, "Z", "X")
+    assert error.value.kind == "usage" and error.value.code == 2
+    with pytest.raises(ds.Error, match=r"\(\.\.\., 3\)"):
+        ds.convert_up_axis(np.zeros((4, 2), np.float32), "Z", "Y")
+
+
 def test_point_cache_exr_round_trip_read_by_openexr(tmp_path):
     rng = np.random.default_rng(16)
     positions = rng.standard_normal((2500, 3)).astype(np.float32)

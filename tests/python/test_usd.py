@@ -24,6 +24,13 @@ def validation_errors(path):
     return [f"{e.GetName()} ({e.GetType()}): {e.GetMessage()}" for e in errors]
 
 
+def z_up_to_y_up(xyz):
+    """(x, y, z) -> (x, z, -y) on the float32 bit patterns (the sign flip is bit 31)."""
+    bits = np.ascontiguousarray(xyz, dtype=np.float32).view(np.uint32)
+    out = np.stack([bits[..., 0], bits[..., 2], bits[..., 1] ^ np.uint32(0x80000000)], axis=-1)
+    return np.ascontiguousarray(out).view(np.float32)
+
+
 def usd_bake(*args, expect=0):
     command = [sys.executable, "-m", "drivenshape.usd", "bake", *map(str, args)]
     result = subprocess.run(command, capture_output=True, text=True, env=os.environ)
@@ -98,12 +105,63 @@ def test_usd_bake_through_the_api_on_the_host(driver_usd, cli_bakes, database, t
     reference = cli_bakes.frames("host", [3, 4, 5, 9], reader="openexr")
     stage = Usd.Stage.Open(str(out))
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Cloth"))
+    # The driver stage is Z up (write_mesh_usd's default), the output Y up: the cloth's points
+    # are the bake's rotated, (x, y, z) -> (x, z, -y), bit for bit (built here on the bits).
     for index, frame in enumerate([3, 4, 5, 9]):
         points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
-        assert_bitwise(points, reference[index], f"host USD cloth at frame {frame}")
+        assert_bitwise(points, z_up_to_y_up(reference[index]), f"host USD cloth at {frame}")
     assert UsdGeom.GetStageUpAxis(stage) == "Y" and UsdGeom.GetStageMetersPerUnit(stage) == 0.01
     assert stage.GetTimeCodesPerSecond() == 25.0
     assert validation_errors(out) == []
+
+
+def test_write_mesh_usd_converts_points_to_the_stage_axis(database, data, tmp_path):
+    cloth, _, _ = parse_pc2(data / "test.driven.pc2")
+    frames = [1, 2, 3]
+    # drivenshape's Z-up points into a Y-up stage: rotated, exactly.
+    path = tmp_path / "y_up.usda"
+    usd.write_mesh_usd(path, database.driven_mesh, frames, cloth[:3], up_axis="Y",
+                       points_up_axis="Z")
+    stage = Usd.Stage.Open(str(path))
+    assert UsdGeom.GetStageUpAxis(stage) == "Y"
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Mesh"))
+    for index, frame in enumerate(frames):
+        points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(points, z_up_to_y_up(cloth[index]), f"Y-up points at {frame}")
+        extent = np.asarray(mesh.GetExtentAttr().Get(frame), dtype=np.float32)
+        rotated = z_up_to_y_up(cloth[index])
+        assert_bitwise(extent, np.stack([rotated.min(0), rotated.max(0)]), "Y-up extent")
+    assert validation_errors(path) == []
+    # Points already in the stage's axis (points_up_axis None or equal) are written as given.
+    for points_axis in (None, "Y"):
+        same = tmp_path / f"as_given_{points_axis}.usda"
+        usd.write_mesh_usd(same, database.driven_mesh, [1], cloth[:1], up_axis="Y",
+                           points_up_axis=points_axis)
+        same_stage = Usd.Stage.Open(str(same))  # kept: the prim lives as long as its stage
+        mesh = UsdGeom.Mesh(same_stage.GetPrimAtPath("/Garment/Mesh"))
+        assert_bitwise(np.asarray(mesh.GetPointsAttr().Get(1), dtype=np.float32), cloth[0],
+                       f"points_up_axis={points_axis}")
+    with pytest.raises(ds.Error, match="points up axis 'X'"):
+        usd.write_mesh_usd(tmp_path / "bad.usda", database.driven_mesh, [1], cloth[:1],
+                           points_up_axis="X")
+
+
+def test_usd_bake_up_axis_flag_rotates_the_cloth(driver_usd, cli_bakes, tmp_path):
+    out = tmp_path / "cloth_y.usda"
+    usd_bake("--db", cli_bakes.database, "--usd", driver_usd, "--prim", "/Character/Arm",
+             "--out", out, "--frames", "3-5", "--device", "host", "--up-axis", "Y", "--quiet")
+    reference = cli_bakes.frames("host", [3, 4, 5], reader="openexr")
+    stage = Usd.Stage.Open(str(out))
+    assert UsdGeom.GetStageUpAxis(stage) == "Y"
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Mesh"))
+    for index, frame in enumerate([3, 4, 5]):
+        points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(points, z_up_to_y_up(reference[index]), f"--up-axis Y cloth at {frame}")
+    assert validation_errors(out) == []
+    result = usd_bake("--db", cli_bakes.database, "--usd", driver_usd, "--prim",
+                      "/Character/Arm", "--out", tmp_path / "never.usda", "--up-axis", "X",
+                      expect=2)
+    assert "--up-axis" in result.stderr
 
 
 def test_the_validators_do_find_problems(tmp_path):

@@ -35,6 +35,7 @@ from ._drivenshape import (  # noqa: F401
     RegionSet,
     __version__,
     build_database,
+    convert_up_axis,
     expand_frame_pattern,
     format_frame_range,
     list_devices,
@@ -94,9 +95,9 @@ del _type
 __all__ = [
     "BindingMask", "Database", "Device", "Error", "Evaluator", "EvaluatorSettings", "FrameRecord",
     "LayerSettings", "Mesh", "PointCache", "RegionSet", "__version__", "build_database",
-    "evaluate_cache", "expand_frame_pattern", "format_frame_range", "list_devices",
-    "load_binding_mask", "load_database", "load_layers", "load_regions", "open_device",
-    "open_point_cache", "parse_binding_mask", "parse_frame_range", "parse_regions", "read_obj",
-    "read_pc2", "read_point_cache_exr", "read_point_cache_exr_info", "save_database", "write_obj",
-    "write_pc2", "write_point_cache_exr",
+    "convert_up_axis", "evaluate_cache", "expand_frame_pattern", "format_frame_range",
+    "list_devices", "load_binding_mask", "load_database", "load_layers", "load_regions",
+    "open_device", "open_point_cache", "parse_binding_mask", "parse_frame_range", "parse_regions",
+    "read_obj", "read_pc2", "read_point_cache_exr", "read_point_cache_exr_info", "save_database",
+    "write_obj", "write_pc2", "write_point_cache_exr",
 ]

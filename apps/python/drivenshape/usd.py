@@ -22,7 +22,9 @@ or from a shell (python -m drivenshape.usd bake --help):
         --out cloth.usdc
 
 Points are read and written as float32 exactly (no unit conversion, no interpolation): the
-driver, the database and the cloth share one scene unit. Exit codes of the command: 0 ok,
+driver, the database and the cloth share one scene unit. An output up axis other than the
+points' own rotates them about X (Z up -> Y up: (x, y, z) -> (x, z, -y)), which is exact too
+(drivenshape.convert_up_axis: values are moved and negated, never rounded). Exit codes of the command: 0 ok,
 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical (those of the drivenshape command
 line).
 """
@@ -35,7 +37,7 @@ import tempfile
 
 import numpy as np
 
-from . import Error, Mesh, PointCache
+from . import Error, Mesh, PointCache, convert_up_axis
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 0, 2, 3, 4
 _CODES = {"usage": EXIT_USAGE, "input": EXIT_INPUT, "output": EXIT_OUTPUT}
@@ -249,13 +251,20 @@ def _check_output(path):
 
 
 def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", fps=24.0,
-                   up_axis=DEFAULT_UP_AXIS, meters_per_unit=DEFAULT_METERS_PER_UNIT):
+                   up_axis=DEFAULT_UP_AXIS, meters_per_unit=DEFAULT_METERS_PER_UNIT,
+                   points_up_axis=None):
     """Writes a UsdGeomMesh at `prim_path` (its parent an Xform, the root the default prim)
     with points (F, V, 3) at time codes `frames` and their extent per sample, faces, UVs
     (primvars:st, face-varying) and face groups (UsdGeomSubsets, when there are several) of
     `mesh` (a drivenshape.Mesh, or a dict with counts, indices, uvs, groups), the stage's
     upAxis, metersPerUnit, time codes per second and frame range. The file (.usd, .usda,
-    .usdc) appears atomically. Points are written as float32 exactly."""
+    .usdc) appears atomically. Points are written as float32 exactly.
+
+    up_axis is the stage's upAxis ('Y' or 'Z'); points_up_axis the axis `positions` are in.
+    When they differ the points are rotated about X to up_axis (convert_up_axis: Z -> Y is
+    (x, y, z) -> (x, z, -y), exact); None (the default) means the positions are already in
+    up_axis and are written as given. drivenshape's own results are Z up: pass
+    points_up_axis="Z" to write them into a Y-up stage."""
     Sdf, Usd, UsdGeom, Vt = _pxr()
     path = os.fspath(path)
     counts, indices, uvs, groups = _mesh_arrays(mesh)
@@ -278,6 +287,10 @@ def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", 
                               "not finite")
     if up_axis not in ("Y", "Z"):
         raise _error("usage", f"up axis '{up_axis}' is not Y or Z")
+    if points_up_axis not in (None, "Y", "Z"):
+        raise _error("usage", f"points up axis '{points_up_axis}' is not Y or Z")
+    if points_up_axis is not None and points_up_axis != up_axis:
+        positions = convert_up_axis(positions, points_up_axis, up_axis)
     if not meters_per_unit > 0:
         raise _error("usage", f"meters per unit {meters_per_unit} is not positive")
     _check_prim_path(prim_path)
@@ -347,8 +360,10 @@ def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto"
     mesh, evaluates them as `drivenshape bake` does (evaluate_cache: batches of `batch` frames,
     the temporal bound restarted per batch after `temporal_warmup` frames) and writes the cloth
     with write_mesh_usd. up_axis, meters_per_unit and fps default to the input stage's (Z, 1
-    and its time codes per second where it authors none). Returns a dict summary (frames,
-    device, note, seconds per stage, records)."""
+    and its time codes per second where it authors none). The cloth comes out in the driver's
+    axis (the input stage's upAxis, Z where it authors none); an up_axis other than that rotates
+    the cloth's points to it, exactly (write_mesh_usd's points_up_axis). Returns a dict summary
+    (frames, device, note, seconds per stage, records)."""
     import drivenshape as ds
 
     _check_output(out_path)  # before the evaluation, not after it
@@ -367,11 +382,11 @@ def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto"
     cloth, records, seconds = ds.evaluate_cache(evaluator, shot.cache(), shot.frames,
                                                 batch=batch, temporal_warmup=temporal_warmup,
                                                 with_seconds=True)
+    driver_axis = shot.up_axis or DEFAULT_UP_AXIS
     write_mesh_usd(out_path, db.driven_mesh, shot.frames, cloth, prim_path=out_prim,
-                   fps=fps or shot.time_codes_per_second,
-                   up_axis=up_axis or shot.up_axis or DEFAULT_UP_AXIS,
+                   fps=fps or shot.time_codes_per_second, up_axis=up_axis or driver_axis,
                    meters_per_unit=meters_per_unit or shot.meters_per_unit or
-                   DEFAULT_METERS_PER_UNIT)
+                   DEFAULT_METERS_PER_UNIT, points_up_axis=driver_axis)
     return {"frames": shot.frames, "device": evaluator.device_name, "seconds": seconds,
             "records": records, "note": target.note}
 
@@ -412,7 +427,9 @@ def _parser():
     add("--out-prim", metavar="PATH", default="/Garment/Mesh",
         help="cloth prim path [default: /Garment/Mesh]")
     add("--up-axis", choices=("Y", "Z"),
-        help="upAxis of the output [default: the input stage's, else Z]")
+        help="upAxis of the output; the cloth's points are rotated to it from the input stage's "
+             "axis when they differ (Z -> Y: (x, y, z) -> (x, z, -y), exact) [default: the input "
+             "stage's, else Z]")
     add("--meters-per-unit", metavar="M", type=float,
         help="metersPerUnit of the output [default: the input stage's, else 1]")
     add("--fps", metavar="FPS", type=float,

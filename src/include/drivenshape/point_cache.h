@@ -54,8 +54,9 @@ std::unique_ptr<PointCacheReader> openPc2(const std::string& path);
 
 /// Writes frames (F by 3V floats, frame-major) as PC2 starting at `startFrame`, one sample every
 /// `sampleRate` frames (1 = consecutive frames; 2 for 1001-1100x2), atomically. The header is
-/// what Blender's, Houdini's and Maya's PC2 readers check: "POINTCACHE2\0", version 1, points,
-/// start frame, sample rate, sample count. Throws Error(kUsage) for a rate that is not positive.
+/// what Blender's Mesh Cache modifier and Maya's PC2 conversion read: "POINTCACHE2\0", version 1,
+/// points, start frame, sample rate, sample count. Throws Error(kUsage) for a rate that is not
+/// positive.
 void writePc2(const std::string& path, int vertexCount, float startFrame, int frameCount,
               const float* xyz, float sampleRate = 1.0f);
 
