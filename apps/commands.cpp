@@ -108,6 +108,13 @@ void infoPositionMap(const std::string& path) {
             << ", " << info.framesPerSecond << " fps\n"
             << "  bounds (" << info.bounds.min.transpose() << ") - (" << info.bounds.max.transpose()
             << ")\n";
+  const std::vector<std::string> names = positionMapChannelNames(info.channels, info.hasNormals);
+  std::cout << "  channels (" << positionMapChannelsName(info.channels) << "): " << names[0] << " "
+            << names[1] << " " << names[2] << " = position, " << names[3] << " = coverage";
+  if (info.hasNormals) {
+    std::cout << ", " << names[4] << " " << names[5] << " " << names[6] << " = normals";
+  }
+  std::cout << "\n";
 }
 
 /// A single EXR: a position map or a point cache, by its header.
@@ -382,7 +389,11 @@ int runBake(const std::vector<std::string>& args) {
       .option("--posmap-out", "PATTERN", "position-map EXR sequence",
               "OUT with .posmap before the frame token")
       .option("--posmap-padding", "N", "texels of padding around UV islands", "8")
-      .flag("--posmap-normals", "add N.X N.Y N.Z to the position maps")
+      .option("--posmap-channels", "NAMING",
+              "position-map channels: rgba (R G B, A, N.R N.G N.B) or legacy (P.X P.Y P.Z, A, "
+              "N.X N.Y N.Z)",
+              "rgba")
+      .flag("--posmap-normals", "add the normals (N.R N.G N.B) to the position maps")
       .flag("--skip-existing", "keep outputs that are complete and match this bake")
       .flag("--force",
             "bake a driver the sanity check refuses (another scale than the database's, or "
@@ -547,6 +558,7 @@ int bakeParsed(const ArgParser& parser) {
         parsePositionMapResolution(parser.get("--posmap"), "--posmap");
     maps.padding = parser.getInt("--posmap-padding", 0);
     maps.normals = parser.has("--posmap-normals");
+    maps.channels = parsePositionMapChannels(parser.get("--posmap-channels"), "--posmap-channels");
     maps.compression = options.compression;
     maps.framesPerSecond = options.framesPerSecond;
     maps.threads = options.threads;

@@ -22,11 +22,12 @@ int runPosmap(const std::vector<std::string>& args) {
   ArgParser parser(
       "drivenshape posmap --mesh M.obj --cache CACHE --frames RANGE --res W[xH] -o OUT.####.exr",
       "Writes position maps for compositing: per frame, a UV-space EXR whose texels hold the "
-      "world position (P.X P.Y P.Z) interpolated from the mesh triangle under the texel centre, "
-      "a coverage channel A (1 on covered texels, 0 elsewhere, padding included) and, with "
-      "--normals, area-weighted normals (N.X N.Y N.Z). Islands are padded by --padding texels: "
-      "each padded texel copies its nearest covered texel (chessboard distance). Row 0 of the "
-      "image is the top, v = 1; UVs outside [0, 1] are refused.");
+      "world position (R G B) interpolated from the mesh triangle under the texel centre, "
+      "a coverage alpha A (1 on covered texels, 0 elsewhere, padding included) and, with "
+      "--normals, area-weighted normals (layer N: N.R N.G N.B). Islands are padded by --padding "
+      "texels: each padded texel copies its nearest covered texel (chessboard distance); "
+      "texels beyond hold 0. Row 0 of the image is the top, v = 1; UVs outside [0, 1] are "
+      "refused. --channels legacy writes the former names P.X P.Y P.Z, A, N.X N.Y N.Z.");
   parser.option("--mesh", "M.obj", "mesh with UVs (vertex order of the cache)", "", true)
       .option("--cache", "CACHE", "positions per frame (.pc2 or name.####.exr)", "", true)
       .option("--frames", "RANGE", "frames to write: 1001-1100, 1001-1100x2, 1001,1005", "", true)
@@ -38,7 +39,9 @@ int runPosmap(const std::vector<std::string>& args) {
       .option("--fps", "X", "frames per second written to the EXR headers", "24")
       .option("--threads", "N", "files written at once (0 = all cores)", "0")
       .option("--chunk", "N", "frames per kernel launch (0 = as many as fit in 256 MiB)", "0")
-      .flag("--normals", "also write N.X N.Y N.Z (FLOAT)")
+      .option("--channels", "NAMING",
+              "rgba (R G B, A, N.R N.G N.B) or legacy (P.X P.Y P.Z, A, N.X N.Y N.Z)", "rgba")
+      .flag("--normals", "also write the normals N.R N.G N.B (FLOAT)")
       .flag("--half-normals", "write the normals as HALF (implies --normals)")
       .flag("--preview", "also write OUT.####.png, P mapped to colours, for eyeballing")
       .flag("--quiet", "no progress or per-frame lines")
@@ -59,6 +62,7 @@ int runPosmap(const std::vector<std::string>& args) {
   options.framesPerSecond = parser.getDouble("--fps", 1e-3);
   options.threads = parser.getInt("--threads", 0);
   options.chunkSize = parser.getInt("--chunk", 0);
+  options.channels = parsePositionMapChannels(parser.get("--channels"), "--channels");
   const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
   const std::string output = parser.get("-o");
   if (!hasFramePattern(output)) {

@@ -120,6 +120,7 @@ void PositionMapWriter::writeChunk(int count, const int* frames, const float* xy
     header.compression = mOptions.compression;
     header.framesPerSecond = mOptions.framesPerSecond;
     header.halfNormals = mOptions.halfNormals;
+    header.channels = mOptions.channels;
     const float* positions = mPositions.data() + f * mapFloats;
     writePositionMapExr(paths[i], mTables.width, mTables.height, positions, mTables.coverage.data(),
                         mOptions.normals ? mNormals.data() + f * mapFloats : nullptr, header);

@@ -13,6 +13,8 @@
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <optional>
@@ -40,7 +42,59 @@ constexpr const char* kAttrUvLayout = "dsUvLayout";
 constexpr const char* kUvLayoutValue =
     "texel (x,y) centre = (u,v) = ((x+0.5)/W, 1-(y+0.5)/H); row 0 is v = 1 (top)";
 
+/// The channel names of one naming. kRgba: the position is the default (colour) layer, so
+/// OpenImageIO lists it first and shows it, Nuke reads it as rgba, and OpenEXR's Python module
+/// hands out "RGBA" and "N" arrays. kLegacy: the point cache's names (io/exr_common.h).
+struct ChannelNames {
+  const char* const* position;  // x, y, z
+  const char* coverage;
+  const char* const* normal;  // x, y, z
+};
+
+constexpr const char* kRgbaPosition[3] = {"R", "G", "B"};
+constexpr const char* kRgbaNormal[3] = {"N.R", "N.G", "N.B"};
+
+ChannelNames channelNames(PositionMapChannels channels) {
+  if (channels == PositionMapChannels::kLegacy) {
+    return {kPositionChannels, kCoverageChannel, kNormalChannels};
+  }
+  return {kRgbaPosition, kCoverageChannel, kRgbaNormal};
+}
+
+bool hasAll(const Imf::ChannelList& list, const char* const names[3]) {
+  return std::all_of(names, names + 3,
+                     [&](const char* name) { return list.findChannel(name) != nullptr; });
+}
+
 }  // namespace
+
+const char* positionMapChannelsName(PositionMapChannels channels) {
+  return channels == PositionMapChannels::kLegacy ? "legacy" : "rgba";
+}
+
+PositionMapChannels parsePositionMapChannels(const std::string& text, const std::string& flag) {
+  std::string lower = text;
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  for (PositionMapChannels channels : {PositionMapChannels::kRgba, PositionMapChannels::kLegacy}) {
+    if (lower == positionMapChannelsName(channels)) {
+      return channels;
+    }
+  }
+  DS_THROW(kUsage, flag, " '", text,
+           "' is not a channel naming; use rgba (R G B, A, N.R N.G N.B) or legacy (P.X P.Y P.Z, "
+           "A, N.X N.Y N.Z)");
+}
+
+std::vector<std::string> positionMapChannelNames(PositionMapChannels channels, bool normals) {
+  const ChannelNames names = channelNames(channels);
+  std::vector<std::string> out(names.position, names.position + 3);
+  out.emplace_back(names.coverage);
+  if (normals) {
+    out.insert(out.end(), names.normal, names.normal + 3);
+  }
+  return out;
+}
 
 void writePositionMapExr(const std::string& path, int width, int height, const float* positions,
                          const float* coverage, const float* normals,
@@ -57,18 +111,19 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
     DS_THROW(kInternal, "writePositionMapExr '", path, "': no positions or coverage");
   }
   const std::size_t rowTexels = static_cast<std::size_t>(width);
+  const ChannelNames names = channelNames(header.channels);
 
   writeExrAtomically(path, "position-map", [&](const std::string& tempPath) {
     Imf::Header exrHeader(width, height);
     exrHeader.compression() = toImf(header.compression);
-    for (const char* name : kPositionChannels) {
-      exrHeader.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    for (int k = 0; k < 3; ++k) {
+      exrHeader.channels().insert(names.position[k], Imf::Channel(Imf::FLOAT));
     }
-    exrHeader.channels().insert(kCoverageChannel, Imf::Channel(Imf::FLOAT));
+    exrHeader.channels().insert(names.coverage, Imf::Channel(Imf::FLOAT));
     if (normals != nullptr) {
       const Imf::PixelType type = header.halfNormals ? Imf::HALF : Imf::FLOAT;
-      for (const char* name : kNormalChannels) {
-        exrHeader.channels().insert(name, Imf::Channel(type));
+      for (int k = 0; k < 3; ++k) {
+        exrHeader.channels().insert(names.normal[k], Imf::Channel(type));
       }
     }
     exrHeader.insert(kAttrKind, Imf::StringAttribute(kKindValue));
@@ -86,8 +141,8 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
     Imf::addFramesPerSecond(exrHeader, Imf::guessExactFps(header.framesPerSecond));
 
     Imf::FrameBuffer frameBuffer;
-    insertXyzSlices(frameBuffer, kPositionChannels, positions, rowTexels);
-    frameBuffer.insert(kCoverageChannel,
+    insertXyzSlices(frameBuffer, names.position, positions, rowTexels);
+    frameBuffer.insert(names.coverage,
                        Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(coverage)),
                                   sizeof(float), sizeof(float) * rowTexels));
     // OpenEXR does not convert FLOAT slices to HALF channels on write: round here.
@@ -100,12 +155,12 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
       }
       char* bytes = reinterpret_cast<char*>(halfNormals.data());
       for (int k = 0; k < 3; ++k) {
-        frameBuffer.insert(kNormalChannels[k],
+        frameBuffer.insert(names.normal[k],
                            Imf::Slice(Imf::HALF, bytes + k * sizeof(half), 3 * sizeof(half),
                                       3 * sizeof(half) * rowTexels));
       }
     } else if (normals != nullptr) {
-      insertXyzSlices(frameBuffer, kNormalChannels, normals, rowTexels);
+      insertXyzSlices(frameBuffer, names.normal, normals, rowTexels);
     }
 
     writeScanlines(path, tempPath, exrHeader, frameBuffer, height);
@@ -114,13 +169,32 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
 
 namespace {
 
-/// The header of `path` if it is a position map, else nothing; Error(kInput) on a bad hash.
-std::optional<PositionMapInfo> positionMapHeader(const std::string& path) {
+/// The header of `path` if it is a position map, else nothing; Error(kInput) on a bad hash or
+/// (with `requireChannels`) when neither naming's position channels are all there.
+std::optional<PositionMapInfo> positionMapHeader(const std::string& path, bool requireChannels) {
   const auto file = openExr(path, "position-map");
   const Imf::Header& header = file->header();
   const auto* kind = header.findTypedAttribute<Imf::StringAttribute>(kAttrKind);
   if (kind == nullptr || kind->value() != kKindValue) {
     return std::nullopt;
+  }
+  const Imf::ChannelList& channels = header.channels();
+  std::optional<PositionMapChannels> naming;
+  for (PositionMapChannels candidate : {PositionMapChannels::kRgba, PositionMapChannels::kLegacy}) {
+    if (hasAll(channels, channelNames(candidate).position)) {
+      naming = candidate;
+      break;
+    }
+  }
+  if (!naming && requireChannels) {
+    std::string present;
+    for (auto it = channels.begin(); it != channels.end(); ++it) {
+      present += std::string(present.empty() ? "" : " ") + it.name();
+    }
+    DS_THROW(kInput, "position-map EXR '", path,
+             "': no position channels (R G B, or P.X P.Y P.Z as --channels legacy writes); "
+             "it has: ",
+             present.empty() ? std::string("none") : present);
   }
   PositionMapInfo info;
   static_cast<ExrSharedHeader&>(info) = readSharedHeader(path, header);
@@ -133,8 +207,14 @@ std::optional<PositionMapInfo> positionMapHeader(const std::string& path) {
   if (const auto* padding = header.findTypedAttribute<Imf::IntAttribute>(kAttrPadding)) {
     info.padding = padding->value();
   }
+  if (!naming) {
+    return info;  // the kind test: dsKind says what the file is meant to be
+  }
+  info.channels = *naming;
+  const ChannelNames names = channelNames(info.channels);
+  info.hasNormals = hasAll(channels, names.normal);
   if (info.hasNormals) {
-    info.halfNormals = header.channels().findChannel(kNormalChannels[0])->type == Imf::HALF;
+    info.halfNormals = channels.findChannel(names.normal[0])->type == Imf::HALF;
   }
   return info;
 }
@@ -143,7 +223,7 @@ std::optional<PositionMapInfo> positionMapHeader(const std::string& path) {
 
 bool isPositionMapExr(const std::string& path) {
   try {
-    return positionMapHeader(path).has_value();
+    return positionMapHeader(path, false).has_value();
   } catch (const std::exception&) {
     return false;
   }
@@ -156,7 +236,7 @@ PositionMapInfo readPositionMapExrInfo(const std::string& path) {
   }
   std::optional<PositionMapInfo> info;
   try {
-    info = positionMapHeader(path);
+    info = positionMapHeader(path, true);
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {

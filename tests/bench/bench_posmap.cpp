@@ -234,7 +234,7 @@ int run(const Args& args) {
   std::filesystem::create_directories(args.out);
   std::vector<float> positions(3 * tables.texelCount());
   host->evaluate(1, xyz.data(), positions.data(), nullptr);
-  std::printf("per compression (P.X P.Y P.Z A as FLOAT), %d frames each, %u writer threads:\n",
+  std::printf("per compression (R G B A as FLOAT), %d frames each, %u writer threads:\n",
               args.codecFrames, threads);
   std::printf("  %-5s %12s %16s %18s %14s\n", "codec", "MiB / file", "write 1 file (s)",
               "end to end (fr/s)", "total (s)");

@@ -275,15 +275,19 @@ TEST(Cli, UnwritableOutputFolderIsAnOutputError) {
   EXPECT_TRUE(filesIn(dir.file("ro")).empty());
 }
 
-/// The P.X/P.Y/P.Z/A planes of an EXR image, concatenated.
-std::vector<float> exrPlanes(const std::string& path) {
+/// The position and coverage planes of a position map (R, G, B, A; with `legacy`, P.X, P.Y,
+/// P.Z, A), concatenated. A missing channel fails the test (OpenEXR would fill it with zeros).
+std::vector<float> exrPlanes(const std::string& path, bool legacy = false) {
   Imf::InputFile file(path.c_str());
   const Imath::Box2i window = file.header().dataWindow();
   const int width = window.max.x - window.min.x + 1, height = window.max.y - window.min.y + 1;
   std::vector<float> planes(static_cast<std::size_t>(width) * height * 4);
   Imf::FrameBuffer buffer;
-  const char* names[] = {"P.X", "P.Y", "P.Z", "A"};
+  const char* rgba[] = {"R", "G", "B", "A"};
+  const char* former[] = {"P.X", "P.Y", "P.Z", "A"};
+  const char* const* names = legacy ? former : rgba;
   for (int c = 0; c < 4; ++c) {
+    EXPECT_NE(file.header().channels().findChannel(names[c]), nullptr) << names[c] << " " << path;
     char* base = reinterpret_cast<char*>(&planes[static_cast<std::size_t>(c) * width * height]) -
                  (static_cast<std::ptrdiff_t>(window.min.y) * width + window.min.x) *
                      static_cast<std::ptrdiff_t>(sizeof(float));
@@ -320,6 +324,31 @@ TEST(Cli, BakePosmapEqualsPosmapOfTheBakedCache) {
   EXPECT_NE(r.out.find("position-map EXR"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("96x64 texels, frame 6"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("mesh of 2244 vertices"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("channels (rgba): R G B = position, A = coverage\n"), std::string::npos)
+      << r.out;
+
+  // The former channel names, on request, from `posmap` and from `bake --posmap`.
+  r = runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache",
+                   dir.file("out/s.####.exr"), "--frames", "6", "--res", "96x64", "--channels",
+                   "legacy", "--normals", "-o", dir.file("out/legacy.####.exr")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(exrPlanes(dir.file("out/legacy.0006.exr"), true),
+            exrPlanes(dir.file("out/alone.0006.exr")));
+  r = runCli(dir, {"info", dir.file("out/legacy.0006.exr")});
+  EXPECT_NE(r.out.find("channels (legacy): P.X P.Y P.Z = position, A = coverage, N.X N.Y N.Z = "
+                       "normals\n"),
+            std::string::npos)
+      << r.out;
+  r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "6", "-o",
+                   dir.file("out/l.####.exr"), "--posmap", "96x64", "--posmap-channels", "legacy",
+                   "--quiet"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(exrPlanes(dir.file("out/l.posmap.0006.exr"), true),
+            exrPlanes(dir.file("out/alone.0006.exr")));
+  r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "6", "-o",
+                   dir.file("out/l.####.exr"), "--posmap", "96x64", "--posmap-channels", "xyz",
+                   "--quiet"});
+  expectError(r, 2, "--posmap-channels 'xyz' is not a channel naming");
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // Position-map EXR reader (src/posmap/posmap_exr.cpp): the header reader behind
-// `drivenshape info`, the kind test, and the completeness check.
+// `drivenshape info` (with the channel naming it tells from the channels: R G B or the legacy
+// P.X P.Y P.Z), the kind test, and the completeness check.
 
 #include <drivenshape/point_cache.h>
 #include <drivenshape/position_map.h>
@@ -20,6 +21,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (read) {
     ds::fuzz::require(info.width > 0 && info.height > 0, "readPositionMapExrInfo",
                       "a map without pixels was read");
+    ds::fuzz::require(info.channels == ds::PositionMapChannels::kRgba ||
+                          info.channels == ds::PositionMapChannels::kLegacy,
+                      "readPositionMapExrInfo", "a channel naming outside the enum");
   }
   ds::fuzz::expectOnlyErrors("isCompleteExr", [&] { ds::isCompleteExr(path); });
   return 0;

@@ -129,6 +129,20 @@ void writePositionMapSeeds(const fs::path& dir) {
   header.meshVertexCount = mesh.vertexCount();
   header.padding = 2;
   header.bounds = ds::computeBounds(positions.data(), kWidth * kHeight);
+  // The default naming (R G B, A, N.R N.G N.B) ...
+  writeWith(dir / "rgba_zip.exr", [&](const std::string& p) {
+    ds::writePositionMapExr(p, kWidth, kHeight, positions.data(), coverage.data(), nullptr, header);
+  });
+  header.compression = ds::ExrCompression::kPiz;
+  header.halfNormals = true;
+  writeWith(dir / "rgba_half_normals_piz.exr", [&](const std::string& p) {
+    ds::writePositionMapExr(p, kWidth, kHeight, positions.data(), coverage.data(), normals.data(),
+                            header);
+  });
+  // ... and the legacy one (P.X P.Y P.Z, A, N.X N.Y N.Z), which the seeds below had first.
+  header.channels = ds::PositionMapChannels::kLegacy;
+  header.compression = ds::ExrCompression::kZip;
+  header.halfNormals = false;
   writeWith(dir / "zip.exr", [&](const std::string& p) {
     ds::writePositionMapExr(p, kWidth, kHeight, positions.data(), coverage.data(), nullptr, header);
   });

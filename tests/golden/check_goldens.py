@@ -12,6 +12,9 @@ compares with the recorded goldens (tests/data/golden/f302ac6.json), exactly:
 
   * the report's settings_hash.
 
+Configurations whose default output changed on purpose after the recording bake with the flags
+that restore the recorded output (golden_bakes.SINCE_RECORDING, e.g. --posmap-channels legacy).
+
 A missing OpenCL device fails (never skips).
 
   .venv/bin/python tests/golden/check_goldens.py --cli build/apps/drivenshape
@@ -154,11 +157,17 @@ def main():
         print(f"extra flags on every bake: {extra}")
         golden_bakes.CONFIGS = [(n, f + extra, w) for n, f, w in golden_bakes.CONFIGS]
 
+    for name in configs:
+        if golden_bakes.SINCE_RECORDING.get(name):
+            print(f"configuration {name}: + {' '.join(golden_bakes.SINCE_RECORDING[name])} "
+                  "(a default changed since the recording; golden_bakes.SINCE_RECORDING)")
+
     work = args.work or tempfile.mkdtemp(prefix="ds-golden-check-")
     start = time.monotonic()
     try:
         baked = golden_bakes.bake_all(os.path.abspath(args.cli), work, configs, devices,
-                                      keep=args.keep, log=lambda line: print("  " + line))
+                                      keep=args.keep, log=lambda line: print("  " + line),
+                                      since_recording=True)
     except RuntimeError as error:
         print(f"FAIL bake: {error}")
         print(f"(work folder kept: {work})")

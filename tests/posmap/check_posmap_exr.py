@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Reads a position map written by drivenshape back with the OpenEXR Python bindings.
 
-Checks, on the bundled sleeve:
+Checks, on the bundled sleeve (channels R G B, A, N.R N.G N.B; check_posmap_readers.py checks
+the layers as OpenImageIO and these bindings group them, and the legacy names):
   * P, A and N read back bit for bit equal to the arrays the C++ wrote (posmap_sample dumps
     them raw next to the EXR);
   * the header holds the documented attributes (dsKind, dsFrame, dsTopologyHash, ...);
@@ -92,6 +93,20 @@ def locate(px, py, tx, ty):
     return np.stack([1.0 - b1 - b2, b1, b2], axis=1)
 
 
+def squeezed_sleeve(data, work):
+    """The bundled sleeve with its UVs squeezed into part of the square, so that a map also has
+    texels beyond the padding (the islands fill 96% of the square). Returns the OBJ's path."""
+    mesh_path = os.path.join(work, "sleeve_squeezed.obj")
+    with open(os.path.join(data, "sleeve", "driven_rest.obj")) as source, \
+            open(mesh_path, "w") as target:
+        for line in source:
+            if line.startswith("vt "):
+                u, v = (float(x) for x in line.split()[1:3])
+                line = f"vt {0.1 + 0.6 * u:.6f} {0.3 + 0.6 * v:.6f}\n"
+            target.write(line)
+    return mesh_path
+
+
 def fail(message):
     print(f"check_posmap_exr: FAILED: {message}", file=sys.stderr)
     sys.exit(1)
@@ -104,16 +119,7 @@ def main():
     parser.add_argument("--work", required=True, help="scratch folder")
     args = parser.parse_args()
 
-    # The sleeve with its UVs squeezed into part of the square, so that the map also has
-    # texels beyond the padding (the islands fill 96% of the square).
-    mesh_path = os.path.join(args.work, "sleeve_squeezed.obj")
-    with open(os.path.join(args.data, "sleeve", "driven_rest.obj")) as source, \
-            open(mesh_path, "w") as target:
-        for line in source:
-            if line.startswith("vt "):
-                u, v = (float(x) for x in line.split()[1:3])
-                line = f"vt {0.1 + 0.6 * u:.6f} {0.3 + 0.6 * v:.6f}\n"
-            target.write(line)
+    mesh_path = squeezed_sleeve(args.data, args.work)
     cache_path = os.path.join(args.data, "sleeve", "test.driven.pc2")
     exr = os.path.join(args.work, f"map.{FRAME:04d}.exr")
     subprocess.run([args.writer, mesh_path, cache_path, str(FRAME), f"{WIDTH}x{HEIGHT}",
@@ -122,7 +128,7 @@ def main():
     image = OpenEXR.File(exr, separate_channels=True)
     header = image.header()
     channels = image.channels()
-    for name in ("P.X", "P.Y", "P.Z", "A", "N.X", "N.Y", "N.Z"):
+    for name in ("R", "G", "B", "A", "N.R", "N.G", "N.B"):  # the default naming
         if name not in channels:
             fail(f"channel {name} missing; the file has {sorted(channels)}")
         if channels[name].pixels.dtype != np.float32:
@@ -142,8 +148,8 @@ def main():
     def plane(name):
         return channels[name].pixels  # (H, W), row 0 = first scanline = top of the map
 
-    P = np.stack([plane("P.X"), plane("P.Y"), plane("P.Z")], axis=-1)
-    N = np.stack([plane("N.X"), plane("N.Y"), plane("N.Z")], axis=-1)
+    P = np.stack([plane("R"), plane("G"), plane("B")], axis=-1)
+    N = np.stack([plane("N.R"), plane("N.G"), plane("N.B")], axis=-1)
     A = plane("A")
     if P.shape != (HEIGHT, WIDTH, 3):
         fail(f"P is {P.shape}, expected {(HEIGHT, WIDTH, 3)}")

@@ -1,10 +1,11 @@
 // Writes one position map with the library and dumps the exact arrays it wrote, for the Python
 // check (check_posmap_exr.py) that reads the EXR back with the OpenEXR bindings.
 //
-//   posmap_sample MESH.obj CACHE FRAME WxH PADDING OUT.exr
+//   posmap_sample MESH.obj CACHE FRAME WxH PADDING OUT.exr [rgba|legacy]
 //
-// writes OUT.exr (P, A, N as FLOAT, ZIP) and, as raw little-endian float32 in texel order
-// (row 0 = top): OUT.exr.P.raw (W*H*3), OUT.exr.A.raw (W*H), OUT.exr.N.raw (W*H*3).
+// writes OUT.exr (P, A, N as FLOAT, ZIP; channels named as the last argument says, default
+// rgba) and, as raw little-endian float32 in texel order (row 0 = top): OUT.exr.P.raw
+// (W*H*3), OUT.exr.A.raw (W*H), OUT.exr.N.raw (W*H*3).
 
 #include <cstdio>
 #include <fstream>
@@ -29,8 +30,9 @@ void dump(const std::string& path, const std::vector<float>& values) {
 
 int main(int argc, char** argv) {
   using namespace drivenshape;
-  if (argc != 7) {
-    std::fprintf(stderr, "usage: posmap_sample MESH.obj CACHE FRAME WxH PADDING OUT.exr\n");
+  if (argc != 7 && argc != 8) {
+    std::fprintf(stderr,
+                 "usage: posmap_sample MESH.obj CACHE FRAME WxH PADDING OUT.exr [rgba|legacy]\n");
     return 2;
   }
   try {
@@ -54,6 +56,7 @@ int main(int argc, char** argv) {
     header.meshVertexCount = tables.vertexCount;
     header.padding = tables.padding;
     header.bounds = computeBounds(xyz.data(), tables.vertexCount);
+    header.channels = argc == 8 ? parsePositionMapChannels(argv[7], "naming") : header.channels;
     const std::string out = argv[6];
     writePositionMapExr(out, width, height, positions.data(), tables.coverage.data(),
                         normals.data(), header);

@@ -26,8 +26,9 @@ std::vector<float> readP(const std::string& path) {
   const std::size_t height = static_cast<std::size_t>(window.max.y - window.min.y + 1);
   std::vector<float> xyz(3 * width * height, -1.0f);
   Imf::FrameBuffer frameBuffer;
-  const char* names[3] = {"P.X", "P.Y", "P.Z"};
+  const char* names[3] = {"R", "G", "B"};  // the default naming (PositionMapChannels::kRgba)
   for (int a = 0; a < 3; ++a) {
+    EXPECT_NE(file.header().channels().findChannel(names[a]), nullptr) << names[a] << " " << path;
     frameBuffer.insert(names[a], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(xyz.data() + a),
                                             3 * sizeof(float), 3 * sizeof(float) * width));
   }

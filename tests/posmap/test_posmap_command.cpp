@@ -84,10 +84,10 @@ TEST_F(PosmapCommand, WritesMapsOnOpenClThatMatchTheHostPath) {
     ASSERT_TRUE(std::filesystem::exists(dir.file("host/" + name + ".png")));
     Imf::InputFile file(cl.c_str());
     EXPECT_EQ(file.header().typedAttribute<Imf::IntAttribute>("dsFrame").value(), frame);
-    EXPECT_NE(file.header().channels().findChannel("N.X"), nullptr);
+    EXPECT_NE(file.header().channels().findChannel("N.R"), nullptr);
     cache->readFrame(frame, xyz.data());
     const double diagonal = computeBounds(xyz.data(), cache->vertexCount()).diagonal();
-    for (const char* channel : {"P.X", "P.Y", "P.Z", "A"}) {
+    for (const char* channel : {"R", "G", "B", "A"}) {
       const std::vector<float> want = readChannel(host, channel);
       const std::vector<float> got = readChannel(cl, channel);
       ASSERT_EQ(want.size(), 64u * 40u);
@@ -97,6 +97,44 @@ TEST_F(PosmapCommand, WritesMapsOnOpenClThatMatchTheHostPath) {
       }
     }
   }
+}
+
+TEST(PosmapCommandChannels, LegacyWritesTheFormerNamesWithTheSameValues) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.file("rgba"));
+  std::filesystem::create_directories(dir.file("legacy"));
+  ASSERT_EQ(cli::runPosmap(
+                with(baseArgs(dir.file("rgba/m.####.exr")), {"--device", "host", "--normals"})),
+            0);
+  ASSERT_EQ(cli::runPosmap(with(baseArgs(dir.file("legacy/m.####.exr")),
+                                {"--device", "host", "--normals", "--channels", "legacy"})),
+            0);
+  const std::vector<std::pair<const char*, const char*>> pairs = {
+      {"R", "P.X"},   {"G", "P.Y"},   {"B", "P.Z"},  {"A", "A"},
+      {"N.R", "N.X"}, {"N.G", "N.Y"}, {"N.B", "N.Z"}};
+  for (int frame = 2; frame <= 4; ++frame) {
+    const std::string name = "m.000" + std::to_string(frame) + ".exr";
+    Imf::InputFile rgba(dir.file("rgba/" + name).c_str());
+    Imf::InputFile legacy(dir.file("legacy/" + name).c_str());
+    for (const auto& [now, before] : pairs) {
+      ASSERT_NE(rgba.header().channels().findChannel(now), nullptr) << now;
+      ASSERT_NE(legacy.header().channels().findChannel(before), nullptr) << before;
+      EXPECT_EQ(rgba.header().channels().findChannel(before) == nullptr || now == before, true)
+          << before << " must not be in the default naming";
+      EXPECT_EQ(readChannel(dir.file("rgba/" + name), now),
+                readChannel(dir.file("legacy/" + name), before))
+          << now << " vs " << before << ", frame " << frame;
+    }
+    EXPECT_EQ(legacy.header().channels().findChannel("R"), nullptr);
+    EXPECT_EQ(readPositionMapExrInfo(dir.file("legacy/" + name)).channels,
+              PositionMapChannels::kLegacy);
+    EXPECT_EQ(readPositionMapExrInfo(dir.file("rgba/" + name)).channels,
+              PositionMapChannels::kRgba);
+  }
+  std::string message;
+  EXPECT_EQ(codeOf(with(baseArgs(dir.file("x/m.####.exr")), {"--channels", "xyz"}), message),
+            ErrorCode::kUsage);
+  EXPECT_NE(message.find("--channels 'xyz'"), std::string::npos) << message;
 }
 
 TEST(PosmapCommandInput, BadResolutionsAreUsageErrors) {

@@ -9,11 +9,13 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <cstring>
@@ -107,82 +109,154 @@ bool haveTool(const std::string& tool, const std::string& package) {
   return true;
 }
 
-TEST(PosmapExr, ChannelsAttributesAndValuesReadBackForEveryCompression) {
+/// The names a map is documented to have (docs/formats.md), spelled out here rather than
+/// taken from the library: position x y z, coverage, normals x y z.
+struct DocumentedNames {
+  PositionMapChannels naming;
+  std::array<const char*, 7> names;
+};
+constexpr DocumentedNames kRgbaNames{PositionMapChannels::kRgba,
+                                     {"R", "G", "B", "A", "N.R", "N.G", "N.B"}};
+constexpr DocumentedNames kLegacyNames{PositionMapChannels::kLegacy,
+                                       {"P.X", "P.Y", "P.Z", "A", "N.X", "N.Y", "N.Z"}};
+
+/// The channel names of an EXR as OpenEXR lists them (alphabetical).
+std::vector<std::string> channelNamesOf(const std::string& path) {
+  Imf::InputFile file(path.c_str());
+  std::vector<std::string> names;
+  for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
+    names.emplace_back(it.name());
+  }
+  return names;
+}
+
+TEST(PosmapExr, ChannelsAttributesAndValuesReadBackForEveryCompressionAndNaming) {
   const FrameMaps maps = sleeveMaps(96, 64, 2, 12);
   TempDir dir;
-  for (ExrCompression compression :
-       {ExrCompression::kZip, ExrCompression::kNone, ExrCompression::kZips, ExrCompression::kPiz}) {
-    for (bool half : {false, true}) {
-      SCOPED_TRACE(std::string(exrCompressionName(compression)) + (half ? " half" : " float"));
-      const std::string path = dir.file(std::string("m_") + exrCompressionName(compression) +
-                                        (half ? "_h" : "_f") + ".exr");
-      PositionMapFrameHeader header = headerFor(maps, 12);
-      header.compression = compression;
-      header.halfNormals = half;
-      writePositionMapExr(path, 96, 64, maps.positions.data(), maps.tables.coverage.data(),
-                          maps.normals.data(), header);
+  for (const DocumentedNames& documented : {kRgbaNames, kLegacyNames}) {
+    for (ExrCompression compression : {ExrCompression::kZip, ExrCompression::kNone,
+                                       ExrCompression::kZips, ExrCompression::kPiz}) {
+      for (bool half : {false, true}) {
+        const char* naming = positionMapChannelsName(documented.naming);
+        SCOPED_TRACE(std::string(naming) + " " + exrCompressionName(compression) +
+                     (half ? " half" : " float"));
+        const std::string path =
+            dir.file(std::string("m_") + naming + "_" + exrCompressionName(compression) +
+                     (half ? "_h" : "_f") + ".exr");
+        PositionMapFrameHeader header = headerFor(maps, 12);
+        header.compression = compression;
+        header.halfNormals = half;
+        header.channels = documented.naming;
+        writePositionMapExr(path, 96, 64, maps.positions.data(), maps.tables.coverage.data(),
+                            maps.normals.data(), header);
 
-      Imf::InputFile file(path.c_str());
-      const Imf::Header& h = file.header();
-      EXPECT_EQ(h.dataWindow().max.x, 95);
-      EXPECT_EQ(h.dataWindow().max.y, 63);
-      EXPECT_EQ(h.lineOrder(), Imf::INCREASING_Y);
-      EXPECT_FALSE(h.hasTileDescription()) << "position maps are scanline images";
-      for (const char* name : {"P.X", "P.Y", "P.Z", "A"}) {
-        const Imf::Channel* channel = h.channels().findChannel(name);
-        ASSERT_NE(channel, nullptr) << name;
-        EXPECT_EQ(channel->type, Imf::FLOAT) << name;
-      }
-      for (const char* name : {"N.X", "N.Y", "N.Z"}) {
-        const Imf::Channel* channel = h.channels().findChannel(name);
-        ASSERT_NE(channel, nullptr) << name;
-        EXPECT_EQ(channel->type, half ? Imf::HALF : Imf::FLOAT) << name;
-      }
-      EXPECT_EQ(h.typedAttribute<Imf::StringAttribute>("dsKind").value(), "positionMap");
-      EXPECT_EQ(h.typedAttribute<Imf::IntAttribute>("dsFrame").value(), 12);
-      EXPECT_EQ(h.typedAttribute<Imf::StringAttribute>("dsTopologyHash").value(),
-                hashToHex(topologyHash(maps.sleeve.mesh)));
-      EXPECT_EQ(h.typedAttribute<Imf::StringAttribute>("dsToolVersion").value(), kVersion);
-      EXPECT_EQ(h.typedAttribute<Imf::IntAttribute>("dsMeshVertexCount").value(), 2244);
-      EXPECT_EQ(h.typedAttribute<Imf::IntAttribute>("dsPadding").value(), 2);
-      EXPECT_EQ(h.findTypedAttribute<Imf::IntAttribute>("dsVertexCount"), nullptr)
-          << "a position map must not look like a point cache";
-      EXPECT_EQ(h.typedAttribute<Imf::V3fAttribute>("dsBoundsMax").value().x,
-                header.bounds.max.x());
-      ASSERT_TRUE(Imf::hasFramesPerSecond(h));
-      EXPECT_EQ(Imf::framesPerSecond(h), Imf::Rational(25, 1));
-
-      for (int a = 0; a < 3; ++a) {
-        const std::vector<float> p = readChannel(path, a == 0 ? "P.X" : a == 1 ? "P.Y" : "P.Z");
-        const std::vector<float> n = readChannel(path, a == 0 ? "N.X" : a == 1 ? "N.Y" : "N.Z");
-        for (std::size_t i = 0; i < p.size(); ++i) {
-          ASSERT_LE(std::abs(p[i] - maps.positions[3 * i + a]), kFileRoundTripTol) << i;
-          ASSERT_LE(std::abs(n[i] - maps.normals[3 * i + a]),
-                    half ? kHalfNormalTol : static_cast<double>(kFileRoundTripTol))
-              << i;
+        Imf::InputFile file(path.c_str());
+        const Imf::Header& h = file.header();
+        EXPECT_EQ(h.dataWindow().max.x, 95);
+        EXPECT_EQ(h.dataWindow().max.y, 63);
+        EXPECT_EQ(h.lineOrder(), Imf::INCREASING_Y);
+        EXPECT_FALSE(h.hasTileDescription()) << "position maps are scanline images";
+        std::vector<std::string> expected(documented.names.begin(), documented.names.end());
+        std::sort(expected.begin(), expected.end());
+        EXPECT_EQ(channelNamesOf(path), expected) << "exactly the documented channels";
+        for (int k = 0; k < 4; ++k) {
+          const Imf::Channel* channel = h.channels().findChannel(documented.names[k]);
+          ASSERT_NE(channel, nullptr) << documented.names[k];
+          EXPECT_EQ(channel->type, Imf::FLOAT) << documented.names[k];
         }
-      }
-      const std::vector<float> alpha = readChannel(path, "A");
-      EXPECT_EQ(alpha, maps.tables.coverage);
+        for (int k = 4; k < 7; ++k) {
+          const Imf::Channel* channel = h.channels().findChannel(documented.names[k]);
+          ASSERT_NE(channel, nullptr) << documented.names[k];
+          EXPECT_EQ(channel->type, half ? Imf::HALF : Imf::FLOAT) << documented.names[k];
+        }
+        EXPECT_EQ(h.typedAttribute<Imf::StringAttribute>("dsKind").value(), "positionMap");
+        EXPECT_EQ(h.typedAttribute<Imf::IntAttribute>("dsFrame").value(), 12);
+        EXPECT_EQ(h.typedAttribute<Imf::StringAttribute>("dsTopologyHash").value(),
+                  hashToHex(topologyHash(maps.sleeve.mesh)));
+        EXPECT_EQ(h.typedAttribute<Imf::StringAttribute>("dsToolVersion").value(), kVersion);
+        EXPECT_EQ(h.typedAttribute<Imf::IntAttribute>("dsMeshVertexCount").value(), 2244);
+        EXPECT_EQ(h.typedAttribute<Imf::IntAttribute>("dsPadding").value(), 2);
+        EXPECT_EQ(h.findTypedAttribute<Imf::IntAttribute>("dsVertexCount"), nullptr)
+            << "a position map must not look like a point cache";
+        EXPECT_EQ(h.typedAttribute<Imf::V3fAttribute>("dsBoundsMax").value().x,
+                  header.bounds.max.x());
+        ASSERT_TRUE(Imf::hasFramesPerSecond(h));
+        EXPECT_EQ(Imf::framesPerSecond(h), Imf::Rational(25, 1));
 
-      // What `drivenshape info` reads back: the header it was written with.
-      ASSERT_TRUE(isPositionMapExr(path));
-      const PositionMapInfo info = readPositionMapExrInfo(path);
-      EXPECT_EQ(info.width, 96);
-      EXPECT_EQ(info.height, 64);
-      EXPECT_EQ(info.frame, 12);
-      EXPECT_EQ(info.topologyHash, header.topologyHash);
-      EXPECT_EQ(info.meshVertexCount, header.meshVertexCount);
-      EXPECT_EQ(info.padding, 2);
-      EXPECT_EQ(info.toolVersion, kVersion);
-      EXPECT_EQ(info.framesPerSecond, 25.0);
-      EXPECT_EQ(info.bounds.min, header.bounds.min);
-      EXPECT_EQ(info.bounds.max, header.bounds.max);
-      EXPECT_TRUE(info.hasNormals);
-      EXPECT_EQ(info.halfNormals, half);
-      EXPECT_EQ(info.compression, compression);
+        for (int a = 0; a < 3; ++a) {
+          const std::vector<float> p = readChannel(path, documented.names[a]);
+          const std::vector<float> n = readChannel(path, documented.names[4 + a]);
+          for (std::size_t i = 0; i < p.size(); ++i) {
+            ASSERT_LE(std::abs(p[i] - maps.positions[3 * i + a]), kFileRoundTripTol) << i;
+            ASSERT_LE(std::abs(n[i] - maps.normals[3 * i + a]),
+                      half ? kHalfNormalTol : static_cast<double>(kFileRoundTripTol))
+                << i;
+          }
+        }
+        const std::vector<float> alpha = readChannel(path, "A");
+        EXPECT_EQ(alpha, maps.tables.coverage);
+
+        // What `drivenshape info` reads back: the header it was written with.
+        ASSERT_TRUE(isPositionMapExr(path));
+        const PositionMapInfo info = readPositionMapExrInfo(path);
+        EXPECT_EQ(info.width, 96);
+        EXPECT_EQ(info.height, 64);
+        EXPECT_EQ(info.frame, 12);
+        EXPECT_EQ(info.topologyHash, header.topologyHash);
+        EXPECT_EQ(info.meshVertexCount, header.meshVertexCount);
+        EXPECT_EQ(info.padding, 2);
+        EXPECT_EQ(info.toolVersion, kVersion);
+        EXPECT_EQ(info.framesPerSecond, 25.0);
+        EXPECT_EQ(info.bounds.min, header.bounds.min);
+        EXPECT_EQ(info.bounds.max, header.bounds.max);
+        EXPECT_TRUE(info.hasNormals);
+        EXPECT_EQ(info.halfNormals, half);
+        EXPECT_EQ(info.compression, compression);
+        EXPECT_EQ(info.channels, documented.naming);
+      }
     }
   }
+}
+
+TEST(PosmapExr, ChannelNamingsParseAndListTheDocumentedNames) {
+  EXPECT_EQ(parsePositionMapChannels("rgba"), PositionMapChannels::kRgba);
+  EXPECT_EQ(parsePositionMapChannels("Legacy"), PositionMapChannels::kLegacy);
+  EXPECT_STREQ(positionMapChannelsName(PositionMapChannels::kRgba), "rgba");
+  EXPECT_STREQ(positionMapChannelsName(PositionMapChannels::kLegacy), "legacy");
+  expectThrows([] { parsePositionMapChannels("xyz", "--posmap-channels"); }, ErrorCode::kUsage,
+               "--posmap-channels 'xyz' is not a channel naming; use rgba");
+  for (const DocumentedNames& documented : {kRgbaNames, kLegacyNames}) {
+    EXPECT_EQ(positionMapChannelNames(documented.naming, true),
+              std::vector<std::string>(documented.names.begin(), documented.names.end()));
+    EXPECT_EQ(positionMapChannelNames(documented.naming, false),
+              std::vector<std::string>(documented.names.begin(), documented.names.begin() + 4));
+  }
+  EXPECT_EQ(PositionMapOptions().channels, PositionMapChannels::kRgba) << "the default";
+}
+
+TEST(PosmapExr, AMapWithoutPositionChannelsIsRefusedNamingWhatItHas) {
+  // A file that says it is a position map but holds neither R G B nor P.X P.Y P.Z.
+  TempDir dir;
+  const std::string path = dir.file("odd.0001.exr");
+  Imf::Header header(4, 2);
+  header.channels().insert("A", Imf::Channel(Imf::FLOAT));
+  header.channels().insert("P.R", Imf::Channel(Imf::FLOAT));
+  header.insert("dsKind", Imf::StringAttribute("positionMap"));
+  std::vector<float> zeros(8, 0.0f);
+  Imf::FrameBuffer frameBuffer;
+  for (const char* name : {"A", "P.R"}) {
+    frameBuffer.insert(name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(zeros.data()),
+                                        sizeof(float), 4 * sizeof(float)));
+  }
+  {
+    Imf::OutputFile file(path.c_str(), header);
+    file.setFrameBuffer(frameBuffer);
+    file.writePixels(2);
+  }
+  EXPECT_TRUE(isPositionMapExr(path)) << "dsKind says what the file means to be";
+  expectThrows([&] { readPositionMapExrInfo(path); }, ErrorCode::kInput,
+               "odd.0001.exr': no position channels (R G B, or P.X P.Y P.Z as --channels legacy "
+               "writes); it has: A P.R");
 }
 
 TEST(PosmapExr, PointCachesAndMissingFilesAreNotPositionMaps) {
@@ -234,10 +308,11 @@ TEST(PosmapExr, ExrheaderShowsTheDocumentedChannelsAndAttributes) {
   const std::string out = run("exrheader '" + path + "'", status);
   ASSERT_EQ(status, 0) << out;
   for (const char* expected :
-       {"P.X, 32-bit floating-point", "P.Y, 32-bit floating-point", "P.Z, 32-bit floating-point",
-        "A, 32-bit floating-point", "N.X, 16-bit floating-point", "dsFrame (type int): 3",
-        "dsTopologyHash (type string)", "dsToolVersion (type string)", "dsKind (type string)",
-        "dsMeshVertexCount (type int): 2244", "dsBoundsMin (type v3f)", "dsPadding (type int): 2",
+       {" R, 32-bit floating-point", " G, 32-bit floating-point", " B, 32-bit floating-point",
+        " A, 32-bit floating-point", " N.R, 16-bit floating-point", " N.G, 16-bit floating-point",
+        " N.B, 16-bit floating-point", "dsFrame (type int): 3", "dsTopologyHash (type string)",
+        "dsToolVersion (type string)", "dsKind (type string)", "dsMeshVertexCount (type int): 2244",
+        "dsBoundsMin (type v3f)", "dsPadding (type int): 2",
         "framesPerSecond (type rational): 25/1", "compression (type compression): zip"}) {
     EXPECT_NE(out.find(expected), std::string::npos) << "missing '" << expected << "' in:\n" << out;
   }
@@ -254,11 +329,19 @@ TEST(PosmapExr, OiiotoolShowsTheDocumentedChannelsAndAttributes) {
   header.compression = ExrCompression::kPiz;
   writePositionMapExr(path, 64, 32, maps.positions.data(), maps.tables.coverage.data(),
                       maps.normals.data(), header);
+  const std::string legacy = dir.file("legacy.0004.exr");
+  header.channels = PositionMapChannels::kLegacy;
+  writePositionMapExr(legacy, 64, 32, maps.positions.data(), maps.tables.coverage.data(),
+                      maps.normals.data(), header);
   int status = 0;
-  const std::string out = run("oiiotool --info -v '" + path + "'", status);
+  // OpenImageIO puts the default layer's R G B A first, then the other layers.
+  std::string out = run("oiiotool --info -v '" + legacy + "'", status);
+  ASSERT_EQ(status, 0) << out;
+  EXPECT_NE(out.find("channel list: A, N.X, N.Y, N.Z, P.X, P.Y, P.Z\n"), std::string::npos) << out;
+  out = run("oiiotool --info -v '" + path + "'", status);
   ASSERT_EQ(status, 0) << out;
   for (const char* expected :
-       {"64 x   32, 7 channel, float openexr", "channel list: A, N.X, N.Y, N.Z, P.X, P.Y, P.Z",
+       {"64 x   32, 7 channel, float openexr", "channel list: R, G, B, A, N.R, N.G, N.B\n",
         "dsFrame: 4", "dsMeshVertexCount: 2244", "dsPadding: 1", "dsKind: \"positionMap\"",
         "dsTopologyHash: \"", "dsToolVersion: \"", "dsBoundsMin: ", "dsBoundsMax: ",
         "dsUvLayout: \"", "compression: \"piz\"", "framesPerSecond: 25/1"}) {

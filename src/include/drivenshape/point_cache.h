@@ -124,7 +124,7 @@ struct ExrSharedHeader {
   std::string toolVersion;
   double framesPerSecond = 0.0;  ///< 0 when the file has none
   Bounds bounds;
-  bool hasNormals = false;  ///< N.X, N.Y and N.Z all present
+  bool hasNormals = false;  ///< N.X, N.Y and N.Z all present (a position map's: its naming's)
   ExrCompression compression = ExrCompression::kZip;
 };
 

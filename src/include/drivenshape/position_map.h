@@ -157,10 +157,17 @@ class PositionMapBackend {
 std::unique_ptr<PositionMapBackend> makeHostPositionMaps();
 
 // ---------------------------------------------------------------------------------------
-// Position-map EXR: scanline, one file per frame, W x H, row 0 = top (see above). Channels
-//   P.X P.Y P.Z   FLOAT  world position
+// Position-map EXR: scanline, one file per frame, W x H, row 0 = top (see above). Channels,
+// named as compositing tools name a colour image and its layers (PositionMapChannels::kRgba,
+// the default; docs/formats.md says why):
+//   R G B         FLOAT  world position x, y, z (the default layer: what a viewer shows)
 //   A             FLOAT  1 on covered texels, 0 elsewhere (padding included)
-//   N.X N.Y N.Z   FLOAT, or HALF with halfNormals; only when normals are written
+//   N.R N.G N.B   FLOAT, or HALF with halfNormals; only when normals are written
+// or, with PositionMapChannels::kLegacy (the names earlier builds wrote, for pipelines that
+// read them):
+//   P.X P.Y P.Z, A, N.X N.Y N.Z   the same data and types under the point cache's names
+// Texels outside every UV triangle have A = 0; there the padded ones (within `padding` texels
+// of an island) hold P and N of their nearest covered texel and the rest hold 0.
 // Header attributes (names <= 31 bytes):
 //   dsKind "positionMap" (string), dsFrame (int), dsTopologyHash (string, 16 hex digits),
 //   dsToolVersion (string), dsMeshVertexCount (int), dsBoundsMin / dsBoundsMax (v3f, the
@@ -169,17 +176,36 @@ std::unique_ptr<PositionMapBackend> makeHostPositionMaps();
 // dsMeshVertexCount is deliberately not the point cache's dsVertexCount, so a position map is
 // never mistaken for a point cache.
 
+/// How the channels of a position-map EXR are named (see above).
+enum class PositionMapChannels {
+  kRgba,    ///< R G B position, A coverage, N.R N.G N.B normals: a colour image with a layer
+  kLegacy,  ///< P.X P.Y P.Z, A, N.X N.Y N.Z: the names maps had before (byte-identical files)
+};
+
+/// "rgba" or "legacy" (the `--channels` values).
+const char* positionMapChannelsName(PositionMapChannels channels);
+/// Parses "rgba" or "legacy" (any case). Throws Error(kUsage) naming `flag`, the text and the
+/// accepted values otherwise.
+PositionMapChannels parsePositionMapChannels(const std::string& text,
+                                             const std::string& flag = "--channels");
+/// The channel names of a map in the order OpenImageIO and Nuke list them: position x, y, z,
+/// coverage, then (when `normals`) the normals x, y, z. The file itself stores channels in
+/// alphabetical order, as every EXR does.
+std::vector<std::string> positionMapChannelNames(PositionMapChannels channels, bool normals);
+
 struct PositionMapOptions {
   int width = 2048;
   int height = 2048;
   int padding = 8;           ///< texels of dilation, 0..kMaxPositionMapPadding
-  bool normals = false;      ///< also write N.X N.Y N.Z
+  bool normals = false;      ///< also write the normals (N.R N.G N.B)
   bool halfNormals = false;  ///< N as HALF (implies normals)
   bool preview = false;      ///< also write an 8-bit PNG per map (previewPath)
   ExrCompression compression = ExrCompression::kZip;
   double framesPerSecond = 24.0;
   int threads = 0;    ///< files written at once (0 = all cores)
   int chunkSize = 0;  ///< frames per launch (0 = as many as fit in 256 MiB of maps, <= 16)
+  /// Channel names: R G B, A, N.R N.G N.B by default; kLegacy for P.X P.Y P.Z, A, N.X N.Y N.Z.
+  PositionMapChannels channels = PositionMapChannels::kRgba;
 };
 
 /// Header fields of one position-map EXR.
@@ -192,6 +218,7 @@ struct PositionMapFrameHeader {
   ExrCompression compression = ExrCompression::kZip;
   double framesPerSecond = 24.0;
   bool halfNormals = false;
+  PositionMapChannels channels = PositionMapChannels::kRgba;
 };
 
 /// Writes one position-map EXR atomically (temp file + rename). `positions` and `normals`
@@ -207,14 +234,18 @@ struct PositionMapInfo : ExrSharedHeader {
   int meshVertexCount = 0;
   int padding = 0;
   bool halfNormals = false;  ///< normals stored as 16-bit floats
+  /// Which names the file uses (R G B: kRgba, P.X P.Y P.Z: kLegacy).
+  PositionMapChannels channels = PositionMapChannels::kRgba;
 };
 
 /// Whether `path` is an EXR whose header marks it as a position map (dsKind = positionMap);
 /// false for anything else, unreadable files included.
 bool isPositionMapExr(const std::string& path);
 
-/// Reads the header of a position-map EXR. Throws Error(kInput) naming the file when it does
-/// not exist, cannot be read or is not a position map.
+/// Reads the header of a position-map EXR and tells its channel naming from the channels
+/// present (R G B: kRgba; else P.X P.Y P.Z: kLegacy). Throws Error(kInput) naming the file
+/// when it does not exist, cannot be read, is not a position map or has neither set of
+/// position channels.
 PositionMapInfo readPositionMapExrInfo(const std::string& path);
 
 /// Writes an 8-bit RGB PNG of one map atomically: covered texels show P scaled from `bounds`
