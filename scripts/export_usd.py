@@ -24,6 +24,8 @@ import sys
 
 import numpy as np
 
+from drivenshape_import import import_drivenshape
+
 EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 2, 3, 4
 
 
@@ -181,21 +183,11 @@ def read_exr_frame(path, vertex_count):
 # ---- output ----------------------------------------------------------------------------------
 
 def drivenshape_usd():
-    """drivenshape.usd, the one USD writer of the project (apps/python/drivenshape/usd.py): from
-    PYTHONPATH, else from this checkout's build folder (build/python)."""
+    """drivenshape.usd, the one USD writer of the project (apps/python/drivenshape/usd.py)."""
     try:
-        from drivenshape import usd
-    except ImportError:
-        build = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "build",
-                             "python")
-        sys.path.insert(0, os.path.normpath(build))
-        try:
-            from drivenshape import usd
-        except ImportError as error:
-            raise ExportError(EXIT_USAGE, f"the drivenshape Python module is not available "
-                                          f"({error}): build it (scripts/setup.sh) or set "
-                                          "PYTHONPATH to the build's python folder")
-    return usd
+        return import_drivenshape("usd")
+    except ImportError as error:
+        raise ExportError(EXIT_USAGE, str(error))
 
 
 def write_usd(path, mesh, frames, positions, fps, prim_path, up_axis):

@@ -32,6 +32,8 @@ import tempfile
 
 import numpy as np
 
+from drivenshape_import import import_drivenshape
+
 EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 2, 3, 4
 GENERATOR = "drivenshape qc_report"
 WORST_FRAMES = 5
@@ -155,20 +157,11 @@ def load_eval(path):
 
 
 def drivenshape_module():
-    """The project's Python module: from PYTHONPATH, else this checkout's build/python."""
+    """The project's Python module (scripts/drivenshape_import.py)."""
     try:
-        import drivenshape
-    except ImportError:
-        build = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "build",
-                             "python")
-        sys.path.insert(0, os.path.normpath(build))
-        try:
-            import drivenshape
-        except ImportError as error:
-            raise QcError(EXIT_USAGE, f"the drivenshape Python module is not available "
-                                      f"({error}): build it (scripts/setup.sh) or set "
-                                      "PYTHONPATH to the build's python folder")
-    return drivenshape
+        return import_drivenshape()
+    except ImportError as error:
+        raise QcError(EXIT_USAGE, str(error))
 
 
 def open_cache(ds, candidates, what, option):

@@ -16,16 +16,7 @@ BATCH = 8
 
 
 def scene_objects(scene):
-    settings = scene.drivenshape
-    driver, cloth = settings.driver, settings.cloth
-    if driver is None or cloth is None:
-        raise UserError("Pick the driver and the cloth objects in the DrivenShape panel")
-    if driver == cloth:
-        raise UserError(f"'{driver.name}' is both the driver and the cloth")
-    for obj in (driver, cloth):
-        if obj.mode == "EDIT":
-            raise UserError(f"The object '{obj.name}' is in Edit Mode: leave it first")
-    return driver, cloth
+    return engine.scene_objects(scene, driver_editable=False)
 
 
 def bake_frames(scene):

@@ -17,6 +17,21 @@ class UserError(Exception):
     object at fault)."""
 
 
+def scene_objects(scene, driver_editable):
+    """(driver, cloth) picked in the scene's DrivenShape settings; UserError when one is missing,
+    both are the same object, or one is in Edit Mode (the driver may be, if `driver_editable`)."""
+    settings = scene.drivenshape
+    driver, cloth = settings.driver, settings.cloth
+    if driver is None or cloth is None:
+        raise UserError("Pick the driver and the cloth objects in the DrivenShape panel")
+    if driver == cloth:
+        raise UserError(f"'{driver.name}' is both the driver and the cloth")
+    for role, obj in (("driver", driver), ("cloth", cloth)):
+        if obj.mode == "EDIT" and not (role == "driver" and driver_editable):
+            raise UserError(f"The {role} object '{obj.name}' is in Edit Mode: leave it first")
+    return driver, cloth
+
+
 def abspath(path):
     """An absolute file path from a setting; `//` means the .blend file's folder."""
     if not path:

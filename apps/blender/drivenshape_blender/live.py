@@ -50,15 +50,8 @@ class LiveSession:
     # -- objects --------------------------------------------------------------------------------
 
     def objects(self, scene):
-        settings = scene.drivenshape
-        driver, cloth = settings.driver, settings.cloth
-        if driver is None or cloth is None:
-            raise UserError("Pick the driver and the cloth objects in the DrivenShape panel")
-        if driver == cloth:
-            raise UserError(f"'{driver.name}' is both the driver and the cloth")
-        if cloth.mode == "EDIT":
-            raise UserError(f"The cloth object '{cloth.name}' is in Edit Mode: leave it first")
-        return driver, cloth
+        # Live mode follows a driver being edited; only the cloth must stay out of Edit Mode.
+        return engine.scene_objects(scene, driver_editable=True)
 
     def take_cloth(self, cloth, database):
         """Checks the cloth against the database and remembers its rest positions."""
