@@ -22,7 +22,6 @@ class HostStagingClosest final : public ClosestBackend {
     mInner->setSurface(driver, mask);
     mInside = std::make_unique<InsideAudit>(driver);
     mPointCount = mask.drivenVertexCount();
-    mPoseValues = 3 * static_cast<std::size_t>(driver.vertexCount());
   }
   void closest(int f, const float* poses, const float* points, SurfaceHit* hits) override {
     mInner->closest(f, poses, points, hits);
@@ -41,21 +40,14 @@ class HostStagingClosest final : public ClosestBackend {
   }
   void countInside(int f, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override {
-    const float* pose = poses.read<float>();
-    const SurfaceHit* hit = hits.read<SurfaceHit>();
-    const float* xyz = points.read<float>();
-    for (int i = 0; i < f; ++i) {
-      const std::size_t first = static_cast<std::size_t>(i) * mPointCount;
-      inside[i] =
-          mInside->countInside(pose + i * mPoseValues, mPointCount, xyz + 3 * first, hit + first);
-    }
+    mInside->countInsideFrames(f, poses.read<float>(), mPointCount, points.read<float>(),
+                               hits.read<SurfaceHit>(), inside);
   }
 
  private:
   std::unique_ptr<ClosestBackend> mInner;
   std::unique_ptr<InsideAudit> mInside;
   int mPointCount = 0;
-  std::size_t mPoseValues = 0;
 };
 
 /// Projection and blend through their host-memory calls only.

@@ -196,15 +196,7 @@ class DriverReader {
     const std::size_t values = static_cast<std::size_t>(mDriver.vertexCount()) * 3;
     in.driver.resize(in.solveFrames.size() * values);
     parallelFor(static_cast<int>(in.solveFrames.size()), mThreads, [&](int i) {
-      const int frame = in.solveFrames[i];
-      float* xyz = &in.driver[i * values];
-      mDriver.readFrame(frame, xyz);
-      for (std::size_t j = 0; j < values; ++j) {
-        if (!std::isfinite(xyz[j])) {
-          DS_THROW(kInput, "driver cache '", mDriver.path(), "' frame ", frame, " vertex ", j / 3,
-                   " is not a finite number; fix the cache or leave the frame out");
-        }
-      }
+      readFiniteFrame(mDriver, in.solveFrames[i], &in.driver[i * values], "driver cache");
     });
     in.seconds = secondsSince(start);
     return in;

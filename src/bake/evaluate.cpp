@@ -46,18 +46,6 @@ FrameError frameError(int frame, int vertexCount, const float* a, const float* b
   return error;
 }
 
-/// Reads one frame and refuses NaN or infinite positions, naming the file, frame and vertex.
-void readFinite(const PointCacheReader& cache, int frame, float* xyz, const char* role) {
-  cache.readFrame(frame, xyz);
-  const std::size_t values = static_cast<std::size_t>(cache.vertexCount()) * 3;
-  for (std::size_t j = 0; j < values; ++j) {
-    if (!std::isfinite(xyz[j])) {
-      DS_THROW(kInput, role, " '", cache.path(), "' frame ", frame, " vertex ", j / 3,
-               " is not a finite number; fix the cache or leave the frame out of --frames");
-    }
-  }
-}
-
 /// Running state of one cloth sequence while the frames are read in batches.
 struct Accumulator {
   explicit Accumulator(ClothMetrics* target) : metrics(target) {}
@@ -190,10 +178,10 @@ void readShotBatch(const ShotEvaluationInput& input, const std::vector<int>& fra
   batch.driverBlock.resize(count * driverValues);
   for (int i = 0; i < count; ++i) {
     const int frame = frames[begin + i];
-    readFinite(*input.bake, frame, &batch.cloth[kShotBake][i * drivenValues], "bake");
-    readFinite(*input.truth, frame, &batch.cloth[kShotTruth][i * drivenValues], "truth");
+    readFiniteFrame(*input.bake, frame, &batch.cloth[kShotBake][i * drivenValues], "bake");
+    readFiniteFrame(*input.truth, frame, &batch.cloth[kShotTruth][i * drivenValues], "truth");
     if (layout.penetrations) {
-      readFinite(*input.driver, frame, &batch.driverBlock[i * driverValues], "driver");
+      readFiniteFrame(*input.driver, frame, &batch.driverBlock[i * driverValues], "driver");
     }
   }
 }

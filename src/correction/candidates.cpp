@@ -50,6 +50,7 @@
 // Frames run in parallel on host threads.
 
 #include "candidates.h"
+#include "finite.h"
 
 #include <algorithm>
 #include <array>
@@ -93,12 +94,11 @@ void checkFinite(const char* stage, const char* what, int frameCount, int count,
   const std::size_t stride = 3 * static_cast<std::size_t>(count);
   for (int f = 0; f < frameCount; ++f) {
     const float* frame = data + static_cast<std::size_t>(f) * stride;
-    for (std::size_t k = 0; k < stride; ++k) {
-      if (!std::isfinite(frame[k])) {
-        DS_THROW(kNumerical, stage, ": frame ", f, " of the chunk: ", what, " ", k / 3, " has a ",
-                 std::isnan(frame[k]) ? "NaN" : "infinite", " coordinate (axis ", "xyz"[k % 3],
-                 "); the input or the blend that produced it is broken");
-      }
+    const std::size_t k = firstNonFinite(frame, stride);
+    if (k < stride) {
+      DS_THROW(kNumerical, stage, ": frame ", f, " of the chunk: ", what, " ", k / 3, " has a ",
+               std::isnan(frame[k]) ? "NaN" : "infinite", " coordinate (axis ", "xyz"[k % 3],
+               "); the input or the blend that produced it is broken");
     }
   }
 }

@@ -13,6 +13,8 @@
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 
+#include "parallel.h"
+
 #include "surface_features.h"
 #include "triangle_distance.h"
 
@@ -70,6 +72,16 @@ int InsideAudit::countInside(const float* pose, int pointCount, const float* poi
   signedDistances(pose, pointCount, points, hits, distances.data());
   return static_cast<int>(
       std::count_if(distances.begin(), distances.end(), [](float d) { return d < 0.0f; }));
+}
+
+void InsideAudit::countInsideFrames(int frameCount, const float* poses, int pointCount,
+                                    const float* points, const SurfaceHit* hits, int* inside,
+                                    int threads) const {
+  const std::size_t poseValues = 3 * static_cast<std::size_t>(mVertexCount);
+  parallelFor(frameCount, threads, [&](int f) {
+    const std::size_t first = static_cast<std::size_t>(f) * pointCount;
+    inside[f] = countInside(poses + f * poseValues, pointCount, points + 3 * first, hits + first);
+  });
 }
 
 }  // namespace drivenshape

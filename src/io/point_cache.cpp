@@ -10,6 +10,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
 
+#include "finite.h"
 #include "frame_token.h"
 
 namespace drivenshape {
@@ -156,6 +157,17 @@ std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<i
     cache.readFrame(frames[i], data.data() + i * frameFloats);
   }
   return data;
+}
+
+void readFiniteFrame(const PointCacheReader& cache, int frame, float* xyz,
+                     const std::string& role) {
+  cache.readFrame(frame, xyz);
+  const std::size_t values = 3 * static_cast<std::size_t>(cache.vertexCount());
+  const std::size_t bad = firstNonFinite(xyz, values);
+  if (bad < values) {
+    DS_THROW(kInput, role, " '", cache.path(), "' frame ", frame, " vertex ", bad / 3,
+             " is not a finite number; fix the cache or leave the frame out");
+  }
 }
 
 }  // namespace drivenshape

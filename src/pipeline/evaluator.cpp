@@ -9,6 +9,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/version.h>
 
+#include "finite.h"
 #include "json_text.h"
 #include "stage.h"
 
@@ -104,13 +105,12 @@ namespace {
 void checkCloth(const pipeline::Model& model, const pipeline::Batch& batch, const float* cloth) {
   const std::size_t dd = model.drivenValues;
   for (int i = 0; i < batch.count; ++i) {
-    for (std::size_t j = 0; j < dd; ++j) {
-      const float value = cloth[static_cast<std::size_t>(i) * dd + j];
-      if (!std::isfinite(value)) {
-        DS_THROW(kNumerical, "frame ", batch.frames[batch.warm + i], ": cloth vertex ", j / 3,
-                 " came out of the pipeline as ", std::isnan(value) ? "NaN" : "infinity",
-                 "; the database or the settings give non-finite positions for this pose");
-      }
+    const float* frame = cloth + static_cast<std::size_t>(i) * dd;
+    const std::size_t bad = firstNonFinite(frame, dd);
+    if (bad < dd) {
+      DS_THROW(kNumerical, "frame ", batch.frames[batch.warm + i], ": cloth vertex ", bad / 3,
+               " came out of the pipeline as ", std::isnan(frame[bad]) ? "NaN" : "infinity",
+               "; the database or the settings give non-finite positions for this pose");
     }
   }
 }
@@ -219,11 +219,10 @@ StageSeconds Evaluator::evaluate(int frameCount, const int* frames, const float*
   }
   for (int i = 0; i < frameCount; ++i) {
     const float* xyz = driver + static_cast<std::size_t>(i) * model.driverValues;
-    for (std::size_t j = 0; j < model.driverValues; ++j) {
-      if (!std::isfinite(xyz[j])) {
-        DS_THROW(kInput, "driver frame ", frames[i], " vertex ", j / 3,
-                 " is not a finite number; fix the driver or leave the frame out");
-      }
+    const std::size_t bad = firstNonFinite(xyz, model.driverValues);
+    if (bad < model.driverValues) {
+      DS_THROW(kInput, "driver frame ", frames[i], " vertex ", bad / 3,
+               " is not a finite number; fix the driver or leave the frame out");
     }
   }
   pipeline::Batch& batch = mImpl->batch;

@@ -110,12 +110,12 @@ class ClClosest final : public ClosestBackend {
   }
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
-    mSearch.checkChunk("closest triangle", frameCount, hits != nullptr);
+    mSearch.checkChunk("closest triangle", frameCount,
+                       poses != nullptr && points != nullptr && hits != nullptr);
     if (!mUseBvh) {
       closestCandidates(frameCount, poses, points, hits);
       return;
     }
-    mSearch.checkChunk("closest triangle", frameCount, poses != nullptr && points != nullptr);
     const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
     mViewPoses.view(poses, static_cast<std::size_t>(frameCount) * poseValues());
     mViewPoints.view(points, items * 3);

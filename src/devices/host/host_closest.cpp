@@ -39,16 +39,9 @@ class HostClosest final : public ClosestBackend {
   void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override {
     mSearch.checkChunk("inside count", frameCount, inside != nullptr && mInside != nullptr);
-    const float* pose = poses.read<float>();
-    const float* xyz = points.read<float>();
-    const SurfaceHit* hit = hits.read<SurfaceHit>();
-    const int pointCount = mSearch.pointCount();
-    const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
-    parallelFor(frameCount, mSearch.threads(), [&](int f) {
-      const std::size_t first = static_cast<std::size_t>(f) * pointCount;
-      inside[f] =
-          mInside->countInside(pose + f * poseStride, pointCount, xyz + 3 * first, hit + first);
-    });
+    mInside->countInsideFrames(frameCount, poses.read<float>(), mSearch.pointCount(),
+                               points.read<float>(), hits.read<SurfaceHit>(), inside,
+                               mSearch.threads());
   }
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {

@@ -251,6 +251,11 @@ class InsideAudit {
   int countInside(const float* pose, int pointCount, const float* points,
                   const SurfaceHit* hits) const;
 
+  /// countInside of each of `frameCount` frames: poses F x 3Vp, points F x pointCount x 3,
+  /// hits F x pointCount, into inside[F]; frames in parallel on `threads` host threads.
+  void countInsideFrames(int frameCount, const float* poses, int pointCount, const float* points,
+                         const SurfaceHit* hits, int* inside, int threads = 1) const;
+
  private:
   int mVertexCount = 0;
   Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor> mTriangles;

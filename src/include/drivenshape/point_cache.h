@@ -36,6 +36,11 @@ std::unique_ptr<PointCacheReader> openPointCache(const std::string& spec,
 /// Reads frames [frames] of a cache into one F by (3V) row-major block (frame-major).
 std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<int>& frames);
 
+/// Reads one frame (as PointCacheReader::readFrame) and refuses a NaN or infinite position
+/// with Error(kInput) naming `role` ("driver cache", "truth"), the file, the frame and the
+/// vertex.
+void readFiniteFrame(const PointCacheReader& cache, int frame, float* xyz, const std::string& role);
+
 // ---------------------------------------------------------------------------------------
 // PC2 (little-endian): 12-byte "POINTCACHE2\0", int32 version (1), int32 points,
 // float32 start frame, float32 sample rate, int32 samples, then samples * points * xyz float32.
