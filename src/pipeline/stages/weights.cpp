@@ -150,27 +150,34 @@ class WeightsStage final : public Stage {
     std::vector<double> fit;
     const std::vector<WeightProblem>& problems = mModel.problems();  // built by solve()
     for (std::size_t r = 0; r < problems.size(); ++r) {
+      // The values of the problem's rows: every value of the frame, or 3 per listed row.
       const std::vector<int>& rows = problems[r].rows;
-      const std::size_t count = rows.empty() ? static_cast<std::size_t>(mModel.vp) : rows.size();
-      fit.assign(3 * count, 0.0);
+      const std::size_t values = rows.empty() ? dv : 3 * rows.size();
+      const auto index = [&](std::size_t i) {
+        return rows.empty() ? i : 3 * static_cast<std::size_t>(rows[i / 3]) + i % 3;
+      };
+      fit.assign(values, 0.0);
       for (int s = 0; s < k; ++s) {
         const double w = weights[r * k + static_cast<std::size_t>(s)];
+        if (w == 0.0) {
+          continue;  // shapes held at 0 (most of them) add nothing
+        }
         const float* shape = &mModel.driverShapes[static_cast<std::size_t>(s) * dv];
-        for (std::size_t j = 0; j < count; ++j) {
-          const std::size_t v = rows.empty() ? j : static_cast<std::size_t>(rows[j]);
-          for (int c = 0; c < 3; ++c) {
-            fit[3 * j + c] += w * shape[3 * v + c];
+        if (rows.empty()) {
+          for (std::size_t i = 0; i < values; ++i) {
+            fit[i] += w * shape[i];
+          }
+        } else {
+          for (std::size_t i = 0; i < values; ++i) {
+            fit[i] += w * shape[index(i)];
           }
         }
       }
       double error2 = 0.0, norm2 = 0.0;
-      for (std::size_t j = 0; j < count; ++j) {
-        const std::size_t v = rows.empty() ? j : static_cast<std::size_t>(rows[j]);
-        for (int c = 0; c < 3; ++c) {
-          const double b = frame[3 * v + c];
-          error2 += (fit[3 * j + c] - b) * (fit[3 * j + c] - b);
-          norm2 += b * b;
-        }
+      for (std::size_t i = 0; i < values; ++i) {
+        const double b = frame[index(i)];
+        error2 += (fit[i] - b) * (fit[i] - b);
+        norm2 += b * b;
       }
       worst = std::max(worst, norm2 > 0.0 ? std::sqrt(error2 / norm2) : 0.0);
     }
