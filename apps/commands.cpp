@@ -198,6 +198,18 @@ int runDbBuild(const std::vector<std::string>& args) {
       .option("--remove-frames", "LIST", "frames never kept")
       .option("--duplicate-tolerance", "X",
               "reject shapes within X * driver bbox diagonal (RMS) of a kept one", "0.001")
+      .option("--model", "KIND",
+              "pose: also fit the pose model over every candidate frame (the rest binding plus "
+              "a learned correction; what `bake` evaluates by default); none: the picks only",
+              "pose")
+      .option("--model-parts", "N",
+              "rigid parts of the driver the pose model reads its joints from (0 = as many as "
+              "the clip shows)",
+              "0")
+      .option("--rig", "RIG.json",
+              "take the parts from a rig instead: bone_names, bones (name, parent) and "
+              "driver_weights (one row per driver vertex); each vertex goes to its heaviest "
+              "bone")
       .option("-o", "DB", "database file to write", "", true)
       .flag("--quiet", "do not list the picks");
   if (!parser.parse(args)) {
@@ -216,10 +228,24 @@ int runDbBuild(const std::vector<std::string>& args) {
   if (parser.has("--remove-frames")) {
     options.removeFrames = parseFrameRange(parser.get("--remove-frames"));
   }
+  const std::string model = parser.get("--model");
+  if (model != "pose" && model != "none") {
+    DS_THROW(kUsage, "--model takes pose or none (got '", model, "')");
+  }
+  options.poseModel = model == "pose";
+  options.model.parts = parser.getInt("--model-parts", 0);
+  if (options.model.parts == 1 || options.model.parts > 64) {
+    DS_THROW(kUsage, "--model-parts takes 0 (found from the clip) or 2..64 (got ",
+             options.model.parts, ")");
+  }
   const std::string output = parser.get("-o");
   checkOutputFolderWritable(output);
   const Mesh driverMesh = readObj(parser.get("--driver-mesh"));
   const Mesh drivenMesh = readObj(parser.get("--driven-mesh"));
+  if (parser.has("--rig")) {
+    readRigParts(parser.get("--rig"), driverMesh.vertexCount(), options.model.partOf,
+                 options.model.parentOf);
+  }
   const auto driver = openPointCache(parser.get("--driver"), 0);
   const auto driven = openPointCache(parser.get("--driven"), 0);
   const Database db = buildDatabase(driverMesh, drivenMesh, *driver, *driven, options,
@@ -382,9 +408,15 @@ int runBake(const std::vector<std::string>& args) {
       .option("--exr-width", "W", "pixels per EXR row (vertex v is pixel v mod W, v div W)", "1024")
       .option("--fps", "X", "frames per second written to the EXR headers", "24")
       .option("--weights", "MODE",
-              "qp (DrivenShape); baselines: nearest (closest database shape), bind (rest cloth "
-              "bound to the rest driver and carried along, like Point Deform)",
-              "qp")
+              "auto (model when the database has a pose model, else qp), model (the rest "
+              "binding plus the pose model's learned correction), qp (the 2008 DrivenShape "
+              "blend); baselines: nearest (closest database shape), bind (rest cloth bound to "
+              "the rest driver and carried along, like Point Deform)",
+              "auto")
+      .option("--coverage-tolerance", "D",
+              "pose model: frames whose predicted mean vertex error exceeds D scene units are "
+              "flagged for simulation (0 = 2% of the cloth's rest bounding-box diagonal)",
+              "0")
       .option("--posmap", "W[xH]", "also write UV-space position maps of the baked cloth")
       .option("--posmap-out", "PATTERN", "position-map EXR sequence",
               "OUT with .posmap before the frame token")
@@ -530,6 +562,7 @@ int bakeParsed(const ArgParser& parser) {
     }
   }
   options.evaluator.weightMode = parseWeightMode(parser.get("--weights"), "--weights");
+  options.evaluator.coverageTolerance = parser.getDouble("--coverage-tolerance", 0.0);
   if (!hasFramePattern(options.outputPattern)) {
     DS_THROW(kUsage, "-o '", options.outputPattern,
              "' has no frame token; use e.g. out/cloth.####.exr");

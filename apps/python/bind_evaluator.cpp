@@ -93,6 +93,9 @@ py::dict recordDict(const FrameRecord& record) {
   out["binding_switches"] = record.bindingSwitches;
   out["max_jump"] = record.maxJump;
   out["max_jump_vertex"] = record.maxJumpVertex;
+  out["pose_distance"] = record.poseDistance;
+  out["predicted_error"] = record.predictedError;
+  out["flagged"] = record.flagged;
   return out;
 }
 
@@ -308,6 +311,9 @@ void bindSettings(py::module_& module) {
             s.regions = std::move(regions);
           })
       .def_readwrite("max_weight_change", &EvaluatorSettings::maxWeightChange)
+      .def_readwrite("coverage_tolerance", &EvaluatorSettings::coverageTolerance,
+                     "pose model: flag frames predicted worse than this (scene units; 0 = 2% "
+                     "of the cloth's rest bounding-box diagonal)")
       .def_readwrite("audit", &EvaluatorSettings::audit)
       .def_property(
           "layers", [](const EvaluatorSettings& s) { return s.layers; },
@@ -472,7 +478,8 @@ void bindDatabase(py::module_& module) {
       "build_database",
       [](py::handle driverMesh, py::handle drivenMesh, py::handle driverCache,
          py::handle drivenCache, int count, py::handle frames, py::handle addFrames,
-         py::handle removeFrames, double duplicateTolerance, int startFrame, py::handle log) {
+         py::handle removeFrames, double duplicateTolerance, const std::string& model,
+         int modelParts, int startFrame, py::handle log) {
         std::optional<Mesh> driverStorage;
         std::optional<Mesh> drivenStorage;
         const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
@@ -487,6 +494,11 @@ void bindDatabase(py::module_& module) {
         options.addFrames = optionalFrames(addFrames);
         options.removeFrames = optionalFrames(removeFrames);
         options.duplicateTolerance = duplicateTolerance;
+        if (model != "pose" && model != "none") {
+          DS_THROW(kUsage, "model takes 'pose' or 'none' (got '", model, "')");
+        }
+        options.poseModel = model == "pose";
+        options.model.parts = modelParts;
         std::ostringstream text;
         std::optional<Database> database;
         {
@@ -503,13 +515,15 @@ void bindDatabase(py::module_& module) {
       py::arg("driven_cache"), py::kw_only(), py::arg("count") = buildDefaults.count,
       py::arg("frames") = py::none(), py::arg("add_frames") = py::none(),
       py::arg("remove_frames") = py::none(),
-      py::arg("duplicate_tolerance") = buildDefaults.duplicateTolerance, py::arg("start_frame") = 1,
-      py::arg("log") = py::none(),
+      py::arg("duplicate_tolerance") = buildDefaults.duplicateTolerance, py::arg("model") = "pose",
+      py::arg("model_parts") = 0, py::arg("start_frame") = 1, py::arg("log") = py::none(),
       "The database of reference caches (drivenshape db build). Meshes are Mesh objects or "
       "OBJ paths; caches are PointCache objects, paths (PC2, EXR pattern) or arrays (F, V, 3) "
       "whose first frame is start_frame. frames: candidates (default every frame of the driver "
-      "cache); add_frames are always kept, remove_frames never. log: a file-like object that "
-      "receives the pick log.");
+      "cache); add_frames are always kept, remove_frames never. model: 'pose' also fits the "
+      "pose model over every candidate frame (db build --model), 'none' keeps the picks only; "
+      "model_parts: the driver's rigid parts (0 = found from the clip). log: a file-like "
+      "object that receives the pick log.");
 }
 
 void bindEvaluator(py::module_& module) {
@@ -592,6 +606,12 @@ void bindEvaluator(py::module_& module) {
       .def_readonly("binding_switches", &FrameRecord::bindingSwitches)
       .def_readonly("max_jump", &FrameRecord::maxJump)
       .def_readonly("max_jump_vertex", &FrameRecord::maxJumpVertex)
+      .def_readonly("pose_distance", &FrameRecord::poseDistance,
+                    "pose model: how new the pose is (posterior deviation); -1 otherwise")
+      .def_readonly("predicted_error", &FrameRecord::predictedError,
+                    "pose model: predicted mean vertex error, scene units; -1 otherwise")
+      .def_readonly("flagged", &FrameRecord::flagged,
+                    "pose model: 1 when the predicted error exceeds the coverage tolerance")
       .def("to_dict", &recordDict)
       .def("__repr__", [](const FrameRecord& record) {
         std::ostringstream text;
@@ -642,6 +662,10 @@ void bindEvaluator(py::module_& module) {
            })
       .def_property_readonly("settings_hash",
                              [](const EvaluatorHandle& h) { return h.evaluator.settingsHash(); })
+      .def_property_readonly(
+          "history_frames", [](const EvaluatorHandle& h) { return h.evaluator.historyFrames(); },
+          "earlier driver frames the pose model reads before each frame: pass them as warm-up "
+          "frames for a block (frames played in order one per call are remembered)")
       .def("describe_settings",
            [](const EvaluatorHandle& h) { return parseJson(h.evaluator.describeSettings()); })
       .def("describe_layers",

@@ -44,11 +44,12 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeOpti
   if (options.frames.empty()) {
     DS_THROW(kUsage, "the frame range to bake is empty; give frames, e.g. 1001-1100");
   }
-  if (options.evaluator.weightMode != WeightMode::kQp &&
+  const WeightMode mode = options.evaluator.weightMode;  // kAuto resolves to kQp with these
+  if (mode != WeightMode::kQp && mode != WeightMode::kAuto &&
       (!options.regionsPath.empty() || options.evaluator.maxWeightChange > 0)) {
     DS_THROW(kUsage,
              "regions and the temporal bound (maximum weight change) apply to the QP weights "
-             "only, not to the nearest or bind baselines");
+             "only (--weights qp), not to the pose model or the nearest or bind baselines");
   }
   if (options.temporalWarmup < 0) {
     DS_THROW(kUsage, "the temporal warm-up must be >= 0 frames (got ", options.temporalWarmup, ")");
@@ -152,11 +153,13 @@ struct BatchInput {
 /// current one is evaluated.
 class DriverReader {
  public:
+  /// `history`: earlier frames the evaluator reads before each frame (Evaluator::historyFrames).
   DriverReader(const PointCacheReader& driver, std::vector<int> frames, const BakeOptions& options,
-               int batch, int threads)
+               int history, int batch, int threads)
       : mDriver(driver),
         mFrames(std::move(frames)),
-        mWarmup(options.evaluator.maxWeightChange > 0 ? options.temporalWarmup : 0),
+        mWarmup(
+            std::max(options.evaluator.maxWeightChange > 0 ? options.temporalWarmup : 0, history)),
         mBatch(batch),
         mThreads(threads) {
     if (mWarmup > 0) {
@@ -164,21 +167,37 @@ class DriverReader {
     }
   }
 
-  /// The batch starting at frames[begin] (read ahead when it was asked for), and the read-ahead
-  /// of the one after it.
-  BatchInput take(std::size_t begin) {
-    BatchInput input = mNext.valid() ? mNext.get() : read(begin);
-    if (begin + mBatch < mFrames.size()) {
-      mNext = std::async(std::launch::async, [this, begin] { return read(begin + mBatch); });
+  /// Where each batch starts in the frames to bake: every `batch` frames and, when frames read
+  /// earlier ones (history), at every gap in the frame numbers too, so that a frame's history is
+  /// in its own batch or its warm-up (a resume or a stepped bake then equals the whole bake).
+  std::vector<std::size_t> batchStarts(int history) const {
+    std::vector<std::size_t> starts;
+    for (std::size_t i = 0; i < mFrames.size(); ++i) {
+      const bool gap = history > 0 && i > 0 && mFrames[i] != mFrames[i - 1] + 1;
+      if (starts.empty() || gap || i - starts.back() >= mBatch) {
+        starts.push_back(i);
+      }
+    }
+    return starts;
+  }
+
+  /// The batch of `count` frames starting at frames[begin] (read ahead when it was asked for),
+  /// and the read-ahead of the next one (`nextBegin`, `nextCount`; none when nextCount is 0).
+  BatchInput take(std::size_t begin, std::size_t count, std::size_t nextBegin,
+                  std::size_t nextCount) {
+    BatchInput input = mNext.valid() ? mNext.get() : read(begin, count);
+    if (nextCount > 0) {
+      mNext = std::async(std::launch::async,
+                         [this, nextBegin, nextCount] { return read(nextBegin, nextCount); });
     }
     return input;
   }
 
  private:
-  BatchInput read(std::size_t begin) const {
+  BatchInput read(std::size_t begin, std::size_t frames) const {
     const auto start = Clock::now();
     BatchInput in;
-    const int count = static_cast<int>(std::min<std::size_t>(mBatch, mFrames.size() - begin));
+    const int count = static_cast<int>(frames);
     if (mWarmup > 0) {
       // Warm-up frames come from what the cache holds just before the batch (a warm-up longer
       // than the cache costs nothing more).
@@ -346,7 +365,37 @@ nlohmann::json frameJson(const FrameRecord& record, int shapeCount) {
     entry["max_jump"] = record.maxJump;
     entry["max_jump_vertex"] = record.maxJumpVertex;
   }
+  if (record.predictedError >= 0) {
+    entry["pose_distance"] = record.poseDistance;
+    entry["predicted_error"] = record.predictedError;
+    entry["coverage"] = {{"flagged", record.flagged == 1}, {"score", record.predictedError}};
+  }
   return entry;
+}
+
+/// The shot's coverage verdict from the frames' predicted errors: the fraction of frames the
+/// pose model covers and the frame ranges to simulate; null without a pose model.
+nlohmann::json coverageJson(const std::vector<FrameRecord>& records, double tolerance) {
+  std::vector<int> flagged;
+  int checked = 0;
+  for (const FrameRecord& record : records) {
+    if (!record.skipped && record.flagged >= 0) {
+      ++checked;
+      if (record.flagged == 1) {
+        flagged.push_back(record.frame);
+      }
+    }
+  }
+  if (checked == 0) {
+    return nullptr;
+  }
+  const double covered = 1.0 - static_cast<double>(flagged.size()) / checked;
+  return {{"tolerance", tolerance},
+          {"frames_checked", checked},
+          {"covered_fraction", covered},
+          {"simulate_frames", flagged.empty() ? std::string() : formatFrameRange(flagged)},
+          {"verdict",
+           flagged.empty() ? "DrivenShape is enough" : "simulate " + formatFrameRange(flagged)}};
 }
 
 void writeReport(const std::string& path, const Database& db, const PointCacheReader& driver,
@@ -395,6 +444,10 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   };
   if (!result.warnings.empty()) {
     report["warnings"] = result.warnings;
+  }
+  const json coverage = coverageJson(result.frames, evaluator.coverageTolerance());
+  if (!coverage.is_null()) {
+    report["coverage"] = coverage;
   }
   writeFileAtomically(path, jsonText(report, 1) + "\n");
 }
@@ -470,12 +523,15 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   for (int index : todo) {
     todoFrames.push_back(result.frames[index].frame);
   }
-  DriverReader reader(driver, todoFrames, options, chunk, threads);
+  DriverReader reader(driver, todoFrames, options, evaluator.historyFrames(), chunk, threads);
   BatchWriter writer(result, todo, exr, vd, threads, observer);
   std::vector<FrameRecord> records;
   result.times.setup = secondsSince(bakeStart);
 
-  for (std::size_t begin = 0; begin < todo.size(); begin += static_cast<std::size_t>(chunk)) {
+  std::vector<std::size_t> starts = reader.batchStarts(evaluator.historyFrames());
+  starts.push_back(todo.size());
+  for (std::size_t b = 0; b + 1 < starts.size(); ++b) {
+    const std::size_t begin = starts[b];
     if (observer != nullptr && observer->stopRequested()) {
       writer.finish();
       DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
@@ -483,9 +539,11 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
                "outputs kept (--skip-existing)");
     }
     const auto batchStart = Clock::now();
-    const int count = static_cast<int>(std::min<std::size_t>(chunk, todo.size() - begin));
+    const int count = static_cast<int>(starts[b + 1] - begin);
     auto start = Clock::now();
-    const BatchInput input = reader.take(begin);
+    const bool more = b + 2 < starts.size();
+    const BatchInput input = reader.take(begin, static_cast<std::size_t>(count), starts[b + 1],
+                                         more ? starts[b + 2] - starts[b + 1] : 0);
     result.times.readWait += secondsSince(start);
     result.times.read += input.seconds;
 

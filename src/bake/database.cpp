@@ -12,6 +12,8 @@
 
 #include <drivenshape/database.h>
 
+#include <array>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -100,6 +102,20 @@ std::uint64_t Database::contentHash() const {
   hasher.add(frames.data(), frames.size() * sizeof(int));
   hasher.add(driverShapes.data(), driverShapes.size() * sizeof(float));
   hasher.add(drivenShapes.data(), drivenShapes.size() * sizeof(float));
+  if (!poseModel.empty()) {
+    // Only databases with a model hash it: those without keep their 0.1 hash.
+    const PoseModel& m = poseModel;
+    hasher.add(m.partOf.data(), m.partOf.size() * sizeof(int));
+    hasher.add(m.parent.data(), m.parent.size() * sizeof(int));
+    hasher.add(m.up.data(), sizeof(m.up));
+    hasher.addValue(m.velocityLag).addValue(m.historyFrames);
+    hasher.addValue(m.lengthScale).addValue(m.linearWeight).addValue(m.ridge);
+    hasher.addValue(m.errorBias).addValue(m.errorScale);
+    hasher.add(m.frames.data(), m.frames.size() * sizeof(int));
+    hasher.add(m.features.data(), m.features.size() * sizeof(float));
+    hasher.add(m.coefficients.data(), m.coefficients.size() * sizeof(float));
+    hasher.add(m.basis.data(), m.basis.size() * sizeof(float));
+  }
   return hasher.value();
 }
 
@@ -116,7 +132,7 @@ void saveDatabase(const std::string& path, const Database& db) {
   const std::vector<float> drivenUv = flatUvs(db.drivenMesh);
   const Mesh& dm = db.driverMesh;
   const Mesh& cm = db.drivenMesh;
-  const std::vector<BlockData> blocks = {
+  std::vector<BlockData> blocks = {
       block("driver_shapes", db.driverShapes, {k, vp, 3}),
       block("driven_shapes", db.drivenShapes, {k, vd, 3}),
       block("driver_rest", driverRest, {vp, 3}),
@@ -134,6 +150,16 @@ void saveDatabase(const std::string& path, const Database& db) {
       block("driven_face_group", cm.faceGroup, {static_cast<std::int64_t>(cm.faceGroup.size())}),
       block("driven_uvs", drivenUv, {static_cast<std::int64_t>(cm.uvs.size()), 2}),
   };
+  const PoseModel& model = db.poseModel;
+  if (!model.empty()) {
+    const std::int64_t t = model.frameCount(), r = model.rank(), d = model.featureCount();
+    blocks.push_back(block("model_part_of", model.partOf, {vp}));
+    blocks.push_back(block("model_parent", model.parent, {model.partCount()}));
+    blocks.push_back(block("model_frames", model.frames, {t}));
+    blocks.push_back(block("model_features", model.features, {t, d}));
+    blocks.push_back(block("model_coefficients", model.coefficients, {r, t}));
+    blocks.push_back(block("model_basis", model.basis, {r, vd, 3}));
+  }
 
   json picks = json::array();
   for (int i = 0; i < db.shapeCount(); ++i) {
@@ -159,6 +185,22 @@ void saveDatabase(const std::string& path, const Database& db) {
         {"remove_frames", db.options.removeFrames},
         {"duplicate_tolerance", db.options.duplicateTolerance}}},
   };
+  if (!model.empty()) {
+    header["pose_model"] = {{"parts", model.partCount()},
+                            {"rank", model.rank()},
+                            {"frames", model.frameCount()},
+                            {"features", model.featureCount()},
+                            {"up", model.up},
+                            {"velocity_lag", model.velocityLag},
+                            {"history_frames", model.historyFrames},
+                            {"length_scale", model.lengthScale},
+                            {"linear_weight", model.linearWeight},
+                            {"ridge", model.ridge},
+                            {"error_bias", model.errorBias},
+                            {"error_scale", model.errorScale},
+                            {"cross_validation_error", model.crossValidationError},
+                            {"binding_error", model.bindingError}};
+  }
   // Offsets depend on the header length, which depends on the offsets' digits: lay out with
   // a fixed-width placeholder pass until stable.
   std::vector<std::size_t> offsets(blocks.size(), 0);
@@ -310,6 +352,52 @@ void readMesh(const BlockReader& blocks, const std::string& prefix, const json& 
   }
 }
 
+/// The pose model's header entry and blocks; Error(kInput) when they do not fit the meshes.
+void readPoseModel(const BlockReader& blocks, const json& info, const std::string& path,
+                   Database& db) {
+  PoseModel& m = db.poseModel;
+  const std::string where = path + ": pose_model";
+  const int parts = jsonInt(info.at("parts"), where + ".parts", 1, 1 << 16);
+  const int rank = jsonInt(info.at("rank"), where + ".rank", 1, 1 << 16);
+  const int frames = jsonInt(info.at("frames"), where + ".frames", 1, 1 << 20);
+  const int features = jsonInt(info.at("features"), where + ".features", 1, 1 << 16);
+  m.up = info.at("up").get<std::array<double, 3>>();
+  m.velocityLag = jsonInt(info.at("velocity_lag"), where + ".velocity_lag", 0, 1000);
+  m.historyFrames = jsonInt(info.at("history_frames"), where + ".history_frames", 0, 1000);
+  m.lengthScale = info.at("length_scale").get<double>();
+  m.linearWeight = info.at("linear_weight").get<double>();
+  m.ridge = info.at("ridge").get<double>();
+  m.errorBias = info.at("error_bias").get<double>();
+  m.errorScale = info.at("error_scale").get<double>();
+  m.crossValidationError = info.at("cross_validation_error").get<double>();
+  m.bindingError = info.at("binding_error").get<double>();
+  m.partOf = blocks.read<int>("model_part_of", static_cast<std::size_t>(db.driverVertexCount()));
+  m.parent = blocks.read<int>("model_parent", static_cast<std::size_t>(parts));
+  m.frames = blocks.read<int>("model_frames", static_cast<std::size_t>(frames));
+  m.features = blocks.read<float>("model_features", std::size_t(frames) * features);
+  m.coefficients = blocks.read<float>("model_coefficients", std::size_t(rank) * frames);
+  m.basis = blocks.read<float>("model_basis", std::size_t(rank) * db.drivenVertexCount() * 3);
+  for (int p : m.partOf) {
+    if (p < 0 || p >= parts) {
+      DS_THROW(kInput, where, ": a driver vertex names part ", p, " of ", parts,
+               "; the file is corrupt, rebuild it");
+    }
+  }
+  for (int p = 0; p < parts; ++p) {
+    if (m.parent[p] < -1 || m.parent[p] >= parts || m.parent[p] == p) {
+      DS_THROW(kInput, where, ": part ", p, " has parent ", m.parent[p],
+               "; the file is corrupt, rebuild it");
+    }
+  }
+  const bool finite = std::isfinite(m.lengthScale) && m.lengthScale > 0 &&
+                      std::isfinite(m.linearWeight) && std::isfinite(m.ridge) && m.ridge > 0 &&
+                      std::isfinite(m.errorBias) && std::isfinite(m.errorScale);
+  if (!finite || m.featureCount() != features) {
+    DS_THROW(kInput, where, ": the kernel settings or the feature count (", features,
+             ") do not fit the parts; the file is corrupt, rebuild it");
+  }
+}
+
 }  // namespace
 
 Database loadDatabase(const std::string& path) {
@@ -374,6 +462,9 @@ Database loadDatabase(const std::string& path) {
     db.drivenSource = header.at("sources").at("driven").get<std::string>();
     db.toolVersion = header.at("tool_version").get<std::string>();
     db.created = header.at("created").get<std::string>();
+    if (header.contains("pose_model")) {
+      readPoseModel(blocks, header.at("pose_model"), path, db);
+    }
   } catch (const json::exception& error) {
     DS_THROW(kInput, "'", path, "': database header is incomplete (", error.what(),
              "); the file is damaged or from an incompatible tool");

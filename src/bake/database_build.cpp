@@ -3,9 +3,11 @@
 #include <cmath>
 #include <ctime>
 #include <limits>
+#include <memory>
 #include <ostream>
 #include <set>
 
+#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
@@ -243,6 +245,40 @@ void fillPickedShapes(Database& db, const std::vector<float>& shapes,
   }
 }
 
+/// Fits the pose model over every candidate frame (the whole reference clip by default).
+void fitModel(Database& db, const std::vector<int>& candidates, const std::vector<float>& shapes,
+              const PointCacheReader& drivenCache, const PoseModelOptions& options,
+              std::ostream* log) {
+  if (candidates.size() < 10) {
+    // Too short a clip to fit anything: the database keeps its picks (the QP runs on it).
+    if (log != nullptr) {
+      *log << "no pose model: " << candidates.size()
+           << " reference frames are too few to fit one (it needs 10)\n";
+    }
+    return;
+  }
+  if (log != nullptr) {
+    *log << "fitting the pose model on " << candidates.size() << " reference frames\n";
+  }
+  const std::vector<float> driven = readFrames(drivenCache, candidates);
+  const std::size_t values = static_cast<std::size_t>(db.drivenVertexCount()) * 3;
+  for (std::size_t i = 0; i < driven.size(); ++i) {
+    if (!std::isfinite(driven[i])) {
+      DS_THROW(kInput, "driven cache '", drivenCache.path(), "' frame ", candidates[i / values],
+               " vertex ", (i % values) / 3, " is not a finite number; fix the cache");
+    }
+  }
+  ClosestOptions closestOptions;
+  closestOptions.threads = options.threads;
+  const std::unique_ptr<ClosestBackend> closest = makeHostClosest(closestOptions);
+  closest->setSurface(db.driverMesh, BindingMask::all(db.drivenVertexCount()));
+  std::vector<SurfaceHit> restHits(static_cast<std::size_t>(db.drivenVertexCount()));
+  closest->closest(1, db.driverMesh.positions.data(), db.drivenMesh.positions.data(),
+                   restHits.data());
+  db.poseModel = fitPoseModel(db.driverMesh, db.drivenMesh, shapes.data(), driven.data(),
+                              candidates, restHits, options, log);
+}
+
 }  // namespace
 
 Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
@@ -281,6 +317,9 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
   picker.pickFarthest(options.count, tolerance);
 
   fillPickedShapes(db, shapes, picker.picks(), driverValues, drivenCache, drivenMesh);
+  if (options.poseModel) {
+    fitModel(db, candidates, shapes, drivenCache, options.model, log);
+  }
   return db;
 }
 

@@ -24,10 +24,13 @@ inline void checkTables(const ShapeTables& tables) {
       DS_THROW(kInternal, "stage tables: ", what, " holds ", got, " floats, expected ", want);
     }
   };
+  expect("drivenShapes (k x 3Vd)", tables.drivenShapes.size(), k * nd);
+  if (tables.blendOnly()) {
+    return;
+  }
   expect("projectionRows ((k-1) x 3Vp)", tables.projectionRows.size(), (k - 1) * np);
   expect("center (3Vp)", tables.center.size(), np);
   expect("driverShapes (k x 3Vp)", tables.driverShapes.size(), k * np);
-  expect("drivenShapes (k x 3Vd)", tables.drivenShapes.size(), k * nd);
 }
 
 /// Throws Error(kInternal) for a call before upload() or with a negative frame count.
@@ -37,6 +40,14 @@ inline void checkCall(const char* call, bool uploaded, int frameCount) {
   }
   if (frameCount < 0) {
     DS_THROW(kInternal, "StageBackend::", call, " called with ", frameCount, " frames");
+  }
+}
+
+/// Throws Error(kInternal) for a projection or a driver blend on blend-only tables.
+inline void checkDriverTables(const char* call, const ShapeTables& tables) {
+  if (tables.blendOnly()) {
+    DS_THROW(kInternal, "StageBackend::", call,
+             " needs the driver tables; these are blend-only (driven shapes alone)");
   }
 }
 

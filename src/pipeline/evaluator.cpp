@@ -52,6 +52,10 @@ const char* weightModeName(WeightMode mode) {
       return "nearest";
     case WeightMode::kBind:
       return "bind";
+    case WeightMode::kModel:
+      return "model";
+    case WeightMode::kAuto:
+      return "auto";
   }
   return "?";
 }
@@ -84,13 +88,26 @@ AlignMode parseAlignMode(const std::string& text, const std::string& what) {
 }
 
 WeightMode parseWeightMode(const std::string& text, const std::string& what) {
-  static const WeightMode modes[] = {WeightMode::kQp, WeightMode::kNearest, WeightMode::kBind};
+  static const WeightMode modes[] = {WeightMode::kQp, WeightMode::kNearest, WeightMode::kBind,
+                                     WeightMode::kModel, WeightMode::kAuto};
   return parseMode(text, what, modes, &weightModeName);
 }
 
 BlendMode parseBlendMode(const std::string& text, const std::string& what) {
   static const BlendMode modes[] = {BlendMode::kWorld, BlendMode::kLocal};
   return parseMode(text, what, modes, &blendModeName);
+}
+
+WeightMode resolvedWeightMode(const EvaluatorSettings& settings, const Database& database) {
+  if (settings.weightMode != WeightMode::kAuto) {
+    return settings.weightMode;
+  }
+  // The model runs in the local blend with the correction, on every triangle, with one set of
+  // weights per frame; settings that ask for something else are the QP's.
+  const bool modelFits = settings.correct && settings.blend == BlendMode::kLocal &&
+                         !settings.bindingMask && !settings.regions &&
+                         settings.maxWeightChange <= 0;
+  return !database.poseModel.empty() && modelFits ? WeightMode::kModel : WeightMode::kQp;
 }
 
 bool blendsLocally(const EvaluatorSettings& settings) {
@@ -252,6 +269,15 @@ StageSeconds Evaluator::evaluate(int frameCount, const int* frames, const float*
   const float* result = batch.cloth.read<float>();
   checkCloth(model, batch, result);
   return seconds;
+}
+
+int Evaluator::historyFrames() const {
+  const pipeline::Model& model = mImpl->model;
+  return model.settings.weightMode == WeightMode::kModel ? model.db.poseModel.historyNeeded() : 0;
+}
+
+double Evaluator::coverageTolerance() const {
+  return pipeline::coverageTolerance(mImpl->model);
 }
 
 void Evaluator::checkFrames(const std::vector<int>& frames) const {

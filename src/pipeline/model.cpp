@@ -12,8 +12,32 @@
 namespace drivenshape::pipeline {
 namespace {
 
-/// Throws Error(kUsage) naming the setting when `settings` cannot run on `db`.
-void validate(const Database& db, const EvaluatorSettings& settings) {
+/// `settings` with the weight mode resolved (kAuto) and checked against `db`: Error(kUsage)
+/// naming the setting when they cannot run on it.
+EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
+  settings.weightMode = resolvedWeightMode(settings, db);
+  if (settings.weightMode == WeightMode::kModel) {
+    if (db.poseModel.empty()) {
+      DS_THROW(kUsage,
+               "the database has no pose model (built with --model none or by drivenshape "
+               "0.1); rebuild it with `drivenshape db build`, or choose another weight mode "
+               "(qp)");
+    }
+    if (!settings.correct || settings.blend != BlendMode::kLocal) {
+      DS_THROW(kUsage,
+               "the pose model blends in the local frames of the rest binding; it needs "
+               "the local blend and the correction");
+    }
+    if (settings.bindingMask) {
+      DS_THROW(kUsage,
+               "the pose model was fitted on the binding to every driver triangle; a "
+               "binding mask applies to the qp weights only");
+    }
+    if (!std::isfinite(settings.coverageTolerance) || settings.coverageTolerance < 0) {
+      DS_THROW(kUsage, "the coverage tolerance must be a distance >= 0 in scene units (got ",
+               settings.coverageTolerance, ")");
+    }
+  }
   if (db.shapeCount() < 1) {
     DS_THROW(kInput, "the database has no shapes; build it again with `drivenshape db build`");
   }
@@ -53,13 +77,14 @@ void validate(const Database& db, const EvaluatorSettings& settings) {
                "region and a mix weight per region and vertex); read them with readRegions()");
     }
   }
+  return settings;
 }
 
 }  // namespace
 
 Model::Model(const Database& database, EvaluatorSettings evaluatorSettings, Device& target)
     : db(database),
-      settings((validate(database, evaluatorSettings), std::move(evaluatorSettings))),
+      settings(validate(database, std::move(evaluatorSettings))),
       device(target),
       threads(resolveThreads(settings.threads)),
       k(database.shapeCount()),
@@ -173,6 +198,14 @@ ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
   tables.driverShapes = std::move(driverShapes);
   tables.drivenShapes = std::move(drivenShapes);
   return tables;
+}
+
+double coverageTolerance(const Model& model) {
+  if (model.settings.coverageTolerance > 0) {
+    return model.settings.coverageTolerance;
+  }
+  const Mesh& cloth = model.db.drivenMesh;
+  return 0.02 * computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
 }
 
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,

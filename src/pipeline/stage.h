@@ -168,6 +168,10 @@ Eigen::MatrixXd driverMatrix(const std::vector<float>& shapes, int k, int vertex
 ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
                        std::vector<float> driverShapes, std::vector<float> drivenShapes);
 
+/// The coverage tolerance of the model's settings, scene units (its default: 2% of the rest
+/// cloth's bounding-box diagonal).
+double coverageTolerance(const Model& model);
+
 /// Counts how many cloth points of each frame of the batch are inside the driver, from
 /// closest points over every triangle found here (left in batch.auditHits): poses count x
 /// 3Vp, cloth count x 3Vd, into (records[f].*field).

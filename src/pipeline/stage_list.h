@@ -4,6 +4,7 @@
 DS_STAGE(Align)       // rigid fit of each driver frame to the rest driver (align.cpp)
 DS_STAGE(Project)     // M^T (b - m) per frame and weight problem (project.cpp)
 DS_STAGE(Weights)     // the QP, or a baseline's weights (weights.cpp)
+DS_STAGE(Pose)        // the pose model's weights and coverage figures (pose.cpp)
 DS_STAGE(Blend)       // the database shapes blended with the weights (blend.cpp)
 DS_STAGE(Correct)     // onto the shot's driver: rebuild or bind-and-transfer (correct.cpp)
 DS_STAGE(BlendAudit)  // inside count of the world blend, before correction (blend_audit.cpp)

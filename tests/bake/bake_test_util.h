@@ -23,8 +23,11 @@ inline std::string sample(const std::string& name) {
   return dataDir() + "/sleeve/" + name;
 }
 
-/// A database of `count` shapes from the sample's train clip, seeded with `addFrames` if any.
-inline Database buildSample(int count, const std::vector<int>& addFrames = {}) {
+/// A database of `count` shapes from the sample's train clip, seeded with `addFrames` if any;
+/// without the pose model unless `poseModel` (the default settings then run the QP, what most
+/// bake tests are about; tests/bake/test_pose_model.cpp tests the model).
+inline Database buildSample(int count, const std::vector<int>& addFrames = {},
+                            bool poseModel = false) {
   const Mesh driver = readObj(sample("driver_rest.obj"));
   const Mesh driven = readObj(sample("driven_rest.obj"));
   const auto driverCache = openPointCache(sample("train.driver.pc2"));
@@ -32,6 +35,7 @@ inline Database buildSample(int count, const std::vector<int>& addFrames = {}) {
   DatabaseBuildOptions options;
   options.count = count;
   options.addFrames = addFrames;
+  options.poseModel = poseModel;
   return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
 }
 

@@ -17,7 +17,7 @@ rm -rf "$work"
 mkdir -p "$work/cli/default" "$work/cli/bound" "$work/cli/bound_jump"
 
 "$cli" db build --driver-mesh "$data/driver_rest.obj" --driven-mesh "$data/driven_rest.obj" \
-  --driver "$data/train.driver.pc2" --driven "$data/train.driven.pc2" --count 30 --quiet \
+  --driver "$data/train.driver.pc2" --driven "$data/train.driven.pc2" --count 30 --model none --quiet \
   -o "$work/sleeve.dsdb"
 "$cli" bake --db "$work/sleeve.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
   -o "$work/cli/default/sleeve.####.exr"

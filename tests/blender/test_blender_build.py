@@ -39,6 +39,7 @@ settings.cloth = cloth
 settings.build_frame_start = int(start)
 settings.build_frame_end = int(start) + len(_positions) - 1
 settings.build_count = cli_database.shape_count
+settings.build_model = False  # the fixture's database: db build --model none
 
 
 def same_database(path, label):

@@ -66,10 +66,10 @@ std::string sample(const std::string& name) {
 
 std::string buildDb(const TempDir& dir) {
   const std::string db = dir.file("sleeve.dsdb");
-  const CliRun r =
-      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
+  const CliRun r = runCli(
+      dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+            sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+            sample("train.driven.pc2"), "--count", "5", "--model", "none", "--quiet", "-o", db});
   EXPECT_EQ(r.code, 0) << r.err;
   return db;
 }

@@ -124,6 +124,7 @@ TEST_F(EvaluatorTest, TemporalBoundCarriesAcrossCallsUntilReset) {
 
   BakeOptions options;
   options.frames = frames;
+  options.evaluator.weightMode = WeightMode::kQp;  // the temporal bound is the QP's
   options.evaluator.maxWeightChange = 0.02;
   options.temporalWarmup = 0;
   options.chunkSize = 48;
@@ -188,6 +189,7 @@ TEST_F(EvaluatorTest, KeepsABlockOnTheDeviceFromProjectionToTheLastKernel) {
   std::unique_ptr<Device> device = makeOpenClDevice(context(), this->device(), queue());
   for (const AlignMode align : {AlignMode::kRigid, AlignMode::kNone}) {
     EvaluatorSettings settings;
+    settings.weightMode = WeightMode::kQp;  // the alignment is the QP's (the pose model has none)
     settings.align = align;
     Evaluator evaluator(db, settings, *device);
     evaluator.evaluate(frames, driver);

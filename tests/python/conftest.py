@@ -109,7 +109,7 @@ def cli_database(cli, data, tmp_path_factory):
     path = tmp_path_factory.mktemp("cli_db") / "sleeve.dsdb"
     run([cli, "db", "build", "--driver-mesh", data / "driver_rest.obj",
          "--driven-mesh", data / "driven_rest.obj", "--driver", data / "train.driver.pc2",
-         "--driven", data / "train.driven.pc2", "--quiet", "-o", path])
+         "--driven", data / "train.driven.pc2", "--model", "none", "--quiet", "-o", path])
     return path
 
 

@@ -18,7 +18,7 @@ from conftest import TEST_FRAMES, assert_bitwise, parse_pc2
 @pytest.fixture(scope="module")
 def python_database(data):
     return ds.build_database(data / "driver_rest.obj", data / "driven_rest.obj",
-                             data / "train.driver.pc2", data / "train.driven.pc2")
+                             data / "train.driver.pc2", data / "train.driven.pc2", model="none")
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def _from_arrays(data):
                                     m.group_names) for m in meshes]
     caches = [parse_pc2(data / f"train.{side}.pc2") for side in ("driver", "driven")]
     return ds.build_database(meshes[0], meshes[1], caches[0][0], caches[1][0],
-                             start_frame=int(caches[0][1]))
+                             start_frame=int(caches[0][1]), model="none")
 
 
 def test_the_two_exr_readers_agree(cli_bakes):

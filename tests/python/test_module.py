@@ -215,7 +215,7 @@ def test_devices(opencl_device, host_device):
 
 def test_settings_keywords_and_enum_strings():
     settings = ds.EvaluatorSettings()
-    assert (settings.weight_mode, settings.align, settings.blend) == ("qp", "rigid", "local")
+    assert (settings.weight_mode, settings.align, settings.blend) == ("auto", "rigid", "local")
     assert settings.correct and settings.resolve and settings.audit
     assert settings.binding_mask is None and settings.regions is None and settings.layers.empty
     custom = ds.EvaluatorSettings(weight_mode="nearest", align="rigid-all", blend="world",

@@ -12,6 +12,9 @@ from bpy.props import (
 )
 
 WEIGHT_MODES = (
+    ("auto", "Auto", "The pose model when the database has one, else the DrivenShape QP"),
+    ("model", "Pose model", "The rest binding plus the pose model's learned correction, fitted "
+     "over the whole reference clip"),
     ("qp", "DrivenShape (QP)", "Blend weights that best reproduce the pose: the DrivenShape QP"),
     ("nearest", "Nearest shape", "Baseline: all weight on the closest database driver shape"),
     ("bind", "Bind only", "Baseline: no database shapes; the rest cloth carried by the driver"),
@@ -78,12 +81,16 @@ class DrivenShapeSettings(bpy.types.PropertyGroup):
     build_count: IntProperty(
         name="Shapes", default=30, min=1, soft_max=128,
         description="Number of database shapes (driver/cloth pairs) to pick")
+    build_model: BoolProperty(
+        name="Pose Model", default=True,
+        description="Also fit the pose model over every reference frame (what the Auto weights "
+        "evaluate); off keeps the picked shapes only")
     build_output: StringProperty(
         name="Save As", subtype="FILE_PATH", default="//drivenshape.dsdb",
         description="Where the new database is written; it then becomes the scene's database")
 
     # Evaluator settings (defaults: the command line's bake).
-    weight_mode: EnumProperty(name="Weights", items=WEIGHT_MODES, default="qp",
+    weight_mode: EnumProperty(name="Weights", items=WEIGHT_MODES, default="auto",
                               update=_settings_changed)
     align: EnumProperty(name="Align", items=ALIGN_MODES, default="rigid",
                         update=_settings_changed)

@@ -109,6 +109,7 @@ class DRIVENSHAPE_PT_build(_Panel, bpy.types.Panel):
         column.prop(settings, "build_frame_start", text="Frame Start")
         column.prop(settings, "build_frame_end", text="End")
         layout.prop(settings, "build_count")
+        layout.prop(settings, "build_model")
         layout.prop(settings, "build_output")
         layout.operator("drivenshape.build_database", icon="IMPORT")
 

@@ -65,18 +65,25 @@ def evaluate_cache(evaluator, cache, frames, batch=64, temporal_warmup=8, with_s
     """Evaluates `frames` of a PointCache the way `drivenshape bake` does, without files:
     batches of `batch` frames, each starting the temporal bound afresh after up to
     `temporal_warmup` of the cache's frames before it (only with max_weight_change > 0, as the
-    bake), so the cloth is bitwise the bake's. Returns (cloth (F, Vd, 3) float32, [FrameRecord])
+    bake) and at least the pose model's history (Evaluator.history_frames), with a new batch at
+    every gap in the frame numbers when there is history, so the cloth is bitwise the bake's. Returns (cloth (F, Vd, 3) float32, [FrameRecord])
     and, with with_seconds, the seconds per stage summed over the batches."""
     frames = [int(f) for f in ([frames] if isinstance(frames, int) else frames)]
     if batch < 1 or temporal_warmup < 0:
         raise ValueError("batch must be at least 1 and temporal_warmup at least 0")
     evaluator.check_frames(frames)
-    warm_frames = temporal_warmup if evaluator.settings.max_weight_change > 0 else 0
+    history = evaluator.history_frames
+    warm_frames = max(temporal_warmup if evaluator.settings.max_weight_change > 0 else 0, history)
     cache_frames = cache.frames if warm_frames else []
     cloth = _np.empty((len(frames), evaluator.driven_vertex_count, 3), dtype=_np.float32)
     records, seconds = [], {}
-    for begin in range(0, len(frames), batch):
-        chunk = frames[begin:begin + batch]
+    starts = [i for i in range(len(frames))
+              if i == 0 or (history > 0 and frames[i] != frames[i - 1] + 1)]
+    batches = []
+    for s, e in zip(starts, starts[1:] + [len(frames)]):
+        batches += [(b, min(e, b + batch)) for b in range(s, e, batch)]
+    for begin, end in batches:
+        chunk = frames[begin:end]
         warm = [f for f in cache_frames if chunk[0] - warm_frames <= f < chunk[0]]
         evaluator.reset_temporal_bound()
         driver = cache.read_frames(warm + chunk)

@@ -76,7 +76,8 @@ class ClStages final : public StageBackend {
     mDrivenOut = ChunkBuffer{};
     mDriverOut = ChunkBuffer{};
     mShapeCount = tables.shapeCount;
-    mRowCount = tables.shapeCount - 1;
+    mBlendOnly = tables.blendOnly();
+    mRowCount = mBlendOnly ? 0 : tables.shapeCount - 1;
     mTileCount = std::max(1, (mRowCount + DS_PROJECT_ROWS - 1) / DS_PROJECT_ROWS);
 
     const std::size_t np = 3 * static_cast<std::size_t>(tables.driverVertexCount);
@@ -84,6 +85,12 @@ class ClStages final : public StageBackend {
     mDriverCount = np;
     mDriverPadded = paddedCount(np);
 
+    if (mBlendOnly) {
+      guard("uploading the driven shapes",
+            [&] { mDriven = makeBlendTable(tables.drivenShapes, nd); });
+      mUploaded = true;
+      return;
+    }
     // Projection rows, padded to whole tiles with zero rows (the kernel's row loop is fixed).
     std::vector<float> rows = padRows(tables.projectionRows.data(),
                                       static_cast<std::size_t>(mRowCount), np, mDriverPadded);
@@ -134,7 +141,7 @@ class ClStages final : public StageBackend {
   }
 
   void blend(int frameCount, const float* weights, float* driven, float* driver) override {
-    checkBlend(frameCount, weights, driven != nullptr);
+    checkBlend(frameCount, weights, driven != nullptr, driver != nullptr);
     if (frameCount == 0) {
       return;
     }
@@ -157,7 +164,7 @@ class ClStages final : public StageBackend {
       StageBackend::blendBlock(frameCount, weights, driven, driver);
       return;
     }
-    checkBlend(frameCount, weights, true);
+    checkBlend(frameCount, weights, true, driver != nullptr);
     if (frameCount == 0) {
       return;
     }
@@ -261,14 +268,23 @@ class ClStages final : public StageBackend {
   void checkProject(int frameCount, bool framesPresent, const float* projections,
                     const float* norms) const {
     stage_checks::checkCall("project", mUploaded, frameCount);
+    if (mBlendOnly) {
+      DS_THROW(kInternal, "StageBackend::project needs the driver tables; these are blend-only");
+    }
     if (frameCount > 0 &&
         (!framesPresent || norms == nullptr || (mRowCount > 0 && projections == nullptr))) {
       DS_THROW(kInternal, "StageBackend::project called with a null buffer");
     }
   }
 
-  void checkBlend(int frameCount, const float* weights, bool drivenPresent) const {
+  void checkBlend(int frameCount, const float* weights, bool drivenPresent,
+                  bool driverWanted) const {
     stage_checks::checkCall("blend", mUploaded, frameCount);
+    if (mBlendOnly && driverWanted) {
+      DS_THROW(kInternal,
+               "StageBackend::blend of the driver needs the driver tables; these are "
+               "blend-only");
+    }
     if (frameCount > 0 && (weights == nullptr || !drivenPresent)) {
       DS_THROW(kInternal, "StageBackend::blend called with a null buffer");
     }
@@ -401,6 +417,7 @@ class ClStages final : public StageBackend {
   bool mUploaded = false;
   int mShapeCount = 0;
   int mRowCount = 0;
+  bool mBlendOnly = false;
   int mTileCount = 0;
   std::size_t mDriverCount = 0;
   std::size_t mDriverPadded = 0;

@@ -29,6 +29,7 @@ class HostStages final : public StageBackend {
   void project(int frameCount, const float* driverFrames, float* projections,
                float* norms) override {
     stage_checks::checkCall("project", mUploaded, frameCount);
+    stage_checks::checkDriverTables("project", mTables);
     const std::size_t n = 3 * static_cast<std::size_t>(mTables.driverVertexCount);
     const std::size_t rows = static_cast<std::size_t>(mTables.shapeCount) - 1;
     if (frameCount > 0 &&
@@ -65,6 +66,7 @@ class HostStages final : public StageBackend {
     }
     blendShapes(frameCount, weights, mTables.drivenShapes, mTables.drivenVertexCount, driven);
     if (driver != nullptr) {
+      stage_checks::checkDriverTables("blend", mTables);
       blendShapes(frameCount, weights, mTables.driverShapes, mTables.driverVertexCount, driver);
     }
   }

@@ -7,6 +7,7 @@
 
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+#include <drivenshape/pose_model.h>
 
 namespace drivenshape {
 
@@ -22,6 +23,10 @@ struct DatabaseBuildOptions {
   /// Shapes whose RMS per-vertex distance to an already chosen shape is below this fraction
   /// of the rest driver's bounding-box diagonal are rejected as near-duplicates.
   double duplicateTolerance = 1e-3;
+  /// Also fit the pose model over every candidate frame (what `--weights model`, the default
+  /// bake, evaluates); off = the picked shapes only.
+  bool poseModel = true;
+  PoseModelOptions model;
 };
 
 /// Why a shape is in the database.
@@ -49,6 +54,9 @@ struct Database {
   std::string drivenSource;
   std::string toolVersion;
   std::string created;  ///< UTC, ISO 8601
+  /// The pose model fitted over the whole reference clip (empty for databases built with
+  /// --model none or by drivenshape before 0.2): what `--weights model` evaluates.
+  PoseModel poseModel;
 
   int shapeCount() const { return static_cast<int>(frames.size()); }
   int driverVertexCount() const { return driverMesh.vertexCount(); }

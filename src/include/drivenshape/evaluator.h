@@ -30,8 +30,12 @@ namespace drivenshape {
 enum class WeightMode {
   kQp,       ///< the DrivenShape QP: min ||A w - b|| with sum w = 1, 0 <= w <= 1
   kNearest,  ///< baseline: one-hot on the closest database driver shape
-  kBind      ///< baseline: no database; the rest cloth bound to the rest driver and carried to
+  kBind,     ///< baseline: no database; the rest cloth bound to the rest driver and carried to
              ///< every frame by the correction (what Houdini's Point Deform does)
+  kModel,    ///< the pose model (drivenshape/pose_model.h): the rest binding plus the learned
+             ///< correction of its local offsets, fitted over the whole reference clip
+  kAuto      ///< kModel when the database has a pose model, else kQp (resolved by the
+             ///< Evaluator; reports name the mode it resolved to)
 };
 
 /// Whether shot frames are rigidly aligned to the database before the weights are solved.
@@ -51,7 +55,7 @@ enum class BlendMode {
 };
 
 /// The spellings written in reports and taken by the command line and the Python module
-/// ("none", "rigid", "rigid-all"; "qp", "nearest", "bind"; "world", "local").
+/// ("none", "rigid", "rigid-all"; "qp", "nearest", "bind", "model", "auto"; "world", "local").
 const char* alignModeName(AlignMode mode);
 const char* weightModeName(WeightMode mode);
 const char* blendModeName(BlendMode mode);
@@ -64,7 +68,7 @@ BlendMode parseBlendMode(const std::string& text, const std::string& what);
 /// Everything that decides the cloth of a frame, as in-memory objects. The defaults are the
 /// command line's `bake` defaults (see docs/method.md for how they were chosen).
 struct EvaluatorSettings {
-  WeightMode weightMode = WeightMode::kQp;
+  WeightMode weightMode = WeightMode::kAuto;
   /// Rigid alignment: each driver frame is fitted (Kabsch, no scale) to the database's rest
   /// driver on `alignGroup`; so is every database shape. Weights and blends are computed in
   /// that frame and the result goes back through the inverse motion.
@@ -96,6 +100,9 @@ struct EvaluatorSettings {
   /// Per-frame audit: cloth vertices inside the driver before and after correction, binding
   /// switches, the largest frame-to-frame jump.
   bool audit = true;
+  /// Coverage verdict (pose model): a frame whose predicted mean vertex error exceeds this
+  /// (scene units) is flagged for simulation; 0 = 2% of the rest cloth's bounding-box diagonal.
+  double coverageTolerance = 0.0;
   /// Layers after the correction and resolution (mix with another cache, wind).
   LayerSettings layers;
   /// Host threads for the weights, the alignment and the closest-point search; 0 = all cores.
@@ -103,8 +110,10 @@ struct EvaluatorSettings {
 };
 
 /// Whether these settings blend in local frames: BlendMode::kLocal with the correction on and
-/// the DrivenShape weights (not the bind baseline).
+/// the DrivenShape weights or the pose model (not the bind baseline).
 bool blendsLocally(const EvaluatorSettings& settings);
+/// The weight mode the settings run on `database` (kAuto resolved).
+WeightMode resolvedWeightMode(const EvaluatorSettings& settings, const Database& database);
 
 /// What happened to one frame.
 struct FrameRecord {
@@ -136,6 +145,10 @@ struct FrameRecord {
   int bindingSwitches = -1;  ///< vertices bound to another triangle than the previous frame
   double maxJump = -1.0;     ///< largest vertex move since the previous evaluated frame
   int maxJumpVertex = -1;
+  // Coverage (pose model; -1 where not measured).
+  double poseDistance = -1.0;    ///< the model's posterior deviation: how new the pose is
+  double predictedError = -1.0;  ///< predicted mean vertex error (scene units)
+  int flagged = -1;              ///< 1: predicted error above the coverage tolerance (simulate)
 };
 
 /// Seconds per pipeline stage by name ("align", "project", "weights", "blend", "correct",
@@ -206,6 +219,12 @@ class Evaluator {
   std::string describeSettings() const;
   /// The layers as the EXR header's dsLayers attribute writes them ("{}" when none).
   std::string describeLayers() const;
+  /// Earlier driver frames the settings read before each frame (the pose model's velocity and
+  /// history): a caller evaluating a block should pass that many warm-up frames before it
+  /// (the bake does, from the driver cache).
+  int historyFrames() const;
+  /// The coverage tolerance in scene units (settings.coverageTolerance or its default).
+  double coverageTolerance() const;
   /// The stages this evaluator runs, in order.
   std::vector<std::string> stageNames() const;
 

@@ -24,6 +24,11 @@ struct ShapeTables {
   std::vector<float> center;
   std::vector<float> driverShapes;
   std::vector<float> drivenShapes;
+  /// Blend-only tables (the pose model's basis): driven shapes alone, no projection, center or
+  /// driver shapes; project() and a driver blend are then errors.
+  bool blendOnly() const {
+    return projectionRows.empty() && center.empty() && driverShapes.empty();
+  }
 };
 
 /// The per-frame stages of a bake, evaluated for a chunk of F frames per call (the "osd"

@@ -74,7 +74,8 @@ class AlignStage final : public Stage {
 }  // namespace
 
 std::unique_ptr<Stage> makeAlignStage(Model& model) {
-  if (model.settings.weightMode == WeightMode::kBind || model.settings.align == AlignMode::kNone) {
+  if (model.settings.weightMode == WeightMode::kBind ||
+      model.settings.weightMode == WeightMode::kModel || model.settings.align == AlignMode::kNone) {
     return nullptr;
   }
   return std::make_unique<AlignStage>(model);

@@ -25,6 +25,12 @@ class BlendStage final : public Stage {
                               model.restHits.data());
       model.restHitsBlock = model.device.makeArray();
       model.restHitsBlock.view(model.restHits.data(), model.restHits.size());
+    }
+    if (model.settings.weightMode == WeightMode::kModel) {
+      uploadPoseModel();
+      return;
+    }
+    if (model.local) {
       localShapes.resize(db.drivenShapes.size());
       parallelFor(model.k, model.threads, [&](int i) {
         encodeLocal(db.driverMesh, &db.driverShapes[i * model.driverValues], model.vd,
@@ -52,6 +58,11 @@ class BlendStage final : public Stage {
     const bool needDriver = !mModel.local && mModel.settings.correct;
     batch.driven.resize<float>(count * dd);
     batch.blendedDriver.resize<float>(needDriver ? count * dv : 0);
+    if (mModel.settings.weightMode == WeightMode::kModel) {
+      // The rest offsets (weight 1) plus the basis shapes weighted by the pose stage.
+      mModel.stages().blendBlock(count, batch.weights.data(), batch.driven, nullptr);
+      return;
+    }
     if (mModel.settings.weightMode == WeightMode::kBind) {
       // The rest shapes stand in for the blend: every frame binds the rest cloth to the rest
       // driver and carries it to the shot's pose.
@@ -83,6 +94,23 @@ class BlendStage final : public Stage {
   }
 
  private:
+  /// The pose model's tables: the rest cloth's offsets in the local frames of the rest binding,
+  /// then the model's basis shapes (offsets in the same frames), blend-only.
+  void uploadPoseModel() {
+    const Database& db = mModel.db;
+    const PoseModel& pose = db.poseModel;
+    const std::size_t dd = mModel.drivenValues;
+    ShapeTables tables;
+    tables.driverVertexCount = mModel.vp;
+    tables.drivenVertexCount = mModel.vd;
+    tables.shapeCount = 1 + pose.rank();
+    tables.drivenShapes.resize(static_cast<std::size_t>(tables.shapeCount) * dd);
+    encodeLocal(db.driverMesh, db.driverMesh.positions.data(), mModel.vd,
+                db.drivenMesh.positions.data(), mModel.restHits.data(), tables.drivenShapes.data());
+    std::copy(pose.basis.begin(), pose.basis.end(), tables.drivenShapes.begin() + dd);
+    mModel.stages().upload(tables);
+  }
+
   /// out[f] = sum_r mix_r * perRegion[f][r], per vertex (the partition of unity).
   void mix(int count, const std::vector<float>& perRegion, const std::vector<float>& weightsOf,
            int vertices, float* out) const {

@@ -207,7 +207,8 @@ class WeightsStage final : public Stage {
 }  // namespace
 
 std::unique_ptr<Stage> makeWeightsStage(Model& model) {
-  if (model.settings.weightMode == WeightMode::kBind) {
+  if (model.settings.weightMode == WeightMode::kBind ||
+      model.settings.weightMode == WeightMode::kModel) {
     return nullptr;
   }
   return std::make_unique<WeightsStage>(model);

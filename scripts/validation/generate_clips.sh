@@ -1,0 +1,26 @@
+#!/bin/bash
+# Generate the validation clips listed in clips.txt with the Blender cloth
+# generator (tools/blender of the shared data; Blender 3.4 headless).
+#   scripts/validation/generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]
+# Each clip lands in OUT_DIR/NAME/<scene>/<family>.{driver,driven}.pc2 (+ json,
+# rig.json, rest OBJs). Clips already generated are skipped.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+gen="${1:?usage: generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]}"
+out="${2:?usage: generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]}"
+shift 2
+mkdir -p "$out/logs"
+grep -v '^#' "$here/clips.txt" | while read -r name scene family seed rest; do
+  [ -n "$name" ] || continue
+  if [ $# -gt 0 ] && ! printf '%s\n' "$@" | grep -qx "$name"; then continue; fi
+  if [ -f "$out/$name/$scene/$family.driven.pc2" ]; then
+    echo "have $name"
+    continue
+  fi
+  echo "=== $name ($scene $family seed $seed $rest) $(date +%T)"
+  # shellcheck disable=SC2086
+  blender -b --factory-startup --python-exit-code 1 --python "$gen/generate.py" -- \
+    --scene "$scene" --seq "$family" --seed "$seed" --out "$out/$name" $rest \
+    >"$out/logs/$name.log" 2>&1 || { echo "failed: $name (see $out/logs/$name.log)"; continue; }
+  grep -E "done:|checks:" "$out/logs/$name.log" || true
+done

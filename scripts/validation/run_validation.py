@@ -1,0 +1,208 @@
+#!/usr/bin/env python3
+"""The validation table (issue 17): every clip x every mode against the simulated truth.
+
+For each character: one database from its public `train` clip (the reference a TD has:
+`drivenshape db build`, 30 picks plus the pose model over the whole clip); then every clip of
+scripts/validation/clips.txt that has been generated (scripts/validation/generate_clips.sh) and
+the public `test_public` clip is baked in every mode and judged by `drivenshape eval` on its
+motion frames (after the 20 preroll frames):
+
+  talk      the 2008 talk: --weights qp --align none --blend world --no-resolve
+  bind      the binding baseline: --weights bind --no-resolve
+  qp        the 0.1 defaults: --weights qp (rigid alignment, local blend, resolution)
+  defaults  the defaults: the pose model (--weights auto on a database with a model)
+
+Prints one Markdown table (mean vertex error in mm per mode, the defaults against the better of
+talk and binding, cloth inside the body per frame against the truth's, the largest frame jump
+against the truth's, the coverage verdict), then the coverage figures: Spearman rank correlation
+of the predicted error with the true per-frame error over every validation frame, and the true
+mean error of the frames the verdict calls covered. Writes everything under --out.
+
+Usage: scripts/validation/run_validation.py [--reference ../shared/data] [--clips DIR]
+       [--build build] [--out out/validation] [--modes talk,bind,qp,defaults] [--only NAME...]
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+
+MODES = {
+    "talk": ["--weights", "qp", "--align", "none", "--blend", "world", "--no-resolve"],
+    "bind": ["--weights", "bind", "--no-resolve"],
+    "qp": ["--weights", "qp"],
+    "defaults": [],
+}
+
+
+def clips(clips_dir, reference):
+    """(name, scene, directory, family) of every generated clip, then the public test clips."""
+    out = []
+    for line in open(os.path.join(HERE, "clips.txt")):
+        if not line.strip() or line.startswith("#"):
+            continue
+        name, scene, family = line.split()[:3]
+        d = os.path.join(clips_dir, name, scene)
+        if os.path.exists(os.path.join(d, family + ".driven.pc2")):
+            out.append((name, scene, d, family))
+    for scene in ("pants", "sleeve"):
+        out.append((scene + "_test_public (public)", scene, os.path.join(reference, scene),
+                    "test_public"))
+    return out
+
+
+def run(cmd, log):
+    with open(log, "a") as fh:
+        fh.write("$ " + " ".join(cmd) + "\n")
+        fh.flush()
+        result = subprocess.run(cmd, stdout=fh, stderr=fh)
+    if result.returncode != 0:
+        sys.exit(f"failed ({result.returncode}): {' '.join(cmd)}; see {log}")
+
+
+def spearman(a, b):
+    def ranks(x):
+        order = sorted(range(len(x)), key=lambda i: x[i])
+        r = [0.0] * len(x)
+        i = 0
+        while i < len(order):
+            j = i
+            while j + 1 < len(order) and x[order[j + 1]] == x[order[i]]:
+                j += 1
+            for k in range(i, j + 1):
+                r[order[k]] = (i + j) / 2.0
+            i = j + 1
+        return r
+    ra, rb = ranks(a), ranks(b)
+    ma, mb = sum(ra) / len(ra), sum(rb) / len(rb)
+    cov = sum((x - ma) * (y - mb) for x, y in zip(ra, rb))
+    va = sum((x - ma) ** 2 for x in ra) ** 0.5
+    vb = sum((y - mb) ** 2 for y in rb) ** 0.5
+    return cov / (va * vb) if va > 0 and vb > 0 else float("nan")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--reference", default=os.path.join(ROOT, "..", "shared", "data"))
+    ap.add_argument("--clips", default=os.environ.get("DRIVENSHAPE_VALIDATION_CLIPS",
+                                                      os.path.join(ROOT, "out", "clips")))
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "validation"))
+    ap.add_argument("--modes", default="talk,bind,qp,defaults")
+    ap.add_argument("--only", nargs="*", default=[])
+    ap.add_argument("--db-flags", default="", help="extra `db build` flags")
+    a = ap.parse_args()
+    ds = os.path.join(a.build, "apps", "drivenshape")
+    modes = a.modes.split(",")
+    os.makedirs(a.out, exist_ok=True)
+    log = os.path.join(a.out, "commands.log")
+    open(log, "w").close()
+    dbs = {}
+    for scene in ("pants", "sleeve"):
+        src = os.path.join(a.reference, scene)
+        db = os.path.join(a.out, scene + ".dsdb")
+        run([ds, "db", "build", "--driver-mesh", f"{src}/driver_rest.obj", "--driven-mesh",
+             f"{src}/driven_rest.obj", "--driver", f"{src}/train.driver.pc2", "--driven",
+             f"{src}/train.driven.pc2", "--count", "30", "-o", db] + a.db_flags.split(), log)
+        dbs[scene] = (db, src)
+    rows, pooled_pred, pooled_true = [], [], []
+    for name, scene, d, family in clips(a.clips, a.reference):
+        if a.only and name.split()[0] not in a.only:
+            continue
+        meta = json.load(open(os.path.join(d, family + ".json")))
+        frames = f"{meta['motion_start_frame']}-{meta['frame_end']}"
+        db, src = dbs[scene]
+        row = {"clip": name, "scene": scene, "frames": frames}
+        for mode in modes:
+            out = os.path.join(a.out, name.split()[0], mode)
+            os.makedirs(out, exist_ok=True)
+            report = os.path.join(out, "report.json")
+            run([ds, "bake", "--db", db, "--driver", f"{d}/{family}.driver.pc2", "--frames",
+                 frames, "--quiet", "-o", f"{out}/cloth.####.exr", "--report", report]
+                + MODES[mode], log)
+            ev = os.path.join(out, "eval.json")
+            run([ds, "eval", "--truth", f"{d}/{family}.driven.pc2", "--bake",
+                 f"{out}/cloth.####.exr", "--frames", frames, "--driver",
+                 f"{d}/{family}.driver.pc2", "--driver-mesh", f"{src}/driver_rest.obj",
+                 "--json", ev], log)
+            e = json.load(open(ev))
+            s = e["summary"]
+            row[mode] = {"mean": e["mean"] * 1e3, "inside": s["bake"]["mean_inside"],
+                         "inside_max": s["bake"]["max_inside"],
+                         "jump": s["bake"]["max_jump"] * 1e3,
+                         "truth_inside": s["truth"]["mean_inside"],
+                         "truth_jump": s["truth"]["max_jump"] * 1e3,
+                         "vertices": e["vertices"]}
+            rep = json.load(open(report))
+            if "coverage" in rep:
+                true_err = {f["frame"]: f["mean"] for f in e["frames"]}
+                pred = [(f["predicted_error"], true_err[f["frame"]], f["coverage"]["flagged"])
+                        for f in rep["frames"] if "predicted_error" in f]
+                row[mode]["coverage"] = rep["coverage"]
+                row[mode]["spearman"] = spearman([p[0] for p in pred], [p[1] for p in pred])
+                covered = [p[1] for p in pred if not p[2]]
+                row[mode]["covered_true_mean"] = (sum(covered) / len(covered) * 1e3
+                                                  if covered else None)
+                if mode == "defaults":
+                    pooled_pred += [p[0] for p in pred]
+                    pooled_true += [p[1] for p in pred]
+                    row["pred"] = pred
+            print(f"  {name} {mode}: {row[mode]['mean']:.2f} mm", file=sys.stderr)
+        rows.append(row)
+    json.dump(rows, open(os.path.join(a.out, "table.json"), "w"), indent=1)
+    print_table(rows, modes)
+    if pooled_pred:
+        print()
+        print(f"Predicted error vs true per-frame mean error over {len(pooled_pred)} frames "
+              f"of {len(rows)} clips: Spearman {spearman(pooled_pred, pooled_true):.3f}")
+        tol = rows[0]["defaults"]["coverage"]["tolerance"] if "coverage" in rows[0].get(
+            "defaults", {}) else None
+        for scene in ("pants", "sleeve"):
+            sel = [r for r in rows if r["scene"] == scene and "pred" in r]
+            cov = [p[1] for r in sel for p in r["pred"] if not p[2]]
+            allf = [p for r in sel for p in r["pred"]]
+            if not allf:
+                continue
+            t = sel[0]["defaults"]["coverage"]["tolerance"] * 1e3
+            print(f"{scene}: tolerance {t:.1f} mm; {len(cov)} of {len(allf)} frames covered, "
+                  f"their true mean error "
+                  f"{(sum(cov) / len(cov) * 1e3) if cov else float('nan'):.2f} mm; all frames "
+                  f"{sum(p[1] for p in allf) / len(allf) * 1e3:.2f} mm")
+        del tol
+
+
+def print_table(rows, modes):
+    head = ["clip", "frames"] + [f"{m} (mm)" for m in modes]
+    has_defaults = "defaults" in modes and "talk" in modes and "bind" in modes
+    if has_defaults:
+        head += ["defaults / better baseline", "inside / frame (truth)", "largest jump mm (truth)",
+                 "covered", "verdict"]
+    print("| " + " | ".join(head) + " |")
+    print("|" + "---|" * len(head))
+    for r in rows:
+        cells = [r["clip"], r["frames"]] + [f"{r[m]['mean']:.2f}" for m in modes]
+        if has_defaults:
+            d = r["defaults"]
+            better = min(r["talk"]["mean"], r["bind"]["mean"])
+            ratio = d["mean"] / better
+            limit_inside = d["truth_inside"] + 0.005 * d["vertices"]
+            ok = []
+            if ratio > 0.8:
+                ok.append("error")
+            if d["inside"] > limit_inside:
+                ok.append("inside")
+            if d["jump"] > 1.5 * d["truth_jump"]:
+                ok.append("jump")
+            cov = d.get("coverage")
+            cells += [f"{ratio:.2f}", f"{d['inside']:.1f} ({d['truth_inside']:.1f})",
+                      f"{d['jump']:.1f} ({d['truth_jump']:.1f})",
+                      f"{cov['covered_fraction']:.0%}" if cov else "-",
+                      "pass" if not ok else "misses: " + ", ".join(ok)]
+        print("| " + " | ".join(cells) + " |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,161 @@
+#pragma once
+
+// The pose model (issue 17): the rest binding plus a learned correction of the local-frame
+// offsets, fitted over the whole reference clip. The driver's pose is read from the mesh alone:
+// the driver is split into rigid parts (found from how its vertices move across the reference
+// clip, or given by a rig's skin weights), each part's rotation is fitted per frame, and the
+// features are the joint rotations (each part relative to its parent part, the root part's up
+// axis), their change over the last frames (velocity) and their difference from the recent
+// average (history, for hysteresis). Kernel ridge regression (linear + Gaussian kernel, zero
+// prior mean, so a pose far from the reference clip falls back to the plain binding) maps them
+// to the offsets; the offsets are kept as a low-rank basis, so a frame is the blend of the rest
+// offsets and `rank` basis shapes, in the local frames of the rest binding, like any other
+// local blend. The Gaussian process variance of the same kernel measures how far a pose is
+// from the reference clip; calibrated on the clip's own cross-validation it predicts the
+// frame's error (the coverage verdict).
+
+#include <array>
+#include <cstdint>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <drivenshape/correction.h>
+#include <drivenshape/mesh.h>
+
+namespace drivenshape {
+
+struct PoseModelOptions {
+  /// Rigid parts of the driver to find; 0 = as many as keep lowering the fit residual (2..8).
+  int parts = 0;
+  /// A rig's parts instead: the part of every driver vertex (e.g. the bone of largest skin
+  /// weight) and the parent part of each (-1 for the root). Empty = found from the clip.
+  std::vector<int> partOf;
+  std::vector<int> parentOf;
+  /// The up axis of the scene (gravity pulls along -up); the root part's features.
+  std::array<double, 3> up = {0.0, 0.0, 1.0};
+  /// Frames back for the velocity feature (0 = off) and frames averaged for the history
+  /// feature (0 = off). Both need earlier driver frames (DESIGN.md: read from the cache before
+  /// a chunk's first frame).
+  int velocityLag = 3;
+  int historyFrames = 15;
+  /// Basis shapes kept (the rank of the correction; at most the clip's frame count).
+  int rank = 64;
+  /// Host threads (0 = all cores). The result does not depend on it.
+  int threads = 0;
+};
+
+/// A fitted pose model (see above). Stored in the database file (docs/formats.md).
+struct PoseModel {
+  std::vector<int> partOf;  ///< Vp: the rigid part of every driver vertex
+  std::vector<int> parent;  ///< per part: the parent part, -1 for the root
+  std::array<double, 3> up = {0.0, 0.0, 1.0};
+  int velocityLag = 0;
+  int historyFrames = 0;
+  /// Kernel k(x, y) = linearWeight x.y + exp(-|x - y|^2 / (2 lengthScale^2)); ridge lambda.
+  double lengthScale = 1.0;
+  double linearWeight = 0.0;
+  double ridge = 1e-2;
+  std::vector<int> frames;          ///< T reference frames fitted
+  std::vector<float> features;      ///< T x featureCount()
+  std::vector<float> coefficients;  ///< rank x T: basis weights c = coefficients k(x)
+  std::vector<float> basis;         ///< rank x 3Vd offsets in the rest binding's local frames
+  /// Predicted mean vertex error of a frame = errorBias + errorScale * sigma (scene units), with
+  /// sigma the kernel's posterior standard deviation; fitted on the clip's cross-validation.
+  double errorBias = 0.0;
+  double errorScale = 0.0;
+  /// Cross-validated mean vertex error over the reference clip (scene units) and, for scale,
+  /// that of the plain binding.
+  double crossValidationError = 0.0;
+  double bindingError = 0.0;
+
+  bool empty() const { return frames.empty(); }
+  int partCount() const { return static_cast<int>(parent.size()); }
+  /// Features of one pose: 9 per part with a parent (its rotation relative to the parent's,
+  /// minus the identity), 3 per root (the up axis in the root's frame, minus up).
+  int poseFeatureCount() const {
+    int count = 0;
+    for (int p : parent) {
+      count += p < 0 ? 3 : 9;
+    }
+    return count;
+  }
+  /// The pose features, then their velocity and history when those are on.
+  int featureCount() const {
+    return poseFeatureCount() * (1 + (velocityLag > 0 ? 1 : 0) + (historyFrames > 1 ? 1 : 0));
+  }
+  int frameCount() const { return static_cast<int>(frames.size()); }
+  int rank() const {
+    return frames.empty() ? 0 : static_cast<int>(coefficients.size() / frames.size());
+  }
+  /// Earlier frames a frame's features read (0 without velocity and history).
+  int historyNeeded() const {
+    return velocityLag > historyFrames - 1 ? velocityLag
+           : historyFrames - 1 > 0         ? historyFrames - 1
+                                           : 0;
+  }
+};
+
+/// A rig's parts (`--rig`): the JSON text of a rig file (bone_names; driver_weights, one row of
+/// bone weights per driver vertex; optional bones [{name, parent}]). Every driver vertex goes to
+/// its heaviest bone; the bones some vertex uses are the parts, each with the nearest ancestor
+/// part as parent (-1 for none). Error(kInput) naming `source` and the problem otherwise.
+void parseRigParts(const std::string& text, const std::string& source, int driverVertexCount,
+                   std::vector<int>& partOf, std::vector<int>& parentOf);
+/// The same from a file.
+void readRigParts(const std::string& path, int driverVertexCount, std::vector<int>& partOf,
+                  std::vector<int>& parentOf);
+
+/// Finds `parts` rigid parts of the driver over `frameCount` frames (frame-major, V x 3 each):
+/// hard assignment of every vertex to the part whose per-frame rigid motions explain its
+/// trajectory best, from farthest-point seeds at rest; `parts` = 0 tries 2..8 and keeps the
+/// last count that lowered the residual by a third. Sets `parent` (the part that rotates least
+/// is the root; every other part hangs off the neighbour it shares most edges with).
+std::vector<int> findRigidParts(const Mesh& driver, const float* frames, int frameCount, int parts,
+                                std::vector<int>& parent, int threads, std::ostream* log);
+
+/// Fits the pose model on a reference clip: `frameCount` driver and driven frames (frame-major)
+/// with their frame numbers (consecutive numbers are what velocity and history read), and the
+/// rest binding of the driven mesh (exact closest points on the rest driver). Throws
+/// Error(kInput) naming the problem when the clip is too short or the parts are degenerate.
+PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,
+                       const float* drivenFrames, const std::vector<int>& frames,
+                       const std::vector<SurfaceHit>& restHits, const PoseModelOptions& options,
+                       std::ostream* log);
+
+/// Evaluates a pose model: the features of a block of frames and the basis weights and
+/// predicted error of each.
+class PosePredictor {
+ public:
+  /// Features alone need only the parts; predict() needs the fitted tables.
+  PosePredictor(const PoseModel& model, const Mesh& driver);
+
+  /// The pose features (poseFeatureCount()) of one driver frame (V x 3).
+  void poseFeatures(const float* frame, double* out) const;
+  /// The full features of frame i of a block from the pose features of the block's frames
+  /// (count x poseFeatureCount(), frame numbers `frames`): velocity and history read the
+  /// frames numbered frames[i] - 1, - 2, ... found in the block, the earliest found standing
+  /// in for those before it.
+  void features(const double* pose, const int* frames, int count, int i, double* out) const;
+  struct Prediction {
+    Eigen::VectorXd weights;  ///< rank(): the basis weights
+    double sigma = 0.0;       ///< posterior standard deviation of the kernel
+    double predictedError = 0.0;
+  };
+  Prediction predict(const double* features) const;
+
+  const PoseModel& model() const { return mModel; }
+
+ private:
+  const PoseModel& mModel;
+  std::vector<std::vector<int>> mPartVertices;
+  std::vector<Eigen::Vector3d> mRestCenters;
+  std::vector<Eigen::Matrix3Xd> mRestCentered;
+  Eigen::MatrixXd mFeatures;       ///< T x d (double)
+  Eigen::MatrixXd mCoefficients;   ///< rank x T
+  Eigen::MatrixXd mKernelInverse;  ///< (K + lambda I)^-1, for the variance
+};
+
+}  // namespace drivenshape

@@ -1,0 +1,604 @@
+// The pose model (drivenshape/pose_model.h): rigid parts of the driver, pose features, the
+// kernel ridge regression of the local-frame offsets and its error predictor.
+
+#include <drivenshape/pose_model.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <ostream>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include <drivenshape/error.h>
+#include "parallel.h"
+
+namespace drivenshape {
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::MatrixXd;
+using Eigen::Vector3d;
+using Eigen::VectorXd;
+
+Vector3d point(const float* xyz, int v) {
+  return Vector3d(xyz[3 * v], xyz[3 * v + 1], xyz[3 * v + 2]);
+}
+
+/// The rotation R (and translations) of the best rigid fit y ~ R (x - cx) + cy of a part:
+/// `centered` holds the part's rest points minus their centroid.
+Matrix3d fitRotation(const Eigen::Matrix3Xd& centered, const std::vector<int>& vertices,
+                     const float* frame, Vector3d* center) {
+  Vector3d cy = Vector3d::Zero();
+  for (int v : vertices) {
+    cy += point(frame, v);
+  }
+  cy /= static_cast<double>(vertices.size());
+  Matrix3d h = Matrix3d::Zero();
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    h += centered.col(static_cast<Eigen::Index>(i)) * (point(frame, vertices[i]) - cy).transpose();
+  }
+  const Eigen::JacobiSVD<Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Matrix3d fix = Matrix3d::Identity();
+  fix(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  if (center != nullptr) {
+    *center = cy;
+  }
+  return svd.matrixV() * fix * svd.matrixU().transpose();
+}
+
+struct PartGeometry {
+  std::vector<std::vector<int>> vertices;
+  std::vector<Vector3d> centers;
+  std::vector<Eigen::Matrix3Xd> centered;
+};
+
+PartGeometry partGeometry(const float* rest, const std::vector<int>& partOf, int parts) {
+  PartGeometry g;
+  g.vertices.resize(static_cast<std::size_t>(parts));
+  for (std::size_t v = 0; v < partOf.size(); ++v) {
+    g.vertices[static_cast<std::size_t>(partOf[v])].push_back(static_cast<int>(v));
+  }
+  for (int p = 0; p < parts; ++p) {
+    const std::vector<int>& vs = g.vertices[static_cast<std::size_t>(p)];
+    Vector3d c = Vector3d::Zero();
+    for (int v : vs) {
+      c += point(rest, v);
+    }
+    c /= std::max<double>(1.0, static_cast<double>(vs.size()));
+    Eigen::Matrix3Xd x(3, static_cast<Eigen::Index>(vs.size()));
+    for (std::size_t i = 0; i < vs.size(); ++i) {
+      x.col(static_cast<Eigen::Index>(i)) = point(rest, vs[i]) - c;
+    }
+    g.centers.push_back(c);
+    g.centered.push_back(std::move(x));
+  }
+  return g;
+}
+
+/// Assigns every vertex to the part whose rigid motions over `sample` frames explain it best;
+/// returns the total squared residual.
+double assignParts(const float* rest, int vertexCount, const float* frames,
+                   const std::vector<int>& sample, int parts, std::vector<int>& partOf,
+                   int threads) {
+  const PartGeometry g = partGeometry(rest, partOf, parts);
+  const std::size_t values = static_cast<std::size_t>(vertexCount) * 3;
+  MatrixXd cost = MatrixXd::Zero(vertexCount, parts);
+  parallelFor(parts, threads, [&](int p) {
+    if (g.vertices[static_cast<std::size_t>(p)].size() < 3) {
+      cost.col(p).setConstant(std::numeric_limits<double>::infinity());
+      return;
+    }
+    for (int f : sample) {
+      const float* frame = frames + static_cast<std::size_t>(f) * values;
+      Vector3d cy;
+      const Matrix3d r = fitRotation(g.centered[static_cast<std::size_t>(p)],
+                                     g.vertices[static_cast<std::size_t>(p)], frame, &cy);
+      for (int v = 0; v < vertexCount; ++v) {
+        cost(v, p) +=
+            (r * (point(rest, v) - g.centers[static_cast<std::size_t>(p)]) + cy - point(frame, v))
+                .squaredNorm();
+      }
+    }
+  });
+  double total = 0.0;
+  for (int v = 0; v < vertexCount; ++v) {
+    Eigen::Index best = 0;
+    total += cost.row(v).minCoeff(&best);
+    partOf[static_cast<std::size_t>(v)] = static_cast<int>(best);
+  }
+  return total;
+}
+
+/// Renumbers parts 0..n-1 in order of first vertex, dropping empty ones; returns n.
+int compactParts(std::vector<int>& partOf) {
+  std::vector<int> map;
+  for (int& p : partOf) {
+    if (p >= static_cast<int>(map.size())) {
+      map.resize(static_cast<std::size_t>(p) + 1, -1);
+    }
+    if (map[static_cast<std::size_t>(p)] < 0) {
+      map[static_cast<std::size_t>(p)] =
+          static_cast<int>(std::count_if(map.begin(), map.end(), [](int m) { return m >= 0; }));
+    }
+    p = map[static_cast<std::size_t>(p)];
+  }
+  return static_cast<int>(std::count_if(map.begin(), map.end(), [](int m) { return m >= 0; }));
+}
+
+/// Hard rigid clustering with `parts` farthest-point seeds; returns the residual.
+double clusterParts(const Mesh& driver, const float* frames, int frameCount, int parts,
+                    std::vector<int>& partOf, int threads) {
+  const int vertexCount = driver.vertexCount();
+  const float* rest = driver.positions.data();
+  std::vector<int> seeds = {0};
+  std::vector<double> distance(static_cast<std::size_t>(vertexCount));
+  for (int v = 0; v < vertexCount; ++v) {
+    distance[v] = (point(rest, v) - point(rest, 0)).squaredNorm();
+  }
+  while (static_cast<int>(seeds.size()) < parts) {
+    const int next =
+        static_cast<int>(std::max_element(distance.begin(), distance.end()) - distance.begin());
+    seeds.push_back(next);
+    for (int v = 0; v < vertexCount; ++v) {
+      distance[v] = std::min(distance[v], (point(rest, v) - point(rest, next)).squaredNorm());
+    }
+  }
+  partOf.assign(static_cast<std::size_t>(vertexCount), 0);
+  for (int v = 0; v < vertexCount; ++v) {
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t s = 0; s < seeds.size(); ++s) {
+      const double d = (point(rest, v) - point(rest, seeds[s])).squaredNorm();
+      if (d < best) {
+        best = d;
+        partOf[static_cast<std::size_t>(v)] = static_cast<int>(s);
+      }
+    }
+  }
+  std::vector<int> sample;
+  const int step = std::max(1, frameCount / 80);
+  for (int f = 0; f < frameCount; f += step) {
+    sample.push_back(f);
+  }
+  double residual = 0.0;
+  for (int iteration = 0; iteration < 12; ++iteration) {
+    const std::vector<int> before = partOf;
+    residual = assignParts(rest, vertexCount, frames, sample, parts, partOf, threads);
+    if (partOf == before) {
+      break;
+    }
+  }
+  compactParts(partOf);
+  return residual;
+}
+
+/// The tree of parts: the root rotates least over the clip; the others hang off the
+/// neighbour (shared mesh edges) they share most edges with, grown from the root.
+std::vector<int> partTree(const Mesh& driver, const float* frames, int frameCount,
+                          const std::vector<int>& partOf, int parts) {
+  const float* rest = driver.positions.data();
+  const PartGeometry g = partGeometry(rest, partOf, parts);
+  const std::size_t values = static_cast<std::size_t>(driver.vertexCount()) * 3;
+  std::vector<double> angle(static_cast<std::size_t>(parts), 0.0);
+  for (int p = 0; p < parts; ++p) {
+    for (int f = 0; f < frameCount; ++f) {
+      const Matrix3d r = fitRotation(g.centered[p], g.vertices[p],
+                                     frames + static_cast<std::size_t>(f) * values, nullptr);
+      angle[p] += std::acos(std::clamp((r.trace() - 1.0) / 2.0, -1.0, 1.0));
+    }
+  }
+  MatrixXd shared = MatrixXd::Zero(parts, parts);
+  for (int t = 0; t < driver.triangleCount(); ++t) {
+    for (int e = 0; e < 3; ++e) {
+      const int a = partOf[static_cast<std::size_t>(driver.triangles(t, e))];
+      const int b = partOf[static_cast<std::size_t>(driver.triangles(t, (e + 1) % 3))];
+      if (a != b) {
+        shared(a, b) += 1;
+        shared(b, a) += 1;
+      }
+    }
+  }
+  std::vector<int> parent(static_cast<std::size_t>(parts), -2);
+  const int root = static_cast<int>(std::min_element(angle.begin(), angle.end()) - angle.begin());
+  parent[static_cast<std::size_t>(root)] = -1;
+  for (int added = 1; added < parts; ++added) {
+    int bestChild = -1, bestParent = root;
+    double bestShared = -1.0;
+    for (int a = 0; a < parts; ++a) {
+      if (parent[a] == -2) {
+        continue;
+      }
+      for (int b = 0; b < parts; ++b) {
+        if (parent[b] == -2 && shared(a, b) > bestShared) {
+          bestShared = shared(a, b);
+          bestChild = b;
+          bestParent = a;
+        }
+      }
+    }
+    parent[static_cast<std::size_t>(bestChild)] = bestParent;
+  }
+  return parent;
+}
+
+/// k(x, y) of the model's kernel on rows of two feature matrices.
+MatrixXd kernelMatrix(const MatrixXd& a, const MatrixXd& b, double lengthScale,
+                      double linearWeight) {
+  const MatrixXd dot = a * b.transpose();
+  const VectorXd aa = a.rowwise().squaredNorm();
+  const VectorXd bb = b.rowwise().squaredNorm();
+  MatrixXd k(a.rows(), b.rows());
+  const double scale = 1.0 / (2.0 * lengthScale * lengthScale);
+  for (Eigen::Index j = 0; j < b.rows(); ++j) {
+    for (Eigen::Index i = 0; i < a.rows(); ++i) {
+      const double d2 = std::max(0.0, aa[i] + bb[j] - 2.0 * dot(i, j));
+      k(i, j) = linearWeight * dot(i, j) + std::exp(-d2 * scale);
+    }
+  }
+  return k;
+}
+
+/// Mean vertex distance between rows of two T x 3Vd offset blocks given in PCA coordinates
+/// `coords` (rows x r) of the basis `components` (r x 3Vd): per row, the mean over vertices.
+VectorXd meanVertexError(const MatrixXd& predicted, const MatrixXd& truth,
+                         const MatrixXd& components) {
+  const MatrixXd diff = (predicted - truth) * components;  // rows x 3Vd
+  VectorXd out(diff.rows());
+  const Eigen::Index vertices = diff.cols() / 3;
+  for (Eigen::Index r = 0; r < diff.rows(); ++r) {
+    double sum = 0.0;
+    for (Eigen::Index v = 0; v < vertices; ++v) {
+      sum += diff.row(r).segment(3 * v, 3).norm();
+    }
+    out[r] = sum / static_cast<double>(vertices);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<int> findRigidParts(const Mesh& driver, const float* frames, int frameCount, int parts,
+                                std::vector<int>& parent, int threads, std::ostream* log) {
+  if (frameCount < 2) {
+    DS_THROW(kInput, "finding the driver's rigid parts needs at least 2 reference frames (got ",
+             frameCount, ")");
+  }
+  std::vector<int> partOf;
+  if (parts > 0) {
+    clusterParts(driver, frames, frameCount, parts, partOf, threads);
+  } else {
+    // More parts while each lowers the residual by at least a third.
+    double residual = clusterParts(driver, frames, frameCount, 2, partOf, threads);
+    for (int count = 3; count <= 8; ++count) {
+      std::vector<int> more;
+      const double next = clusterParts(driver, frames, frameCount, count, more, threads);
+      if (log != nullptr) {
+        *log << "  rigid parts: " << count << " parts leave " << next / residual
+             << " of the residual of " << count - 1 << "\n";
+      }
+      if (next > residual * (2.0 / 3.0)) {
+        break;
+      }
+      residual = next;
+      partOf = std::move(more);
+    }
+  }
+  const int count = 1 + *std::max_element(partOf.begin(), partOf.end());
+  parent = partTree(driver, frames, frameCount, partOf, count);
+  return partOf;
+}
+
+PosePredictor::PosePredictor(const PoseModel& model, const Mesh& driver) : mModel(model) {
+  const float* rest = driver.positions.data();
+  PartGeometry g = partGeometry(rest, model.partOf, model.partCount());
+  mPartVertices = std::move(g.vertices);
+  mRestCenters = std::move(g.centers);
+  mRestCentered = std::move(g.centered);
+  if (model.coefficients.empty()) {
+    return;
+  }
+  const int t = model.frameCount(), d = model.featureCount(), r = model.rank();
+  mFeatures =
+      Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          model.features.data(), t, d)
+          .cast<double>();
+  mCoefficients =
+      Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          model.coefficients.data(), r, t)
+          .cast<double>();
+  MatrixXd k = kernelMatrix(mFeatures, mFeatures, model.lengthScale, model.linearWeight);
+  k.diagonal().array() += model.ridge;
+  mKernelInverse = k.llt().solve(MatrixXd::Identity(t, t));
+}
+
+void PosePredictor::poseFeatures(const float* frame, double* out) const {
+  const int parts = mModel.partCount();
+  std::vector<Matrix3d> rotation(static_cast<std::size_t>(parts));
+  for (int p = 0; p < parts; ++p) {
+    rotation[p] = fitRotation(mRestCentered[p], mPartVertices[p], frame, nullptr);
+  }
+  const Vector3d up(mModel.up[0], mModel.up[1], mModel.up[2]);
+  int o = 0;
+  for (int p = 0; p < parts; ++p) {
+    const int q = mModel.parent[static_cast<std::size_t>(p)];
+    if (q < 0) {
+      const Vector3d g = rotation[p].transpose() * up - up;
+      for (int c = 0; c < 3; ++c) {
+        out[o++] = g[c];
+      }
+    } else {
+      const Matrix3d relative = rotation[q].transpose() * rotation[p] - Matrix3d::Identity();
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          out[o++] = relative(i, j);
+        }
+      }
+    }
+  }
+}
+
+void PosePredictor::features(const double* pose, const int* frames, int count, int i,
+                             double* out) const {
+  const int n = mModel.poseFeatureCount();
+  // earlier[j] = block index of frame frames[i] - j, the earliest found standing in.
+  const int need = mModel.historyNeeded();
+  std::vector<int> earlier(static_cast<std::size_t>(need) + 1, i);
+  int found = i;
+  for (int j = 1; j <= need; ++j) {
+    if (found > 0 && found - 1 < count && frames[found - 1] == frames[i] - j) {
+      --found;
+    }
+    earlier[static_cast<std::size_t>(j)] = found;
+  }
+  const double* now = pose + static_cast<std::size_t>(i) * n;
+  std::copy_n(now, n, out);
+  int o = n;
+  if (mModel.velocityLag > 0) {
+    const double* then = pose + static_cast<std::size_t>(earlier[mModel.velocityLag]) * n;
+    for (int c = 0; c < n; ++c) {
+      out[o++] = now[c] - then[c];
+    }
+  }
+  if (mModel.historyFrames > 1) {
+    for (int c = 0; c < n; ++c) {
+      double sum = 0.0;
+      for (int j = 0; j < mModel.historyFrames; ++j) {
+        sum += pose[static_cast<std::size_t>(earlier[j]) * n + c];
+      }
+      out[o++] = now[c] - sum / mModel.historyFrames;
+    }
+  }
+}
+
+PosePredictor::Prediction PosePredictor::predict(const double* features) const {
+  const int d = mModel.featureCount();
+  const Eigen::Map<const Eigen::RowVectorXd> x(features, d);
+  const VectorXd k =
+      kernelMatrix(x, mFeatures, mModel.lengthScale, mModel.linearWeight).transpose();
+  Prediction p;
+  p.weights = mCoefficients * k;
+  const double prior = mModel.linearWeight * x.squaredNorm() + 1.0;
+  p.sigma = std::sqrt(std::max(0.0, prior - k.dot(mKernelInverse * k)));
+  p.predictedError = mModel.errorBias + mModel.errorScale * p.sigma;
+  return p;
+}
+
+PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,
+                       const float* drivenFrames, const std::vector<int>& frames,
+                       const std::vector<SurfaceHit>& restHits, const PoseModelOptions& options,
+                       std::ostream* log) {
+  const int t = static_cast<int>(frames.size());
+  if (t < 10) {
+    DS_THROW(kInput, "the pose model needs at least 10 reference frames (got ", t,
+             "); give `db build` a longer reference clip or build with --model none");
+  }
+  const int threads = resolveThreads(options.threads);
+  const std::size_t dv = static_cast<std::size_t>(driver.vertexCount()) * 3;
+  const std::size_t dd = static_cast<std::size_t>(driven.vertexCount()) * 3;
+  PoseModel model;
+  model.up = options.up;
+  model.velocityLag = options.velocityLag;
+  model.historyFrames = options.historyFrames;
+  model.frames = frames;
+  if (!options.partOf.empty()) {
+    if (options.partOf.size() != static_cast<std::size_t>(driver.vertexCount())) {
+      DS_THROW(kInput, "the rig's parts name ", options.partOf.size(),
+               " driver vertices but the driver has ", driver.vertexCount());
+    }
+    model.partOf = options.partOf;
+    model.parent = options.parentOf;
+  } else {
+    model.partOf =
+        findRigidParts(driver, driverFrames, t, options.parts, model.parent, threads, log);
+  }
+  for (int p = 0; p < model.partCount(); ++p) {
+    const auto size = std::count(model.partOf.begin(), model.partOf.end(), p);
+    if (size < 3) {
+      DS_THROW(kInput, "driver part ", p, " has ", size,
+               " vertices; a part needs 3 for its rotation (fewer parts: --model-parts)");
+    }
+  }
+  if (log != nullptr) {
+    *log << "  pose model: " << model.partCount() << " rigid parts (parents";
+    for (int p : model.parent) {
+      *log << " " << p;
+    }
+    *log << ")\n";
+  }
+
+  // Features of every reference frame.
+  model.lengthScale = 1.0;  // placeholder until chosen; the predictor below needs a valid model
+  const PosePredictor shapeOnly(model, driver);
+  const int n = model.poseFeatureCount(), d = model.featureCount();
+  std::vector<double> pose(static_cast<std::size_t>(t) * n);
+  parallelFor(t, threads,
+              [&](int f) { shapeOnly.poseFeatures(driverFrames + f * dv, &pose[f * n]); });
+  MatrixXd x(t, d);
+  {
+    std::vector<double> row(static_cast<std::size_t>(d));
+    for (int f = 0; f < t; ++f) {
+      shapeOnly.features(pose.data(), frames.data(), t, f, row.data());
+      // Rounded to the float the database stores, so that the fit and the evaluation
+      // compare the same numbers.
+      x.row(f) = Eigen::Map<const Eigen::RowVectorXd>(row.data(), d).cast<float>().cast<double>();
+    }
+  }
+
+  // Targets: the local offsets of every reference frame minus the rest offsets.
+  std::vector<float> restLocal(dd), local(dd);
+  encodeLocal(driver, driver.positions.data(), driven.vertexCount(), driven.positions.data(),
+              restHits.data(), restLocal.data());
+  MatrixXd y(t, static_cast<Eigen::Index>(dd));
+  for (int f = 0; f < t; ++f) {
+    encodeLocal(driver, driverFrames + f * dv, driven.vertexCount(), drivenFrames + f * dd,
+                restHits.data(), local.data());
+    for (std::size_t i = 0; i < dd; ++i) {
+      y(f, static_cast<Eigen::Index>(i)) = static_cast<double>(local[i]) - restLocal[i];
+    }
+  }
+  // Principal components of the targets: the regression runs on the T coordinates (the same
+  // squared error as on every vertex), the basis keeps the first `rank`.
+  const Eigen::SelfAdjointEigenSolver<MatrixXd> eig(y * y.transpose());
+  const int keep = std::min(t, std::max(1, options.rank));
+  std::vector<int> order(static_cast<std::size_t>(t));
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return eig.eigenvalues()[a] > eig.eigenvalues()[b]; });
+  int rank = 0;
+  MatrixXd u(t, t), components(t, static_cast<Eigen::Index>(dd));
+  for (int j = 0; j < t; ++j) {
+    const double lambda = eig.eigenvalues()[order[j]];
+    if (lambda <= 1e-12 * std::max(1e-300, eig.eigenvalues().maxCoeff())) {
+      break;
+    }
+    u.col(rank) = eig.eigenvectors().col(order[j]);
+    components.row(rank) = (y.transpose() * u.col(rank)).transpose() / std::sqrt(lambda);
+    ++rank;
+  }
+  u.conservativeResize(t, rank);
+  components.conservativeResize(rank, components.cols());
+  const MatrixXd coords = y * components.transpose();  // T x rank
+
+  // Hyper-parameters by cross-validation on 5 contiguous blocks of the clip.
+  double median = 0.0;
+  {
+    std::vector<double> distances;
+    for (int a = 0; a < t; ++a) {
+      for (int b = a + 1; b < t; ++b) {
+        distances.push_back((x.row(a) - x.row(b)).norm());
+      }
+    }
+    std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
+    median = std::max(1e-9, distances[distances.size() / 2]);
+  }
+  const int blocks = 5;
+  const auto blockOf = [&](int f) { return std::min(blocks - 1, f * blocks / t); };
+  struct Candidate {
+    double lengthScale, linearWeight, ridge, error;
+  };
+  std::vector<Candidate> candidates;
+  for (double ls : {0.25, 0.5, 1.0}) {
+    for (double lw : {1.0, 3.0, 10.0}) {
+      for (double ridge : {0.03, 0.1, 0.3, 1.0}) {
+        candidates.push_back({ls * median, lw, ridge, 0.0});
+      }
+    }
+  }
+  const auto foldPredictions = [&](const Candidate& c, MatrixXd& predicted, VectorXd& sigma) {
+    predicted.resize(t, rank);
+    sigma.resize(t);
+    const MatrixXd kAll = kernelMatrix(x, x, c.lengthScale, c.linearWeight);
+    for (int b = 0; b < blocks; ++b) {
+      std::vector<int> train, test;
+      for (int f = 0; f < t; ++f) {
+        (blockOf(f) == b ? test : train).push_back(f);
+      }
+      MatrixXd k(train.size(), train.size()), ks(test.size(), train.size());
+      MatrixXd yt(train.size(), rank);
+      for (std::size_t i = 0; i < train.size(); ++i) {
+        for (std::size_t j = 0; j < train.size(); ++j) {
+          k(i, j) = kAll(train[i], train[j]);
+        }
+        k(i, i) += c.ridge;
+        yt.row(i) = coords.row(train[i]);
+        for (std::size_t j = 0; j < test.size(); ++j) {
+          ks(j, i) = kAll(test[j], train[i]);
+        }
+      }
+      const Eigen::LLT<MatrixXd> llt(k);
+      const MatrixXd p = ks * llt.solve(yt);
+      const MatrixXd v = llt.solve(ks.transpose());
+      for (std::size_t j = 0; j < test.size(); ++j) {
+        predicted.row(test[j]) = p.row(j);
+        sigma[test[j]] = std::sqrt(std::max(0.0, kAll(test[j], test[j]) - ks.row(j).dot(v.col(j))));
+      }
+    }
+  };
+  parallelFor(static_cast<int>(candidates.size()), threads, [&](int i) {
+    MatrixXd predicted;
+    VectorXd sigma;
+    foldPredictions(candidates[i], predicted, sigma);
+    candidates[i].error = (predicted - coords).squaredNorm();
+  });
+  const Candidate best =
+      *std::min_element(candidates.begin(), candidates.end(),
+                        [](const Candidate& a, const Candidate& b) { return a.error < b.error; });
+  model.lengthScale = best.lengthScale;
+  model.linearWeight = best.linearWeight;
+  model.ridge = best.ridge;
+
+  // The error predictor: the cross-validated mean vertex error of each frame against the
+  // posterior deviation, least squares.
+  MatrixXd predicted;
+  VectorXd sigma;
+  foldPredictions(best, predicted, sigma);
+  const VectorXd error = meanVertexError(predicted, coords, components);
+  const VectorXd bindingError = meanVertexError(MatrixXd::Zero(t, rank), coords, components);
+  model.crossValidationError = error.mean();
+  model.bindingError = bindingError.mean();
+  {
+    Eigen::MatrixXd a(t, 2);
+    a.col(0).setOnes();
+    a.col(1) = sigma;
+    const Eigen::Vector2d fit = (a.transpose() * a).ldlt().solve(a.transpose() * error);
+    model.errorBias = fit[0];
+    model.errorScale = fit[1];
+  }
+
+  // The full fit and its low-rank basis: c(x) = S_r U_r^T (K + lambda I)^-1 k(x) weighs the
+  // first `keep` components.
+  const int r = std::min(keep, rank);
+  MatrixXd k = kernelMatrix(x, x, model.lengthScale, model.linearWeight);
+  k.diagonal().array() += model.ridge;
+  const MatrixXd coefficients = k.llt().solve(coords.leftCols(r)).transpose();  // r x T
+  model.coefficients.resize(static_cast<std::size_t>(r) * t);
+  model.basis.resize(static_cast<std::size_t>(r) * dd);
+  for (int j = 0; j < r; ++j) {
+    for (int f = 0; f < t; ++f) {
+      model.coefficients[static_cast<std::size_t>(j) * t + f] =
+          static_cast<float>(coefficients(j, f));
+    }
+    for (std::size_t i = 0; i < dd; ++i) {
+      model.basis[j * dd + i] = static_cast<float>(components(j, static_cast<Eigen::Index>(i)));
+    }
+  }
+  model.features.resize(static_cast<std::size_t>(t) * d);
+  for (int f = 0; f < t; ++f) {
+    for (int c = 0; c < d; ++c) {
+      model.features[static_cast<std::size_t>(f) * d + c] = static_cast<float>(x(f, c));
+    }
+  }
+  if (log != nullptr) {
+    *log << "  pose model: " << t << " frames, " << d << " features, rank " << r
+         << ", length scale " << model.lengthScale << ", linear " << model.linearWeight
+         << ", ridge " << model.ridge << "; cross-validated mean error "
+         << model.crossValidationError << " (binding " << model.bindingError
+         << "), predicted error " << model.errorBias << " + " << model.errorScale << " sigma\n";
+  }
+  return model;
+}
+
+}  // namespace drivenshape

@@ -1,0 +1,282 @@
+// The pose model (issue 17): rigid parts found from motion, features that are joint rotations,
+// the learned correction against the simulated truth, history that chunks cannot change, the
+// database round trip and the rig reader.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+#include <set>
+#include <vector>
+
+#include <drivenshape/database.h>
+#include <drivenshape/error.h>
+#include <drivenshape/evaluator.h>
+#include <drivenshape/pose_model.h>
+
+#include "bake_test_util.h"
+#include "test_support.h"
+
+namespace drivenshape {
+namespace {
+
+using testing::sample;
+using testing::TempDir;
+using PoseModelClTest = testing::BakeClTest;
+
+/// The sample's 30-shape database with the pose model, built once.
+const Database& sampleDatabase() {
+  static const Database db = testing::buildSample(30, {}, true);
+  return db;
+}
+
+/// Three unit cubes in a row along x (8 vertices, 12 triangles each): a chain of rigid parts.
+Mesh cubeChain() {
+  Mesh mesh;
+  std::vector<Eigen::Vector3f> points;
+  for (int c = 0; c < 3; ++c) {
+    for (int i = 0; i < 8; ++i) {
+      points.emplace_back(1.5f * c + (i & 1), (i >> 1) & 1, (i >> 2) & 1);
+    }
+  }
+  mesh.positions.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    mesh.positions.row(static_cast<Eigen::Index>(i)) = points[i].transpose();
+  }
+  const int quads[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1},
+                           {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+  mesh.faceStart = {0};
+  for (int c = 0; c < 3; ++c) {
+    for (const auto& q : quads) {
+      for (int k : q) {
+        mesh.faceVertices.push_back(8 * c + k);
+      }
+      mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
+      mesh.faceGroup.push_back(0);
+    }
+  }
+  // Bridge triangles so the cubes share edges (parts are neighbours).
+  for (int c = 0; c < 2; ++c) {
+    for (int k : {8 * c + 1, 8 * (c + 1) + 0, 8 * c + 3}) {
+      mesh.faceVertices.push_back(k);
+    }
+    mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
+    mesh.faceGroup.push_back(0);
+  }
+  mesh.groupNames = {"default"};
+  mesh.triangulate();
+  return mesh;
+}
+
+/// Frames of the chain: cube 0 still, cube 1 turned by `a1[f]` about z through its hinge at
+/// x = 1.25, cube 2 by a further `a2[f]` about y through x = 2.75 (carried by cube 1).
+std::vector<float> chainFrames(const Mesh& mesh, const std::vector<double>& a1,
+                               const std::vector<double>& a2, const Eigen::Matrix3d& world) {
+  std::vector<float> out;
+  for (std::size_t f = 0; f < a1.size(); ++f) {
+    const Eigen::Matrix3d r1 = Eigen::AngleAxisd(a1[f], Eigen::Vector3d::UnitZ()).matrix();
+    const Eigen::Matrix3d r2 = Eigen::AngleAxisd(a2[f], Eigen::Vector3d::UnitY()).matrix();
+    const Eigen::Vector3d h1(1.25, 0.5, 0.5), h2(2.75, 0.5, 0.5);
+    for (int v = 0; v < mesh.vertexCount(); ++v) {
+      Eigen::Vector3d p = mesh.positions.row(v).cast<double>().transpose();
+      if (v >= 16) {
+        p = h2 + r2 * (p - h2);
+      }
+      if (v >= 8) {
+        p = h1 + r1 * (p - h1);
+      }
+      p = world * p;
+      for (int a = 0; a < 3; ++a) {
+        out.push_back(static_cast<float>(p[a]));
+      }
+    }
+  }
+  return out;
+}
+
+TEST(PoseModel, RigidPartsOfAnArticulatedChainAreItsCubes) {
+  const Mesh mesh = cubeChain();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> angle(-1.2, 1.2);
+  std::vector<double> a1(40), a2(40);
+  for (int f = 0; f < 40; ++f) {
+    a1[f] = angle(rng);
+    a2[f] = angle(rng);
+  }
+  const std::vector<float> frames = chainFrames(mesh, a1, a2, Eigen::Matrix3d::Identity());
+  std::vector<int> parent;
+  const std::vector<int> partOf = findRigidParts(mesh, frames.data(), 40, 0, parent, 1, nullptr);
+  ASSERT_EQ(parent.size(), 3u) << "three rigid bodies, three parts";
+  for (int c = 0; c < 3; ++c) {
+    const std::set<int> parts(partOf.begin() + 8 * c, partOf.begin() + 8 * c + 8);
+    EXPECT_EQ(parts.size(), 1u) << "cube " << c << " is split";
+  }
+  const int p0 = partOf[0], p1 = partOf[8], p2 = partOf[16];
+  EXPECT_EQ(parent[p0], -1) << "the cube that never moves is the root";
+  EXPECT_EQ(parent[p1], p0);
+  EXPECT_EQ(parent[p2], p1);
+}
+
+TEST(PoseModel, FeaturesAreJointRotationsWhateverTheCharacterStands) {
+  const Mesh mesh = cubeChain();
+  PoseModel model;
+  model.partOf.assign(24, 0);
+  for (int v = 8; v < 24; ++v) {
+    model.partOf[v] = v < 16 ? 1 : 2;
+  }
+  model.parent = {-1, 0, 1};
+  const PosePredictor predictor(model, mesh);
+  ASSERT_EQ(model.poseFeatureCount(), 3 + 9 + 9);
+  const double a1 = 0.7, a2 = -0.4;
+  const Eigen::Matrix3d world =
+      Eigen::AngleAxisd(0.9, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
+  for (const Eigen::Matrix3d& q :
+       std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity(), world}) {
+    const std::vector<float> frame = chainFrames(mesh, {a1}, {a2}, q);
+    std::vector<double> x(21);
+    predictor.poseFeatures(frame.data(), x.data());
+    // The root's feature: the up axis seen from the root part, minus up.
+    const Eigen::Vector3d up(0, 0, 1);
+    const Eigen::Vector3d g = q.transpose() * up - up;
+    const Eigen::Matrix3d r1 =
+        Eigen::AngleAxisd(a1, Eigen::Vector3d::UnitZ()).matrix() - Eigen::Matrix3d::Identity();
+    const Eigen::Matrix3d r2 =
+        Eigen::AngleAxisd(a2, Eigen::Vector3d::UnitY()).matrix() - Eigen::Matrix3d::Identity();
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(x[c], g[c], testing::kAlignTol);
+    }
+    for (int i = 0; i < 9; ++i) {
+      EXPECT_NEAR(x[3 + i], r1(i / 3, i % 3), testing::kAlignTol) << "joint 1 entry " << i;
+      EXPECT_NEAR(x[12 + i], r2(i / 3, i % 3), testing::kAlignTol) << "joint 2 entry " << i;
+    }
+  }
+}
+
+/// Mean vertex distance between two F x 3V blocks.
+double meanDistance(const std::vector<float>& a, const std::vector<float>& b) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < a.size(); i += 3) {
+    sum += std::sqrt(std::pow(double(a[i]) - b[i], 2) + std::pow(double(a[i + 1]) - b[i + 1], 2) +
+                     std::pow(double(a[i + 2]) - b[i + 2], 2));
+  }
+  return sum / static_cast<double>(a.size() / 3);
+}
+
+TEST_F(PoseModelClTest, TheModelBeatsTheBindingOnFramesItNeverSaw) {
+  const Database& db = sampleDatabase();
+  ASSERT_FALSE(db.poseModel.empty()) << "db build fits the pose model by default";
+  const auto driver = openPointCache(sample("test.driver.pc2"));
+  const auto truth = openPointCache(sample("test.driven.pc2"));
+  const std::vector<int> frames = driver->frames();
+  const std::vector<float> pose = readFrames(*driver, frames);
+  const std::vector<float> expected = readFrames(*truth, frames);
+  testing::Backends cl = clBackends();
+  EvaluatorSettings model;
+  model.resolve = false;
+  EvaluatorSettings bind = model;
+  bind.weightMode = WeightMode::kBind;
+  const Evaluation withModel = Evaluator(db, model, cl.view()).evaluate(frames, pose);
+  const Evaluation binding = Evaluator(db, bind, cl.view()).evaluate(frames, pose);
+  const double modelError = meanDistance(withModel.cloth, expected);
+  const double bindError = meanDistance(binding.cloth, expected);
+  // The simulated truth of the sleeve's test clip (a motion the train clip does not hold).
+  EXPECT_LT(modelError, 0.8 * bindError)
+      << "pose model " << modelError << " vs binding " << bindError << " (scene units)";
+  for (const FrameRecord& record : withModel.records) {
+    EXPECT_GE(record.predictedError, 0.0);
+    EXPECT_GE(record.poseDistance, 0.0);
+    EXPECT_TRUE(record.flagged == 0 || record.flagged == 1);
+  }
+}
+
+TEST_F(PoseModelClTest, HistoryReadsTheSameFramesInBlocksAsInOneCall) {
+  const Database& db = sampleDatabase();
+  const auto driver = openPointCache(sample("test.driver.pc2"));
+  const std::vector<int> frames = driver->frames();
+  const std::vector<float> pose = readFrames(*driver, frames);
+  testing::Backends cl = clBackends();
+  const EvaluatorSettings settings;  // the defaults: the pose model
+  Evaluator whole(db, settings, cl.view());
+  ASSERT_GT(whole.historyFrames(), 0);
+  const Evaluation all = whole.evaluate(frames, pose);
+  const std::size_t dv = static_cast<std::size_t>(db.driverVertexCount()) * 3;
+  const std::size_t dd = static_cast<std::size_t>(db.drivenVertexCount()) * 3;
+  // Blocks of 7 with the history as warm-up frames (what the bake reads from the cache), each
+  // on a fresh evaluator: no memory of earlier calls.
+  for (std::size_t begin = 0; begin < frames.size(); begin += 7) {
+    const std::size_t end = std::min(frames.size(), begin + 7);
+    const std::size_t warm = std::min<std::size_t>(begin, whole.historyFrames());
+    const std::vector<int> block(frames.begin() + (begin - warm), frames.begin() + end);
+    const std::vector<float> blockPose(pose.begin() + (begin - warm) * dv, pose.begin() + end * dv);
+    Evaluator fresh(db, settings, cl.view());
+    std::vector<float> cloth((end - begin) * dd);
+    std::vector<FrameRecord> records(end - begin);
+    fresh.evaluate(static_cast<int>(block.size()), block.data(), blockPose.data(), cloth.data(),
+                   records.data(), static_cast<int>(warm));
+    for (std::size_t i = 0; i < cloth.size(); ++i) {
+      ASSERT_EQ(cloth[i], all.cloth[begin * dd + i]) << "block at frame " << frames[begin];
+    }
+  }
+  // One frame per call in order (live playback): the evaluator remembers the history.
+  Evaluator live(db, settings, cl.view());
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const Evaluation one = live.evaluate(
+        {frames[f]}, std::vector<float>(pose.begin() + f * dv, pose.begin() + (f + 1) * dv));
+    for (std::size_t i = 0; i < dd; ++i) {
+      ASSERT_EQ(one.cloth[i], all.cloth[f * dd + i]) << "live frame " << frames[f];
+    }
+  }
+}
+
+TEST(PoseModel, TheDatabaseKeepsTheModel) {
+  const Database& db = sampleDatabase();
+  TempDir dir;
+  saveDatabase(dir.file("db.dsdb"), db);
+  const Database back = loadDatabase(dir.file("db.dsdb"));
+  const PoseModel& a = db.poseModel;
+  const PoseModel& b = back.poseModel;
+  EXPECT_EQ(a.partOf, b.partOf);
+  EXPECT_EQ(a.parent, b.parent);
+  EXPECT_EQ(a.frames, b.frames);
+  EXPECT_EQ(a.features, b.features);
+  EXPECT_EQ(a.coefficients, b.coefficients);
+  EXPECT_EQ(a.basis, b.basis);
+  EXPECT_EQ(a.lengthScale, b.lengthScale);
+  EXPECT_EQ(a.ridge, b.ridge);
+  EXPECT_EQ(a.errorScale, b.errorScale);
+  EXPECT_EQ(db.contentHash(), back.contentHash());
+  Database without = db;
+  without.poseModel = PoseModel();
+  EXPECT_NE(without.contentHash(), db.contentHash()) << "the model is part of the content";
+}
+
+TEST(PoseModel, RigFilesGiveThePartsOfTheirHeaviestBones) {
+  std::vector<int> partOf, parentOf;
+  parseRigParts(R"({"bone_names": ["root", "arm", "hand", "unused"],
+                    "bones": [{"name": "root", "parent": null}, {"name": "arm", "parent": "root"},
+                              {"name": "unused", "parent": "arm"},
+                              {"name": "hand", "parent": "unused"}],
+                    "driver_weights": [[1, 0, 0, 0], [0.2, 0.8, 0, 0], [0, 0.4, 0.6, 0]]})",
+                "rig.json", 3, partOf, parentOf);
+  EXPECT_EQ(partOf, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(parentOf, (std::vector<int>{-1, 0, 1})) << "hand hangs off arm past the unused bone";
+  const auto refuses = [](const std::string& text, int vertices) {
+    std::vector<int> p, q;
+    try {
+      parseRigParts(text, "rig.json", vertices, p, q);
+    } catch (const Error& error) {
+      EXPECT_EQ(error.code(), ErrorCode::kInput);
+      EXPECT_NE(std::string(error.what()).find("rig.json"), std::string::npos);
+      return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(refuses(R"({"bone_names": ["a"], "driver_weights": [[1]]})", 2));
+  EXPECT_TRUE(refuses(R"({"bone_names": ["a", "a"], "driver_weights": [[1, 0]]})", 1));
+  EXPECT_TRUE(refuses(R"({"bone_names": ["a"], "driver_weights": [["x"]]})", 1));
+  EXPECT_TRUE(refuses(R"([1, 2])", 1));
+}
+
+}  // namespace
+}  // namespace drivenshape
