@@ -5,8 +5,10 @@
 // kernel call uploads its inputs and reads its outputs back, and inside counts are made on the
 // host). Results are the same bits.
 
+#include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <drivenshape/device.h>
 
@@ -22,6 +24,11 @@ class HostStagingClosest final : public ClosestBackend {
     mInner->setSurface(driver, mask);
     mInside = std::make_unique<InsideAudit>(driver);
     mPointCount = mask.drivenVertexCount();
+    mSides.clear();
+  }
+  void setSides(const std::vector<std::int8_t>& sides) override {
+    mInner->setSides(sides);
+    mSides = sides;
   }
   void closest(int f, const float* poses, const float* points, SurfaceHit* hits) override {
     mInner->closest(f, poses, points, hits);
@@ -41,13 +48,15 @@ class HostStagingClosest final : public ClosestBackend {
   void countInside(int f, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override {
     mInside->countInsideFrames(f, poses.read<float>(), mPointCount, points.read<float>(),
-                               hits.read<SurfaceHit>(), inside);
+                               hits.read<SurfaceHit>(), inside, 1,
+                               mSides.empty() ? nullptr : mSides.data());
   }
 
  private:
   std::unique_ptr<ClosestBackend> mInner;
   std::unique_ptr<InsideAudit> mInside;
   int mPointCount = 0;
+  std::vector<std::int8_t> mSides;
 };
 
 /// Projection and blend through their host-memory calls only.

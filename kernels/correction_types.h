@@ -48,14 +48,14 @@ typedef struct DsTransferParams {
   ds_int triangleCount;  // T
 } DsTransferParams;
 
-// Scalars of one dsResolve launch (passed by value).
+// Scalars of one dsResolve or dsCountInside launch (passed by value).
 typedef struct DsResolveParams {
   ds_int frameCount;     // F
   ds_int pointCount;     // Vd
   ds_int vertexCount;    // Vp
   ds_int triangleCount;  // T
   float offset;          // scene units, >= 0
-  ds_int pad0;
+  ds_int sided;          // 1: read each point's side from `sides`; 0: every point lives outside
   ds_int pad1;
   ds_int pad2;
 } DsResolveParams;

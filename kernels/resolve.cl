@@ -6,8 +6,11 @@
 // distance is s = |p - q|, negated when (p - q) . N < 0, with N the angle-weighted
 // pseudo-normal at q (Baerentzen & Aanaes 2005): the face normal inside the triangle, the sum of
 // the unit normals of the triangles on the edge, or the angle-weighted sum of the unit normals
-// around the vertex (DS_FEATURE_TOL decides which). When s < offset and N is not zero, p moves
-// to q + offset N / |N| and the frame's counter moves[f] is incremented; otherwise p stays.
+// around the vertex (DS_FEATURE_TOL decides which). Each point keeps the side of the driver it
+// lives on, sides[i] (+1 outside: cloth; -1 inside: a muscle under the skin; every point is
+// outside when params.sided is 0). Where N is not zero, an outside point with s < offset moves
+// to q + offset N / |N|, an inside point with s > -offset to q - offset N / |N|, and the frame's
+// counter moves[f] is incremented; otherwise p stays.
 //
 // Mapping: 1-D, local size DS_LOCAL_SIZE, one item per (frame f, point i), item id f * Vd + i.
 // Requires the sources of closest.cl and transfer.cl before it (dsLoadPoint).
@@ -21,6 +24,7 @@
 //   hits             F x Vd DsSurfaceHit   (triangle ids checked by the host)
 //   points           F x 3Vd float, updated in place
 //   moved            F int, incremented atomically (the host zeroes them)
+//   sides            Vd char, +1 or -1 (read only when params.sided is 1), shared by every frame
 
 // Unit normal of triangle s; zero for a zero-area triangle.
 inline ds_real3 dsFaceNormal(__global const float* pose, __global const int* triangles, int s) {
@@ -95,7 +99,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
     __global const float* poses, __global const int* triangles, __global const int* edgeStart,
     __global const int* edgeTriangles, __global const int* vertexStart,
     __global const int* vertexTriangles, __global const DsSurfaceHit* hits, __global float* points,
-    __global int* moved, const DsResolveParams params) {
+    __global int* moved, __global const char* sides, const DsResolveParams params) {
   const int item = (int)get_global_id(0);
   if (item >= params.frameCount * params.pointCount) {
     return;
@@ -108,8 +112,11 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
       dsSignedDistance(pose, triangles, edgeStart, edgeTriangles, vertexStart, vertexTriangles,
                        hits[item], dsLoadPoint(points, item), &q, &normal);
   const ds_real length = sqrt(dot(normal, normal));
-  if (signedDistance < (ds_real)params.offset && length > 0) {
-    const ds_real3 result = q + ((ds_real)params.offset / length) * normal;
+  // Inside points mirror outside ones: the offset surface under the skin is at -offset.
+  const bool inside = params.sided != 0 && sides[item - frame * params.pointCount] < 0;
+  const ds_real target = inside ? -(ds_real)params.offset : (ds_real)params.offset;
+  if (length > 0 && (inside ? signedDistance > target : signedDistance < target)) {
+    const ds_real3 result = q + (target / length) * normal;
     points[3 * item] = (float)result.x;
     points[3 * item + 1] = (float)result.y;
     points[3 * item + 2] = (float)result.z;
@@ -117,15 +124,18 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
   }
 }
 
-// Inside counts (contract: ClosestBackend::countInside; host reference: InsideAudit in
-// src/correction/inside_audit.cpp): inside[f] counts the points of frame f whose signed
-// distance, rounded to float as the host rounds it, is negative. Same mapping and arguments
-// as dsResolve, with `points` read only and `inside` in place of `moved`.
+// Wrong-side counts (contract: ClosestBackend::countInside; host reference: InsideAudit in
+// src/correction/inside_audit.cpp): inside[f] counts the points of frame f on the wrong side
+// of the skin: whose signed distance, rounded to float as the host rounds it, is negative for
+// an outside point (cloth inside the body) or positive for an inside point (a muscle through
+// the skin). Same mapping and arguments as dsResolve, with `points` read only and `inside` in
+// place of `moved`.
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCountInside(
     __global const float* poses, __global const int* triangles, __global const int* edgeStart,
     __global const int* edgeTriangles, __global const int* vertexStart,
     __global const int* vertexTriangles, __global const DsSurfaceHit* hits,
-    __global const float* points, __global int* inside, const DsResolveParams params) {
+    __global const float* points, __global int* inside, __global const char* sides,
+    const DsResolveParams params) {
   const int item = (int)get_global_id(0);
   if (item >= params.frameCount * params.pointCount) {
     return;
@@ -137,7 +147,8 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCount
   const ds_real signedDistance =
       dsSignedDistance(pose, triangles, edgeStart, edgeTriangles, vertexStart, vertexTriangles,
                        hits[item], dsLoadPoint(points, item), &q, &normal);
-  if ((float)signedDistance < 0.0f) {
+  const bool insidePoint = params.sided != 0 && sides[item - frame * params.pointCount] < 0;
+  if (insidePoint ? (float)signedDistance > 0.0f : (float)signedDistance < 0.0f) {
     atomic_inc(&inside[frame]);
   }
 }

@@ -155,6 +155,20 @@ void checkOffset(float offset) {
   }
 }
 
+void checkSides(const std::vector<std::int8_t>& sides, int pointCount) {
+  if (!sides.empty() && sides.size() != static_cast<std::size_t>(pointCount)) {
+    DS_THROW(kInput, "side table: ", sides.size(), " entries for ", pointCount,
+             " driven points; give one side per point (or none)");
+  }
+  for (std::size_t i = 0; i < sides.size(); ++i) {
+    if (sides[i] != kSideOutside && sides[i] != kSideInside) {
+      DS_THROW(kInput, "side table: driven point ", i, " has side ", static_cast<int>(sides[i]),
+               "; a side is ", static_cast<int>(kSideOutside), " (outside) or ",
+               static_cast<int>(kSideInside), " (inside)");
+    }
+  }
+}
+
 void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
                   const SurfaceHit* hits, float offset, const float* points) {
   search.checkChunk("penetration resolution", frameCount,

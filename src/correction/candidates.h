@@ -57,6 +57,10 @@ void checkOffset(float offset);
 void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
                   const SurfaceHit* hits, float offset, const float* points);
 
+/// Checks a side table (see ClosestBackend::setSides): empty, or `pointCount` values each
+/// kSideOutside or kSideInside. Throws Error(kInput) naming the first bad entry.
+void checkSides(const std::vector<std::int8_t>& sides, int pointCount);
+
 /// Driver topology, mask and candidate search. setSurface() once, find() per chunk.
 class CandidateSearch {
  public:

@@ -2,7 +2,8 @@
 // closed, consistently oriented mesh, the sign of (p - q) . N at the closest point q is the
 // side of p when N is the pseudo-normal of the feature (face, edge, vertex) that holds q. The
 // pseudo-normals and their adjacency tables are shared with the penetration resolution
-// (src/correction/surface_features.h).
+// (src/correction/surface_features.h). Counts are of points on the wrong side of the skin for
+// the side each lives on (ClosestBackend::setSides; outside for cloth).
 
 #include <algorithm>
 #include <cmath>
@@ -67,20 +68,25 @@ void InsideAudit::signedDistances(const float* pose, int pointCount, const float
 }
 
 int InsideAudit::countInside(const float* pose, int pointCount, const float* points,
-                             const SurfaceHit* hits) const {
+                             const SurfaceHit* hits, const std::int8_t* sides) const {
   std::vector<float> distances(static_cast<std::size_t>(std::max(pointCount, 0)));
   signedDistances(pose, pointCount, points, hits, distances.data());
-  return static_cast<int>(
-      std::count_if(distances.begin(), distances.end(), [](float d) { return d < 0.0f; }));
+  int wrong = 0;
+  for (std::size_t i = 0; i < distances.size(); ++i) {
+    const bool inside = sides != nullptr && sides[i] == kSideInside;
+    wrong += (inside ? distances[i] > 0.0f : distances[i] < 0.0f) ? 1 : 0;
+  }
+  return wrong;
 }
 
 void InsideAudit::countInsideFrames(int frameCount, const float* poses, int pointCount,
                                     const float* points, const SurfaceHit* hits, int* inside,
-                                    int threads) const {
+                                    int threads, const std::int8_t* sides) const {
   const std::size_t poseValues = 3 * static_cast<std::size_t>(mVertexCount);
   parallelFor(frameCount, threads, [&](int f) {
     const std::size_t first = static_cast<std::size_t>(f) * pointCount;
-    inside[f] = countInside(poses + f * poseValues, pointCount, points + 3 * first, hits + first);
+    inside[f] =
+        countInside(poses + f * poseValues, pointCount, points + 3 * first, hits + first, sides);
   });
 }
 

@@ -192,7 +192,9 @@ struct Evaluator::Impl {
       model.layerStack->addToHash(layers);
       value = layers.value();
     }
-    Hasher tail(value);  // stages added since then append (none of the built-in ones does)
+    // Stages added since then append: of the built-in ones, the resolution its side table,
+    // only when some driven vertex lives inside (never for cloth).
+    Hasher tail(value);
     for (const auto& stage : stages) {
       stage->addToHash(tail);
     }

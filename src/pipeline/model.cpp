@@ -12,6 +12,44 @@
 namespace drivenshape::pipeline {
 namespace {
 
+/// Database pairs per closest-point call while the sides are learnt: about 2^20 points, so the
+/// hit and distance buffers stay small for film-scale meshes.
+constexpr std::size_t kSidePointsPerCall = std::size_t(1) << 20;
+
+/// Model::sides() from scratch: each pair's driven shape against its own driver shape, on the
+/// audit backend (exact closest points over every triangle) and InsideAudit's signs.
+std::vector<std::int8_t> learnSides(const Database& db, ClosestBackend& closest, int threads) {
+  const int k = db.shapeCount();
+  const std::size_t vd = static_cast<std::size_t>(db.drivenVertexCount());
+  const std::size_t driverValues = 3 * static_cast<std::size_t>(db.driverVertexCount());
+  const InsideAudit audit(db.driverMesh);
+  const int perCall = static_cast<int>(
+      std::clamp<std::size_t>(kSidePointsPerCall / std::max<std::size_t>(vd, 1), 1, k));
+  std::vector<SurfaceHit> hits(static_cast<std::size_t>(perCall) * vd);
+  std::vector<float> distances(hits.size());
+  std::vector<int> insideVotes(vd, 0);
+  for (int first = 0; first < k; first += perCall) {
+    const int count = std::min(perCall, k - first);
+    const float* driver = &db.driverShapes[static_cast<std::size_t>(first) * driverValues];
+    const float* driven = &db.drivenShapes[static_cast<std::size_t>(first) * 3 * vd];
+    closest.closest(count, driver, driven, hits.data());
+    parallelFor(count, threads, [&](int i) {
+      const std::size_t at = static_cast<std::size_t>(i) * vd;
+      audit.signedDistances(driver + i * driverValues, static_cast<int>(vd), driven + 3 * at,
+                            &hits[at], &distances[at]);
+    });
+    for (std::size_t at = 0; at < static_cast<std::size_t>(count) * vd; ++at) {
+      insideVotes[at % vd] += distances[at] < 0.0f ? 1 : 0;
+    }
+  }
+  std::vector<std::int8_t> sides(vd);
+  for (std::size_t v = 0; v < vd; ++v) {
+    sides[v] = 2 * insideVotes[v] > k ? kSideInside : kSideOutside;
+  }
+  return sides;
+}
+
+
 /// `settings` with the weight mode resolved (kAuto) and checked against `db`: Error(kUsage)
 /// naming the setting when they cannot run on it.
 EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
@@ -132,6 +170,23 @@ std::unique_ptr<ClosestBackend> Model::makeClosest(const BindingMask& mask) {
   return backend;
 }
 
+const std::vector<std::int8_t>& Model::sides() {
+  if (!mSidesLearnt) {
+    mSides = learnSides(db, audit(), threads);
+    mInsideVertices = static_cast<int>(std::count(mSides.begin(), mSides.end(), kSideInside));
+    if (mInsideVertices > 0) {
+      audit().setSides(mSides);
+    }
+    mSidesLearnt = true;
+  }
+  return mSides;
+}
+
+int Model::insideVertices() {
+  sides();
+  return mInsideVertices;
+}
+
 LayerBackend& Model::layers() {
   if (!mLayers) {
     mLayers = device.makeLayers();
@@ -216,6 +271,12 @@ void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cl
   model.audit().countInside(batch.count, poses, batch.auditHits, cloth, batch.counts.data());
   for (int i = 0; i < batch.count; ++i) {
     batch.records[i].*field = batch.counts[static_cast<std::size_t>(i)];
+  }
+}
+
+void describeSides(Model& model, nlohmann::json& settings) {
+  if (model.insideVertices() > 0) {
+    settings["inside_vertices"] = model.insideVertices();
   }
 }
 

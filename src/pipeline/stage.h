@@ -7,6 +7,7 @@
 // stage by its name.
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -52,6 +53,18 @@ class Model {
   ClosestBackend& audit();
   LayerBackend& layers();
 
+  /// Which side of the driver's skin each driven vertex lives on (Vd values, kSideOutside or
+  /// kSideInside), learnt from the database's pairs on first use (by the resolution and the
+  /// audit) and set on audit(): for every pair i, the sign of driven vertex v's signed distance
+  /// to driver shape i (exact closest point over every triangle, InsideAudit's pseudo-normal
+  /// sign); v lives inside when more than half of the pairs have it inside (ties and points on
+  /// the skin count as outside). Cloth lives outside; a muscle under the skin inside.
+  const std::vector<std::int8_t>& sides();
+  /// How many driven vertices live inside. 0 (every cloth database): the side table is never
+  /// set on the backend, nor added to the settings hash or the report, so outputs are those of
+  /// a pipeline without it.
+  int insideVertices();
+
   // Tables the stages prepare (configure order: align, project/weights, blend, ...).
   /// k x 3Vp database driver shapes, rigidly aligned to the rest driver by the align stage.
   std::vector<float> driverShapes;
@@ -80,6 +93,9 @@ class Model {
   std::unique_ptr<ClosestBackend> mBinding, mAudit;
   std::unique_ptr<LayerBackend> mLayers;
   std::vector<WeightProblem> mProblems;
+  bool mSidesLearnt = false;
+  std::vector<std::int8_t> mSides;
+  int mInsideVertices = 0;
 };
 
 /// One block of frames on its way through the pipeline. The first `warm` frames are solved
@@ -172,10 +188,15 @@ ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
 /// cloth's bounding-box diagonal).
 double coverageTolerance(const Model& model);
 
-/// Counts how many cloth points of each frame of the batch are inside the driver, from
-/// closest points over every triangle found here (left in batch.auditHits): poses count x
-/// 3Vp, cloth count x 3Vd, into (records[f].*field).
+/// Counts how many cloth points of each frame of the batch are on the wrong side of the
+/// driver's skin (inside, for cloth; Model::sides), from closest points over every triangle
+/// found here (left in batch.auditHits): poses count x 3Vp, cloth count x 3Vd, into
+/// (records[f].*field).
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                  int FrameRecord::*field);
+
+/// Adds "inside_vertices" (Model::insideVertices) to the report's settings when any driven
+/// vertex lives inside; nothing for cloth.
+void describeSides(Model& model, nlohmann::json& settings);
 
 }  // namespace drivenshape::pipeline

@@ -1,11 +1,13 @@
 // Penetration resolution on a closed cube, where the distance to the surface and the side are
-// known in closed form: which points move, where they go (at the offset, outside), that the
-// others keep their bits, the per-frame counts, OpenCL vs host, bad input.
+// known in closed form: which points move, where they go (at the offset, outside; under the
+// skin for points that live inside), that the others keep their bits, the per-frame counts and
+// wrong-side counts, OpenCL vs host, bad input.
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <random>
 #include <string>
@@ -33,9 +35,54 @@ double cubeSignedDistance(const float* p, const Eigen::Vector3d& centre) {
   return outside + inside;
 }
 
+/// Where the resolution moves p to `target` (+offset outside, -offset under the skin) on the
+/// cube [c - 1, c + 1]^3, in closed form: q + target N with q the closest surface point and N
+/// the unit pseudo-normal there. Outside, q clamps p to the cube and N is the normalised sum of
+/// the normals of the faces it clamped to (a face, an edge or a corner); inside, q is p moved
+/// onto the nearest face and N that face's normal.
+Eigen::Vector3d cubeResolved(const float* p, const Eigen::Vector3d& centre, double target) {
+  const Eigen::Vector3d r = Eigen::Vector3d(p[0], p[1], p[2]) - centre;
+  Eigen::Vector3d q = r;
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  if (r.cwiseAbs().maxCoeff() > 1.0) {
+    for (int a = 0; a < 3; ++a) {
+      if (std::fabs(r[a]) > 1.0) {
+        q[a] = std::copysign(1.0, r[a]);
+        n[a] = q[a];
+      }
+    }
+  } else {
+    int a = 0;
+    r.cwiseAbs().maxCoeff(&a);
+    q[a] = std::copysign(1.0, r[a]);
+    n[a] = q[a];
+  }
+  return centre + q + target * n.normalized();
+}
+
+/// Whether p is clear (by 1e-3) of where the closed forms above change case: the surface, the
+/// offset surfaces outside and under the skin, the planes through the cube's edges (outside)
+/// and the cube's medial axis (inside, where two faces are equally near).
+bool clearOfFeatures(const float* p, const Eigen::Vector3d& centre) {
+  constexpr double kClear = 1e-3;
+  const double d = cubeSignedDistance(p, centre);
+  if (std::fabs(d) <= kClear || std::fabs(d - kOffset) <= kClear ||
+      std::fabs(d + kOffset) <= kClear) {
+    return false;
+  }
+  const Eigen::Vector3d r = (Eigen::Vector3d(p[0], p[1], p[2]) - centre).cwiseAbs();
+  if (d > 0.0) {
+    return (r.array() - 1.0).abs().minCoeff() > kClear;
+  }
+  Eigen::Vector3d sorted = r;
+  std::sort(sorted.data(), sorted.data() + 3);
+  return sorted[2] - sorted[1] > kClear;
+}
+
 /// Two frames of a subdivided cube (the second moved by `shift`) and random points around it,
-/// none within 1e-3 of the surface or of the offset surface (so the decision to move is not a
-/// rounding question), plus points exactly at an edge and a corner direction.
+/// clear of the surface, the offset surfaces and the features of the closed forms above (so
+/// the decision to move is not a rounding question), plus points exactly at an edge and a
+/// corner direction.
 struct CubeScene : PosedScene {
   std::vector<Eigen::Vector3d> centres;  ///< the cube's centre in each frame
 };
@@ -63,8 +110,7 @@ CubeScene makeCubeScene() {
     const float p[3] = {box(rng), box(rng), box(rng)};
     bool clear = true;
     for (const Eigen::Vector3d& centre : scene.centres) {
-      const double d = cubeSignedDistance(p, centre);
-      clear = clear && std::fabs(d) > 1e-3 && std::fabs(d - kOffset) > 1e-3;
+      clear = clear && clearOfFeatures(p, centre);
     }
     if (clear) {
       frame.insert(frame.end(), p, p + 3);
@@ -165,6 +211,153 @@ TEST_F(CorrectionClTest, ResolveMovesInsideAndNearPointsToTheOffsetOutside) {
   EXPECT_LE(difference, kDeviceVsHostRelTol * bounds.diagonal())
       << "largest |cl - host| " << difference << ", tolerance " << kDeviceVsHostRelTol << " x "
       << bounds.diagonal();
+}
+
+/// Wrong-side counts of `points` per frame through ClosestBackend::countInside (host-memory
+/// arrays, which both backends take).
+std::vector<int> wrongSideCounts(ClosestBackend& backend, const CubeScene& scene,
+                                 const std::vector<SurfaceHit>& hits,
+                                 const std::vector<float>& points) {
+  DeviceArray poses;
+  DeviceArray hitArray;
+  DeviceArray pointArray;
+  poses.view(scene.poses.data(), scene.poses.size());
+  hitArray.view(hits.data(), hits.size());
+  pointArray.view(points.data(), points.size());
+  std::vector<int> counts(static_cast<std::size_t>(scene.frameCount), -1);
+  backend.countInside(scene.frameCount, poses, hitArray, pointArray, counts.data());
+  return counts;
+}
+
+// Issue 17 ("other deformables"): a muscle under the skin must stay under it. Every other
+// point lives inside: those closer to the skin than the offset, or through it, move in to the
+// offset along the pseudo-normal; the outside points behave exactly as without a side table.
+TEST_F(CorrectionClTest, ResolveKeepsEachPointOnItsSideOfTheSkin) {
+  const CubeScene scene = makeCubeScene();
+  const int vd = scene.pointCount;
+  std::vector<std::int8_t> sides(static_cast<std::size_t>(vd));
+  for (int i = 0; i < vd; ++i) {
+    sides[static_cast<std::size_t>(i)] = i % 2 == 0 ? kSideInside : kSideOutside;
+  }
+  const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
+  // Independent expectations from the closed form.
+  std::vector<int> expectedMoved(static_cast<std::size_t>(scene.frameCount), 0);
+  std::vector<int> expectedWrong(static_cast<std::size_t>(scene.frameCount), 0);
+  std::vector<char> shouldMove(scene.points.size() / 3, 0);
+  int throughTheSkin = 0;  // inside points outside the cube
+  int nearTheSkin = 0;     // inside points within the offset under the skin
+  for (int f = 0; f < scene.frameCount; ++f) {
+    for (int i = 0; i < vd; ++i) {
+      const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+      const double d = cubeSignedDistance(&scene.points[3 * k], scene.centres[f]);
+      const bool inside = sides[static_cast<std::size_t>(i)] == kSideInside;
+      shouldMove[k] = inside ? d > -kOffset : d < kOffset;
+      expectedMoved[static_cast<std::size_t>(f)] += shouldMove[k];
+      expectedWrong[static_cast<std::size_t>(f)] += inside ? d > 0.0 : d < 0.0;
+      throughTheSkin += inside && d > 0.0;
+      nearTheSkin += inside && d < 0.0 && d > -kOffset;
+    }
+  }
+  ASSERT_GT(throughTheSkin, 100);
+  ASSERT_GT(nearTheSkin, 20);
+
+  const double scale = sceneScale(scene.poses.data(), scene.frameCount * scene.mesh.vertexCount(),
+                                  scene.points.data(), scene.frameCount * vd);
+  std::vector<std::vector<float>> results;
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
+    backend->setSides(sides);
+    EXPECT_EQ(wrongSideCounts(*backend, scene, hits, scene.points), expectedWrong);
+    std::vector<float> points = scene.points;
+    std::vector<int> moved(static_cast<std::size_t>(scene.frameCount), -1);
+    backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), kOffset, points.data(),
+                     moved.data());
+    EXPECT_EQ(moved, expectedMoved);
+    int wrong = 0;
+    double worst = 0.0;
+    for (int f = 0; f < scene.frameCount; ++f) {
+      for (int i = 0; i < vd; ++i) {
+        const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+        const bool inside = sides[static_cast<std::size_t>(i)] == kSideInside;
+        const float* p = &points[3 * k];
+        bool ok;
+        if (shouldMove[k]) {
+          const Eigen::Vector3d expected =
+              cubeResolved(&scene.points[3 * k], scene.centres[f], inside ? -kOffset : kOffset);
+          const double error = (Eigen::Vector3d(p[0], p[1], p[2]) - expected).norm();
+          const double d = cubeSignedDistance(p, scene.centres[f]);
+          worst = std::max(worst, error);
+          ok = error <= kResolveRelTol * scale && (inside ? d < 0.0 : d > 0.0);
+        } else {
+          ok = std::memcmp(p, &scene.points[3 * k], 3 * sizeof(float)) == 0;
+        }
+        if (!ok && ++wrong <= 5) {
+          ADD_FAILURE() << "frame " << f << " point " << i << " (lives "
+                        << (inside ? "inside" : "outside") << ") (" << scene.points[3 * k] << ", "
+                        << scene.points[3 * k + 1] << ", " << scene.points[3 * k + 2] << ") -> ("
+                        << p[0] << ", " << p[1] << ", " << p[2]
+                        << "): " << (shouldMove[k] ? "should move" : "should stay") << "; offset "
+                        << kOffset << ", tolerance " << kResolveRelTol << " x " << scale;
+        }
+      }
+    }
+    EXPECT_EQ(wrong, 0) << "of " << scene.frameCount * vd << " points";
+    std::printf(
+        "[ resolve  ] %s, sides: worst distance from the closed form %.3g (tolerance %.3g)\n",
+        backend->name().c_str(), worst, kResolveRelTol * scale);
+    // Nothing is left on the wrong side, by a fresh exact search.
+    const std::vector<SurfaceHit> after = hostHits(*hostBackend(), scene, points);
+    backend->setSurface(scene.mesh, BindingMask::all(vd));  // hostHits() reset the host backend
+    backend->setSides(sides);
+    EXPECT_EQ(wrongSideCounts(*backend, scene, after, points),
+              std::vector<int>(static_cast<std::size_t>(scene.frameCount), 0));
+    results.push_back(points);
+  }
+  expectDeviceMatchesHost(
+      results[0], results[1],
+      computeBounds(results[0].data(), static_cast<int>(results[0].size() / 3)).diagonal());
+
+  // Without a side table (setSurface() forgets it) every point is cloth: the outside points
+  // move bit for bit as with the table, and the inside ones are pushed out through the skin,
+  // which the checks above would catch.
+  for (std::size_t b = 0; b < 2; ++b) {
+    ClosestBackend* backend = b == 0 ? hostBackend() : clBackend();
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
+    std::vector<float> points = scene.points;
+    backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), kOffset, points.data(),
+                     nullptr);
+    int outsideDifferent = 0;
+    int pushedOut = 0;
+    for (int f = 0; f < scene.frameCount; ++f) {
+      for (int i = 0; i < vd; ++i) {
+        const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+        if (sides[static_cast<std::size_t>(i)] == kSideOutside) {
+          outsideDifferent += std::memcmp(&points[3 * k], &results[b][3 * k], 3 * sizeof(float));
+        } else {
+          pushedOut += cubeSignedDistance(&points[3 * k], scene.centres[f]) > 0.0;
+        }
+      }
+    }
+    EXPECT_EQ(outsideDifferent, 0);
+    EXPECT_GE(pushedOut, throughTheSkin + nearTheSkin);
+  }
+}
+
+TEST_F(CorrectionClTest, SideTablesOfTheWrongLengthOrWithOtherValuesAreRefused) {
+  const CubeScene scene = makeCubeScene();
+  const int vd = scene.pointCount;
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
+    expectThrows([&] { backend->setSides(std::vector<std::int8_t>(3, kSideInside)); },
+                 ErrorCode::kInput, "3 entries for " + std::to_string(vd));
+    std::vector<std::int8_t> sides(static_cast<std::size_t>(vd), kSideOutside);
+    sides[7] = 0;
+    expectThrows([&] { backend->setSides(sides); }, ErrorCode::kInput, "driven point 7 has side 0");
+    EXPECT_NO_THROW(backend->setSides({}));
+  }
 }
 
 TEST_F(CorrectionClTest, ResolveWithZeroOffsetMovesOnlyInsidePointsOntoTheSurface) {

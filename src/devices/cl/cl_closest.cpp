@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -106,6 +107,16 @@ class ClClosest final : public ClosestBackend {
       mSeeds = uploadBytes(std::vector<SurfaceHit>(mBvh.pointRoot.size()).data(),
                            mBvh.pointRoot.size() * sizeof(SurfaceHit));
       mSeeded = false;
+      mSides = uploadBytes(nullptr, 0);
+      mSided = false;
+    });
+  }
+
+  void setSides(const std::vector<std::int8_t>& sides) override {
+    correction::checkSides(sides, mSearch.pointCount());
+    cl_util::guard("uploading the side table", [&] {
+      mSides = uploadBytes(sides.data(), sides.size());
+      mSided = !sides.empty();
     });
   }
 
@@ -465,8 +476,8 @@ class ClClosest final : public ClosestBackend {
     }
   }
 
-  /// Runs dsResolve or dsCountInside (same arguments) over every point of `frameCount` frames
-  /// and reads back their per-frame counters into `counts`.
+  /// Runs dsResolve or dsCountInside (same arguments, the side table included) over every point
+  /// of `frameCount` frames and reads back their per-frame counters into `counts`.
   void launchSigned(cl::Kernel& kernel, int frameCount, DeviceArray& poses, DeviceArray& hits,
                     const cl::Buffer& pointsBuffer, float offset, int* counts, const char* what) {
     const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
@@ -477,13 +488,14 @@ class ClClosest final : public ClosestBackend {
     params.vertexCount = mSearch.vertexCount();
     params.triangleCount = mSearch.triangleCount();
     params.offset = offset;
+    params.sided = mSided ? 1 : 0;
     cl_util::guard(what, [&] {
       const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
       const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);
       cl::Buffer& countBuffer = mCounts.reserve(mContext, countBytes);
       mQueue.enqueueFillBuffer(countBuffer, cl_int(0), 0, countBytes);
       cl_util::setArgs(kernel, posesBuffer, mTriangles, mEdgeStart, mEdgeTriangles, mVertexStart,
-                       mVertexTriangles, hitBuffer, pointsBuffer, countBuffer, params);
+                       mVertexTriangles, hitBuffer, pointsBuffer, countBuffer, mSides, params);
       cl_util::enqueue1d(mQueue, kernel, items, DS_LOCAL_SIZE);
       static_assert(sizeof(cl_int) == sizeof(int), "counts are read as int");
       cl_util::download(mQueue, mTransfers, countBuffer, CL_TRUE, 0, countBytes, counts);
@@ -537,6 +549,8 @@ class ClClosest final : public ClosestBackend {
   cl::Buffer mPointRoot;
   cl::Buffer mSeeds;
   bool mSeeded = false;
+  cl::Buffer mSides;  ///< Vd chars (ClosestBackend::setSides), or a placeholder when !mSided
+  bool mSided = false;
   cl_util::GrowingBuffer mBoxes{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mPoses{CL_MEM_READ_ONLY};  // the candidate path's
   cl_util::GrowingBuffer mPoints{CL_MEM_READ_ONLY};

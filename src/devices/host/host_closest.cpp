@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
@@ -34,6 +35,12 @@ class HostClosest final : public ClosestBackend {
     mFeatures = correction::buildFeatureTables(mSearch.triangles().data(), mSearch.triangleCount(),
                                                mSearch.vertexCount());
     mInside = std::make_unique<InsideAudit>(driver);
+    mSides.clear();
+  }
+
+  void setSides(const std::vector<std::int8_t>& sides) override {
+    correction::checkSides(sides, mSearch.pointCount());
+    mSides = sides;
   }
 
   void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
@@ -41,7 +48,7 @@ class HostClosest final : public ClosestBackend {
     mSearch.checkChunk("inside count", frameCount, inside != nullptr && mInside != nullptr);
     mInside->countInsideFrames(frameCount, poses.read<float>(), mSearch.pointCount(),
                                points.read<float>(), hits.read<SurfaceHit>(), inside,
-                               mSearch.threads());
+                               mSearch.threads(), mSides.empty() ? nullptr : mSides.data());
   }
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
@@ -159,7 +166,6 @@ class HostClosest final : public ClosestBackend {
     const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
     const std::int32_t* triangles = mSearch.triangles().data();
     const correction::FeatureView features = correction::viewOf(mFeatures);
-    const double target = offset;
     parallelFor(frameCount, mSearch.threads(), [&](int f) {
       const float* pose = poses + static_cast<std::size_t>(f) * poseStride;
       int count = 0;
@@ -178,7 +184,10 @@ class HostClosest final : public ClosestBackend {
         const double distance = offsetVector.norm();
         const double signedDistance = offsetVector.dot(normal) < 0.0 ? -distance : distance;
         const double length = normal.norm();
-        if (signedDistance < target && length > 0.0) {
+        // Inside points mirror outside ones: the offset surface under the skin is at -offset.
+        const bool inside = !mSides.empty() && mSides[static_cast<std::size_t>(i)] == kSideInside;
+        const double target = inside ? -static_cast<double>(offset) : static_cast<double>(offset);
+        if (length > 0.0 && (inside ? signedDistance > target : signedDistance < target)) {
           const Eigen::Vector3d result = q + (target / length) * normal;
           for (int k = 0; k < 3; ++k) {
             points[3 * item + static_cast<std::size_t>(k)] = static_cast<float>(result[k]);
@@ -197,6 +206,7 @@ class HostClosest final : public ClosestBackend {
   correction::FeatureTables mFeatures;
   correction::CandidateTable mCandidates;
   std::unique_ptr<InsideAudit> mInside;
+  std::vector<std::int8_t> mSides;  ///< Vd, or empty: every point outside
 };
 
 }  // namespace

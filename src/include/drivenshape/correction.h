@@ -4,7 +4,7 @@
 // of the blended cloth D~, the exact closest triangle of the blended driver P~, and the
 // local-frame transfer of d from P~ to the shot's pose P_new. Binding masks restrict which
 // driver triangles a driven vertex may bind to; InsideAudit tells which points lie inside the
-// driver.
+// driver, and the side table of the resolution and the audit which side each point lives on.
 
 #include <cstdint>
 #include <memory>
@@ -90,6 +90,11 @@ BindingMask readBindingMask(const std::string& path, const Mesh& driver, const M
 BindingMask parseBindingMask(const std::string& jsonText, const std::string& source,
                              const Mesh& driver, const Mesh& driven);
 
+/// The side of the driver's skin a driven point lives on (ClosestBackend::setSides): cloth over
+/// the body lives outside, a muscle or fat layer under the skin inside.
+inline constexpr std::int8_t kSideOutside = 1;
+inline constexpr std::int8_t kSideInside = -1;
+
 /// Settings shared by both backends.
 struct ClosestOptions {
   /// Host threads for the candidate search (and the host backend's exact step); 0 = one per
@@ -130,8 +135,14 @@ class ClosestBackend {
   /// Takes the driver topology (its triangles) and the binding mask; the driver's positions
   /// only set the length scale of the tie band (max of bounding-box diagonal and largest
   /// coordinate). Throws Error(kInput) when the driver has no triangles or the mask names a
-  /// triangle the driver does not have.
+  /// triangle the driver does not have. Every point lives outside until setSides().
   virtual void setSurface(const Mesh& driver, const BindingMask& mask) = 0;
+
+  /// Which side of the driver each point lives on, for resolve() and countInside(): Vd values
+  /// (the mask's driven vertex count), kSideOutside or kSideInside, shared by every frame and
+  /// uploaded once; empty = every point outside (cloth, the default). Call after setSurface().
+  /// Throws Error(kInput) on a wrong length or another value.
+  virtual void setSides(const std::vector<std::int8_t>& sides) = 0;
 
   /// For every point of every frame, the closest triangle of that frame's pose among the
   /// triangles its mask allows: the distance equals a brute-force search over those triangles
@@ -164,20 +175,24 @@ class ClosestBackend {
   virtual void rebuild(int frameCount, const SurfaceHit* hits, const float* toPoses,
                        const float* local, float* out) = 0;
 
-  /// Penetration resolution. `hits` are the exact closest points of `points` on `poses` over
-  /// every driver triangle (a search with BindingMask::all). A point whose signed distance
-  /// (InsideAudit's angle-weighted pseudo-normal sign) is below `offset` moves to
-  /// q + offset * N, with q its closest point and N the unit pseudo-normal at q (face normal,
-  /// edge normal or angle-weighted vertex normal); other points are left untouched. Points
-  /// are updated in place; moved[f] receives how many points of frame f moved (may be null).
+  /// Penetration resolution: every point stays on its side of the skin (setSides), at least
+  /// `offset` from it. `hits` are the exact closest points of `points` on `poses` over every
+  /// driver triangle (a search with BindingMask::all). With s the signed distance (InsideAudit's
+  /// angle-weighted pseudo-normal sign), q the closest point and N the unit pseudo-normal at q
+  /// (face normal, edge normal or angle-weighted vertex normal), an outside point with
+  /// s < offset moves to q + offset * N, an inside point with s > -offset to q - offset * N;
+  /// other points (and points where N is zero) are left untouched. Points are updated in
+  /// place; moved[f] receives how many points of frame f moved (may be null).
   ///   poses  F x 3Vp;  hits  F x Vd;  points  F x 3Vd;  moved  F
   /// offset >= 0 in scene units. Throws Error(kNumerical) on NaN/infinite input.
   virtual void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                        float* points, int* moved) = 0;
 
-  /// How many points of each frame are inside the driver: inside[f] counts the points of frame
-  /// f whose signed distance is negative, by InsideAudit's rule (angle-weighted pseudo-normal
-  /// at the closest point), from their exact closest points `hits` over every triangle.
+  /// How many points of each frame are on the wrong side of the skin: inside[f] counts the
+  /// points of frame f whose signed distance is negative for an outside point (cloth inside
+  /// the driver; every point without setSides) or positive for an inside point, by
+  /// InsideAudit's rule (angle-weighted pseudo-normal at the closest point), from their exact
+  /// closest points `hits` over every triangle.
   ///   poses  F x 3Vp;  hits  F x Vd;  points  F x 3Vd;  inside  F
   virtual void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits,
                            DeviceArray& points, int* inside) = 0;
@@ -247,14 +262,19 @@ class InsideAudit {
   void signedDistances(const float* pose, int pointCount, const float* points,
                        const SurfaceHit* hits, float* out) const;
 
-  /// How many of the points are inside (signed distance < 0).
-  int countInside(const float* pose, int pointCount, const float* points,
-                  const SurfaceHit* hits) const;
+  /// How many of the points are on the wrong side of the skin: inside (signed distance < 0)
+  /// for a point that lives outside, outside (> 0) for one that lives inside. `sides`:
+  /// pointCount values kSideOutside or kSideInside (ClosestBackend::setSides), or null when
+  /// every point lives outside (then: how many are inside).
+  int countInside(const float* pose, int pointCount, const float* points, const SurfaceHit* hits,
+                  const std::int8_t* sides = nullptr) const;
 
   /// countInside of each of `frameCount` frames: poses F x 3Vp, points F x pointCount x 3,
-  /// hits F x pointCount, into inside[F]; frames in parallel on `threads` host threads.
+  /// hits F x pointCount, sides pointCount (shared by every frame) or null, into inside[F];
+  /// frames in parallel on `threads` host threads.
   void countInsideFrames(int frameCount, const float* poses, int pointCount, const float* points,
-                         const SurfaceHit* hits, int* inside, int threads = 1) const;
+                         const SurfaceHit* hits, int* inside, int threads = 1,
+                         const std::int8_t* sides = nullptr) const;
 
  private:
   int mVertexCount = 0;

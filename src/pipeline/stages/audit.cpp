@@ -1,6 +1,7 @@
-// The per-frame audit of the final cloth: vertices inside the shot's driver (recounted only
-// when the resolution moved something or layers changed the cloth), binding switches and the
-// largest jump against the previous evaluated frame.
+// The per-frame audit of the final cloth: vertices on the wrong side of the shot's driver's
+// skin (Model::sides: inside for cloth; recounted only when the resolution moved something or
+// layers changed the cloth), binding switches and the largest jump against the previous
+// evaluated frame.
 
 #include <algorithm>
 #include <cmath>
@@ -12,9 +13,11 @@ namespace {
 
 class AuditStage final : public Stage {
  public:
-  explicit AuditStage(Model& model) : mModel(model) { model.audit(); }
+  explicit AuditStage(Model& model) : mModel(model) { model.sides(); }
 
   const char* name() const override { return "audit"; }
+
+  void describe(nlohmann::json& settings) const override { describeSides(mModel, settings); }
 
   void reset(bool all) override {
     if (all) {
@@ -70,7 +73,7 @@ class AuditStage final : public Stage {
   }
 
  private:
-  /// Inside counts after the resolution and layers; reuses the resolution's count when
+  /// Wrong-side counts after the resolution and layers; reuses the resolution's count when
   /// nothing moved since.
   void countAfter(Batch& batch) {
     const bool resolve = mModel.settings.resolve;

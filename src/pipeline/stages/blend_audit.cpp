@@ -1,5 +1,6 @@
 // Audit of the world blend before any correction: how many cloth vertices the blend alone puts
-// inside the (aligned) shot driver, the figure the correction exists to fix.
+// on the wrong side of the (aligned) shot driver's skin (inside, for cloth; Model::sides), the
+// figure the correction exists to fix.
 
 #include "../stage.h"
 
@@ -8,7 +9,7 @@ namespace {
 
 class BlendAuditStage final : public Stage {
  public:
-  explicit BlendAuditStage(Model& model) : mModel(model) { model.audit(); }
+  explicit BlendAuditStage(Model& model) : mModel(model) { model.sides(); }
 
   const char* name() const override { return "audit"; }
 

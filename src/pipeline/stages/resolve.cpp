@@ -1,6 +1,9 @@
-// Penetration resolution on the shot's driver (every triangle): cloth inside the body or closer
-// than the skin offset moves out to the offset along the pseudo-normal at its closest point.
-// With the audit on, the cloth inside before the move is counted here too.
+// Penetration resolution on the shot's driver (every triangle): every driven vertex stays on
+// its side of the skin (Model::sides), at least the skin offset from it. Cloth inside the body
+// or closer than the offset moves out to the offset along the pseudo-normal at its closest
+// point; a vertex that lives under the skin (a muscle) and came closer than the offset, or
+// through the skin, moves in to the offset. With the audit on, the vertices on the wrong side
+// before the move are counted here too.
 
 #include "../stage.h"
 
@@ -9,9 +12,19 @@ namespace {
 
 class ResolveStage final : public Stage {
  public:
-  explicit ResolveStage(Model& model) : mModel(model) { model.audit(); }
+  explicit ResolveStage(Model& model) : mModel(model) { model.sides(); }
 
   const char* name() const override { return "resolve"; }
+
+  /// The side table changes the result only where some vertex lives inside; cloth databases
+  /// keep the hash they always had.
+  void addToHash(Hasher& hasher) const override {
+    if (mModel.insideVertices() > 0) {
+      hasher.add(mModel.sides().data(), mModel.sides().size());
+    }
+  }
+
+  void describe(nlohmann::json& settings) const override { describeSides(mModel, settings); }
 
   void run(Batch& batch) override {
     if (mModel.settings.audit) {
