@@ -27,11 +27,17 @@
 #include "cli_args.h"
 #include "device_choice.h"
 #include "host_staging.h"
+#include "synthetic_workload.h"
 
 namespace ds = drivenshape;
 namespace fs = std::filesystem;
 
 namespace {
+
+using ds::bench::bend;
+using ds::bench::tube;
+using ds::bench::Workload;
+using ds::bench::workload;
 
 /// Resets the kernel's peak-RSS mark of this process (Linux >= 4.0), so the next peakRssMiB()
 /// reads the peak of what ran in between.
@@ -49,64 +55,6 @@ double peakRssMiB() {
     }
   }
   return -1.0;
-}
-
-/// A tube of `rings` x `segments` quads around the z axis, radius r, length 1.
-ds::Mesh tube(int rings, int segments, float radius) {
-  ds::Mesh mesh;
-  mesh.positions.resize(rings * segments, 3);
-  for (int i = 0; i < rings; ++i) {
-    for (int j = 0; j < segments; ++j) {
-      const float angle = 2.0f * float(M_PI) * j / segments;
-      mesh.positions.row(i * segments + j) << radius * std::cos(angle), radius * std::sin(angle),
-          float(i) / (rings - 1);
-    }
-  }
-  mesh.faceStart.push_back(0);
-  for (int i = 0; i + 1 < rings; ++i) {
-    for (int j = 0; j < segments; ++j) {
-      const int j1 = (j + 1) % segments;
-      for (int v :
-           {i * segments + j, i * segments + j1, (i + 1) * segments + j1, (i + 1) * segments + j}) {
-        mesh.faceVertices.push_back(v);
-      }
-      mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
-      mesh.faceGroup.push_back(0);
-    }
-  }
-  mesh.groupNames = {"tube"};
-  mesh.triangulate();
-  return mesh;
-}
-
-/// Bends the tube by angles (a, b) about x and y, growing along z, plus a twist c.
-void bend(const ds::Mesh& rest, float a, float b, float c, float* out) {
-  for (int v = 0; v < rest.vertexCount(); ++v) {
-    const float x = rest.positions(v, 0), y = rest.positions(v, 1), z = rest.positions(v, 2);
-    const float ax = a * z, by = b * z, tw = c * z;
-    const float x1 = x * std::cos(tw) - y * std::sin(tw);
-    const float y1 = x * std::sin(tw) + y * std::cos(tw);
-    const float y2 = y1 * std::cos(ax) - z * std::sin(ax);
-    const float z2 = y1 * std::sin(ax) + z * std::cos(ax);
-    out[3 * v] = x1 * std::cos(by) + z2 * std::sin(by);
-    out[3 * v + 1] = y2;
-    out[3 * v + 2] = -x1 * std::sin(by) + z2 * std::cos(by);
-  }
-}
-
-struct Workload {
-  std::string name;
-  int driverRings, driverSegments, drivenRings, drivenSegments, shapes, frames;
-};
-
-Workload workload(const std::string& name) {
-  if (name == "W1") {
-    return {"W1", 100, 50, 100, 50, 30, 1000};  // 5,000 / 5,000 vertices
-  }
-  if (name == "W2") {
-    return {"W2", 500, 100, 1000, 200, 64, 240};  // 50,000 / 200,000 vertices
-  }
-  DS_THROW(kUsage, "--workload takes W1 or W2 (got '", name, "')");
 }
 
 /// The evaluator's stages in the columns of the table (stages that did not run show 0).
@@ -176,6 +124,7 @@ int runBench(const std::vector<std::string>& args) {
       .option("--batch", "N", "frames per launch", "64")
       .option("--threads", "N", "host threads (0 = all)", "0")
       .option("--compression", "C", "EXR compression", "zip")
+      .option("--zip-encoder", "E", "libdeflate or openexr (as for bake)", "libdeflate")
       .option("--json", "PATH", "also write the figures as JSON")
       .option("--keep", "DIR", "bake into DIR and keep the files (default: a temp folder)")
       .flag("--no-correct", "blend only (no collision correction)")
@@ -245,6 +194,7 @@ int runBench(const std::vector<std::string>& args) {
   options.chunkSize = parser.getInt("--batch", 1);
   options.threads = parser.getInt("--threads", 0);
   options.compression = ds::parseExrCompression(parser.get("--compression"));
+  options.zipEncoder = ds::parseZipEncoder(parser.get("--zip-encoder"));
   options.evaluator.correct = !parser.has("--no-correct");
   options.evaluator.audit = !parser.has("--no-audit");
   options.evaluator.resolve = !parser.has("--no-resolve");
@@ -257,10 +207,11 @@ int runBench(const std::vector<std::string>& args) {
   const std::string clName = clDevice->description();
   std::printf(
       "workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
-      "compression %s, correction %s, audit %s\n",
+      "compression %s (%s), correction %s, audit %s\n",
       w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(), w.frames,
       options.chunkSize, parser.get("--compression").c_str(),
-      options.evaluator.correct ? "on" : "off", options.evaluator.audit ? "on" : "off");
+      ds::zipEncoderName(options.zipEncoder), options.evaluator.correct ? "on" : "off",
+      options.evaluator.audit ? "on" : "off");
   printHeader();
 
   nlohmann::json report{{"workload", w.name},

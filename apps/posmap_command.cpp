@@ -36,6 +36,10 @@ int runPosmap(const std::vector<std::string>& args) {
       .option("--padding", "N", "texels of dilation around each UV island (0..256)", "8")
       .option("--device", "SPEC", "auto, host, cpu, gpu, an index or a name substring", "auto")
       .option("--compression", "C", "zip, none, zips or piz (all lossless)", "zip")
+      .option("--zip-encoder", "E",
+              "who deflates zip and zips files (standard files either way): libdeflate, or "
+              "openexr (OpenEXR's zlib writer, 2-4x the CPU: the bytes of earlier builds)",
+              "libdeflate")
       .option("--fps", "X", "frames per second written to the EXR headers", "24")
       .option("--threads", "N", "files written at once (0 = all cores)", "0")
       .option("--chunk", "N", "frames per kernel launch (0 = as many as fit in 256 MiB)", "0")
@@ -59,6 +63,7 @@ int runPosmap(const std::vector<std::string>& args) {
   options.normals = parser.has("--normals") || options.halfNormals;
   options.preview = parser.has("--preview");
   options.compression = parseExrCompression(parser.get("--compression"));
+  options.zipEncoder = parseZipEncoder(parser.get("--zip-encoder"));
   options.framesPerSecond = parser.getDouble("--fps", 1e-3);
   options.threads = parser.getInt("--threads", 0);
   options.chunkSize = parser.getInt("--chunk", 0);

@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   build-essential cmake ninja-build pkg-config
   ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
-  libeigen3-dev libopenexr-dev openexr libflann-dev liblz4-dev nlohmann-json3-dev
+  libeigen3-dev libopenexr-dev openexr libflann-dev liblz4-dev libdeflate-dev nlohmann-json3-dev
   libgtest-dev openimageio-tools clang-format git slurm-wlm munge
   clang libclang-rt-14-dev llvm
   python3 python3-venv python3-pip python3-dev python3-numpy pybind11-dev

@@ -424,7 +424,7 @@ void bindPointCaches(py::module_& module) {
       "write_point_cache_exr",
       [](py::handle path, py::handle positions, py::handle normals, int frame, int width,
          const std::string& compression, std::uint64_t topology, std::uint64_t settings, double fps,
-         std::map<std::string, std::string> attributes, bool sync) {
+         std::map<std::string, std::string> attributes, bool sync, const std::string& zipEncoder) {
         const std::string file = pathString(path);
         const FloatArray xyz(positions, "positions");
         if (xyz.ndim() != 2 || xyz.dim(1) != 3) {
@@ -442,6 +442,7 @@ void bindPointCaches(py::module_& module) {
         ExrWriteOptions options;
         options.width = width;
         options.compression = parseExrCompression(compression);
+        options.zipEncoder = parseZipEncoder(zipEncoder, "zip_encoder");
         options.frame = frame;
         options.topologyHash = topology;
         options.settingsHash = settings;
@@ -456,8 +457,10 @@ void bindPointCaches(py::module_& module) {
       py::arg("width") = 1024, py::arg("compression") = "zip", py::arg("topology_hash") = 0,
       py::arg("settings_hash") = 0, py::arg("frames_per_second") = 24.0,
       py::arg("string_attributes") = std::map<std::string, std::string>(), py::arg("sync") = true,
+      py::arg("zip_encoder") = "libdeflate",
       "Writes one point-cache EXR frame atomically: positions (V, 3), optional normals, "
-      "compression zip|none|zips|piz, header attributes as in docs/formats.md.");
+      "compression zip|none|zips|piz, zip_encoder libdeflate|openexr (who deflates zip and "
+      "zips), header attributes as in docs/formats.md.");
   module.def(
       "read_point_cache_exr",
       [](py::handle path, int expectedVertexCount, std::uint64_t expectedTopology) {

@@ -265,9 +265,15 @@ class BatchWriter {
     auto write = [this, paths = std::move(paths), frames = std::move(frames), positions]() {
       const auto start = Clock::now();
       const std::size_t values = static_cast<std::size_t>(mVd) * 3;
-      parallelFor(static_cast<int>(paths.size()), mThreads, [&](int i) {
+      // Frames on `workers` threads; the cores left over deflate the chunks within each frame
+      // (a batch of one frame of a large mesh still uses every core).
+      const int files = static_cast<int>(paths.size());
+      const int workers = resolveThreads(mThreads, files);
+      const int encodeThreads = std::max(1, resolveThreads(mThreads) / workers);
+      parallelFor(files, workers, [&](int i) {
         ExrWriteOptions frameExr = mExr;
         frameExr.frame = frames[i];
+        frameExr.encodeThreads = encodeThreads;
         writePointCacheExr(paths[i], mVd, positions + i * values, nullptr, frameExr);
       });
       return secondsSince(start);
@@ -511,6 +517,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   ExrWriteOptions exr;
   exr.width = options.exrWidth;
   exr.compression = options.compression;
+  exr.zipEncoder = options.zipEncoder;
   exr.topologyHash = topology;
   exr.settingsHash = result.settingsHash;
   exr.framesPerSecond = options.framesPerSecond;

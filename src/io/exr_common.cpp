@@ -21,6 +21,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
 #include "atomic_file.h"
+#include "exr_zip_writer.h"
 
 namespace drivenshape::exr_detail {
 namespace {
@@ -317,12 +318,19 @@ void writeExrAtomically(const std::string& path, const char* kind,
 }
 
 void writeScanlines(const std::string& path, const std::string& tempPath, const Imf::Header& header,
-                    const Imf::FrameBuffer& frameBuffer, int height) {
+                    const Imf::FrameBuffer& frameBuffer, int height, ZipEncoder zipEncoder,
+                    int encodeThreads) {
   std::ofstream stream(tempPath, std::ios::binary | std::ios::trunc);
   if (!stream) {
     DS_THROW(kOutput, "cannot create '", path, "' (temporary file ", tempPath, ")");
   }
-  {
+  const bool zip =
+      header.compression() == Imf::ZIP_COMPRESSION || header.compression() == Imf::ZIPS_COMPRESSION;
+  if (zip && zipEncoder == ZipEncoder::kLibdeflate) {
+    ZipEncoding encoding;
+    encoding.threads = std::max(1, encodeThreads);
+    writeZipExr(stream, header, frameBuffer, encoding);
+  } else {
     Imf::StdOFStream exrStream(stream, tempPath.c_str());
     Imf::OutputFile file(exrStream, header);
     file.setFrameBuffer(frameBuffer);

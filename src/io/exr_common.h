@@ -59,9 +59,12 @@ void writeExrAtomically(const std::string& path, const char* kind,
                         bool syncToDisk = true);
 
 /// Writes the `height` scan lines of `frameBuffer` with `header` to `tempPath` (the temporary
-/// file of `path`) through our own stream, so that a failure while OpenEXR's destructor writes
-/// the offset table (which it swallows) still shows up as Error(kOutput).
+/// file of `path`). ZIP and ZIPS images with ZipEncoder::kLibdeflate go through encodeZipExr
+/// (io/exr_zip_writer.h) on `encodeThreads` threads; everything else through OpenEXR's writer on
+/// our own stream, so that a failure while its destructor writes the offset table (which it
+/// swallows) still shows up as Error(kOutput).
 void writeScanlines(const std::string& path, const std::string& tempPath, const Imf::Header& header,
-                    const Imf::FrameBuffer& frameBuffer, int height);
+                    const Imf::FrameBuffer& frameBuffer, int height, ZipEncoder zipEncoder,
+                    int encodeThreads);
 
 }  // namespace drivenshape::exr_detail

@@ -194,6 +194,24 @@ const char* exrCompressionName(ExrCompression compression) {
   return "zip";
 }
 
+ZipEncoder parseZipEncoder(const std::string& text, const std::string& flag) {
+  std::string lower = text;
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  for (ZipEncoder encoder : {ZipEncoder::kLibdeflate, ZipEncoder::kOpenExr}) {
+    if (lower == zipEncoderName(encoder)) {
+      return encoder;
+    }
+  }
+  DS_THROW(kUsage, "unknown ", flag, " '", text,
+           "'; use libdeflate (the default) or openexr (OpenEXR's own zlib writer: the bytes of "
+           "earlier builds)");
+}
+
+const char* zipEncoderName(ZipEncoder encoder) {
+  return encoder == ZipEncoder::kOpenExr ? "openexr" : "libdeflate";
+}
+
 void writePointCacheExr(const std::string& path, int vertexCount, const float* xyz,
                         const float* normals, const ExrWriteOptions& options) {
   if (options.width <= 0) {
@@ -269,7 +287,8 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
           insertXyzSlices(frameBuffer, kNormalChannels, normalData.data(), width);
         }
 
-        writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height));
+        writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height),
+                       options.zipEncoder, options.encodeThreads);
       },
       options.syncToDisk);
 }

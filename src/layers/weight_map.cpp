@@ -282,7 +282,8 @@ void writeWeightMapExr(const std::string& path, const std::vector<float>& weight
     frameBuffer.insert(exr_detail::kCoverageChannel,
                        Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(coverage.data()),
                                   sizeof(float), sizeof(float) * w));
-    exr_detail::writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height));
+    exr_detail::writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height),
+                               ZipEncoder::kLibdeflate, 1);
   });
 }
 

@@ -108,7 +108,10 @@ void PositionMapWriter::writeChunk(int count, const int* frames, const float* xy
   mEvaluateSeconds += secondsSince(evaluateStart);
 
   const auto writeStart = std::chrono::steady_clock::now();
-  const int threads = resolveThreads(mOptions.threads);
+  // Files on `threads` threads; the cores left over deflate the chunks within each file (one
+  // frame per call, as `bake --posmap` writes with --batch 1, still uses every core).
+  const int threads = resolveThreads(mOptions.threads, count);
+  const int encodeThreads = std::max(1, resolveThreads(mOptions.threads) / threads);
   parallelFor(count, threads, [&](int i) {
     const std::size_t f = static_cast<std::size_t>(i);
     PositionMapFrameHeader header;
@@ -118,6 +121,8 @@ void PositionMapWriter::writeChunk(int count, const int* frames, const float* xy
     header.padding = mTables.padding;
     header.bounds = computeBounds(xyz + f * vertexFloats, mTables.vertexCount);
     header.compression = mOptions.compression;
+    header.zipEncoder = mOptions.zipEncoder;
+    header.encodeThreads = encodeThreads;
     header.framesPerSecond = mOptions.framesPerSecond;
     header.halfNormals = mOptions.halfNormals;
     header.channels = mOptions.channels;

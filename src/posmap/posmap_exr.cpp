@@ -163,7 +163,8 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
       insertXyzSlices(frameBuffer, names.normal, normals, rowTexels);
     }
 
-    writeScanlines(path, tempPath, exrHeader, frameBuffer, height);
+    writeScanlines(path, tempPath, exrHeader, frameBuffer, height, header.zipEncoder,
+                   header.encodeThreads);
   });
 }
 

@@ -12,6 +12,7 @@
 #include <OpenEXR/ImfOutputFile.h>
 
 #include <unistd.h>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -349,6 +350,48 @@ TEST(Cli, BakePosmapEqualsPosmapOfTheBakedCache) {
                    dir.file("out/l.####.exr"), "--posmap", "96x64", "--posmap-channels", "xyz",
                    "--quiet"});
   expectError(r, 2, "--posmap-channels 'xyz' is not a channel naming");
+}
+
+TEST(Cli, ZipEncodersWriteTheSamePixelsAndABadOneIsAUsageError) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  fs::create_directories(dir.file("out"));
+  EXPECT_NE(runCli(dir, {"bake", "--help"}).out.find("--zip-encoder"), std::string::npos);
+  EXPECT_NE(runCli(dir, {"posmap", "--help"}).out.find("--zip-encoder"), std::string::npos);
+  const std::vector<std::string> bake = {
+      "bake",     "--db", db,        "--driver", sample("test.driver.pc2"),
+      "--frames", "2-3",  "--quiet", "--posmap", "64"};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = bake;
+    args.insert(args.end(), extra.begin(), extra.end());
+    return runCli(dir, args);
+  };
+  CliRun r = with({"-o", dir.file("out/fast.####.exr")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = with({"-o", dir.file("out/zlib.####.exr"), "--zip-encoder", "openexr"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* frame : {"0002", "0003"}) {
+    std::vector<float> fast, zlib;
+    const ExrPointCacheInfo info =
+        readPointCacheExr(dir.file(std::string("out/fast.") + frame + ".exr"), fast);
+    readPointCacheExr(dir.file(std::string("out/zlib.") + frame + ".exr"), zlib);
+    EXPECT_EQ(info.compression, ExrCompression::kZip);
+    ASSERT_EQ(fast.size(), zlib.size());
+    EXPECT_EQ(std::memcmp(fast.data(), zlib.data(), fast.size() * sizeof(float)), 0) << frame;
+    EXPECT_NE(slurp(dir.file(std::string("out/fast.") + frame + ".exr")),
+              slurp(dir.file(std::string("out/zlib.") + frame + ".exr")))
+        << "libdeflate and zlib make other deflate streams";
+    EXPECT_EQ(exrPlanes(dir.file(std::string("out/fast.posmap.") + frame + ".exr")),
+              exrPlanes(dir.file(std::string("out/zlib.posmap.") + frame + ".exr")));
+  }
+  const std::size_t before = filesIn(dir.file("out")).size();
+  expectError(with({"-o", dir.file("out/bad.####.exr"), "--zip-encoder", "zlib"}), 2,
+              "--zip-encoder 'zlib'");
+  expectError(runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache",
+                           dir.file("out/fast.####.exr"), "--frames", "2", "--res", "64", "-o",
+                           dir.file("out/m.####.exr"), "--zip-encoder", "fast"}),
+              2, "--zip-encoder 'fast'");
+  EXPECT_EQ(filesIn(dir.file("out")).size(), before) << "a usage error writes nothing";
 }
 
 }  // namespace

@@ -80,17 +80,23 @@ void writePointCacheSeeds(const fs::path& dir) {
   const ds::Mesh& mesh = ds::fuzz::fixedDriven();
   const std::vector<float> xyz = moved(mesh, 0.25f);
   const std::vector<float> normals(xyz.size(), 0.5f);
+  // zip.exr and zips.exr: OpenEXR's own deflate, as the seeds were first written; the
+  // *_libdeflate seeds: the default encoder's deflate streams.
   const struct {
     const char* name;
     ds::ExrCompression compression;
-  } kinds[] = {{"zip.exr", ds::ExrCompression::kZip},
-               {"none.exr", ds::ExrCompression::kNone},
-               {"zips.exr", ds::ExrCompression::kZips},
-               {"piz.exr", ds::ExrCompression::kPiz}};
+    ds::ZipEncoder encoder;
+  } kinds[] = {{"zip.exr", ds::ExrCompression::kZip, ds::ZipEncoder::kOpenExr},
+               {"none.exr", ds::ExrCompression::kNone, ds::ZipEncoder::kOpenExr},
+               {"zips.exr", ds::ExrCompression::kZips, ds::ZipEncoder::kOpenExr},
+               {"piz.exr", ds::ExrCompression::kPiz, ds::ZipEncoder::kOpenExr},
+               {"zip_libdeflate.exr", ds::ExrCompression::kZip, ds::ZipEncoder::kLibdeflate},
+               {"zips_libdeflate.exr", ds::ExrCompression::kZips, ds::ZipEncoder::kLibdeflate}};
   for (const auto& kind : kinds) {
     ds::ExrWriteOptions options;
     options.width = 5;  // 12 vertices: 3 rows, the last one padded
     options.compression = kind.compression;
+    options.zipEncoder = kind.encoder;
     options.frame = 1001;
     options.topologyHash = ds::topologyHash(mesh);
     options.syncToDisk = false;
@@ -99,6 +105,7 @@ void writePointCacheSeeds(const fs::path& dir) {
     });
   }
   ds::ExrWriteOptions options;
+  options.zipEncoder = ds::ZipEncoder::kOpenExr;
   options.width = 16;
   options.frame = -3;
   options.settingsHash = 0x0123456789abcdefULL;
@@ -130,9 +137,16 @@ void writePositionMapSeeds(const fs::path& dir) {
   header.padding = 2;
   header.bounds = ds::computeBounds(positions.data(), kWidth * kHeight);
   // The default naming (R G B, A, N.R N.G N.B) ...
+  header.zipEncoder = ds::ZipEncoder::kOpenExr;  // as the seeds were first written
   writeWith(dir / "rgba_zip.exr", [&](const std::string& p) {
     ds::writePositionMapExr(p, kWidth, kHeight, positions.data(), coverage.data(), nullptr, header);
   });
+  header.zipEncoder = ds::ZipEncoder::kLibdeflate;  // the default encoder's deflate streams
+  writeWith(dir / "rgba_zip_libdeflate.exr", [&](const std::string& p) {
+    ds::writePositionMapExr(p, kWidth, kHeight, positions.data(), coverage.data(), normals.data(),
+                            header);
+  });
+  header.zipEncoder = ds::ZipEncoder::kOpenExr;
   header.compression = ds::ExrCompression::kPiz;
   header.halfNormals = true;
   writeWith(dir / "rgba_half_normals_piz.exr", [&](const std::string& p) {

@@ -13,7 +13,8 @@ compares with the recorded goldens (tests/data/golden/f302ac6.json), exactly:
   * the report's settings_hash.
 
 Configurations whose default output changed on purpose after the recording bake with the flags
-that restore the recorded output (golden_bakes.SINCE_RECORDING, e.g. --posmap-channels legacy).
+that restore the recorded output (golden_bakes.SINCE_RECORDING: --zip-encoder openexr for every
+configuration, --posmap-channels legacy).
 
 A missing OpenCL device fails (never skips).
 

@@ -27,6 +27,7 @@ struct BakeOptions {
   bool skipExisting = false;  ///< keep complete outputs of this database and settings
   int exrWidth = 1024;
   ExrCompression compression = ExrCompression::kZip;
+  ZipEncoder zipEncoder = ZipEncoder::kLibdeflate;  ///< of the caches and the position maps
   double framesPerSecond = 24.0;
   /// Every evaluator setting but the three that come from files here (see
   /// drivenshape/evaluator.h; `threads` is set from the bake's own): weights, alignment, blend,

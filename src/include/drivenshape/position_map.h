@@ -201,6 +201,7 @@ struct PositionMapOptions {
   bool halfNormals = false;  ///< N as HALF (implies normals)
   bool preview = false;      ///< also write an 8-bit PNG per map (previewPath)
   ExrCompression compression = ExrCompression::kZip;
+  ZipEncoder zipEncoder = ZipEncoder::kLibdeflate;
   double framesPerSecond = 24.0;
   int threads = 0;    ///< files written at once (0 = all cores)
   int chunkSize = 0;  ///< frames per launch (0 = as many as fit in 256 MiB of maps, <= 16)
@@ -216,6 +217,8 @@ struct PositionMapFrameHeader {
   int padding = 0;
   Bounds bounds;
   ExrCompression compression = ExrCompression::kZip;
+  ZipEncoder zipEncoder = ZipEncoder::kLibdeflate;
+  int encodeThreads = 1;  ///< as ExrWriteOptions::encodeThreads
   double framesPerSecond = 24.0;
   bool halfNormals = false;
   PositionMapChannels channels = PositionMapChannels::kRgba;
