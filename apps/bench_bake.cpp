@@ -132,6 +132,11 @@ int runBench(const std::vector<std::string>& args) {
       .flag("--no-resolve", "skip the penetration resolution")
       .flag("--sync", "fsync every output before its rename")
       .option("--blend", "MODE", "world (the talk: correction searches P~) or local", "local")
+      .option("--weights", "MODE",
+              "auto (the pose model; the database fits one), model, qp, nearest or bind", "auto")
+      .option("--also-weights", "MODE",
+              "bake on OpenCL a second time with these weights (e.g. qp, the 0.1 default) in the "
+              "same run")
       .option("--align", "MODE", "none, rigid or rigid-all", "rigid")
       .flag("--host-staging",
             "also bake through OpenCL with every block of frames staged through host memory "
@@ -201,6 +206,7 @@ int runBench(const std::vector<std::string>& args) {
   options.syncOutputs = parser.has("--sync");
   options.evaluator.blend = ds::parseBlendMode(parser.get("--blend"), "--blend");
   options.evaluator.align = ds::parseAlignMode(parser.get("--align"), "--align");
+  options.evaluator.weightMode = ds::parseWeightMode(parser.get("--weights"), "--weights");
 
   const std::unique_ptr<ds::Device> clDevice =
       ds::cli::openCliDevice(parser.get("--device"), std::cerr);
@@ -241,6 +247,15 @@ int runBench(const std::vector<std::string>& args) {
   report["opencl"]["programs_built"] = clDevice->programsBuilt();
   report["opencl"]["transfers"] =
       transfersPerBatch("OpenCL", before, after, w.frames, options.chunkSize);
+  if (parser.has("--also-weights")) {
+    ds::BakeOptions other = options;
+    other.evaluator.weightMode =
+        ds::parseWeightMode(parser.get("--also-weights"), "--also-weights");
+    other.outputPattern = (root / "cl" / "other.####.exr").string();
+    const ds::BakeResult again = ds::bake(db, *shotCache, *clDevice, other);
+    printRow("same, weights " + parser.get("--also-weights"), again, peakRssMiB());
+    report["opencl_" + parser.get("--also-weights")] = timesJson(again, peakRssMiB());
+  }
   if (parser.has("--host-staging") && clDevice->isOpenCl()) {
     ds::cli::HostStagingDevice staging(*clDevice);
     options.outputPattern = (root / "cl-host-staging" / "shot.####.exr").string();

@@ -49,7 +49,6 @@ std::vector<std::int8_t> learnSides(const Database& db, ClosestBackend& closest,
   return sides;
 }
 
-
 /// `settings` with the weight mode resolved (kAuto) and checked against `db`: Error(kUsage)
 /// naming the setting when they cannot run on it.
 EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {

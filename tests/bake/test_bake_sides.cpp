@@ -81,8 +81,10 @@ Database offsetDatabase(const std::vector<double>& depth) {
                                 driverMesh.positions.data() + driverMesh.positions.size());
   const std::vector<float> restOffset = offsetFrames(driverMesh, rest, depth);
   std::copy(restOffset.begin(), restOffset.end(), drivenMesh.positions.data());
+  DatabaseBuildOptions options;
+  options.poseModel = false;  // the sides are learnt from the picks; the QP blends them
   return buildDatabase(driverMesh, drivenMesh, *driver, *openPointCache(dir.file("driven.pc2")),
-                       DatabaseBuildOptions());
+                       options);
 }
 
 /// The test clip of the sample: its frame numbers and driver frames.
