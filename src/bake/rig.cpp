@@ -108,6 +108,19 @@ void parseRigParts(const std::string& text, const std::string& source, int drive
       it = parentName.find(it->second);
     }
   }
+  // Parts whose bones' parents loop through other parts form a cycle: refuse it.
+  for (int p = 0; p < parts; ++p) {
+    int q = p;
+    for (int steps = 0; q >= 0; ++steps) {
+      if (steps > parts) {
+        fail("the parents of bone '" +
+             names[static_cast<std::size_t>(std::find(partOfBone.begin(), partOfBone.end(), p) -
+                                            partOfBone.begin())] +
+             "' loop; each bone needs a chain of parents that ends");
+      }
+      q = parentOf[static_cast<std::size_t>(q)];
+    }
+  }
 }
 
 void readRigParts(const std::string& path, int driverVertexCount, std::vector<int>& partOf,

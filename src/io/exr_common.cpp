@@ -326,6 +326,7 @@ void writeScanlines(const std::string& path, const std::string& tempPath, const 
   }
   const bool zip =
       header.compression() == Imf::ZIP_COMPRESSION || header.compression() == Imf::ZIPS_COMPRESSION;
+  errno = 0;  // the system's reason, should a write fail
   if (zip && zipEncoder == ZipEncoder::kLibdeflate) {
     ZipEncoding encoding;
     encoding.threads = std::max(1, encodeThreads);
@@ -339,7 +340,8 @@ void writeScanlines(const std::string& path, const std::string& tempPath, const 
   stream.flush();
   stream.close();
   if (stream.fail()) {
-    DS_THROW(kOutput, "cannot write '", path, "'; is the disk full?");
+    const int error = errno != 0 ? errno : EIO;
+    DS_THROW(kOutput, "cannot write '", path, "': ", std::strerror(error), "; is the disk full?");
   }
 }
 
