@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -61,6 +62,18 @@ double peakRssMiB() {
 const char* const kStages[] = {"align",   "project", "weights", "blend",
                                "correct", "resolve", "layers",  "audit"};
 
+/// The closest-point queries of the resolution and the audit over the bake, and the fraction
+/// the clearance certificate answered without a search (0 when there were none).
+std::pair<long long, double> clearedFraction(const ds::BakeResult& r) {
+  long long queries = 0;
+  long long cleared = 0;
+  for (const ds::FrameRecord& record : r.frames) {
+    queries += record.closestQueries;
+    cleared += record.closestCleared;
+  }
+  return {queries, queries > 0 ? static_cast<double>(cleared) / static_cast<double>(queries) : 0.0};
+}
+
 nlohmann::json timesJson(const ds::BakeResult& r, double rssMiB) {
   nlohmann::json json{
       {"peak_rss_mib", rssMiB},          {"read", r.times.read},
@@ -70,6 +83,9 @@ nlohmann::json timesJson(const ds::BakeResult& r, double rssMiB) {
   for (const char* stage : kStages) {
     json[stage] = r.times.stage(stage);
   }
+  const auto [queries, fraction] = clearedFraction(r);
+  json["closest_queries"] = queries;
+  json["closest_cleared_fraction"] = fraction;
   return json;
 }
 
@@ -96,22 +112,60 @@ nlohmann::json transfersPerBatch(const std::string& name, const ds::TransferCoun
 }
 
 void printHeader() {
-  std::printf("%-24s %6s %6s %6s %6s %6s %7s %7s %6s %6s %6s %6s %6s %8s %9s %7s\n",
+  std::printf("%-24s %6s %6s %6s %6s %6s %7s %7s %6s %6s %6s %6s %6s %8s %9s %7s %8s\n",
               "path (s per stage)", "read", "align", "proj", "QP", "blend", "correct", "resolve",
-              "layers", "audit", "write", "wait", "setup", "total", "frames/s", "RSS MiB");
+              "layers", "audit", "write", "wait", "setup", "total", "frames/s", "RSS MiB",
+              "cleared");
 }
 
 /// Read and write run on I/O tasks beside the other stages; "wait" is the time the bake
 /// thread spent waiting for them.
 void printRow(const std::string& name, const ds::BakeResult& r, double rssMiB) {
+  const auto [queries, fraction] = clearedFraction(r);
+  char cleared[16] = "-";
+  if (queries > 0) {
+    std::snprintf(cleared, sizeof(cleared), "%.1f%%", 100.0 * fraction);
+  }
   std::printf(
       "%-24s %6.3f %6.3f %6.3f %6.3f %6.3f %7.3f %7.3f %6.3f %6.3f %6.3f %6.3f %6.3f %8.3f "
-      "%9.1f %7.0f\n",
+      "%9.1f %7.0f %8s\n",
       name.substr(0, 24).c_str(), r.times.read, r.times.stage("align"), r.times.stage("project"),
       r.times.stage("weights"), r.times.stage("blend"), r.times.stage("correct"),
       r.times.stage("resolve"), r.times.stage("layers"), r.times.stage("audit"), r.times.write,
       r.times.readWait + r.times.writeWait, r.times.setup, r.times.total, r.baked / r.times.total,
-      rssMiB);
+      rssMiB, cleared);
+}
+
+/// Bakes `options` with the clearance certificate off into `folder`, prints its row and
+/// returns its figures.
+nlohmann::json bakeFullSearch(const ds::Database& db, const ds::PointCacheReader& shot,
+                              ds::Device& device, ds::BakeOptions options, const fs::path& folder,
+                              const std::string& name) {
+  options.evaluator.clearanceCertificate = false;
+  options.outputPattern = (folder / "shot.####.exr").string();
+  resetPeakRss();
+  const ds::BakeResult result = ds::bake(db, shot, device, options);
+  const double rss = peakRssMiB();
+  printRow(name, result, rss);
+  return timesJson(result, rss);
+}
+
+/// Whether the `frames` outputs in folders `a` and `b` are the same bytes (printed when not).
+bool sameFiles(const fs::path& a, const fs::path& b, int frames, const std::string& name) {
+  for (int f = 1; f <= frames; ++f) {
+    char file[32];
+    std::snprintf(file, sizeof(file), "shot.%04d.exr", f);
+    std::ifstream first(a / file, std::ios::binary);
+    std::ifstream second(b / file, std::ios::binary);
+    const std::string x((std::istreambuf_iterator<char>(first)), std::istreambuf_iterator<char>());
+    const std::string y((std::istreambuf_iterator<char>(second)), std::istreambuf_iterator<char>());
+    if (x.empty() || x != y) {
+      std::printf("%s: frame %d differs from the full search's\n", name.c_str(), f);
+      return false;
+    }
+  }
+  std::printf("%s: all %d frames are the same bytes as the full search's\n", name.c_str(), frames);
+  return true;
 }
 
 int runBench(const std::vector<std::string>& args) {
@@ -142,7 +196,10 @@ int runBench(const std::vector<std::string>& args) {
             "also bake through OpenCL with every block of frames staged through host memory "
             "(each kernel call uploads its inputs and reads its outputs back: the transfers "
             "before blocks stayed on the device)")
-      .flag("--no-host", "skip the host reference bake");
+      .flag("--no-host", "skip the host reference bake")
+      .flag("--full-search",
+            "also bake each path with the clearance certificate off (every closest point "
+            "searched), first, and check that both bakes wrote the same files byte for byte");
   if (!parser.parse(args)) {
     std::cout << parser.help();
     return 0;
@@ -158,6 +215,8 @@ int runBench(const std::vector<std::string>& args) {
   fs::create_directories(root / "host");
   fs::create_directories(root / "cl");
   fs::create_directories(root / "cl-host-staging");
+  fs::create_directories(root / "cl-full-search");
+  fs::create_directories(root / "host-full-search");
 
   const ds::Mesh driver = tube(w.driverRings, w.driverSegments, 0.1f);
   const ds::Mesh driven = tube(w.drivenRings, w.drivenSegments, 0.12f);
@@ -235,6 +294,11 @@ int runBench(const std::vector<std::string>& args) {
     warm.outputPattern = (root / "cl" / "warm.####.exr").string();
     ds::bake(db, *shotCache, *clDevice, warm);
   }
+  const bool fullSearch = parser.has("--full-search");
+  if (fullSearch) {
+    report["opencl_full_search"] = bakeFullSearch(db, *shotCache, *clDevice, options,
+                                                  root / "cl-full-search", "OpenCL, full search");
+  }
   options.outputPattern = (root / "cl" / "shot.####.exr").string();
   resetPeakRss();
   const ds::TransferCounts before = clDevice->transfers();
@@ -256,6 +320,10 @@ int runBench(const std::vector<std::string>& args) {
     printRow("same, weights " + parser.get("--also-weights"), again, peakRssMiB());
     report["opencl_" + parser.get("--also-weights")] = timesJson(again, peakRssMiB());
   }
+  if (fullSearch) {
+    report["opencl"]["same_files_as_full_search"] =
+        sameFiles(root / "cl", root / "cl-full-search", w.frames, "OpenCL");
+  }
   if (parser.has("--host-staging") && clDevice->isOpenCl()) {
     ds::cli::HostStagingDevice staging(*clDevice);
     options.outputPattern = (root / "cl-host-staging" / "shot.####.exr").string();
@@ -268,12 +336,20 @@ int runBench(const std::vector<std::string>& args) {
   }
   if (!parser.has("--no-host")) {
     const std::unique_ptr<ds::Device> host = ds::makeHostDevice();
+    if (fullSearch) {
+      report["host_full_search"] = bakeFullSearch(db, *shotCache, *host, options,
+                                                  root / "host-full-search", "host, full search");
+    }
     options.outputPattern = (root / "host" / "shot.####.exr").string();
     resetPeakRss();
     const ds::BakeResult hr = ds::bake(db, *shotCache, *host, options);
     const double hostRss = peakRssMiB();
     printRow("host reference", hr, hostRss);
     report["host"] = timesJson(hr, hostRss);
+    if (fullSearch) {
+      report["host"]["same_files_as_full_search"] =
+          sameFiles(root / "host", root / "host-full-search", w.frames, "host");
+    }
     std::printf("OpenCL / host speed-up: whole bake %.2fx, project %.2fx, blend %.2fx\n",
                 hr.times.total / cl.times.total,
                 hr.times.stage("project") / cl.times.stage("project"),

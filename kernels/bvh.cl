@@ -64,15 +64,17 @@ inline ds_real dsBoxDistance2(ds_real3 p, __global const float* box) {
 //   seeds      Vd DsSurfaceHit   .triangle: a triangle of point i's class (the first upper bound;
 //                                the previous block's last hits, copied on the device)
 //   hits       F x Vd DsSurfaceHit
-__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhClosest(
-    __global const float* poses, __global const int* triangles, __global const DsBvhNode* nodes,
-    __global const int4* leafTriangles, __global const float* boxes, __global const float* points,
-    __global const int* pointRoot, __global const DsSurfaceHit* seeds, __global DsSurfaceHit* hits,
-    const DsBvhQueryParams params) {
-  const int item = (int)get_global_id(0);
-  if (item >= params.frameCount * params.pointCount) {
-    return;
-  }
+//
+// dsBvhClosestList: the same search for the items listed in search[0 .. searchCount - 1] (item
+// ids f * Vd + i, any order; one work item per entry), e.g. the points the clearance
+// certificate (certificate.cl) could not clear.
+
+// The search of item `item` (frame f, point i); the kernels below write its answer.
+inline DsSurfaceHit dsBvhSearch(int item, __global const float* poses,
+                                __global const int* triangles, __global const DsBvhNode* nodes,
+                                __global const int4* leafTriangles, __global const float* boxes,
+                                __global const float* points, __global const int* pointRoot,
+                                __global const DsSurfaceHit* seeds, const DsBvhQueryParams params) {
   const int frame = item / params.pointCount;
   const int point = item - frame * params.pointCount;
   __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
@@ -201,8 +203,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhCl
         hit.distance2 = (float)tieDistance[j];
       }
     }
-    hits[item] = hit;
-    return;
+    return hit;
   }
 
   // Pass 2: the smallest triangle index within the tie band of the smallest distance.
@@ -260,5 +261,32 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhCl
     hit.v = (float)v;
     hit.distance2 = (float)d2;
   }
-  hits[item] = hit;
+  return hit;
+}
+
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhClosest(
+    __global const float* poses, __global const int* triangles, __global const DsBvhNode* nodes,
+    __global const int4* leafTriangles, __global const float* boxes, __global const float* points,
+    __global const int* pointRoot, __global const DsSurfaceHit* seeds, __global DsSurfaceHit* hits,
+    const DsBvhQueryParams params) {
+  const int item = (int)get_global_id(0);
+  if (item >= params.frameCount * params.pointCount) {
+    return;
+  }
+  hits[item] = dsBvhSearch(item, poses, triangles, nodes, leafTriangles, boxes, points, pointRoot,
+                           seeds, params);
+}
+
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhClosestList(
+    __global const float* poses, __global const int* triangles, __global const DsBvhNode* nodes,
+    __global const int4* leafTriangles, __global const float* boxes, __global const float* points,
+    __global const int* pointRoot, __global const DsSurfaceHit* seeds, __global DsSurfaceHit* hits,
+    const DsBvhQueryParams params, __global const int* search, const int searchCount) {
+  const int id = (int)get_global_id(0);
+  if (id >= searchCount) {
+    return;
+  }
+  const int item = search[id];
+  hits[item] = dsBvhSearch(item, poses, triangles, nodes, leafTriangles, boxes, points, pointRoot,
+                           seeds, params);
 }

@@ -134,11 +134,67 @@ typedef struct DsBvhQueryParams {
 #define DS_FRAME_SIN2_DOUBLE 1e-20
 #define DS_FRAME_SIN2_SINGLE 1e-10
 
+// The clearance certificate (kernels/certificate.cl, src/correction/certificate.cpp): per frame,
+// every BVH node gets a cone of its triangles' unit normals (axis, and a bound on how far any of
+// them lies from it); a walk of the tree proves a point clear where every triangle that could be
+// nearest lies behind it by the clearance.
+
+// The certificate's margin, relative to the scene scale S: every bound it compares is widened
+// by DS_CERT_MARGIN_* x S, far more than the rounding of its own arithmetic (double: ~1e-15 S;
+// float: ~1e-6 S), of the float (u, v) of hits (~1e-7 S), the reach of the feature tolerance
+// (DS_FEATURE_TOL x an edge) and of the tie band (sqrt of DS_TIE_SCALE2_* x S^2: 1e-7 S in
+// double, 3e-5 S in float).
+#define DS_CERT_MARGIN_DOUBLE 1e-5
+#define DS_CERT_MARGIN_SINGLE 2e-4
+
+// A triangle proves the side of a point only when it is well shaped: |(b-a) x (c-a)|^2 >
+// DS_CERT_SIN2_* |b-a|^2 |c-a|^2 (the sine of its angle at a above 1e-4 in double, 0.1 in
+// float), so that the rounding of its normal's direction stays far below the margin.
+#define DS_CERT_SIN2_DOUBLE 1e-8
+#define DS_CERT_SIN2_SINGLE 1e-2
+
+// Added to every leaf cone's spread (a length on the unit sphere): above the rounding of a
+// well-shaped triangle's unit normal (double: ~1e-15 / sine; float: ~1e-6 S / (edge x sine)).
+#define DS_CERT_CONE_SLACK_DOUBLE 1e-9
+#define DS_CERT_CONE_SLACK_SINGLE 1e-3
+
+// The (u, v) of a witness hit: 1/3 rounded to float, a face point of its triangle.
+#define DS_CERT_THIRD 0.333333343f
+
 // Tie band (see DsClosestParams), relative to best_d2 and to the squared scale of the scene.
 #define DS_TIE_RELATIVE_DOUBLE 1e-12
 #define DS_TIE_SCALE2_DOUBLE 1e-14
 #define DS_TIE_RELATIVE_SINGLE 1e-5
 #define DS_TIE_SCALE2_SINGLE 1e-9
+
+// The cone of one BVH node's triangles on one frame: `axis` (unit, or zero), `spread`, a bound
+// on |n_t - axis| over the unit normals n_t of its triangles (INFINITY when one of them is not
+// well shaped, DS_CERT_SIN2_*, or the cone is useless), and `offset`, a bound on axis . x over
+// the points x of its triangles.
+typedef struct DsCertCone {
+  float axis[3];
+  float spread;
+  float offset;
+  float pad0;
+  float pad1;
+  float pad2;
+} DsCertCone;
+
+// Scalars of the certificate launches (passed by value).
+typedef struct DsCertParams {
+  ds_int frameCount;   // F
+  ds_int pointCount;   // Vd
+  ds_int vertexCount;  // Vp
+  ds_int nodeCount;    // N, nodes per frame
+  ds_int levelFirst;   // dsCertRefitCones: the nodes of one depth
+  ds_int levelCount;
+  ds_int keep;  // dsCertCheck: items marked in `answered` keep their hit
+  ds_int pad0;
+  float clearance;  // scene units, >= 0
+  float margin;     // DS_CERT_MARGIN_* x S
+  float pad1;
+  float pad2;
+} DsCertParams;
 
 #ifndef __cplusplus
 // Device arithmetic of the correction kernels: double where the host defined DS_USE_DOUBLE
@@ -149,11 +205,15 @@ typedef double ds_real;
 typedef double3 ds_real3;
 #define DS_FLAT_SIN2 DS_FLAT_SIN2_DOUBLE
 #define DS_FRAME_SIN2 DS_FRAME_SIN2_DOUBLE
+#define DS_CERT_SIN2 DS_CERT_SIN2_DOUBLE
+#define DS_CERT_CONE_SLACK DS_CERT_CONE_SLACK_DOUBLE
 #else
 typedef float ds_real;
 typedef float3 ds_real3;
 #define DS_FLAT_SIN2 DS_FLAT_SIN2_SINGLE
 #define DS_FRAME_SIN2 DS_FRAME_SIN2_SINGLE
+#define DS_CERT_SIN2 DS_CERT_SIN2_SINGLE
+#define DS_CERT_CONE_SLACK DS_CERT_CONE_SLACK_SINGLE
 #endif
 #endif
 
@@ -165,6 +225,8 @@ static_assert(sizeof(DsResolveParams) == 32, "DsResolveParams layout");
 static_assert(sizeof(DsBvhNode) == 16, "DsBvhNode layout");
 static_assert(sizeof(DsBvhRefitParams) == 32, "DsBvhRefitParams layout");
 static_assert(sizeof(DsBvhQueryParams) == 32, "DsBvhQueryParams layout");
+static_assert(sizeof(DsCertCone) == 32, "DsCertCone layout");
+static_assert(sizeof(DsCertParams) == 48, "DsCertParams layout");
 }  // namespace drivenshape
 #endif
 

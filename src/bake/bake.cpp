@@ -367,6 +367,11 @@ nlohmann::json frameJson(const FrameRecord& record, int shapeCount) {
       entry[key] = value;
     }
   }
+  if (record.closestQueries > 0) {
+    // Work counters (they depend on the batching; the cloth does not).
+    entry["closest_queries"] = record.closestQueries;
+    entry["closest_cleared"] = record.closestCleared;
+  }
   if (record.maxJump >= 0) {
     entry["max_jump"] = record.maxJump;
     entry["max_jump_vertex"] = record.maxJumpVertex;

@@ -579,8 +579,8 @@ void keepCandidates(const PoseTriangles& surface, const float* points, int point
 
 }  // namespace
 
-void CandidateSearch::findFrame(const float* pose, const float* points, double frameScale,
-                                FrameCandidates& out) const {
+void CandidateSearch::findFrame(const float* pose, const float* points, const std::uint8_t* active,
+                                double frameScale, FrameCandidates& out) const {
   out.count.assign(static_cast<std::size_t>(mPointCount), 0);
   out.offset.assign(static_cast<std::size_t>(mPointCount), 0);
   out.triangles.clear();
@@ -589,7 +589,21 @@ void CandidateSearch::findFrame(const float* pose, const float* points, double f
   const PoseTriangles surface{pose, mTriangles};
 
   SearchScratch s;
+  std::vector<int> activePoints;
   for (const SearchClass& cls : mClasses) {
+    const std::vector<int>* classPoints = &cls.points;
+    if (active != nullptr) {
+      activePoints.clear();
+      for (const int point : cls.points) {
+        if (active[point] != 0) {
+          activePoints.push_back(point);
+        }
+      }
+      if (activePoints.empty()) {
+        continue;
+      }
+      classPoints = &activePoints;
+    }
     // Pieces, and the tree over their centroids.
     const double target = pieceTarget(surface, cls.triangles, s.radii);
     s.pieces.clear();
@@ -602,7 +616,7 @@ void CandidateSearch::findFrame(const float* pose, const float* points, double f
     index.buildIndex();
 
     // Clusters of nearby points (Morton order of this frame's positions).
-    mortonOrder(points, cls.points, s.order);
+    mortonOrder(points, *classPoints, s.order);
     const double join = std::isfinite(target) ? target : s.pieces.largest;
     const std::size_t clusterCount = clusterPoints(points, join, s);
     const flann::SearchParams params(-1, 0.0f, false);
@@ -625,7 +639,7 @@ void CandidateSearch::findFrame(const float* pose, const float* points, double f
 }
 
 void CandidateSearch::find(int frameCount, const float* poses, const float* points,
-                           CandidateTable& table) const {
+                           CandidateTable& table, const std::uint8_t* active) const {
   checkChunk("closest triangle", frameCount, poses != nullptr && points != nullptr);
   checkFinite("closest triangle", "driver vertex", frameCount, mVertexCount, poses);
   checkFinite("closest triangle", "driven point", frameCount, mPointCount, points);
@@ -638,7 +652,9 @@ void CandidateSearch::find(int frameCount, const float* poses, const float* poin
     const float* framePoints = points + static_cast<std::size_t>(f) * pointStride;
     const double scale =
         std::max(frameMagnitude(pose, mVertexCount), frameMagnitude(framePoints, mPointCount));
-    findFrame(pose, framePoints, scale, frames[static_cast<std::size_t>(f)]);
+    findFrame(pose, framePoints,
+              active == nullptr ? nullptr : active + static_cast<std::size_t>(f) * mPointCount,
+              scale, frames[static_cast<std::size_t>(f)]);
   });
 
   const std::size_t items = static_cast<std::size_t>(frameCount) * mPointCount;

@@ -84,9 +84,12 @@ class CandidateSearch {
   void checkChunk(const char* stage, int frameCount, bool buffersPresent) const;
 
   /// Candidate lists for every point of every frame (see candidates.cpp for the bound that
-  /// makes them contain the exact closest triangle). Checks the input for NaN first.
+  /// makes them contain the exact closest triangle). Checks the input for NaN first. With
+  /// `active` (F x Vd flags), only the items flagged non-zero get candidates; the others get an
+  /// empty list.
   ///   poses F x 3Vp, points F x 3Vd
-  void find(int frameCount, const float* poses, const float* points, CandidateTable& table) const;
+  void find(int frameCount, const float* poses, const float* points, CandidateTable& table,
+            const std::uint8_t* active = nullptr) const;
 
  private:
   struct SearchClass {
@@ -98,8 +101,8 @@ class CandidateSearch {
     std::vector<std::int32_t> triangles;
     std::vector<std::int32_t> offset;  ///< per point, into triangles
   };
-  void findFrame(const float* pose, const float* points, double frameScale,
-                 FrameCandidates& out) const;
+  void findFrame(const float* pose, const float* points, const std::uint8_t* active,
+                 double frameScale, FrameCandidates& out) const;
 
   int mThreads = 0;
   bool mReady = false;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <thread>
 
 #include <drivenshape/error.h>
@@ -262,10 +263,34 @@ double coverageTolerance(const Model& model) {
   return 0.02 * computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
 }
 
+void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
+                  float clearance, bool keep) {
+  const std::size_t items = static_cast<std::size_t>(batch.count) * model.vd;
+  // The certificate proves points outside by the clearance: it is used only when every driven
+  // vertex lives outside (cloth); a database with vertices under the skin searches every point.
+  const bool certify = model.settings.clearanceCertificate && model.insideVertices() == 0;
+  keep = keep && certify;
+  if (!keep) {
+    // (A resize forgets the values: kept hits and marks must not be resized.)
+    batch.auditHits.resize<SurfaceHit>(items);
+    batch.auditAnswered.resize<std::int32_t>(items);
+  }
+  batch.counts.assign(static_cast<std::size_t>(batch.count), 0);
+  if (certify) {
+    model.audit().closestOrClearBlock(batch.count, poses, cloth, clearance, batch.auditHits,
+                                      batch.counts.data(), &batch.auditAnswered, keep);
+  } else {
+    model.audit().closestBlock(batch.count, poses, cloth, batch.auditHits);
+  }
+  for (int i = 0; i < batch.count; ++i) {
+    batch.records[i].closestQueries += model.vd;
+    batch.records[i].closestCleared += batch.counts[static_cast<std::size_t>(i)];
+  }
+}
+
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
-                 int FrameRecord::*field) {
-  batch.auditHits.resize<SurfaceHit>(static_cast<std::size_t>(batch.count) * model.vd);
-  model.audit().closestBlock(batch.count, poses, cloth, batch.auditHits);
+                 int FrameRecord::*field, float clearance, bool keep) {
+  auditClosest(model, batch, poses, cloth, clearance, keep);
   batch.counts.assign(static_cast<std::size_t>(batch.count), 0);
   model.audit().countInside(batch.count, poses, batch.auditHits, cloth, batch.counts.data());
   for (int i = 0; i < batch.count; ++i) {
@@ -288,7 +313,8 @@ Batch::Batch(Device& device)
       driven(device.makeArray()),
       blendedDriver(device.makeArray()),
       hits(device.makeArray()),
-      auditHits(device.makeArray()) {}
+      auditHits(device.makeArray()),
+      auditAnswered(device.makeArray()) {}
 
 DeviceArray& Batch::alignedShot(std::size_t driverValues) {
   if (warm == 0) {

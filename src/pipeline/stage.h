@@ -134,8 +134,10 @@ struct Batch {
   DeviceArray blendedDriver;               ///< count x 3Vp blended driver (world blending)
   DeviceArray hits;                        ///< count x Vd binding hits (world blending)
   DeviceArray auditHits;                   ///< count x Vd closest points over every triangle
-  std::vector<int> counts;                 ///< count, per-frame counters read back from the device
-  std::vector<int> moved;                  ///< count, by the resolution
+  /// count x Vd ints: the auditHits answered without a search (closestOrClearBlock)
+  DeviceArray auditAnswered;
+  std::vector<int> counts;  ///< count, per-frame counters read back from the device
+  std::vector<int> moved;   ///< count, by the resolution
   bool layersApplied = false;
 
   /// The shot's driver, world space: count x 3Vp.
@@ -188,12 +190,22 @@ ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
 /// cloth's bounding-box diagonal).
 double coverageTolerance(const Model& model);
 
+/// Closest points over every triangle of the batch's cloth on `poses` into batch.auditHits,
+/// for the resolution and the inside counts only: points proven at signed distance >=
+/// `clearance` get a witness instead of a search (ClosestBackend::closestOrClearBlock, unless
+/// the settings turn the certificate off or some vertex lives inside, Model::sides); the records
+/// count the queries and those answered without a search. With `keep`, the points the previous call
+/// answered without a search keep their hits: only for the same poses, a clearance no larger, and
+/// points that did not move since (the resolution does not move them).
+///   poses count x 3Vp, cloth count x 3Vd
+void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
+                  float clearance, bool keep = false);
+
 /// Counts how many cloth points of each frame of the batch are on the wrong side of the
-/// driver's skin (inside, for cloth; Model::sides), from closest points over every triangle
-/// found here (left in batch.auditHits): poses count x 3Vp, cloth count x 3Vd, into
-/// (records[f].*field).
+/// driver's skin (inside, for cloth; Model::sides), from auditClosest() with `clearance` and `keep`
+/// (left in batch.auditHits): poses count x 3Vp, cloth count x 3Vd, into (records[f].*field).
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
-                 int FrameRecord::*field);
+                 int FrameRecord::*field, float clearance = 0.0f, bool keep = false);
 
 /// Adds "inside_vertices" (Model::insideVertices) to the report's settings when any driven
 /// vertex lives inside; nothing for cloth.

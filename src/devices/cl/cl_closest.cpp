@@ -13,6 +13,7 @@
 #include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 #include <drivenshape_kernels/bvh_cl.h>
+#include <drivenshape_kernels/certificate_cl.h>
 #include <drivenshape_kernels/closest_cl.h>
 #include <drivenshape_kernels/correction_types_cl.h>
 #include <drivenshape_kernels/resolve_cl.h>
@@ -23,6 +24,7 @@
 
 #include "bvh.h"
 #include "candidates.h"
+#include "certificate.h"
 #include "cl_program.h"
 #include "surface_features.h"
 
@@ -59,7 +61,8 @@ class ClClosest final : public ClosestBackend {
         mViewToPoses(storage(target)),
         mViewPoints(storage(target)),
         mViewHits(storage(target)),
-        mViewOut(storage(target)) {
+        mViewOut(storage(target)),
+        mViewAnswered(storage(target)) {
     mDouble = !options.forceSinglePrecision && hasFp64(mDevice);
     std::vector<std::string> defines;
     if (mDouble) {
@@ -71,7 +74,8 @@ class ClClosest final : public ClosestBackend {
          {kernels::kClosestSourceName, kernels::kClosestSource},
          {kernels::kTransferSourceName, kernels::kTransferSource},
          {kernels::kResolveSourceName, kernels::kResolveSource},
-         {kernels::kBvhSourceName, kernels::kBvhSource}},
+         {kernels::kBvhSourceName, kernels::kBvhSource},
+         {kernels::kCertificateSourceName, kernels::kCertificateSource}},
         defines);
     cl_util::guard("creating the correction kernels", [&] {
       mClosestKernel = cl::Kernel(mProgram, "dsClosest");
@@ -81,6 +85,9 @@ class ClClosest final : public ClosestBackend {
       mCountInsideKernel = cl::Kernel(mProgram, "dsCountInside");
       mRefitKernel = cl::Kernel(mProgram, "dsBvhRefit");
       mBvhKernel = cl::Kernel(mProgram, "dsBvhClosest");
+      mBvhListKernel = cl::Kernel(mProgram, "dsBvhClosestList");
+      mConeKernel = cl::Kernel(mProgram, "dsCertRefitCones");
+      mCertCheckKernel = cl::Kernel(mProgram, "dsCertCheck");
       mName = mDevice.getInfo<CL_DEVICE_NAME>();
     });
   }
@@ -109,6 +116,8 @@ class ClClosest final : public ClosestBackend {
       mSeeded = false;
       mSides = uploadBytes(nullptr, 0);
       mSided = false;
+      mCertifiable = correction::certifiable(mBvh, mSearch.triangleCount());
+      mNodeTriangle = upload(correction::nodeTriangles(mBvh));
     });
   }
 
@@ -200,6 +209,38 @@ class ClClosest final : public ClosestBackend {
     DeviceArray& out = outputOnDevice(hits, mViewHits, items * sizeof(SurfaceHit), false);
     closestBvh(frameCount, onDevice(poses, mViewPoses), onDevice(points, mViewPoints), out);
     finishOutput(out, mViewHits);
+  }
+
+  void closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points, float clearance,
+                           DeviceArray& hits, int* cleared, DeviceArray* answered,
+                           bool keep) override {
+    if (!mUseBvh || !mCertifiable) {
+      ClosestBackend::closestOrClearBlock(frameCount, poses, points, clearance, hits, cleared,
+                                          answered, keep);
+      return;
+    }
+    mSearch.checkChunk("closest triangle", frameCount, true);
+    correction::checkOffset(clearance);
+    const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+    checkInputs("closest triangle", frameCount, &poses, &points, nullptr, 0);
+    const bool kept = keep && answered != nullptr;
+    std::vector<int> counts(static_cast<std::size_t>(frameCount), 0);
+    if (items > 0) {
+      DeviceArray& out = outputOnDevice(hits, mViewHits, items * sizeof(SurfaceHit), kept);
+      DeviceArray* marks = nullptr;
+      if (answered != nullptr) {
+        marks = &outputOnDevice(*answered, mViewAnswered, items * sizeof(std::int32_t), kept);
+      }
+      clearOrSearch(frameCount, onDevice(poses, mViewPoses), onDevice(points, mViewPoints),
+                    clearance, out, marks, kept, counts.data());
+      finishOutput(out, mViewHits);
+      if (marks != nullptr) {
+        finishOutput(*marks, mViewAnswered);
+      }
+    }
+    if (cleared != nullptr) {
+      std::copy(counts.begin(), counts.end(), cleared);
+    }
   }
 
   void transferBlock(int frameCount, DeviceArray& hits, DeviceArray& fromPoses,
@@ -354,6 +395,66 @@ class ClClosest final : public ClosestBackend {
     });
   }
 
+  /// The BVH query's scalars for a chunk of `frameCount` frames.
+  DsBvhQueryParams queryParams(int frameCount) const {
+    const double scale2 = mSearch.sceneScale() * mSearch.sceneScale();
+    const double prune = mDouble ? DS_PRUNE_RELATIVE_DOUBLE : DS_PRUNE_RELATIVE_SINGLE;
+    DsBvhQueryParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = mSearch.pointCount();
+    params.vertexCount = mSearch.vertexCount();
+    params.nodeCount = static_cast<int>(mBvh.nodes.size());
+    params.tieRelative =
+        static_cast<float>(mDouble ? DS_TIE_RELATIVE_DOUBLE : DS_TIE_RELATIVE_SINGLE);
+    params.tieAbsolute =
+        static_cast<float>((mDouble ? DS_TIE_SCALE2_DOUBLE : DS_TIE_SCALE2_SINGLE) * scale2);
+    params.pruneRelative = static_cast<float>(prune);
+    params.pruneAbsolute = static_cast<float>(prune * scale2);
+    return params;
+  }
+
+  /// The warm start of the first block: the host's guess on its first frame (a warm start
+  /// only; later blocks start from the previous block's last hits).
+  void seedOnce(DeviceArray& poses, DeviceArray& points) {
+    if (mSeeded) {
+      return;
+    }
+    std::vector<std::int32_t> seeds;
+    correction::seedTriangles(mBvh, mSearch.triangles().data(), poses.read<float>(),
+                              points.read<float>(), seeds);
+    std::vector<SurfaceHit> seedHits(seeds.size());
+    for (std::size_t i = 0; i < seeds.size(); ++i) {
+      seedHits[i].triangle = seeds[i];
+    }
+    cl_util::guard("uploading the closest-triangle warm start", [&] {
+      cl_util::upload(mQueue, mTransfers, mSeeds, CL_TRUE, 0, seedHits.size() * sizeof(SurfaceHit),
+                      seedHits.data());
+    });
+    mSeeded = true;
+  }
+
+  /// Every node's box on every frame of `poses` (dsBvhRefit, one launch per depth) into mBoxes.
+  cl::Buffer& refitBoxes(int frameCount, const cl::Buffer& posesBuffer) {
+    const int nodeCount = static_cast<int>(mBvh.nodes.size());
+    const std::size_t boxBytes = static_cast<std::size_t>(frameCount) *
+                                 static_cast<std::size_t>(nodeCount) * 6 * sizeof(float);
+    cl::Buffer& boxBuffer = mBoxes.reserve(mContext, boxBytes);
+    DsBvhRefitParams refit{};
+    refit.frameCount = frameCount;
+    refit.vertexCount = mSearch.vertexCount();
+    refit.nodeCount = nodeCount;
+    // Arguments 0-3 stay; the level's range (argument 4) changes per launch.
+    cl_util::setArgs(mRefitKernel, posesBuffer, mNodes, mLeafTriangles, boxBuffer, refit);
+    for (int level = mBvh.depth() - 1; level >= 0; --level) {
+      refit.levelFirst = mBvh.levelStart[static_cast<std::size_t>(level)];
+      refit.levelCount = mBvh.levelStart[static_cast<std::size_t>(level) + 1] - refit.levelFirst;
+      mRefitKernel.setArg(4, refit);
+      const std::size_t work = static_cast<std::size_t>(frameCount) * refit.levelCount;
+      cl_util::enqueue1d(mQueue, mRefitKernel, work, DS_LOCAL_SIZE);
+    }
+    return boxBuffer;
+  }
+
   /// ClosestBackend::closest through the BVH (see src/correction/bvh.cpp and kernels/bvh.cl)
   /// on arrays of this context; `hits` sized F x Vd.
   void closestBvh(int frameCount, DeviceArray& poses, DeviceArray& points, DeviceArray& hits) {
@@ -361,66 +462,87 @@ class ClClosest final : public ClosestBackend {
     if (frameCount == 0 || pointCount == 0) {
       return;
     }
-    const int vertexCount = mSearch.vertexCount();
-    const int nodeCount = static_cast<int>(mBvh.nodes.size());
     const std::size_t items = static_cast<std::size_t>(frameCount) * pointCount;
-    const std::size_t boxBytes = static_cast<std::size_t>(frameCount) *
-                                 static_cast<std::size_t>(nodeCount) * 6 * sizeof(float);
-    const double scale2 = mSearch.sceneScale() * mSearch.sceneScale();
-    const double prune = mDouble ? DS_PRUNE_RELATIVE_DOUBLE : DS_PRUNE_RELATIVE_SINGLE;
-
-    DsBvhQueryParams params{};
-    params.frameCount = frameCount;
-    params.pointCount = pointCount;
-    params.vertexCount = vertexCount;
-    params.nodeCount = nodeCount;
-    params.tieRelative =
-        static_cast<float>(mDouble ? DS_TIE_RELATIVE_DOUBLE : DS_TIE_RELATIVE_SINGLE);
-    params.tieAbsolute =
-        static_cast<float>((mDouble ? DS_TIE_SCALE2_DOUBLE : DS_TIE_SCALE2_SINGLE) * scale2);
-    params.pruneRelative = static_cast<float>(prune);
-    params.pruneAbsolute = static_cast<float>(prune * scale2);
-
-    if (!mSeeded) {
-      // The first block starts from the host's guess on its first frame (a warm start only).
-      std::vector<std::int32_t> seeds;
-      correction::seedTriangles(mBvh, mSearch.triangles().data(), poses.read<float>(),
-                                points.read<float>(), seeds);
-      std::vector<SurfaceHit> seedHits(seeds.size());
-      for (std::size_t i = 0; i < seeds.size(); ++i) {
-        seedHits[i].triangle = seeds[i];
-      }
-      cl_util::guard("uploading the closest-triangle warm start", [&] {
-        cl_util::upload(mQueue, mTransfers, mSeeds, CL_TRUE, 0,
-                        seedHits.size() * sizeof(SurfaceHit), seedHits.data());
-      });
-      mSeeded = true;
-    }
-
+    const DsBvhQueryParams params = queryParams(frameCount);
+    seedOnce(poses, points);
     cl_util::guard("running the closest-triangle kernels", [&] {
       const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
       const cl::Buffer& pointsBuffer = cl_util::readBuffer(points);
-      cl::Buffer& boxBuffer = mBoxes.reserve(mContext, boxBytes);
       cl::Buffer& hitBuffer = cl_util::writeBuffer(hits);
-      DsBvhRefitParams refit{};
-      refit.frameCount = frameCount;
-      refit.vertexCount = vertexCount;
-      refit.nodeCount = nodeCount;
-      // Arguments 0-3 stay; the level's range (argument 4) changes per launch.
-      cl_util::setArgs(mRefitKernel, posesBuffer, mNodes, mLeafTriangles, boxBuffer, refit);
-      for (int level = mBvh.depth() - 1; level >= 0; --level) {
-        refit.levelFirst = mBvh.levelStart[static_cast<std::size_t>(level)];
-        refit.levelCount = mBvh.levelStart[static_cast<std::size_t>(level) + 1] - refit.levelFirst;
-        mRefitKernel.setArg(4, refit);
-        const std::size_t work = static_cast<std::size_t>(frameCount) * refit.levelCount;
-        cl_util::enqueue1d(mQueue, mRefitKernel, work, DS_LOCAL_SIZE);
-      }
+      cl::Buffer& boxBuffer = refitBoxes(frameCount, posesBuffer);
       cl_util::setArgs(mBvhKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles, boxBuffer,
                        pointsBuffer, mPointRoot, mSeeds, hitBuffer, params);
       cl_util::enqueue1d(mQueue, mBvhKernel, items, DS_LOCAL_SIZE);
       // The next block starts from this block's last frame, copied on the device.
       mQueue.enqueueCopyBuffer(hitBuffer, mSeeds, (items - pointCount) * sizeof(SurfaceHit), 0,
                                static_cast<std::size_t>(pointCount) * sizeof(SurfaceHit));
+    });
+  }
+
+  /// closestOrClearBlock on arrays of this context (src/correction/certificate.cpp): the
+  /// boxes and cones of every frame, the check of every point, then one BVH search over the
+  /// points left. `answered` (F x Vd, or null: scratch) as for closestOrClearBlock; cleared F.
+  void clearOrSearch(int frameCount, DeviceArray& poses, DeviceArray& points, float clearance,
+                     DeviceArray& hits, DeviceArray* answered, bool keep, int* cleared) {
+    const int pointCount = mSearch.pointCount();
+    const std::size_t items = static_cast<std::size_t>(frameCount) * pointCount;
+    const DsBvhQueryParams query = queryParams(frameCount);
+    seedOnce(poses, points);
+    DsCertParams params{};
+    params.frameCount = frameCount;
+    params.pointCount = pointCount;
+    params.vertexCount = mSearch.vertexCount();
+    params.nodeCount = query.nodeCount;
+    params.keep = keep ? 1 : 0;
+    params.clearance = clearance;
+    params.margin = static_cast<float>((mDouble ? DS_CERT_MARGIN_DOUBLE : DS_CERT_MARGIN_SINGLE) *
+                                       mSearch.sceneScale());
+    int searchCount = 0;
+    cl_util::guard("running the clearance certificate", [&] {
+      const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
+      const cl::Buffer& pointsBuffer = cl_util::readBuffer(points);
+      cl::Buffer& hitBuffer = keep ? cl_util::modifyBuffer(hits) : cl_util::writeBuffer(hits);
+      cl::Buffer& answeredBuffer =
+          answered == nullptr
+              ? mAnswered.reserve(mContext, items * sizeof(cl_int))
+              : (keep ? cl_util::modifyBuffer(*answered) : cl_util::writeBuffer(*answered));
+      cl::Buffer& boxBuffer = refitBoxes(frameCount, posesBuffer);
+      cl::Buffer& coneBuffer = mCones.reserve(
+          mContext, static_cast<std::size_t>(frameCount) * query.nodeCount * sizeof(DsCertCone));
+      // Arguments 0-4 stay; the level's range (in argument 5) changes per launch.
+      cl_util::setArgs(mConeKernel, posesBuffer, mNodes, mLeafTriangles, boxBuffer, coneBuffer,
+                       params);
+      for (int level = mBvh.depth() - 1; level >= 0; --level) {
+        params.levelFirst = mBvh.levelStart[static_cast<std::size_t>(level)];
+        params.levelCount =
+            mBvh.levelStart[static_cast<std::size_t>(level) + 1] - params.levelFirst;
+        mConeKernel.setArg(5, params);
+        cl_util::enqueue1d(mQueue, mConeKernel,
+                           static_cast<std::size_t>(frameCount) * params.levelCount, DS_LOCAL_SIZE);
+      }
+      const std::size_t countBytes = static_cast<std::size_t>(frameCount) * sizeof(cl_int);
+      cl::Buffer& clearedBuffer = mCounts.reserve(mContext, countBytes);
+      cl::Buffer& searchBuffer = mSearchList.reserve(mContext, items * sizeof(cl_int));
+      cl::Buffer& searchCountBuffer = mSearchCount.reserve(mContext, sizeof(cl_int));
+      mQueue.enqueueFillBuffer(clearedBuffer, cl_int(0), 0, countBytes);
+      mQueue.enqueueFillBuffer(searchCountBuffer, cl_int(0), 0, sizeof(cl_int));
+      cl_util::setArgs(mCertCheckKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles,
+                       mNodeTriangle, boxBuffer, coneBuffer, pointsBuffer, mSeeds, hitBuffer,
+                       answeredBuffer, clearedBuffer, searchBuffer, searchCountBuffer, params);
+      cl_util::enqueue1d(mQueue, mCertCheckKernel, items, DS_LOCAL_SIZE);
+      cl_util::download(mQueue, mTransfers, searchCountBuffer, CL_TRUE, 0, sizeof(cl_int),
+                        &searchCount);
+      if (searchCount > 0) {
+        cl_util::setArgs(mBvhListKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles, boxBuffer,
+                         pointsBuffer, mPointRoot, mSeeds, hitBuffer, query, searchBuffer,
+                         cl_int(searchCount));
+        cl_util::enqueue1d(mQueue, mBvhListKernel, static_cast<std::size_t>(searchCount),
+                           DS_LOCAL_SIZE);
+      }
+      // The next block starts from this block's last frame (a witness is a fine seed too).
+      mQueue.enqueueCopyBuffer(hitBuffer, mSeeds, (items - pointCount) * sizeof(SurfaceHit), 0,
+                               static_cast<std::size_t>(pointCount) * sizeof(SurfaceHit));
+      cl_util::download(mQueue, mTransfers, clearedBuffer, CL_TRUE, 0, countBytes, cleared);
     });
   }
 
@@ -536,6 +658,9 @@ class ClClosest final : public ClosestBackend {
   cl::Kernel mCountInsideKernel;
   cl::Kernel mRefitKernel;
   cl::Kernel mBvhKernel;
+  cl::Kernel mBvhListKernel;
+  cl::Kernel mConeKernel;
+  cl::Kernel mCertCheckKernel;
   correction::CandidateSearch mSearch;
   correction::CandidateTable mCandidates;
   cl::Buffer mTriangles;
@@ -551,6 +676,12 @@ class ClClosest final : public ClosestBackend {
   bool mSeeded = false;
   cl::Buffer mSides;  ///< Vd chars (ClosestBackend::setSides), or a placeholder when !mSided
   bool mSided = false;
+  bool mCertifiable = false;
+  cl::Buffer mNodeTriangle;
+  cl_util::GrowingBuffer mCones{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mSearchList{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mAnswered{CL_MEM_READ_WRITE};
+  cl_util::GrowingBuffer mSearchCount{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mBoxes{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mPoses{CL_MEM_READ_ONLY};  // the candidate path's
   cl_util::GrowingBuffer mPoints{CL_MEM_READ_ONLY};
@@ -559,7 +690,7 @@ class ClClosest final : public ClosestBackend {
   cl_util::GrowingBuffer mHits{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mCounts{CL_MEM_READ_WRITE};
   // Views of the raw calls' memory (and of arrays of other devices) for the array path.
-  DeviceArray mViewPoses, mViewToPoses, mViewPoints, mViewHits, mViewOut;
+  DeviceArray mViewPoses, mViewToPoses, mViewPoints, mViewHits, mViewOut, mViewAnswered;
 };
 
 }  // namespace

@@ -3,6 +3,7 @@
 // transfer and rebuild (kernels/transfer.cl), and the penetration resolution
 // (kernels/resolve.cl), frames in parallel on host threads.
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -16,6 +17,7 @@
 #include "parallel.h"
 
 #include "candidates.h"
+#include "host_certificate.h"
 #include "surface_features.h"
 #include "triangle_distance.h"
 
@@ -32,6 +34,7 @@ class HostClosest final : public ClosestBackend {
 
   void setSurface(const Mesh& driver, const BindingMask& mask) override {
     mSearch.setSurface(driver, mask);
+    mCertificate.setSurface(driver, mask, mSearch.sceneScale());
     mFeatures = correction::buildFeatureTables(mSearch.triangles().data(), mSearch.triangleCount(),
                                                mSearch.vertexCount());
     mInside = std::make_unique<InsideAudit>(driver);
@@ -53,7 +56,63 @@ class HostClosest final : public ClosestBackend {
 
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override {
     mSearch.checkChunk("closest triangle", frameCount, hits != nullptr);
-    mSearch.find(frameCount, poses, points, mCandidates);
+    exact(frameCount, poses, points, hits, nullptr);
+  }
+
+  void closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points, float clearance,
+                           DeviceArray& hits, int* cleared, DeviceArray* answered,
+                           bool keep) override {
+    mSearch.checkChunk("closest triangle", frameCount, true);
+    correction::checkOffset(clearance);
+    const float* posesIn = poses.read<float>();
+    const float* pointsIn = points.read<float>();
+    correction::checkFinite("closest triangle", "driver vertex", frameCount, mSearch.vertexCount(),
+                            posesIn);
+    correction::checkFinite("closest triangle", "driven point", frameCount, mSearch.pointCount(),
+                            pointsIn);
+    const int pointCount = mSearch.pointCount();
+    const std::size_t items = static_cast<std::size_t>(frameCount) * pointCount;
+    const bool kept = keep && answered != nullptr;
+    SurfaceHit* out = kept ? hits.modify<SurfaceHit>() : hits.write<SurfaceHit>();
+    mActive.assign(items, 1);
+    mCleared.assign(static_cast<std::size_t>(frameCount), 0);
+    if (kept) {
+      const std::int32_t* before = answered->read<std::int32_t>();
+      for (std::size_t k = 0; k < items; ++k) {
+        if (before[k] != 0) {
+          mActive[k] = 0;
+          ++mCleared[k / static_cast<std::size_t>(pointCount)];
+        }
+      }
+    }
+    mCertificate.clear(frameCount, posesIn, pointsIn, clearance, out, mActive.data(),
+                       mCleared.data(), mSearch.threads());
+    if (cleared != nullptr) {
+      std::copy(mCleared.begin(), mCleared.end(), cleared);
+    }
+    exact(frameCount, posesIn, pointsIn, out, mActive.data());
+    if (answered != nullptr) {
+      std::int32_t* after = answered->write<std::int32_t>();
+      for (std::size_t k = 0; k < items; ++k) {
+        after[k] = mActive[k] == 0 ? 1 : 0;
+      }
+    }
+    if (frameCount > 0) {
+      mCertificate.remember(out + static_cast<std::size_t>(frameCount - 1) * pointCount);
+    }
+  }
+
+ private:
+  /// The exact closest triangle of every item (of those flagged in `active`, F x Vd, when
+  /// given; the others' hits stay as they are).
+  void exact(int frameCount, const float* poses, const float* points, SurfaceHit* hits,
+             const std::uint8_t* active) {
+    if (active != nullptr &&
+        std::none_of(active, active + static_cast<std::size_t>(frameCount) * mSearch.pointCount(),
+                     [](std::uint8_t a) { return a != 0; })) {
+      return;
+    }
+    mSearch.find(frameCount, poses, points, mCandidates, active);
     const int pointCount = mSearch.pointCount();
     const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
     const double tieRelative = DS_TIE_RELATIVE_DOUBLE;
@@ -64,6 +123,9 @@ class HostClosest final : public ClosestBackend {
       const float* pose = poses + static_cast<std::size_t>(f) * poseStride;
       for (int i = 0; i < pointCount; ++i) {
         const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
+        if (active != nullptr && active[item] == 0) {
+          continue;
+        }
         const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
         const int first = mCandidates.start[item];
         const int last = mCandidates.start[item + 1];
@@ -100,6 +162,7 @@ class HostClosest final : public ClosestBackend {
     });
   }
 
+ public:
   void transfer(int frameCount, const SurfaceHit* hits, const float* fromPoses,
                 const float* toPoses, const float* points, float* out) override {
     correction::checkTransfer(mSearch, frameCount, hits, fromPoses, toPoses, points, out);
@@ -205,6 +268,9 @@ class HostClosest final : public ClosestBackend {
   correction::CandidateSearch mSearch;
   correction::FeatureTables mFeatures;
   correction::CandidateTable mCandidates;
+  correction::HostCertificate mCertificate;
+  std::vector<std::uint8_t> mActive;
+  std::vector<int> mCleared;
   std::unique_ptr<InsideAudit> mInside;
   std::vector<std::int8_t> mSides;  ///< Vd, or empty: every point outside
 };

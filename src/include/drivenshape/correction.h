@@ -6,6 +6,7 @@
 // driver triangles a driven vertex may bind to; InsideAudit tells which points lie inside the
 // driver, and the side table of the resolution and the audit which side each point lives on.
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -206,6 +207,34 @@ class ClosestBackend {
   virtual void closestBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
                             DeviceArray& hits) {
     closest(frameCount, poses.read<float>(), points.read<float>(), hits.write<SurfaceHit>());
+  }
+  /// closestBlock() searched only where it can matter: the penetration resolution and the
+  /// inside count need of a point only whether its signed distance (InsideAudit's sign) is
+  /// below the offset or below 0. A point proven at signed distance >= `clearance` on its
+  /// frame (src/correction/certificate.cpp: normal cones on the BVH) is not searched: its hit
+  /// is a witness, the centroid (t, 1/3, 1/3) of a triangle whose face it lies at least
+  /// `clearance` in front of. Every other point gets its exact hit, as closestBlock() finds
+  /// it. So resolveBlock() with an offset <= `clearance` and countInside() give bitwise the
+  /// results they give with closestBlock()'s hits (and resolveBlock() leaves every cleared
+  /// point where it is); nothing else may read the witnesses as closest points.
+  ///
+  /// `answered` (F x Vd ints, or null) marks on return the items answered without a search.
+  /// With `keep`, it is read first: items marked non-zero keep their hit in `hits`, which the
+  /// caller vouches came from an earlier call on the same poses, with a clearance >= this one,
+  /// that answered them, their points unchanged since (e.g. a recount after resolveBlock(),
+  /// which does not move them). cleared[f] counts the items of frame f answered without a
+  /// search, kept ones included. `clearance` >= 0 in scene units; cleared F (may be null).
+  /// This default searches every point.
+  virtual void closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
+                                   float /*clearance*/, DeviceArray& hits, int* cleared,
+                                   DeviceArray* answered = nullptr, bool /*keep*/ = false) {
+    closestBlock(frameCount, poses, points, hits);
+    if (cleared != nullptr) {
+      std::fill(cleared, cleared + frameCount, 0);
+    }
+    if (answered != nullptr) {
+      std::fill_n(answered->write<std::int32_t>(), answered->size<std::int32_t>(), 0);
+    }
   }
   virtual void transferBlock(int frameCount, DeviceArray& hits, DeviceArray& fromPoses,
                              DeviceArray& toPoses, DeviceArray& points, DeviceArray& out) {

@@ -107,6 +107,11 @@ struct EvaluatorSettings {
   LayerSettings layers;
   /// Host threads for the weights, the alignment and the closest-point search; 0 = all cores.
   int threads = 0;
+  /// The resolution and the audit search closest points only where they can matter: points
+  /// proven clear of the driver are not searched (ClosestBackend::closestOrClearBlock). The
+  /// cloth and every count are bitwise the same either way, so this is not in the settings
+  /// hash; off only to measure or check the full search.
+  bool clearanceCertificate = true;
 };
 
 /// Whether these settings blend in local frames: BlendMode::kLocal with the correction on and
@@ -143,7 +148,12 @@ struct FrameRecord {
   int insideAfter = -1;      ///< in the final cloth (after resolution when it runs)
   int resolved = -1;         ///< vertices moved out by the penetration resolution
   int bindingSwitches = -1;  ///< vertices bound to another triangle than the previous frame
-  double maxJump = -1.0;     ///< largest vertex move since the previous evaluated frame
+  /// Closest-point queries of the resolution and the audit on this frame (one per cloth vertex
+  /// and search), and how many of them the clearance certificate answered without a search.
+  /// Work counters: they depend on the batching, the cloth does not.
+  int closestQueries = 0;
+  int closestCleared = 0;
+  double maxJump = -1.0;  ///< largest vertex move since the previous evaluated frame
   int maxJumpVertex = -1;
   // Coverage (pose model; -1 where not measured).
   double poseDistance = -1.0;    ///< the model's posterior deviation: how new the pose is

@@ -74,14 +74,16 @@ class AuditStage final : public Stage {
 
  private:
   /// Wrong-side counts after the resolution and layers; reuses the resolution's count when
-  /// nothing moved since.
+  /// nothing moved since, and, when only the resolution moved points, the resolution's answers
+  /// for the points it proved clear (it left them where they were).
   void countAfter(Batch& batch) {
     const bool resolve = mModel.settings.resolve;
     const bool anyMoved = (resolve && std::any_of(batch.moved.begin(), batch.moved.end(),
                                                   [](int moved) { return moved > 0; })) ||
                           batch.layersApplied;
     if (!resolve || anyMoved) {
-      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideAfter);
+      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideAfter, 0.0f,
+                  resolve && !batch.layersApplied);
     }
     for (int i = 0; i < batch.count; ++i) {
       FrameRecord& record = batch.records[i];

@@ -27,15 +27,16 @@ class ResolveStage final : public Stage {
   void describe(nlohmann::json& settings) const override { describeSides(mModel, settings); }
 
   void run(Batch& batch) override {
+    // The hits serve the resolution with this offset and the inside count only, so points
+    // proven at least the offset clear of the driver need no search.
+    const float offset = static_cast<float>(mModel.settings.skinOffset);
     if (mModel.settings.audit) {
-      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideCorrected);
+      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideCorrected, offset);
     } else {
-      batch.auditHits.resize<SurfaceHit>(static_cast<std::size_t>(batch.count) * mModel.vd);
-      mModel.audit().closestBlock(batch.count, batch.shot(), batch.cloth, batch.auditHits);
+      auditClosest(mModel, batch, batch.shot(), batch.cloth, offset);
     }
     batch.moved.assign(batch.count, 0);
-    mModel.audit().resolveBlock(batch.count, batch.shot(), batch.auditHits,
-                                static_cast<float>(mModel.settings.skinOffset), batch.cloth,
+    mModel.audit().resolveBlock(batch.count, batch.shot(), batch.auditHits, offset, batch.cloth,
                                 batch.moved.data());
     for (int i = 0; i < batch.count; ++i) {
       batch.records[i].resolved = batch.moved[i];

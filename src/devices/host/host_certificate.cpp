@@ -1,0 +1,366 @@
+// The host reference of kernels/certificate.cl: per frame the boxes (as dsBvhRefit) and the
+// cones (dsCertRefitCones), then the walk of every point (dsCertCheck); src/correction/
+// certificate.cpp has the scheme and why it is sound. Same tree, same order, same comparisons,
+// in double.
+
+#include "host_certificate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <utility>
+
+#include <drivenshape/error.h>
+#include "parallel.h"
+
+#include "certificate.h"
+#include "triangle_distance.h"
+
+namespace drivenshape::correction {
+namespace {
+
+/// At most this many triangles per BVH leaf: the OpenCL backend's.
+constexpr int kLeafSize = 4;
+
+/// Whether triangle (a, b, c) is well shaped (DS_CERT_SIN2_DOUBLE); sets its unit normal.
+bool unitNormal(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                Eigen::Vector3d& normal) {
+  const Eigen::Vector3d ab = b - a;
+  const Eigen::Vector3d ac = c - a;
+  const Eigen::Vector3d n = ab.cross(ac);
+  const double nn = n.dot(n);
+  if (!(nn > DS_CERT_SIN2_DOUBLE * ab.dot(ab) * ac.dot(ac))) {
+    return false;
+  }
+  normal = n / std::sqrt(nn);
+  return true;
+}
+
+/// dsCertInFront: well shaped, and p at least `target` in front of the plane.
+bool inFront(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+             const Eigen::Vector3d& c, double target) {
+  const Eigen::Vector3d ab = b - a;
+  const Eigen::Vector3d ac = c - a;
+  const Eigen::Vector3d n = ab.cross(ac);
+  const double nn = n.dot(n);
+  const double h = (p - a).dot(n);
+  return nn > DS_CERT_SIN2_DOUBLE * ab.dot(ab) * ac.dot(ac) && h > 0.0 &&
+         h * h >= target * target * nn;
+}
+
+float roundUp(double x) {
+  if (!std::isfinite(x)) {
+    return std::numeric_limits<float>::infinity();
+  }
+  float rounded = static_cast<float>(x);
+  if (static_cast<double>(rounded) < x) {
+    rounded = std::nextafter(rounded, std::numeric_limits<float>::infinity());
+  }
+  return rounded;
+}
+
+Eigen::Vector3d axisOf(const DsCertCone& cone) {
+  return Eigen::Vector3d(cone.axis[0], cone.axis[1], cone.axis[2]);
+}
+
+/// Every node's box (N x 6) and cone on `pose`, as dsBvhRefit and dsCertRefitCones.
+void refit(const BvhTables& bvh, const float* pose, std::vector<float>& boxes,
+           std::vector<DsCertCone>& cones) {
+  boxes.assign(bvh.nodes.size() * 6, 0.0f);
+  cones.assign(bvh.nodes.size(), DsCertCone{});
+  for (int level = bvh.depth() - 1; level >= 0; --level) {
+    for (int n = bvh.levelStart[static_cast<std::size_t>(level)];
+         n < bvh.levelStart[static_cast<std::size_t>(level) + 1]; ++n) {
+      const DsBvhNode& node = bvh.nodes[static_cast<std::size_t>(n)];
+      float* box = &boxes[6 * static_cast<std::size_t>(n)];
+      DsCertCone& cone = cones[static_cast<std::size_t>(n)];
+      cone = DsCertCone{{0.0f, 0.0f, 0.0f},
+                        std::numeric_limits<float>::infinity(),
+                        std::numeric_limits<float>::infinity(),
+                        0.0f,
+                        0.0f,
+                        0.0f};
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      bool usable = true;
+      if (node.count > 0) {
+        std::fill(box, box + 3, std::numeric_limits<float>::infinity());
+        std::fill(box + 3, box + 6, -std::numeric_limits<float>::infinity());
+        for (int k = node.first; k < node.first + node.count; ++k) {
+          const std::int32_t* slot = &bvh.leafTriangles[4 * static_cast<std::size_t>(k)];
+          for (int j = 0; j < 3; ++j) {
+            const float* x = pose + 3 * static_cast<std::size_t>(slot[j]);
+            for (int a = 0; a < 3; ++a) {
+              box[a] = std::fmin(box[a], x[a]);
+              box[3 + a] = std::fmax(box[3 + a], x[a]);
+            }
+          }
+          Eigen::Vector3d normal;
+          if (usable && unitNormal(loadPoint(pose, slot[0]), loadPoint(pose, slot[1]),
+                                   loadPoint(pose, slot[2]), normal)) {
+            sum += normal;
+          } else {
+            usable = false;
+          }
+        }
+      } else {
+        const float* left = &boxes[6 * static_cast<std::size_t>(node.left)];
+        const float* right = &boxes[6 * static_cast<std::size_t>(node.right)];
+        for (int a = 0; a < 3; ++a) {
+          box[a] = std::fmin(left[a], right[a]);
+          box[3 + a] = std::fmax(left[3 + a], right[3 + a]);
+        }
+        const DsCertCone& l = cones[static_cast<std::size_t>(node.left)];
+        const DsCertCone& r = cones[static_cast<std::size_t>(node.right)];
+        usable = std::isfinite(l.spread) && std::isfinite(r.spread);
+        sum = axisOf(l) + axisOf(r);
+      }
+      const double norm = sum.norm();
+      if (!usable || !(norm > 0.0)) {
+        continue;
+      }
+      const Eigen::Vector3d unit = sum / norm;
+      for (int a = 0; a < 3; ++a) {
+        cone.axis[a] = static_cast<float>(unit[a]);
+      }
+      const Eigen::Vector3d axis = axisOf(cone);
+      double spread = 0.0;
+      double offset = -std::numeric_limits<double>::infinity();
+      if (node.count > 0) {
+        for (int k = node.first; k < node.first + node.count; ++k) {
+          const std::int32_t* slot = &bvh.leafTriangles[4 * static_cast<std::size_t>(k)];
+          Eigen::Vector3d normal;
+          unitNormal(loadPoint(pose, slot[0]), loadPoint(pose, slot[1]), loadPoint(pose, slot[2]),
+                     normal);
+          spread = std::max(spread, (normal - axis).norm());
+          for (int j = 0; j < 3; ++j) {
+            offset = std::max(offset, axis.dot(loadPoint(pose, slot[j])));
+          }
+        }
+        spread += DS_CERT_CONE_SLACK_DOUBLE;
+      } else {
+        for (const int child : {node.left, node.right}) {
+          const DsCertCone& c = cones[static_cast<std::size_t>(child)];
+          spread = std::max(spread, (axisOf(c) - axis).norm() + static_cast<double>(c.spread));
+          const Eigen::Vector3d turn = axis - axisOf(c);
+          const float* childBox = &boxes[6 * static_cast<std::size_t>(child)];
+          double support = 0.0;
+          for (int a = 0; a < 3; ++a) {
+            support += std::max(turn[a] * static_cast<double>(childBox[a]),
+                                turn[a] * static_cast<double>(childBox[3 + a]));
+          }
+          offset = std::max(offset, static_cast<double>(c.offset) + support);
+        }
+      }
+      cone.offset = roundUp(offset);
+      cone.spread = spread < 2.0 ? roundUp(spread) : std::numeric_limits<float>::infinity();
+    }
+  }
+}
+
+/// dsBoxDistance2: squared distance from p to the box (zero inside).
+double boxDistance2(const Eigen::Vector3d& p, const float* box) {
+  double sum = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double e = std::max(
+        std::max(static_cast<double>(box[a]) - p[a], p[a] - static_cast<double>(box[3 + a])), 0.0);
+    sum += e * e;
+  }
+  return sum;
+}
+
+/// dsCertOpen: whether the node (box, cone, a triangle under it) must be opened for p; lowers
+/// U (core2 = U^2, limit = U + margin) and moves the witness to `triangle` when the box's
+/// farthest point bounds the distance better; distance gets the box's squared distance.
+bool openNode(const Eigen::Vector3d& p, const float* box, const DsCertCone& cone, int triangle,
+              double target, double margin, double& limit, double& core2, int& witness,
+              double& distance) {
+  distance = 0.0;
+  double far2 = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double low = box[a];
+    const double high = box[3 + a];
+    const double e = std::max(std::max(low - p[a], p[a] - high), 0.0);
+    distance += e * e;
+    const double f = std::max(std::fabs(p[a] - low), std::fabs(p[a] - high));
+    far2 += f * f;
+  }
+  if (distance > limit * limit) {
+    return false;
+  }
+  if (far2 < core2) {
+    core2 = far2;
+    limit = std::sqrt(far2) + margin;
+    witness = triangle;
+  }
+  const double front =
+      static_cast<double>(cone.axis[0]) * p.x() + static_cast<double>(cone.axis[1]) * p.y() +
+      static_cast<double>(cone.axis[2]) * p.z() - static_cast<double>(cone.offset) - target;
+  const double spread = cone.spread;
+  return !(std::isfinite(spread) && front >= 0.0 && front * front >= spread * spread * far2);
+}
+
+}  // namespace
+
+void HostCertificate::setSurface(const Mesh& driver, const BindingMask& mask, double sceneScale) {
+  mVertexCount = driver.vertexCount();
+  mPointCount = mask.drivenVertexCount();
+  mMargin = DS_CERT_MARGIN_DOUBLE * sceneScale;
+  mTriangles.resize(3 * static_cast<std::size_t>(driver.triangleCount()));
+  for (int t = 0; t < driver.triangleCount(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      mTriangles[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)] =
+          driver.triangles(t, k);
+    }
+  }
+  mBvh = buildBvh(driver, mask, kLeafSize);
+  mEnabled = certifiable(mBvh, driver.triangleCount());
+  mNodeTriangles = nodeTriangles(mBvh);
+  mSeeds.clear();
+}
+
+void HostCertificate::remember(const SurfaceHit* lastFrame) {
+  mSeeds.resize(static_cast<std::size_t>(mPointCount));
+  for (int i = 0; i < mPointCount; ++i) {
+    mSeeds[static_cast<std::size_t>(i)] = lastFrame[i].triangle;
+  }
+}
+
+void HostCertificate::clear(int frameCount, const float* poses, const float* points,
+                            float clearance, SurfaceHit* hits, std::uint8_t* active, int* cleared,
+                            int threads) {
+  const std::size_t items = static_cast<std::size_t>(frameCount) * mPointCount;
+  if (!mEnabled || items == 0) {
+    return;
+  }
+  if (mSeeds.empty()) {
+    seedTriangles(mBvh, mTriangles.data(), poses, points, mSeeds);
+  }
+  const std::size_t poseValues = 3 * static_cast<std::size_t>(mVertexCount);
+  // The kernel's parameters are floats.
+  const double margin = static_cast<double>(static_cast<float>(mMargin));
+  const double target = static_cast<double>(clearance) + margin;
+  const std::int32_t* triangles = mTriangles.data();
+  auto corner = [&](const float* pose, int t, int k) {
+    return loadPoint(pose,
+                     triangles[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)]);
+  };
+
+  parallelFor(frameCount, threads, [&](int f) {
+    const float* pose = poses + static_cast<std::size_t>(f) * poseValues;
+    std::vector<float> boxes;
+    std::vector<DsCertCone> cones;
+    refit(mBvh, pose, boxes, cones);
+    std::vector<std::pair<int, double>> stack;
+    int count = 0;
+    for (int i = 0; i < mPointCount; ++i) {
+      const std::size_t item = static_cast<std::size_t>(f) * mPointCount + i;
+      if (active[item] == 0) {
+        continue;
+      }
+      const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
+      // The upper bound U: the smallest distance to the seed triangle and to the triangles of
+      // the leaf that a greedy descent (nearer box first) reaches; the nearest is the first
+      // witness.
+      int witness = mSeeds[static_cast<std::size_t>(i)];
+      double u = 0.0;
+      double v = 0.0;
+      double core2 = triangleDistance2(p, corner(pose, witness, 0), corner(pose, witness, 1),
+                                       corner(pose, witness, 2), u, v);
+      int node = 0;
+      while (mBvh.nodes[static_cast<std::size_t>(node)].count == 0) {
+        const DsBvhNode& current = mBvh.nodes[static_cast<std::size_t>(node)];
+        node = boxDistance2(p, &boxes[6 * static_cast<std::size_t>(current.left)]) <=
+                       boxDistance2(p, &boxes[6 * static_cast<std::size_t>(current.right)])
+                   ? current.left
+                   : current.right;
+      }
+      const DsBvhNode& probe = mBvh.nodes[static_cast<std::size_t>(node)];
+      for (int k = probe.first; k < probe.first + probe.count; ++k) {
+        const std::int32_t* slot = &mBvh.leafTriangles[4 * static_cast<std::size_t>(k)];
+        const double d2 = triangleDistance2(p, loadPoint(pose, slot[0]), loadPoint(pose, slot[1]),
+                                            loadPoint(pose, slot[2]), u, v);
+        if (d2 < core2) {
+          core2 = d2;
+          witness = slot[3];
+        }
+      }
+      double limit = std::sqrt(core2) + margin;
+      double distance = 0.0;
+      bool pass = true;
+      node = openNode(p, boxes.data(), cones[0], mNodeTriangles[0], target, margin, limit, core2,
+                      witness, distance)
+                 ? 0
+                 : -1;
+      stack.clear();
+      while (node >= 0 && pass) {
+        const DsBvhNode& current = mBvh.nodes[static_cast<std::size_t>(node)];
+        int next = -1;
+        if (current.count > 0) {
+          for (int k = current.first; k < current.first + current.count && pass; ++k) {
+            const std::int32_t* slot = &mBvh.leafTriangles[4 * static_cast<std::size_t>(k)];
+            const Eigen::Vector3d a = loadPoint(pose, slot[0]);
+            const Eigen::Vector3d b = loadPoint(pose, slot[1]);
+            const Eigen::Vector3d c = loadPoint(pose, slot[2]);
+            const Eigen::Vector3d e = (a.cwiseMin(b).cwiseMin(c) - p)
+                                          .cwiseMax(p - a.cwiseMax(b).cwiseMax(c))
+                                          .cwiseMax(0.0);
+            const double d2 = e.dot(e);
+            if (d2 > limit * limit) {
+              continue;
+            }
+            pass = inFront(p, a, b, c, target);
+          }
+        } else {
+          const int child[2] = {current.left, current.right};
+          double distances[2];
+          bool opened[2];
+          for (int side = 0; side < 2; ++side) {
+            const std::size_t c = static_cast<std::size_t>(child[side]);
+            opened[side] = openNode(p, &boxes[6 * c], cones[c], mNodeTriangles[c], target, margin,
+                                    limit, core2, witness, distances[side]);
+          }
+          const int nearSide = distances[0] <= distances[1] ? 0 : 1;
+          const double limit2 = limit * limit;
+          if (opened[nearSide] && distances[nearSide] <= limit2) {
+            next = child[nearSide];
+          }
+          if (opened[1 - nearSide] && distances[1 - nearSide] <= limit2) {
+            if (next < 0) {
+              next = child[1 - nearSide];
+            } else {
+              stack.emplace_back(child[1 - nearSide], distances[1 - nearSide]);
+            }
+          }
+        }
+        while (next < 0 && !stack.empty()) {
+          if (stack.back().second <= limit * limit) {
+            next = stack.back().first;
+          }
+          stack.pop_back();
+        }
+        node = next;
+      }
+      pass = pass && inFront(p, corner(pose, witness, 0), corner(pose, witness, 1),
+                             corner(pose, witness, 2), target);
+      if (!pass) {
+        continue;
+      }
+      SurfaceHit hit;
+      hit.triangle = witness;
+      hit.u = DS_CERT_THIRD;
+      hit.v = DS_CERT_THIRD;
+      const Eigen::Vector3d a = corner(pose, witness, 0);
+      const Eigen::Vector3d centroid = a +
+                                       static_cast<double>(hit.u) * (corner(pose, witness, 1) - a) +
+                                       static_cast<double>(hit.v) * (corner(pose, witness, 2) - a);
+      hit.distance2 = static_cast<float>((p - centroid).squaredNorm());
+      hits[item] = hit;
+      active[item] = 0;
+      ++count;
+    }
+    cleared[f] += count;
+  });
+}
+
+}  // namespace drivenshape::correction
