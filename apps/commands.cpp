@@ -206,6 +206,11 @@ int runDbBuild(const std::vector<std::string>& args) {
               "rigid parts of the driver the pose model reads its joints from (0 = as many as "
               "the clip shows)",
               "0")
+      .option("--model-velocity", "N",
+              "frames back the pose model's velocity feature looks (0 = no velocity)", "3")
+      .option("--model-history", "N",
+              "frames the pose model's history feature averages (0 = no history)", "15")
+      .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
       .option("--rig", "RIG.json",
               "take the parts from a rig instead: bone_names, bones (name, parent) and "
               "driver_weights (one row per driver vertex); each vertex goes to its heaviest "
@@ -237,6 +242,13 @@ int runDbBuild(const std::vector<std::string>& args) {
   if (options.model.parts == 1 || options.model.parts > 64) {
     DS_THROW(kUsage, "--model-parts takes 0 (found from the clip) or 2..64 (got ",
              options.model.parts, ")");
+  }
+  options.model.velocityLag = parser.getInt("--model-velocity", 0);
+  options.model.historyFrames = parser.getInt("--model-history", 0);
+  options.model.rank = parser.getInt("--model-rank", 1);
+  if (options.model.velocityLag > 60 || options.model.historyFrames > 120) {
+    DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",
+             options.model.velocityLag, " and ", options.model.historyFrames, ")");
   }
   const std::string output = parser.get("-o");
   checkOutputFolderWritable(output);

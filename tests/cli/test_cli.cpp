@@ -59,6 +59,17 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   expectError(runCli(dir, {"db", "build", "--driver-mesh", "a", "--driven-mesh", "b", "--driver",
                            "c", "--driven", "d", "-o", dir.file("db"), "--count", "zero"}),
               2, "--count");
+  const std::vector<std::string> build{
+      "db", "build", "--driver-mesh", "a", "--driven-mesh", "b", "--driver", "c", "--driven",
+      "d",  "-o",    dir.file("db")};
+  const auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = build;
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  };
+  expectError(runCli(dir, with({"--model-rank", "0"})), 2, "--model-rank");
+  expectError(runCli(dir, with({"--model-velocity", "-1"})), 2, "--model-velocity");
+  expectError(runCli(dir, with({"--model-history", "500"})), 2, "--model-history");
 }
 
 TEST(Cli, DevicesListsTheOpenClDevice) {
