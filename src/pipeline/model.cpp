@@ -18,22 +18,34 @@ namespace {
 constexpr std::size_t kSidePointsPerCall = std::size_t(1) << 20;
 
 /// Model::sides() from scratch: each pair's driven shape against its own driver shape, on the
-/// audit backend (exact closest points over every triangle) and InsideAudit's signs.
-std::vector<std::int8_t> learnSides(const Database& db, ClosestBackend& closest, int threads) {
+/// audit backend (exact closest points over every triangle) and InsideAudit's signs. With
+/// `certify`, the points the clearance certificate proves outside (clearance 0) need no search:
+/// their witnesses give them a positive sign, as the search would.
+std::vector<std::int8_t> learnSides(const Database& db, ClosestBackend& closest, Device& device,
+                                    bool certify, int threads) {
   const int k = db.shapeCount();
   const std::size_t vd = static_cast<std::size_t>(db.drivenVertexCount());
   const std::size_t driverValues = 3 * static_cast<std::size_t>(db.driverVertexCount());
   const InsideAudit audit(db.driverMesh);
   const int perCall = static_cast<int>(
       std::clamp<std::size_t>(kSidePointsPerCall / std::max<std::size_t>(vd, 1), 1, k));
-  std::vector<SurfaceHit> hits(static_cast<std::size_t>(perCall) * vd);
-  std::vector<float> distances(hits.size());
+  std::vector<float> distances(static_cast<std::size_t>(perCall) * vd);
   std::vector<int> insideVotes(vd, 0);
+  DeviceArray poses = device.makeArray(), points = device.makeArray(),
+              hitArray = device.makeArray();
   for (int first = 0; first < k; first += perCall) {
     const int count = std::min(perCall, k - first);
     const float* driver = &db.driverShapes[static_cast<std::size_t>(first) * driverValues];
     const float* driven = &db.drivenShapes[static_cast<std::size_t>(first) * 3 * vd];
-    closest.closest(count, driver, driven, hits.data());
+    poses.view(driver, static_cast<std::size_t>(count) * driverValues);
+    points.view(driven, static_cast<std::size_t>(count) * 3 * vd);
+    hitArray.resize<SurfaceHit>(static_cast<std::size_t>(count) * vd);
+    if (certify) {
+      closest.closestOrClearBlock(count, poses, points, 0.0f, hitArray, nullptr);
+    } else {
+      closest.closestBlock(count, poses, points, hitArray);
+    }
+    const SurfaceHit* hits = hitArray.read<SurfaceHit>();
     parallelFor(count, threads, [&](int i) {
       const std::size_t at = static_cast<std::size_t>(i) * vd;
       audit.signedDistances(driver + i * driverValues, static_cast<int>(vd), driven + 3 * at,
@@ -172,7 +184,7 @@ std::unique_ptr<ClosestBackend> Model::makeClosest(const BindingMask& mask) {
 
 const std::vector<std::int8_t>& Model::sides() {
   if (!mSidesLearnt) {
-    mSides = learnSides(db, audit(), threads);
+    mSides = learnSides(db, audit(), device, settings.clearanceCertificate, threads);
     mInsideVertices = static_cast<int>(std::count(mSides.begin(), mSides.end(), kSideInside));
     if (mInsideVertices > 0) {
       audit().setSides(mSides);

@@ -234,6 +234,10 @@ TEST_F(SidesTest, ClothAndMuscleBandsEachStayOnTheirSideOfTheSkin) {
   const Evaluation clothResult = clothEvaluator.evaluate(shot.frames, shot.driver);
   EXPECT_EQ(reportedInsideVertices(mixedEvaluator), muscle);
   EXPECT_EQ(reportedInsideVertices(clothEvaluator), 0);
+  // The sides are learnt with the clearance certificate: the full search learns the same.
+  EvaluatorSettings fullSearch;
+  fullSearch.clearanceCertificate = false;
+  EXPECT_EQ(reportedInsideVertices(Evaluator(mixed, fullSearch, cl.view())), muscle);
 
   // Each vertex on its side, near the offset there.
   const std::vector<float> distances = signedDistances(driverMesh, shot, result.cloth);
