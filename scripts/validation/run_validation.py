@@ -20,6 +20,7 @@ mean error of the frames the verdict calls covered. Writes everything under --ou
 
 Usage: scripts/validation/run_validation.py [--reference ../shared/data] [--clips DIR]
        [--build build] [--out out/validation] [--modes talk,bind,qp,defaults] [--only NAME...]
+       scripts/validation/run_validation.py --from-tables RUN1/table.json RUN2/table.json ...
 """
 import argparse
 import json
@@ -94,7 +95,15 @@ def main():
     ap.add_argument("--modes", default="talk,bind,qp,defaults")
     ap.add_argument("--only", nargs="*", default=[])
     ap.add_argument("--db-flags", default="", help="extra `db build` flags")
+    ap.add_argument("--from-tables", nargs="+", metavar="TABLE.json",
+                    help="print the table of earlier runs (their table.json) together, bake nothing")
     a = ap.parse_args()
+    if a.from_tables:
+        rows = [r for t in a.from_tables for r in json.load(open(t))]
+        rows.sort(key=lambda r: "public" in r["clip"])  # the public clips stay the last rows
+        print_table(rows, [m for m in a.modes.split(",") if all(m in r for r in rows)])
+        print_summary(rows)
+        return
     ds = os.path.join(a.build, "apps", "drivenshape")
     modes = a.modes.split(",")
     os.makedirs(a.out, exist_ok=True)
@@ -154,47 +163,52 @@ def main():
         rows.append(row)
     json.dump(rows, open(os.path.join(a.out, "table.json"), "w"), indent=1)
     print_table(rows, modes)
-    if pooled_pred:
-        print()
-        print(f"Predicted error vs true per-frame mean error over {len(pooled_pred)} frames "
-              f"of {len(rows)} clips: Spearman {spearman(pooled_pred, pooled_true):.3f}")
-        tol = rows[0]["defaults"]["coverage"]["tolerance"] if "coverage" in rows[0].get(
-            "defaults", {}) else None
-        for scene in ("pants", "sleeve"):
-            sel = [r for r in rows if r["scene"] == scene and "pred" in r]
-            cov = [p[1] for r in sel for p in r["pred"] if not p[2]]
-            allf = [p for r in sel for p in r["pred"]]
-            if not allf:
-                continue
-            t = sel[0]["defaults"]["coverage"]["tolerance"] * 1e3
-            print(f"{scene}: tolerance {t:.1f} mm; {len(cov)} of {len(allf)} frames covered, "
-                  f"their true mean error "
-                  f"{(sum(cov) / len(cov) * 1e3) if cov else float('nan'):.2f} mm; all frames "
-                  f"{sum(p[1] for p in allf) / len(allf) * 1e3:.2f} mm")
-        del tol
-        print()
-        print("Within each clip (Spearman of predicted vs true per-frame error): " + ", ".join(
-            f"{r['clip'].split()[0]} {spearman([p[0] for p in r['pred']], [p[1] for p in r['pred']]):+.2f}"
-            for r in rows if "pred" in r))
-        print()
-        print("The verdict at other tolerances (the bake's --coverage-tolerance; default 2% of "
-              "the rest cloth's bounding-box diagonal):")
-        print()
-        print("| character | tolerance | frames covered | their true mean error | holds |")
-        print("|---|---|---|---|---|")
-        for scene in ("pants", "sleeve"):
-            sel = [r for r in rows if r["scene"] == scene and "pred" in r]
-            allf = [p for r in sel for p in r["pred"]]
-            if not allf:
-                continue
-            diagonal = sel[0]["defaults"]["coverage"]["tolerance"] / 0.02
-            for fraction in (0.01, 0.015, 0.02, 0.03, 0.04):
-                tolerance = fraction * diagonal
-                cov = [p[1] for p in allf if p[0] <= tolerance]
-                mean = sum(cov) / len(cov) if cov else float("nan")
-                print(f"| {scene} | {fraction:.1%} = {tolerance * 1e3:.1f} mm | "
-                      f"{len(cov)} of {len(allf)} | {mean * 1e3:.2f} mm | "
-                      f"{'yes' if cov and mean <= tolerance else 'no'} |")
+    print_summary(rows)
+
+
+def print_summary(rows):
+    """The coverage figures under the table: pooled and per-clip Spearman, the verdict."""
+    pooled_pred = [p[0] for r in rows if "pred" in r for p in r["pred"]]
+    pooled_true = [p[1] for r in rows if "pred" in r for p in r["pred"]]
+    if not pooled_pred:
+        return
+    print()
+    print(f"Predicted error vs true per-frame mean error over {len(pooled_pred)} frames "
+          f"of {len(rows)} clips: Spearman {spearman(pooled_pred, pooled_true):.3f}")
+    for scene in ("pants", "sleeve"):
+        sel = [r for r in rows if r["scene"] == scene and "pred" in r]
+        cov = [p[1] for r in sel for p in r["pred"] if not p[2]]
+        allf = [p for r in sel for p in r["pred"]]
+        if not allf:
+            continue
+        t = sel[0]["defaults"]["coverage"]["tolerance"] * 1e3
+        print(f"{scene}: tolerance {t:.1f} mm; {len(cov)} of {len(allf)} frames covered, "
+              f"their true mean error "
+              f"{(sum(cov) / len(cov) * 1e3) if cov else float('nan'):.2f} mm; all frames "
+              f"{sum(p[1] for p in allf) / len(allf) * 1e3:.2f} mm")
+    print()
+    print("Within each clip (Spearman of predicted vs true per-frame error): " + ", ".join(
+        f"{r['clip'].split()[0]} {spearman([p[0] for p in r['pred']], [p[1] for p in r['pred']]):+.2f}"
+        for r in rows if "pred" in r))
+    print()
+    print("The verdict at other tolerances (the bake's --coverage-tolerance; default 2% of "
+          "the rest cloth's bounding-box diagonal):")
+    print()
+    print("| character | tolerance | frames covered | their true mean error | holds |")
+    print("|---|---|---|---|---|")
+    for scene in ("pants", "sleeve"):
+        sel = [r for r in rows if r["scene"] == scene and "pred" in r]
+        allf = [p for r in sel for p in r["pred"]]
+        if not allf:
+            continue
+        diagonal = sel[0]["defaults"]["coverage"]["tolerance"] / 0.02
+        for fraction in (0.01, 0.015, 0.02, 0.03, 0.04):
+            tolerance = fraction * diagonal
+            cov = [p[1] for p in allf if p[0] <= tolerance]
+            mean = sum(cov) / len(cov) if cov else float("nan")
+            print(f"| {scene} | {fraction:.1%} = {tolerance * 1e3:.1f} mm | "
+                  f"{len(cov)} of {len(allf)} | {mean * 1e3:.2f} mm | "
+                  f"{'yes' if cov and mean <= tolerance else 'no'} |")
 
 
 def print_table(rows, modes):
