@@ -3,12 +3,14 @@
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 
 #include <drivenshape/correction.h>
+#include <drivenshape/coverage_check.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>
@@ -72,7 +74,22 @@ void printTable(const ShotEvaluation& e, std::ostream& out) {
   }
 }
 
-void printPerFrame(const ShotEvaluation& e, std::ostream& out) {
+/// The report's prediction per evaluated frame (empty without --report).
+using PredictionByFrame = std::map<int, const CoverageFrame*>;
+
+PredictionByFrame predictionByFrame(const std::optional<CoverageCheck>& coverage) {
+  PredictionByFrame byFrame;
+  if (coverage) {
+    for (const CoverageFrame& f : coverage->frames) {
+      byFrame[f.frame] = &f;
+    }
+  }
+  return byFrame;
+}
+
+void printPerFrame(const ShotEvaluation& e, const std::optional<CoverageCheck>& coverage,
+                   std::ostream& out) {
+  const PredictionByFrame predicted = predictionByFrame(coverage);
   out << "frame        mean         rms         max  (vertex)        jump  truth jump";
   if (e.penetrations) {
     out << "  inside       depth  truth inside  truth depth";
@@ -82,6 +99,9 @@ void printPerFrame(const ShotEvaluation& e, std::ostream& out) {
     if (e.penetrations) {
       out << "  baseline inside";
     }
+  }
+  if (coverage) {
+    out << "   predicted  flagged";
   }
   out << "\n";
   for (std::size_t f = 0; f < e.frames.size(); ++f) {
@@ -102,6 +122,12 @@ void printPerFrame(const ShotEvaluation& e, std::ostream& out) {
       if (e.penetrations) {
         out << "  " << std::setw(15) << l.inside;
       }
+    }
+    if (coverage) {
+      const auto p = predicted.find(b.frame);
+      const bool known = p != predicted.end();
+      out << "  " << std::setw(10) << cell(known ? p->second->predictedError : 0.0, known) << "  "
+          << std::setw(7) << (known ? (p->second->flagged ? "yes" : "no") : "-");
     }
     out << "\n";
   }
@@ -155,8 +181,52 @@ nlohmann::json summaryJson(const ClothMetrics& c, bool penetrations, bool withEr
   return j;
 }
 
+/// The coverage lines after the summary: the report's verdict against the truth.
+void printCoverage(const CoverageCheck& c, const std::string& reportPath, std::ostream& out) {
+  auto optional = [](const std::optional<double>& value, int digits = 6) {
+    return cell(value.value_or(0.0), value.has_value(), digits);
+  };
+  out << "coverage (" << reportPath << "): " << c.frames.size() << " frames predicted";
+  if (c.missing > 0 || c.unpredicted > 0) {
+    out << " (" << c.missing << " not in the report, " << c.unpredicted << " without a prediction)";
+  }
+  out << "; Spearman of predicted vs true mean error " << optional(c.spearman, 4) << "\n";
+  out << "  tolerance " << c.tolerance << ": " << c.enough << " enough (covered "
+      << cell(c.coveredFraction, true, 4) << "), true mean " << optional(c.enoughTrueError) << " ("
+      << c.missed << " over); " << c.flagged << " flagged, true mean "
+      << optional(c.flaggedTrueError) << "\n";
+  out << "  verdict "
+      << (!c.verdictHolds   ? "not tested: no frame is predicted enough"
+          : *c.verdictHolds ? "holds: the enough frames' true mean error is within the tolerance"
+                            : "fails: the enough frames' true mean error is over the tolerance")
+      << "\n";
+}
+
+template <typename T>
+nlohmann::json optionalJson(const std::optional<T>& value) {
+  return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
+}
+
+nlohmann::json coverageJson(const CoverageCheck& c, const std::string& reportPath) {
+  return nlohmann::json{{"report", reportPath},
+                        {"frames", c.frames.size()},
+                        {"missing", c.missing},
+                        {"unpredicted", c.unpredicted},
+                        {"spearman", optionalJson(c.spearman)},
+                        {"tolerance", c.tolerance},
+                        {"covered_fraction", c.coveredFraction},
+                        {"enough", c.enough},
+                        {"flagged", c.flagged},
+                        {"enough_true_error", optionalJson(c.enoughTrueError)},
+                        {"flagged_true_error", optionalJson(c.flaggedTrueError)},
+                        {"missed", c.missed},
+                        {"verdict_holds", optionalJson(c.verdictHolds)}};
+}
+
 nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath,
-                          const std::string& device) {
+                          const std::string& device, const std::optional<CoverageCheck>& coverage,
+                          const std::string& reportPath) {
+  const PredictionByFrame predicted = predictionByFrame(coverage);
   nlohmann::json frames = nlohmann::json::array();
   for (std::size_t f = 0; f < e.frames.size(); ++f) {
     const ClothFrameMetrics& b = e.bake.frames[f];
@@ -170,6 +240,14 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
     entry["truth"] = frameJson(e.truth.frames[f], e.penetrations, false);
     if (e.hasBaseline) {
       entry["baseline"] = frameJson(e.baseline.frames[f], e.penetrations, true);
+    }
+    if (coverage) {
+      const auto p = predicted.find(b.frame);
+      entry["coverage"] = p == predicted.end()
+                              ? nlohmann::json(nullptr)
+                              : nlohmann::json{{"predicted_error", p->second->predictedError},
+                                               {"flagged", p->second->flagged},
+                                               {"true_error", p->second->trueError}};
     }
     frames.push_back(entry);
   }
@@ -192,6 +270,7 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
       {"penetrations", e.penetrations},
       {"baseline", e.hasBaseline},
       {"summary", summary},
+      {"coverage", coverage ? coverageJson(*coverage, reportPath) : nlohmann::json(nullptr)},
       {"frames", frames}};
 }
 
@@ -200,13 +279,14 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
 int runEval(const std::vector<std::string>& args) {
   ArgParser parser(
       "drivenshape eval --truth CACHE --bake CACHE --frames RANGE [--driver CACHE "
-      "(--driver-mesh M.obj [--driven-mesh M.obj] | --db DB)] [--baseline]",
+      "(--driver-mesh M.obj [--driven-mesh M.obj] | --db DB)] [--baseline] [--report PATH]",
       "Compares a bake with a truth cache (e.g. the simulation it replaces): mean, RMS and max "
       "per-vertex distance, and the largest frame-to-frame jump of the bake and of the truth. "
       "With the shot's driver: cloth vertices inside the driver per frame and the deepest one, "
       "for the bake and the truth (exact closest triangle, angle-weighted pseudo-normal sign). "
       "With --baseline: the same figures for the binding baseline (the rest cloth bound to the "
-      "rest driver and carried along, what `bake --weights bind --no-resolve` writes).");
+      "rest driver and carried along, what `bake --weights bind --no-resolve` writes). With "
+      "--report: the bake report's coverage verdict against the truth.");
   parser.option("--truth", "CACHE", "reference cache (.pc2 or name.####.exr)", "", true)
       .option("--bake", "CACHE", "baked cache to judge", "", true)
       .option("--frames", "RANGE", "frames to compare (jumps follow this order)", "", true)
@@ -218,6 +298,9 @@ int runEval(const std::vector<std::string>& args) {
       .option("--db", "DB", "take both rest meshes from this database instead")
       .flag("--baseline", "add the binding baseline for the same frames (needs --driver)")
       .option("--bind", "MAP", "binding mask (JSON) for the baseline, as in bake --bind")
+      .option("--report", "PATH",
+              "the bake's report (bake --report, pose model): its predicted errors and "
+              "coverage verdict against the truth")
       .option("--device", "SPEC", "closest-triangle search: host, auto, cpu, gpu, index, name",
               "host")
       .option("--threads", "N", "host threads (0 = all cores)", "0")
@@ -264,6 +347,12 @@ int runEval(const std::vector<std::string>& args) {
   }
   if (parser.has("--json")) {
     checkOutputFolderWritable(parser.get("--json"));
+  }
+
+  // Read before the evaluation, so a bad report fails at once.
+  std::optional<BakeReportCoverage> report;
+  if (parser.has("--report")) {
+    report = readBakeReportCoverage(parser.get("--report"));
   }
 
   const auto truth = openPointCache(parser.get("--truth"));
@@ -315,6 +404,10 @@ int runEval(const std::vector<std::string>& args) {
   }
 
   const ShotEvaluation result = evaluateShot(input, frames, *closest);
+  std::optional<CoverageCheck> coverage;
+  if (report) {
+    coverage = checkCoverage(*report, result);
+  }
 
   std::cout << "eval: " << frames.size() << " frames (" << formatFrameRange(frames) << ") x "
             << result.vertexCount << " cloth vertices";
@@ -325,16 +418,21 @@ int runEval(const std::vector<std::string>& args) {
   std::cout << "\n";
   std::cout << std::setprecision(6);
   if (parser.has("--per-frame")) {
-    printPerFrame(result, std::cout);
+    printPerFrame(result, coverage, std::cout);
   }
   printTable(result, std::cout);
   std::cout << "overall over " << result.frames.size() << " frames x " << result.vertexCount
             << " vertices: mean " << result.bake.mean << ", rms " << result.bake.rms << ", max "
             << result.bake.max << " (frame " << result.bake.maxFrame << ")\n";
+  const std::string reportPath = parser.has("--report") ? parser.get("--report") : std::string();
+  if (coverage) {
+    printCoverage(*coverage, reportPath, std::cout);
+  }
   if (parser.has("--json")) {
-    const nlohmann::json report =
-        reportJson(result, haveDriver ? parser.get("--driver") : std::string(), deviceName);
-    writeFileAtomically(parser.get("--json"), jsonText(report, 1) + "\n");
+    const nlohmann::json json =
+        reportJson(result, haveDriver ? parser.get("--driver") : std::string(), deviceName,
+                   coverage, reportPath);
+    writeFileAtomically(parser.get("--json"), jsonText(json, 1) + "\n");
   }
   return 0;
 }

@@ -443,6 +443,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
       {"database",
        {{"content_hash", hashToHex(db.contentHash())},
         {"shape_count", db.shapeCount()},
+        {"driven_vertices", db.drivenVertexCount()},
         {"frames", db.frames}}},
       {"driver_cache", driver.path()},
       {"output", options.outputPattern},

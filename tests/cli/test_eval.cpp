@@ -9,10 +9,12 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iomanip>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <sstream>
 #include <tuple>
 
 #include <Eigen/Geometry>
@@ -22,6 +24,7 @@
 #include <drivenshape/evaluate.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+#include "atomic_file.h"
 
 #include "cl_backends.h"
 
@@ -579,6 +582,195 @@ TEST(EvalCommand, ClearErrors) {
   r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
                    sample("test.driver.pc2"), "--frames", "1-3"});
   expectCliError(r, 3, "vertices");
+}
+
+// ---- eval --report: the bake's coverage verdict against the truth ----
+
+/// Spearman's rank correlation computed here, apart from the tool: average ranks by counting
+/// (1 + values below + half the other equal ones), then Pearson with means from the data.
+double referenceSpearman(const std::vector<double>& x, const std::vector<double>& y) {
+  auto ranks = [](const std::vector<double>& v) {
+    std::vector<double> r;
+    for (double a : v) {
+      const auto below = std::count_if(v.begin(), v.end(), [&](double b) { return b < a; });
+      const auto equal = std::count(v.begin(), v.end(), a);
+      r.push_back(1.0 + double(below) + 0.5 * double(equal - 1));
+    }
+    return r;
+  };
+  const std::vector<double> rx = ranks(x), ry = ranks(y);
+  double mx = 0.0, my = 0.0;
+  for (std::size_t i = 0; i < rx.size(); ++i) {
+    mx += rx[i] / double(rx.size());
+    my += ry[i] / double(ry.size());
+  }
+  double sxy = 0.0, sxx = 0.0, syy = 0.0;
+  for (std::size_t i = 0; i < rx.size(); ++i) {
+    sxy += (rx[i] - mx) * (ry[i] - my);
+    sxx += (rx[i] - mx) * (rx[i] - mx);
+    syy += (ry[i] - my) * (ry[i] - my);
+  }
+  return sxy / std::sqrt(sxx * syy);
+}
+
+/// A pose-model database of the sleeve (the default `db build`) in `dir`.
+std::string buildPoseDb(const TempDir& dir) {
+  const std::string db = dir.file("pose.dsdb");
+  const CliRun r =
+      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
+  EXPECT_EQ(r.code, 0) << r.err;
+  return db;
+}
+
+/// Bakes the sleeve's test driver into dir/<name>/ with a report; returns the report's path.
+std::string bakeWithReport(const TempDir& dir, const std::string& db, const std::string& name,
+                           const std::string& frames, std::vector<std::string> extra = {}) {
+  fs::create_directories(dir.file(name));
+  const std::string report = dir.file(name + "/report.json");
+  std::vector<std::string> args = {"bake",
+                                   "--db",
+                                   db,
+                                   "--driver",
+                                   sample("test.driver.pc2"),
+                                   "--frames",
+                                   frames,
+                                   "--device",
+                                   "host",
+                                   "--quiet",
+                                   "--report",
+                                   report,
+                                   "-o",
+                                   dir.file(name + "/sleeve.####.exr")};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const CliRun r = runCli(dir, args);
+  EXPECT_EQ(r.code, 0) << r.err;
+  return report;
+}
+
+TEST(EvalCommand, ReportCoverageAgainstTheTruth) {
+  TempDir dir;
+  const std::string db = buildPoseDb(dir);
+  const std::string frames = "1-25x3";  // 9 frames
+  // A first bake gives the predicted errors; the second flags the upper half of them (its
+  // tolerance is their median), so both the enough and the flagged frames are measured.
+  const nlohmann::json first = readJson(bakeWithReport(dir, db, "first", frames));
+  std::vector<double> firstPredicted;
+  for (const nlohmann::json& f : first["frames"]) {
+    ASSERT_TRUE(f.contains("predicted_error")) << "the pose model predicts every frame";
+    firstPredicted.push_back(f["predicted_error"].get<double>());
+  }
+  ASSERT_EQ(firstPredicted.size(), 9u);
+  std::vector<double> sorted = firstPredicted;
+  std::sort(sorted.begin(), sorted.end());
+  std::ostringstream median;
+  median << std::setprecision(17) << sorted[4];
+  const std::string reportPath =
+      bakeWithReport(dir, db, "bake", frames, {"--coverage-tolerance", median.str()});
+
+  const CliRun r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+                                dir.file("bake/sleeve.####.exr"), "--frames", frames, "--report",
+                                reportPath, "--per-frame", "--json", dir.file("eval.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("coverage (" + reportPath + "): 9 frames predicted"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("predicted  flagged"), std::string::npos) << r.out;
+
+  // The report, read here: frame -> (predicted error, flagged).
+  const nlohmann::json report = readJson(reportPath);
+  EXPECT_EQ(report["database"]["driven_vertices"].get<int>(), 2244);
+  const double tolerance = report["coverage"]["tolerance"].get<double>();
+  std::map<int, std::pair<double, bool>> predictions;
+  for (const nlohmann::json& f : report["frames"]) {
+    predictions[f["frame"].get<int>()] = {f["predicted_error"].get<double>(),
+                                          f["coverage"]["flagged"].get<bool>()};
+  }
+  const nlohmann::json j = readJson(dir.file("eval.json"));
+  ASSERT_TRUE(j["coverage"].is_object()) << j.dump();
+  const nlohmann::json& c = j["coverage"];
+  ASSERT_EQ(j["frames"].size(), 9u);
+  EXPECT_EQ(c["frames"].get<int>(), 9);
+  EXPECT_EQ(c["missing"].get<int>(), 0);
+  EXPECT_EQ(c["unpredicted"].get<int>(), 0);
+  EXPECT_EQ(c["report"].get<std::string>(), reportPath);
+  EXPECT_EQ(c["tolerance"].get<double>(), tolerance);
+
+  std::vector<double> predicted, truth;
+  double enoughSum = 0.0, flaggedSum = 0.0;
+  int enough = 0, flagged = 0;
+  for (const nlohmann::json& frame : j["frames"]) {
+    const int number = frame["frame"].get<int>();
+    ASSERT_EQ(predictions.count(number), 1u) << number;
+    const auto [error, flag] = predictions[number];
+    ASSERT_TRUE(frame["coverage"].is_object()) << frame.dump();
+    EXPECT_EQ(frame["coverage"]["predicted_error"].get<double>(), error) << number;
+    EXPECT_EQ(frame["coverage"]["flagged"].get<bool>(), flag) << number;
+    EXPECT_EQ(frame["coverage"]["true_error"].get<double>(), frame["mean"].get<double>()) << number;
+    predicted.push_back(error);
+    truth.push_back(frame["mean"].get<double>());
+    (flag ? flaggedSum : enoughSum) += frame["mean"].get<double>();
+    ++(flag ? flagged : enough);
+  }
+  ASSERT_GT(enough, 0);
+  ASSERT_GT(flagged, 0);
+  EXPECT_EQ(c["enough"].get<int>(), enough);
+  EXPECT_EQ(c["flagged"].get<int>(), flagged);
+  EXPECT_NEAR(c["covered_fraction"].get<double>(), enough / 9.0, 1e-15);
+  expectRel(c["enough_true_error"].get<double>(), enoughSum / enough, kEvalErrorRelTol,
+            "enough frames' true error");
+  expectRel(c["flagged_true_error"].get<double>(), flaggedSum / flagged, kEvalErrorRelTol,
+            "flagged frames' true error");
+  EXPECT_EQ(c["verdict_holds"].get<bool>(), enoughSum / enough <= tolerance);
+  EXPECT_NEAR(c["spearman"].get<double>(), referenceSpearman(predicted, truth),
+              testing::kRankCorrelationTol);
+  std::printf("[ measured ] sleeve %s: Spearman %.3f over 9 frames, covered %.3f\n", frames.c_str(),
+              c["spearman"].get<double>(), c["covered_fraction"].get<double>());
+
+  // Frames the report lacks are counted: the same report with its first three frames removed.
+  nlohmann::json partial = report;
+  partial["frames"].erase(partial["frames"].begin(), partial["frames"].begin() + 3);
+  writeFileAtomically(dir.file("partial.json"), partial.dump());
+  const CliRun p = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+                                dir.file("bake/sleeve.####.exr"), "--frames", frames, "--report",
+                                dir.file("partial.json"), "--json", dir.file("partial_eval.json")});
+  ASSERT_EQ(p.code, 0) << p.err;
+  const nlohmann::json pj = readJson(dir.file("partial_eval.json"));
+  EXPECT_EQ(pj["coverage"]["frames"].get<int>(), 6);
+  EXPECT_EQ(pj["coverage"]["missing"].get<int>(), 3);
+  EXPECT_TRUE(pj["frames"][0]["coverage"].is_null());
+  EXPECT_NE(p.out.find("(3 not in the report, 0 without a prediction)"), std::string::npos)
+      << p.out;
+}
+
+TEST(EvalCommand, ReportErrors) {
+  TempDir dir;
+  const std::string db = buildPoseDb(dir);
+  const std::string frames = "1-7x3";
+  const std::string qp = bakeWithReport(dir, db, "qp", frames, {"--weights", "qp"});
+  const std::string model = bakeWithReport(dir, db, "model", frames);
+  auto eval = [&](const std::string& report) {
+    return runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
+                        dir.file("model/sleeve.####.exr"), "--frames", frames, "--report", report});
+  };
+  // A QP bake predicts nothing: say so, and what to do.
+  CliRun r = eval(qp);
+  expectCliError(r, 3, qp + ": no frame has a predicted error (its weights are 'qp')");
+  EXPECT_NE(r.err.find("bake with it"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("pose model"), std::string::npos) << r.err;
+  // Not JSON, not a report, not this bake's cloth, not there.
+  writeFileAtomically(dir.file("text.json"), "frames: 1-7x3\n");
+  expectCliError(eval(dir.file("text.json")), 3, dir.file("text.json") + ": not valid JSON");
+  writeFileAtomically(dir.file("eval_like.json"), R"({"mean": 0.1, "summary": {}})");
+  expectCliError(eval(dir.file("eval_like.json")), 3,
+                 dir.file("eval_like.json") + ": no \"frames\" array");
+  nlohmann::json other = readJson(model);
+  other["database"]["driven_vertices"] = 2146;
+  writeFileAtomically(dir.file("other.json"), other.dump());
+  expectCliError(eval(dir.file("other.json")), 3,
+                 "report is of a bake of 2146 cloth vertices, the bake '" +
+                     dir.file("model/sleeve.####.exr") + "' has 2244");
+  expectCliError(eval(dir.file("none.json")), 3, "none.json");
 }
 
 }  // namespace

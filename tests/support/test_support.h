@@ -91,6 +91,9 @@ inline constexpr double kEvalErrorRelTol = 1e-12;
 /// scale S: float world positions (6e-8 of coordinates up to S) and the closest point's float
 /// (u, v) (kHitPointRelTol's 1.2e-7 S) make a few 1e-7 S.
 inline constexpr double kEvalDepthRelTol = 1e-6;
+/// Spearman rank correlation (eval --report) vs an independent computation from the same
+/// values: ranks are exact halves, the sums differ only in their order (~1e-16 per term).
+inline constexpr double kRankCorrelationTol = 1e-12;
 
 // ---- Tolerances of the layer quantities (tests/layers) ----
 

@@ -1,0 +1,82 @@
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <drivenshape/evaluate.h>
+
+namespace drivenshape {
+
+// ---- The coverage verdict of a bake, checked against a truth (`drivenshape eval --report`) ----
+
+/// One frame of a bake report with the pose model's prediction.
+struct PredictedFrame {
+  int frame = 0;
+  double predictedError = 0.0;  ///< predicted mean vertex error (scene units)
+  bool flagged = false;         ///< predicted worse than the tolerance: simulate it
+};
+
+/// What a bake report (`bake --report`) says about coverage.
+struct BakeReportCoverage {
+  std::string source;                     ///< the report's path, for messages
+  std::vector<PredictedFrame> predicted;  ///< the entries with a prediction, in report order
+  std::vector<int> unpredicted;           ///< the frames of the entries without one
+  double tolerance = -1.0;  ///< `coverage.tolerance` (scene units); -1 when nothing is predicted
+  int clothVertices = -1;   ///< `database.driven_vertices`; -1 when the report states none
+  std::string weights;      ///< `settings.weights` when stated (for messages), else empty
+};
+
+/// Reads the coverage part of a bake report's JSON text. Entries of `frames` without a
+/// `predicted_error` (a QP bake, frames kept by --skip-existing) go to `unpredicted`.
+/// Error(kInput) naming `source` for text that is not JSON, no `frames` array, a frame listed
+/// twice, a prediction that is not a finite number >= 0 or has no `coverage.flagged`, or
+/// predictions without a shot `coverage.tolerance`.
+BakeReportCoverage parseBakeReportCoverage(const std::string& text, const std::string& source);
+/// The same from a file.
+BakeReportCoverage readBakeReportCoverage(const std::string& path);
+
+/// One evaluated frame the report predicts.
+struct CoverageFrame {
+  int frame = 0;
+  double predictedError = 0.0;  ///< the report's
+  bool flagged = false;         ///< the report's
+  double trueError = 0.0;       ///< the mean vertex error eval measured against the truth
+};
+
+/// The prediction against the truth over the evaluated frames the report predicts. A frame
+/// is "enough" when the report does not flag it; the verdict holds when the true mean error
+/// of those frames is within the tolerance.
+struct CoverageCheck {
+  std::vector<CoverageFrame> frames;  ///< in the order of the evaluation
+  int missing = 0;                    ///< evaluated frames the report does not list
+  int unpredicted = 0;                ///< evaluated frames it lists without a prediction
+  double tolerance = 0.0;
+  std::optional<double> spearman;  ///< rank correlation of predicted vs true error; none with
+                                   ///< fewer than 2 frames or when either side is constant
+  double coveredFraction = 0.0;    ///< share of `frames` that are enough
+  int enough = 0;
+  int flagged = 0;
+  std::optional<double> enoughTrueError;   ///< true mean error over the enough frames
+  std::optional<double> flaggedTrueError;  ///< true mean error over the flagged frames
+  int missed = 0;                          ///< enough frames whose true error is over tolerance
+  std::optional<bool> verdictHolds;        ///< enoughTrueError <= tolerance; none without
+                                           ///< enough frames (the verdict claims nothing)
+};
+
+/// Matches the report to the bake's evaluation (its per-frame mean error). Error(kInput)
+/// naming the report when it states a cloth vertex count other than the evaluation's, or
+/// predicts none of the evaluated frames (with what to do).
+CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluation& evaluation);
+
+/// Average ranks (1-based; tied values share the mean of their positions) of `values`.
+/// Error(kNumerical) for a value that is not finite.
+std::vector<double> averageRanks(const std::vector<double>& values);
+
+/// Spearman's rank correlation of `x` and `y` (the Pearson correlation of their average
+/// ranks), in [-1, 1]. None with fewer than 2 pairs or when either side is constant.
+/// Error(kInternal) when the sizes differ; Error(kNumerical) for a value that is not finite.
+std::optional<double> spearmanCorrelation(const std::vector<double>& x,
+                                          const std::vector<double>& y);
+
+}  // namespace drivenshape
