@@ -21,6 +21,16 @@ ArgParser& ArgParser::option(const std::string& name, const std::string& valueNa
   return *this;
 }
 
+ArgParser& ArgParser::repeated(const std::string& name, const std::string& valueName, int words,
+                               const std::string& help) {
+  mOrder.push_back(name);
+  Spec spec{valueName, help, "", false};
+  spec.words = words;
+  spec.repeated = true;
+  mSpecs[name] = spec;
+  return *this;
+}
+
 ArgParser& ArgParser::flag(const std::string& name, const std::string& help) {
   mOrder.push_back(name);
   mSpecs[name] = Spec{"", help, "", false};
@@ -56,6 +66,28 @@ bool ArgParser::parse(const std::vector<std::string>& args) {
       const auto spec = mSpecs.find(name);
       if (spec == mSpecs.end()) {
         DS_THROW(kUsage, "unknown option '", name, "' for `", mUsage, "`; see --help");
+      }
+      if (spec->second.repeated) {
+        const int words = spec->second.words;
+        if (inlineValue && words != 1) {
+          DS_THROW(kUsage, "option '", name, "' takes ", words, " values (", spec->second.valueName,
+                   "), not name=value");
+        }
+        std::vector<std::string> values;
+        if (inlineValue) {
+          values.push_back(value);
+        }
+        while (static_cast<int>(values.size()) < words) {
+          const bool option = i + 1 < args.size() && args[i + 1].size() > 1 &&
+                              args[i + 1][0] == '-' && !std::isdigit(args[i + 1][1]);
+          if (i + 1 >= args.size() || option) {
+            DS_THROW(kUsage, "option '", name, "' needs ", words, words == 1 ? " value" : " values",
+                     " (", spec->second.valueName, ")");
+          }
+          values.push_back(args[++i]);
+        }
+        mRepeated[name].push_back(std::move(values));
+        continue;
       }
       if (spec->second.valueName.empty()) {
         if (inlineValue) {
@@ -111,7 +143,9 @@ std::string ArgParser::help() const {
       out << "\n" << std::string(28, ' ');
     }
     out << spec.help;
-    if (spec.required) {
+    if (spec.repeated) {
+      out << " (repeatable)";
+    } else if (spec.required) {
       out << " (required)";
     } else if (!spec.defaultValue.empty()) {
       out << " [default: " << spec.defaultValue << "]";
@@ -126,7 +160,12 @@ std::string ArgParser::help() const {
 }
 
 bool ArgParser::has(const std::string& name) const {
-  return mValues.count(name) != 0;
+  return mValues.count(name) != 0 || mRepeated.count(name) != 0;
+}
+
+std::vector<std::vector<std::string>> ArgParser::all(const std::string& name) const {
+  const auto it = mRepeated.find(name);
+  return it == mRepeated.end() ? std::vector<std::vector<std::string>>() : it->second;
 }
 
 std::string ArgParser::get(const std::string& name) const {

@@ -16,6 +16,10 @@ class ArgParser {
   /// A value option: `--name VALUE`. `defaultValue` is shown in --help.
   ArgParser& option(const std::string& name, const std::string& valueName, const std::string& help,
                     const std::string& defaultValue = "", bool required = false);
+  /// A repeatable option of `words` values: `--name A B`, given any number of times (all()).
+  /// `valueName` names the words in --help, e.g. "DRIVER DRIVEN".
+  ArgParser& repeated(const std::string& name, const std::string& valueName, int words,
+                      const std::string& help);
   /// A boolean flag: `--name`.
   ArgParser& flag(const std::string& name, const std::string& help);
   /// Extra text printed after the options in --help.
@@ -31,6 +35,8 @@ class ArgParser {
   std::string get(const std::string& name) const;
   int getInt(const std::string& name, int minimum) const;
   double getDouble(const std::string& name, double minimum) const;
+  /// Every use of a repeated option, in the order given: its words each time.
+  std::vector<std::vector<std::string>> all(const std::string& name) const;
   const std::vector<std::string>& positionals() const { return mPositionals; }
 
  private:
@@ -39,6 +45,8 @@ class ArgParser {
     std::string help;
     std::string defaultValue;
     bool required = false;
+    int words = 1;  // values per use; repeated options only
+    bool repeated = false;
   };
   std::string mUsage;
   std::string mSummary;
@@ -48,6 +56,7 @@ class ArgParser {
   std::vector<std::string> mOrder;
   std::map<std::string, Spec> mSpecs;
   std::map<std::string, std::string> mValues;
+  std::map<std::string, std::vector<std::vector<std::string>>> mRepeated;
   std::vector<std::string> mPositionals;
 };
 

@@ -73,8 +73,15 @@ void infoDatabase(const std::string& path) {
             << ", removed "
             << (db.options.removeFrames.empty() ? "none"
                                                 : formatFrameRange(db.options.removeFrames))
-            << ", duplicate tolerance " << db.options.duplicateTolerance << " of the diagonal\n"
-            << "  picks (order, source frame, reason, RMS distance to earlier picks):\n";
+            << ", duplicate tolerance " << db.options.duplicateTolerance << " of the diagonal\n";
+  for (std::size_t c = 0; c < db.extraClips.size(); ++c) {
+    const ReferenceClipSource& clip = db.extraClips[c];
+    std::cout << "  reference clip " << c + 2 << " (pose model only): driver " << clip.driverSource
+              << ", driven " << clip.drivenSource << ", frames "
+              << (clip.frames.empty() ? std::string("none") : formatFrameRange(clip.frames))
+              << " (model frames + " << clip.frameOffset << ")\n";
+  }
+  std::cout << "  picks (order, source frame, reason, RMS distance to earlier picks):\n";
   for (int i = 0; i < db.shapeCount(); ++i) {
     std::cout << "    " << std::setw(3) << i << "  frame " << std::setw(6) << db.frames[i] << "  "
               << std::setw(8) << pickReasonName(db.reasons[i]) << "  " << db.pickDistances[i]
@@ -176,96 +183,6 @@ int runInfo(const std::vector<std::string>& args) {
   } else {
     DS_THROW(kInput, "'", path, "' is not a database, .obj, .pc2 or .exr file");
   }
-  return 0;
-}
-
-int runDbBuild(const std::vector<std::string>& args) {
-  ArgParser parser(
-      "drivenshape db build --driver-mesh M.obj --driven-mesh M.obj --driver CACHE "
-      "--driven CACHE -o DB",
-      "Builds a DrivenShape database from a reference animation: a greedy farthest-point pick "
-      "of driver shapes (seeded with --add-frames, else with the settled rest pose: the "
-      "latest candidate frame whose driver is as close to the rest driver as any, i.e. the end "
-      "of the opening hold, once the cloth has draped), each paired with the driven shape of "
-      "the same frame.");
-  parser.option("--driver-mesh", "M.obj", "driver rest mesh (topology, groups)", "", true)
-      .option("--driven-mesh", "M.obj", "driven rest mesh (topology, UVs, groups)", "", true)
-      .option("--driver", "CACHE", "driver reference cache (.pc2 or name.####.exr)", "", true)
-      .option("--driven", "CACHE", "driven reference cache, same frames", "", true)
-      .option("--frames", "RANGE", "candidate frames, e.g. 1-320 or 21-320x2", "all")
-      .option("--count", "N", "shapes to keep", "30")
-      .option("--add-frames", "LIST", "frames always kept (they seed the pick)")
-      .option("--remove-frames", "LIST", "frames never kept")
-      .option("--duplicate-tolerance", "X",
-              "reject shapes within X * driver bbox diagonal (RMS) of a kept one", "0.001")
-      .option("--model", "KIND",
-              "pose: also fit the pose model over every candidate frame (the rest binding plus "
-              "a learned correction; what `bake` evaluates by default); none: the picks only",
-              "pose")
-      .option("--model-parts", "N",
-              "rigid parts of the driver the pose model reads its joints from (0 = as many as "
-              "the clip shows)",
-              "0")
-      .option("--model-velocity", "N",
-              "frames back the pose model's velocity feature looks (0 = no velocity)", "3")
-      .option("--model-history", "N",
-              "frames the pose model's history feature averages (0 = no history)", "15")
-      .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
-      .option("--rig", "RIG.json",
-              "take the parts from a rig instead: bone_names, bones (name, parent) and "
-              "driver_weights (one row per driver vertex); each vertex goes to its heaviest "
-              "bone")
-      .option("-o", "DB", "database file to write", "", true)
-      .flag("--quiet", "do not list the picks");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
-  DatabaseBuildOptions options;
-  options.count = parser.getInt("--count", 1);
-  options.duplicateTolerance = parser.getDouble("--duplicate-tolerance", 0.0);
-  if (parser.has("--frames")) {
-    options.frames = parseFrameRange(parser.get("--frames"));
-  }
-  if (parser.has("--add-frames")) {
-    options.addFrames = parseFrameRange(parser.get("--add-frames"));
-  }
-  if (parser.has("--remove-frames")) {
-    options.removeFrames = parseFrameRange(parser.get("--remove-frames"));
-  }
-  const std::string model = parser.get("--model");
-  if (model != "pose" && model != "none") {
-    DS_THROW(kUsage, "--model takes pose or none (got '", model, "')");
-  }
-  options.poseModel = model == "pose";
-  options.model.parts = parser.getInt("--model-parts", 0);
-  if (options.model.parts == 1 || options.model.parts > 64) {
-    DS_THROW(kUsage, "--model-parts takes 0 (found from the clip) or 2..64 (got ",
-             options.model.parts, ")");
-  }
-  options.model.velocityLag = parser.getInt("--model-velocity", 0);
-  options.model.historyFrames = parser.getInt("--model-history", 0);
-  options.model.rank = parser.getInt("--model-rank", 1);
-  if (options.model.velocityLag > 60 || options.model.historyFrames > 120) {
-    DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",
-             options.model.velocityLag, " and ", options.model.historyFrames, ")");
-  }
-  const std::string output = parser.get("-o");
-  checkOutputFolderWritable(output);
-  const Mesh driverMesh = readObj(parser.get("--driver-mesh"));
-  const Mesh drivenMesh = readObj(parser.get("--driven-mesh"));
-  if (parser.has("--rig")) {
-    readRigParts(parser.get("--rig"), driverMesh.vertexCount(), options.model.partOf,
-                 options.model.parentOf);
-  }
-  const auto driver = openPointCache(parser.get("--driver"), 0);
-  const auto driven = openPointCache(parser.get("--driven"), 0);
-  const Database db = buildDatabase(driverMesh, drivenMesh, *driver, *driven, options,
-                                    parser.has("--quiet") ? nullptr : &std::cerr);
-  saveDatabase(output, db);
-  std::cout << "database: " << absolute(output) << " (" << db.shapeCount() << " shapes, driver "
-            << db.driverVertexCount() << " vertices, driven " << db.drivenVertexCount()
-            << " vertices)\n";
   return 0;
 }
 

@@ -479,7 +479,7 @@ void bindDatabase(py::module_& module) {
       [](py::handle driverMesh, py::handle drivenMesh, py::handle driverCache,
          py::handle drivenCache, int count, py::handle frames, py::handle addFrames,
          py::handle removeFrames, double duplicateTolerance, const std::string& model,
-         int modelParts, int startFrame, py::handle log) {
+         int modelParts, int startFrame, py::handle also, py::handle log) {
         std::optional<Mesh> driverStorage;
         std::optional<Mesh> drivenStorage;
         const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
@@ -499,11 +499,26 @@ void bindDatabase(py::module_& module) {
         }
         options.poseModel = model == "pose";
         options.model.parts = modelParts;
+        // Extra reference clips (db build --also): (driver_cache, driven_cache[, frames]).
+        std::vector<std::shared_ptr<PointCacheReader>> alsoCaches;
+        std::vector<ReferenceClip> clips;
+        if (!also.is_none()) {
+          for (py::handle item : also) {
+            const py::sequence clip = py::reinterpret_borrow<py::sequence>(item);
+            if (!py::isinstance<py::sequence>(item) || (clip.size() != 2 && clip.size() != 3)) {
+              DS_THROW(kUsage, "also: each clip is (driver_cache, driven_cache[, frames])");
+            }
+            alsoCaches.push_back(cacheArgument(clip[0], startFrame));
+            alsoCaches.push_back(cacheArgument(clip[1], startFrame));
+            clips.push_back({alsoCaches[alsoCaches.size() - 2].get(), alsoCaches.back().get(),
+                             clip.size() == 3 ? optionalFrames(clip[2]) : std::vector<int>()});
+          }
+        }
         std::ostringstream text;
         std::optional<Database> database;
         {
           py::gil_scoped_release release;
-          database = buildDatabase(driver, driven, *driverFrames, *drivenFrames, options,
+          database = buildDatabase(driver, driven, *driverFrames, *drivenFrames, clips, options,
                                    log.is_none() ? nullptr : &text);
         }
         if (!log.is_none()) {
@@ -516,14 +531,17 @@ void bindDatabase(py::module_& module) {
       py::arg("frames") = py::none(), py::arg("add_frames") = py::none(),
       py::arg("remove_frames") = py::none(),
       py::arg("duplicate_tolerance") = buildDefaults.duplicateTolerance, py::arg("model") = "pose",
-      py::arg("model_parts") = 0, py::arg("start_frame") = 1, py::arg("log") = py::none(),
+      py::arg("model_parts") = 0, py::arg("start_frame") = 1, py::arg("also") = py::none(),
+      py::arg("log") = py::none(),
       "The database of reference caches (drivenshape db build). Meshes are Mesh objects or "
       "OBJ paths; caches are PointCache objects, paths (PC2, EXR pattern) or arrays (F, V, 3) "
       "whose first frame is start_frame. frames: candidates (default every frame of the driver "
       "cache); add_frames are always kept, remove_frames never. model: 'pose' also fits the "
       "pose model over every candidate frame (db build --model), 'none' keeps the picks only; "
-      "model_parts: the driver's rigid parts (0 = found from the clip). log: a file-like "
-      "object that receives the pick log.");
+      "model_parts: the driver's rigid parts (0 = found from the clip). also: more reference "
+      "clips the pose model is fitted on (db build --also), each (driver_cache, driven_cache) "
+      "or (driver_cache, driven_cache, frames). log: a file-like object that receives the pick "
+      "log.");
 }
 
 void bindEvaluator(py::module_& module) {

@@ -185,6 +185,16 @@ void saveDatabase(const std::string& path, const Database& db) {
         {"remove_frames", db.options.removeFrames},
         {"duplicate_tolerance", db.options.duplicateTolerance}}},
   };
+  if (!db.extraClips.empty()) {
+    json clips = json::array();
+    for (const ReferenceClipSource& clip : db.extraClips) {
+      clips.push_back({{"driver", clip.driverSource},
+                       {"driven", clip.drivenSource},
+                       {"frames", clip.frames},
+                       {"frame_offset", clip.frameOffset}});
+    }
+    header["sources"]["extra_clips"] = clips;
+  }
   if (!model.empty()) {
     header["pose_model"] = {{"parts", model.partCount()},
                             {"rank", model.rank()},
@@ -460,6 +470,20 @@ Database loadDatabase(const std::string& path) {
     db.options.duplicateTolerance = settings.at("duplicate_tolerance").get<double>();
     db.driverSource = header.at("sources").at("driver").get<std::string>();
     db.drivenSource = header.at("sources").at("driven").get<std::string>();
+    if (header.at("sources").contains("extra_clips")) {
+      // Provenance only (the model's frames carry the offsets): read, never trusted.
+      for (const json& clip : header.at("sources").at("extra_clips")) {
+        ReferenceClipSource source;
+        source.driverSource = clip.at("driver").get<std::string>();
+        source.drivenSource = clip.at("driven").get<std::string>();
+        for (const json& frame : clip.at("frames")) {
+          source.frames.push_back(jsonInt(frame, path + ": sources.extra_clips frame"));
+        }
+        source.frameOffset =
+            jsonInt(clip.at("frame_offset"), path + ": sources.extra_clips offset");
+        db.extraClips.push_back(std::move(source));
+      }
+    }
     db.toolVersion = header.at("tool_version").get<std::string>();
     db.created = header.at("created").get<std::string>();
     if (header.contains("pose_model")) {

@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <ctime>
@@ -12,6 +13,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/version.h>
+#include "reference_frames.h"
 
 namespace drivenshape {
 namespace {
@@ -245,28 +247,134 @@ void fillPickedShapes(Database& db, const std::vector<float>& shapes,
   }
 }
 
-/// Fits the pose model over every candidate frame (the whole reference clip by default).
-void fitModel(Database& db, const std::vector<int>& candidates, const std::vector<float>& shapes,
-              const PointCacheReader& drivenCache, const PoseModelOptions& options,
-              std::ostream* log) {
-  if (candidates.size() < 10) {
-    // Too short a clip to fit anything: the database keeps its picks (the QP runs on it).
+/// Frames the pose model's velocity and history read before a frame (PoseModel::historyNeeded).
+int historyNeeded(const PoseModelOptions& options) {
+  PoseModel model;
+  model.velocityLag = options.velocityLag;
+  model.historyFrames = options.historyFrames;
+  return model.historyNeeded();
+}
+
+/// Throws unless every extra clip has both caches, matches the rest meshes and comes with the
+/// pose model.
+void checkExtraClips(const Mesh& driverMesh, const Mesh& drivenMesh,
+                     const std::vector<ReferenceClip>& extraClips,
+                     const DatabaseBuildOptions& options) {
+  if (!extraClips.empty() && !options.poseModel) {
+    DS_THROW(kUsage,
+             "extra reference clips feed the pose model only; build with the pose model "
+             "(--model pose) or without the extra clips");
+  }
+  for (std::size_t c = 0; c < extraClips.size(); ++c) {
+    const std::string what = "reference clip " + std::to_string(c + 2);
+    if (extraClips[c].driver == nullptr || extraClips[c].driven == nullptr) {
+      DS_THROW(kUsage, what, " needs a driver and a driven cache");
+    }
+    checkClipVertexCount(*extraClips[c].driver, driverMesh, "driver", what);
+    checkClipVertexCount(*extraClips[c].driven, drivenMesh, "driven", what);
+  }
+}
+
+/// The frames of every clip the pose model is fitted on, clip after clip (the main clip's
+/// candidates first), numbered apart (referenceClipOffsets), with the earlier frames velocity
+/// and history read from each clip's own driver cache.
+struct FitFrames {
+  std::vector<int> frames;  ///< model frame numbers
+  std::vector<float> driver, driven;
+  std::vector<int> earlier;  ///< model frame numbers
+  std::vector<float> earlierDriver;
+  std::vector<int> clipStart = {0};  ///< index of each clip's first frame, then the total
+  std::size_t mainEarlier = 0;       ///< the main clip's earlier frames come first
+};
+
+FitFrames gatherFitFrames(Database& db, const std::vector<int>& candidates,
+                          const std::vector<float>& shapes, const PointCacheReader& driverCache,
+                          const PointCacheReader& drivenCache,
+                          const std::vector<ReferenceClip>& extraClips, int need,
+                          std::ostream* log) {
+  struct Clip {
+    const PointCacheReader* driver;
+    const PointCacheReader* driven;
+    std::vector<int> frames, earlier;
+  };
+  std::vector<Clip> clips = {{&driverCache, &drivenCache, candidates, {}}};
+  for (std::size_t c = 0; c < extraClips.size(); ++c) {
+    const ReferenceClip& clip = extraClips[c];
+    const std::string what = "reference clip " + std::to_string(c + 2);
+    std::vector<int> frames = clipFrames(*clip.driver, clip.frames, what);
+    for (int frame : frames) {
+      if (!clip.driven->hasFrame(frame)) {
+        const std::vector<int> held = clip.driven->frames();
+        DS_THROW(kInput, what, ": driven cache '", clip.driven->path(), "' has no frame ", frame,
+                 " (it holds ", held.empty() ? std::string("no frames") : formatFrameRange(held),
+                 "); give the driven cache of the same frames");
+      }
+    }
+    clips.push_back({clip.driver, clip.driven, std::move(frames), {}});
+  }
+  std::vector<std::array<int, 2>> ranges;
+  for (Clip& clip : clips) {
+    clip.earlier = earlierFrames(*clip.driver, clip.frames, need);
+    const auto [low, high] = std::minmax_element(clip.frames.begin(), clip.frames.end());
+    ranges.push_back({clip.earlier.empty() ? *low : std::min(*low, clip.earlier.front()), *high});
+  }
+  const std::vector<int> offsets = referenceClipOffsets(ranges, need);
+
+  FitFrames fit;
+  for (std::size_t c = 0; c < clips.size(); ++c) {
+    const Clip& clip = clips[c];
+    if (c == 0) {
+      fit.driver.insert(fit.driver.end(), shapes.begin(), shapes.end());  // read already
+    } else {
+      const std::vector<float> driver = readFiniteFrames(*clip.driver, clip.frames, "driver");
+      fit.driver.insert(fit.driver.end(), driver.begin(), driver.end());
+    }
+    const std::vector<float> driven = readFiniteFrames(*clip.driven, clip.frames, "driven");
+    const std::vector<float> earlier = readFiniteFrames(*clip.driver, clip.earlier, "driver");
+    fit.driven.insert(fit.driven.end(), driven.begin(), driven.end());
+    fit.earlierDriver.insert(fit.earlierDriver.end(), earlier.begin(), earlier.end());
+    for (int frame : clip.frames) {
+      fit.frames.push_back(frame + offsets[c]);
+    }
+    for (int frame : clip.earlier) {
+      fit.earlier.push_back(frame + offsets[c]);
+    }
+    fit.clipStart.push_back(static_cast<int>(fit.frames.size()));
+    if (c == 0) {
+      fit.mainEarlier = clip.earlier.size();
+      continue;
+    }
+    db.extraClips.push_back({clip.driver->path(), clip.driven->path(), clip.frames, offsets[c]});
     if (log != nullptr) {
-      *log << "no pose model: " << candidates.size()
+      *log << "reference clip " << c + 1 << ": '" << clip.driver->path() << "' and '"
+           << clip.driven->path() << "', frames " << formatFrameRange(clip.frames)
+           << " (pose model frames " << clip.frames.front() + offsets[c] << "-"
+           << clip.frames.back() + offsets[c] << "), " << clip.earlier.size()
+           << " earlier frames read for velocity and history\n";
+    }
+  }
+  return fit;
+}
+
+/// Fits the pose model over every candidate frame (the whole reference clip by default) and
+/// every frame of the extra clips; with extra clips the log compares the fit on the main clip
+/// alone.
+void fitModel(Database& db, const std::vector<int>& candidates, const std::vector<float>& shapes,
+              const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
+              const std::vector<ReferenceClip>& extraClips, const PoseModelOptions& options,
+              std::ostream* log) {
+  const int need = historyNeeded(options);
+  const FitFrames fit =
+      gatherFitFrames(db, candidates, shapes, driverCache, drivenCache, extraClips, need, log);
+  const int total = static_cast<int>(fit.frames.size());
+  if (total < 10) {
+    // Too short a clip to fit anything: the database keeps its picks (the QP runs on it).
+    db.extraClips.clear();
+    if (log != nullptr) {
+      *log << "no pose model: " << total
            << " reference frames are too few to fit one (it needs 10)\n";
     }
     return;
-  }
-  if (log != nullptr) {
-    *log << "fitting the pose model on " << candidates.size() << " reference frames\n";
-  }
-  const std::vector<float> driven = readFrames(drivenCache, candidates);
-  const std::size_t values = static_cast<std::size_t>(db.drivenVertexCount()) * 3;
-  for (std::size_t i = 0; i < driven.size(); ++i) {
-    if (!std::isfinite(driven[i])) {
-      DS_THROW(kInput, "driven cache '", drivenCache.path(), "' frame ", candidates[i / values],
-               " vertex ", (i % values) / 3, " is not a finite number; fix the cache");
-    }
   }
   ClosestOptions closestOptions;
   closestOptions.threads = options.threads;
@@ -275,8 +383,49 @@ void fitModel(Database& db, const std::vector<int>& candidates, const std::vecto
   std::vector<SurfaceHit> restHits(static_cast<std::size_t>(db.drivenVertexCount()));
   closest->closest(1, db.driverMesh.positions.data(), db.drivenMesh.positions.data(),
                    restHits.data());
-  db.poseModel = fitPoseModel(db.driverMesh, db.drivenMesh, shapes.data(), driven.data(),
-                              candidates, restHits, options, log);
+  const int mainCount = static_cast<int>(candidates.size());
+  const auto earlierOf = [&](std::size_t count) {
+    EarlierFrames earlier;
+    earlier.driverFrames = fit.earlierDriver.data();
+    earlier.frames.assign(fit.earlier.begin(), fit.earlier.begin() + count);
+    return earlier;
+  };
+  // The main clip alone, for comparison: its frames and earlier frames come first.
+  double mainAlone = -1.0;
+  if (!extraClips.empty() && mainCount >= 10) {
+    mainAlone = fitPoseModel(db.driverMesh, db.drivenMesh, fit.driver.data(), fit.driven.data(),
+                             candidates, restHits, options, nullptr, earlierOf(fit.mainEarlier))
+                    .crossValidationError;
+  }
+  if (log != nullptr) {
+    *log << "fitting the pose model on " << total << " reference frames";
+    if (!extraClips.empty()) {
+      *log << " of " << extraClips.size() + 1 << " clips";
+    }
+    *log << "\n";
+  }
+  db.poseModel = fitPoseModel(db.driverMesh, db.drivenMesh, fit.driver.data(), fit.driven.data(),
+                              fit.frames, restHits, options, log, earlierOf(fit.earlier.size()));
+  const PoseModel& model = db.poseModel;
+  if (log != nullptr && !extraClips.empty()) {
+    *log << "  pose model over " << extraClips.size() + 1 << " clips: cross-validated mean error "
+         << model.crossValidationError << "; by clip:";
+    for (std::size_t c = 0; c + 1 < fit.clipStart.size(); ++c) {
+      const int begin = fit.clipStart[c], end = fit.clipStart[c + 1];
+      double sum = 0.0;
+      for (int f = begin; f < end && f < static_cast<int>(model.frameErrors.size()); ++f) {
+        sum += model.frameErrors[static_cast<std::size_t>(f)];
+      }
+      *log << " clip " << c + 1 << " " << sum / std::max(1, end - begin) << " (" << end - begin
+           << " frames)";
+    }
+    *log << "; fitted on the main clip alone: ";
+    if (mainAlone >= 0.0) {
+      *log << mainAlone << "\n";
+    } else {
+      *log << "too few frames\n";
+    }
+  }
 }
 
 }  // namespace
@@ -284,7 +433,15 @@ void fitModel(Database& db, const std::vector<int>& candidates, const std::vecto
 Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
                        const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
                        const DatabaseBuildOptions& options, std::ostream* log) {
+  return buildDatabase(driverMesh, drivenMesh, driverCache, drivenCache, {}, options, log);
+}
+
+Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
+                       const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
+                       const std::vector<ReferenceClip>& extraClips,
+                       const DatabaseBuildOptions& options, std::ostream* log) {
   checkBuildInputs(driverMesh, drivenMesh, driverCache, drivenCache, options);
+  checkExtraClips(driverMesh, drivenMesh, extraClips, options);
   const std::vector<int> candidates = candidateFrames(driverCache, drivenCache, options);
   const std::size_t driverValues = static_cast<std::size_t>(driverMesh.vertexCount()) * 3;
   const std::vector<float> shapes = readCandidateShapes(driverCache, candidates, driverValues);
@@ -318,7 +475,7 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
 
   fillPickedShapes(db, shapes, picker.picks(), driverValues, drivenCache, drivenMesh);
   if (options.poseModel) {
-    fitModel(db, candidates, shapes, drivenCache, options.model, log);
+    fitModel(db, candidates, shapes, driverCache, drivenCache, extraClips, options.model, log);
   }
   return db;
 }

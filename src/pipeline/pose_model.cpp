@@ -15,6 +15,7 @@
 
 #include <drivenshape/error.h>
 #include "parallel.h"
+#include "pose_kernel.h"
 
 namespace drivenshape {
 namespace {
@@ -260,6 +261,33 @@ VectorXd meanVertexError(const MatrixXd& predicted, const MatrixXd& truth,
 
 }  // namespace
 
+MatrixXd poseKernel(const MatrixXd& a, const MatrixXd& b, double lengthScale, double linearWeight) {
+  return kernelMatrix(a, b, lengthScale, linearWeight);
+}
+
+std::vector<int> referenceClipOffsets(const std::vector<std::array<int, 2>>& ranges,
+                                      int historyNeeded) {
+  constexpr std::int64_t kStep = 100000;
+  std::vector<int> offsets;
+  std::int64_t last = std::numeric_limits<std::int64_t>::min();
+  for (const std::array<int, 2>& range : ranges) {
+    std::int64_t offset = 0;
+    if (!offsets.empty()) {
+      // Smallest positive multiple of kStep with first + offset > last + historyNeeded + 1.
+      const std::int64_t gap = last + historyNeeded + 2 - range[0];
+      offset = std::max<std::int64_t>(1, (gap + kStep - 1) / kStep) * kStep;
+    }
+    if (range[1] + offset > std::numeric_limits<int>::max() / 2) {
+      DS_THROW(kInput, "reference clip ", offsets.size() + 1, " (frames ", range[0], "-", range[1],
+               ") cannot be numbered apart from the clips before it: its frame numbers are too "
+               "large; renumber the caches from a smaller first frame");
+    }
+    offsets.push_back(static_cast<int>(offset));
+    last = std::max(last, range[1] + offset);
+  }
+  return offsets;
+}
+
 std::vector<int> findRigidParts(const Mesh& driver, const float* frames, int frameCount, int parts,
                                 std::vector<int>& parent, int threads, std::ostream* log) {
   if (frameCount < 2) {
@@ -312,6 +340,43 @@ PosePredictor::PosePredictor(const PoseModel& model, const Mesh& driver) : mMode
   MatrixXd k = kernelMatrix(mFeatures, mFeatures, model.lengthScale, model.linearWeight);
   k.diagonal().array() += model.ridge;
   mKernelInverse = k.llt().solve(MatrixXd::Identity(t, t));
+}
+
+Eigen::MatrixXd PosePredictor::blockFeatures(const float* driverFrames,
+                                             const std::vector<int>& frames,
+                                             const EarlierFrames& history, int threads) const {
+  const int count = static_cast<int>(frames.size());
+  const int total = count + static_cast<int>(history.frames.size());
+  const int n = mModel.poseFeatureCount(), d = mModel.featureCount();
+  const std::size_t values = mModel.partOf.size() * 3;
+  // The block: the wanted frames and the earlier ones by frame number (features() walks back
+  // through consecutive numbers).
+  std::vector<int> order(static_cast<std::size_t>(total));
+  std::iota(order.begin(), order.end(), 0);
+  const auto number = [&](int i) { return i < count ? frames[i] : history.frames[i - count]; };
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return number(a) < number(b); });
+  std::vector<int> numbers(static_cast<std::size_t>(total));
+  std::vector<int> position(static_cast<std::size_t>(count));
+  for (int k = 0; k < total; ++k) {
+    numbers[k] = number(order[k]);
+    if (order[k] < count) {
+      position[order[k]] = k;
+    }
+  }
+  std::vector<double> pose(static_cast<std::size_t>(total) * n);
+  parallelFor(total, threads, [&](int k) {
+    const int i = order[k];
+    const float* frame =
+        i < count ? driverFrames + i * values : history.driverFrames + (i - count) * values;
+    poseFeatures(frame, &pose[static_cast<std::size_t>(k) * n]);
+  });
+  MatrixXd x(count, d);
+  parallelFor(count, threads, [&](int i) {
+    std::vector<double> row(static_cast<std::size_t>(d));
+    features(pose.data(), numbers.data(), total, position[i], row.data());
+    x.row(i) = Eigen::Map<const Eigen::RowVectorXd>(row.data(), d);
+  });
+  return x;
 }
 
 void PosePredictor::poseFeatures(const float* frame, double* out) const {
@@ -389,7 +454,7 @@ PosePredictor::Prediction PosePredictor::predict(const double* features) const {
 PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,
                        const float* drivenFrames, const std::vector<int>& frames,
                        const std::vector<SurfaceHit>& restHits, const PoseModelOptions& options,
-                       std::ostream* log) {
+                       std::ostream* log, const EarlierFrames& history) {
   const int t = static_cast<int>(frames.size());
   if (t < 10) {
     DS_THROW(kInput, "the pose model needs at least 10 reference frames (got ", t,
@@ -432,20 +497,11 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
   // Features of every reference frame.
   model.lengthScale = 1.0;  // placeholder until chosen; the predictor below needs a valid model
   const PosePredictor shapeOnly(model, driver);
-  const int n = model.poseFeatureCount(), d = model.featureCount();
-  std::vector<double> pose(static_cast<std::size_t>(t) * n);
-  parallelFor(t, threads,
-              [&](int f) { shapeOnly.poseFeatures(driverFrames + f * dv, &pose[f * n]); });
-  MatrixXd x(t, d);
-  {
-    std::vector<double> row(static_cast<std::size_t>(d));
-    for (int f = 0; f < t; ++f) {
-      shapeOnly.features(pose.data(), frames.data(), t, f, row.data());
-      // Rounded to the float the database stores, so that the fit and the evaluation
-      // compare the same numbers.
-      x.row(f) = Eigen::Map<const Eigen::RowVectorXd>(row.data(), d).cast<float>().cast<double>();
-    }
-  }
+  const int d = model.featureCount();
+  // Rounded to the float the database stores, so that the fit and the evaluation compare the
+  // same numbers.
+  const MatrixXd x =
+      shapeOnly.blockFeatures(driverFrames, frames, history, threads).cast<float>().cast<double>();
 
   // Targets: the local offsets of every reference frame minus the rest offsets.
   std::vector<float> restLocal(dd), local(dd);
@@ -567,6 +623,7 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
     model.errorBias = fit[0];
     model.errorScale = fit[1];
   }
+  model.frameErrors.assign(error.data(), error.data() + error.size());
 
   // The full fit and its low-rank basis: c(x) = S_r U_r^T (K + lambda I)^-1 k(x) weighs the
   // first `keep` components.

@@ -248,6 +248,10 @@ void writeDatabaseFiles(const fs::path& corpus, const fs::path& regressions) {
   noUvs.drivenMesh.uvs.clear();
   noUvs.drivenMesh.faceUvs.clear();
   writeBytes(corpus / "one_shape_no_uvs.dsdb", databaseBytes(noUvs));
+  // The provenance of extra reference clips (db build --also) in the header's sources.
+  ds::Database clips = tinyDatabase(2);
+  clips.extraClips.push_back({"more.driver.pc2", "more.driven.pc2", {1, 2, 3, 9}, 100000});
+  writeBytes(corpus / "extra_clips.dsdb", databaseBytes(clips));
 
   // Crash report: a face offset past the face-vertex block, checksum valid -> heap overflow in
   // Mesh::triangulate.

@@ -359,6 +359,24 @@ def test_build_database_errors_name_the_cache(data, tmp_path):
     assert db.driver_shapes.shape == (5, 2146, 3) and not db.driver_shapes.flags.writeable
 
 
+def test_build_database_with_more_clips(data):
+    # db build --also: the picks stay those of the main clip, the pose model sees both clips.
+    log = io.StringIO()
+    args = (data / "driver_rest.obj", data / "driven_rest.obj", data / "train.driver.pc2",
+            data / "train.driven.pc2")
+    one = ds.build_database(*args, count=5)
+    clip = (data / "test.driver.pc2", data / "test.driven.pc2", range(1, 25))
+    two = ds.build_database(*args, count=5, log=log, also=[clip])
+    assert two.frames == one.frames and two.content_hash != one.content_hash
+    assert "reference clip 2" in log.getvalue() and "main clip alone" in log.getvalue()
+    with pytest.raises(ds.Error) as error:
+        ds.build_database(*args, also=[(data / "test.driven.pc2", data / "test.driven.pc2")])
+    assert error.value.kind == "input" and "test.driven.pc2" in str(error.value)
+    with pytest.raises(ds.Error) as error:
+        ds.build_database(*args, also=[(data / "test.driver.pc2",)])
+    assert error.value.kind == "usage"
+
+
 def test_evaluate_releases_the_gil(database, test_driver, host_device):
     evaluator = ds.Evaluator(database, ds.EvaluatorSettings(threads=1), host_device)
     started = time.perf_counter()

@@ -145,6 +145,12 @@ inline constexpr double kWeightBoundTol = 1e-12;
 /// pushes the muscle out to the skin offset (2 mm outside) is off by about 7 mm.
 inline constexpr double kInsetMeanErrorTol = 1e-4;
 
+/// The pose model's posterior deviation after added observations (db build --suggest): rank-one
+/// updates vs a direct inversion of the grown kernel matrix, both in double, relative to the
+/// deviation. The kernel matrix carries the ridge (>= 0.03) on its diagonal, so its condition
+/// number stays below about 1e4 and both routes agree to ~1e-12; 1e-9 leaves the margin.
+inline constexpr double kPosteriorRelTol = 1e-9;
+
 // ---- Random seeds: printed, overridable with DS_SEED=N. ----
 
 /// The seed for this test: DS_SEED from the environment, else `fallback`. Printed once.

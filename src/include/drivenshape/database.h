@@ -29,6 +29,26 @@ struct DatabaseBuildOptions {
   PoseModelOptions model;
 };
 
+/// A reference clip beyond the main one (`db build --also`): the pose model is fitted over its
+/// frames as well, while the shapes are still picked from the main clip. Its caches must match
+/// the rest meshes. Velocity and history read its own cache's earlier frames, never another
+/// clip's.
+struct ReferenceClip {
+  const PointCacheReader* driver = nullptr;
+  const PointCacheReader* driven = nullptr;
+  std::vector<int> frames;  ///< frames to fit; empty = every frame of the driver cache
+};
+
+/// Where a database's extra reference clip came from (provenance; not part of the content
+/// hash). Its frames are numbered source frame + frameOffset in the pose model
+/// (referenceClipOffsets), so that no clip's velocity or history reads another's.
+struct ReferenceClipSource {
+  std::string driverSource;
+  std::string drivenSource;
+  std::vector<int> frames;  ///< source frames fitted, ascending
+  int frameOffset = 0;
+};
+
 /// Why a shape is in the database.
 enum class PickReason { kSeed, kFarthest, kAdded };
 const char* pickReasonName(PickReason reason);
@@ -52,6 +72,8 @@ struct Database {
   DatabaseBuildOptions options;
   std::string driverSource;  ///< provenance: caches and meshes it was built from
   std::string drivenSource;
+  /// Provenance of the reference clips the pose model was fitted on besides the main one.
+  std::vector<ReferenceClipSource> extraClips;
   std::string toolVersion;
   std::string created;  ///< UTC, ISO 8601
   /// The pose model fitted over the whole reference clip (empty for databases built with
@@ -76,6 +98,46 @@ struct Database {
 Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
                        const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
                        const DatabaseBuildOptions& options, std::ostream* log = nullptr);
+/// The same with more reference clips for the pose model (`db build --also`): the model is
+/// fitted over the main clip's candidate frames, then every extra clip's frames, clip after
+/// clip (the cross-validation folds are contiguous blocks of that order), each clip numbered
+/// apart (ReferenceClipSource). The log reports the model's cross-validated error fitted on the
+/// main clip alone and on all clips (by clip). Throws Error(kInput) naming the cache when a
+/// clip's caches do not match the rest meshes or lack a frame, Error(kUsage) when extra clips
+/// come without the pose model.
+Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
+                       const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
+                       const std::vector<ReferenceClip>& extraClips,
+                       const DatabaseBuildOptions& options, std::ostream* log = nullptr);
+
+/// Frames of a driver cache: a shot to improve or a candidate clip to simulate.
+struct DriverClip {
+  const PointCacheReader* driver = nullptr;
+  std::vector<int> frames;  ///< empty = every frame of the cache
+};
+
+/// A frame of the candidate clip worth simulating and adding as a reference frame.
+struct ReferenceSuggestion {
+  int frame = 0;  ///< frame of the candidate clip
+  /// The shots' mean predicted error (scene units) and mean posterior deviation before and
+  /// after adding it (after the suggestions before it).
+  double errorBefore = 0.0;
+  double errorAfter = 0.0;
+  double sigmaBefore = 0.0;
+  double sigmaAfter = 0.0;
+};
+
+/// `db build --suggest`: the `count` frames of `candidate` that, simulated and added to the
+/// pose model's reference frames, would most lower the predicted error of the shots' frames
+/// (suggestFrames in pose_model.h; greedy, deterministic), in the order picked; fewer when the
+/// candidate clip has fewer frames. Features read every cache's earlier frames for velocity and
+/// history, as a bake does. Throws Error(kInput) when the database has no pose model or a cache
+/// does not match the driver mesh or lacks a frame, Error(kUsage) when count < 1.
+std::vector<ReferenceSuggestion> suggestReferenceFrames(const Database& database,
+                                                        const DriverClip& candidate,
+                                                        const std::vector<DriverClip>& shots,
+                                                        int count, int threads = 0,
+                                                        std::ostream* log = nullptr);
 
 /// Writes the database atomically (see docs/formats.md for the layout).
 void saveDatabase(const std::string& path, const Database& database);

@@ -70,6 +70,9 @@ struct PoseModel {
   /// that of the plain binding.
   double crossValidationError = 0.0;
   double bindingError = 0.0;
+  /// Per reference frame (in `frames` order), its cross-validated mean vertex error: what the
+  /// build log breaks down by clip. Not stored in the database file (empty once loaded).
+  std::vector<double> frameErrors;
 
   bool empty() const { return frames.empty(); }
   int partCount() const { return static_cast<int>(parent.size()); }
@@ -116,14 +119,33 @@ void readRigParts(const std::string& path, int driverVertexCount, std::vector<in
 std::vector<int> findRigidParts(const Mesh& driver, const float* frames, int frameCount, int parts,
                                 std::vector<int>& parent, int threads, std::ostream* log);
 
-/// Fits the pose model on a reference clip: `frameCount` driver and driven frames (frame-major)
-/// with their frame numbers (consecutive numbers are what velocity and history read), and the
-/// rest binding of the driven mesh (exact closest points on the rest driver). Throws
-/// Error(kInput) naming the problem when the clip is too short or the parts are degenerate.
+/// Driver frames read only for velocity and history, never fitted or evaluated: the frames a
+/// cache holds just before the wanted ones (what a bake reads before each batch).
+struct EarlierFrames {
+  const float* driverFrames = nullptr;  ///< frames.size() x V x 3, frame-major
+  std::vector<int> frames;              ///< their frame numbers
+};
+
+/// Fits the pose model on reference frames: `frameCount` driver and driven frames (frame-major)
+/// with their frame numbers (consecutive numbers are what velocity and history read, in these
+/// frames and in `history`), and the rest binding of the driven mesh (exact closest points on
+/// the rest driver). Frames of several clips go together once numbered apart
+/// (referenceClipOffsets); the cross-validation folds are contiguous blocks of the frames in the
+/// order given. Throws Error(kInput) naming the problem when there are too few frames or the
+/// parts are degenerate.
 PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,
                        const float* drivenFrames, const std::vector<int>& frames,
                        const std::vector<SurfaceHit>& restHits, const PoseModelOptions& options,
-                       std::ostream* log);
+                       std::ostream* log, const EarlierFrames& history = {});
+
+/// Frame-number offsets that keep reference clips apart in one pose model, so that velocity and
+/// history never read across clips: `ranges` holds each clip's first and last frame (history
+/// frames included). The first clip keeps its numbers (offset 0); every later clip is moved by
+/// the smallest positive multiple of 100000 that puts its first frame more than
+/// `historyNeeded` + 1 frames after the last of every clip before it (model frame = source
+/// frame + offset). Throws Error(kInput) when the numbers would leave the int range.
+std::vector<int> referenceClipOffsets(const std::vector<std::array<int, 2>>& ranges,
+                                      int historyNeeded);
 
 /// Evaluates a pose model: the features of a block of frames and the basis weights and
 /// predicted error of each.
@@ -139,6 +161,11 @@ class PosePredictor {
   /// frames numbered frames[i] - 1, - 2, ... found in the block, the earliest found standing
   /// in for those before it.
   void features(const double* pose, const int* frames, int count, int i, double* out) const;
+  /// The full features (frames.size() x featureCount()) of driver frames (frame-major V x 3,
+  /// numbers `frames`, any order), velocity and history read from these frames and `history`
+  /// sorted by frame number: what a bake computes for them. Host threads: `threads`.
+  Eigen::MatrixXd blockFeatures(const float* driverFrames, const std::vector<int>& frames,
+                                const EarlierFrames& history, int threads) const;
   struct Prediction {
     Eigen::VectorXd weights;  ///< rank(): the basis weights
     double sigma = 0.0;       ///< posterior standard deviation of the kernel
@@ -157,5 +184,36 @@ class PosePredictor {
   Eigen::MatrixXd mCoefficients;   ///< rank x T
   Eigen::MatrixXd mKernelInverse;  ///< (K + lambda I)^-1, for the variance
 };
+
+/// A reference frame worth simulating (suggestFrames).
+struct FrameSuggestion {
+  int candidate = -1;  ///< row of the candidate features
+  /// Mean predicted error (errorBias + errorScale sigma) over the shot frames before this
+  /// frame is added (with the suggestions before it) and after (scene units).
+  double errorBefore = 0.0;
+  double errorAfter = 0.0;
+  /// The same for the mean posterior deviation sigma.
+  double sigmaBefore = 0.0;
+  double sigmaAfter = 0.0;
+};
+
+/// Which candidate poses, simulated and added to the reference frames, would most lower the
+/// predicted error of the shot poses: greedy Gaussian-process variance reduction. Each step
+/// adds the candidate whose addition (an observation with the model's ridge as noise, the same
+/// kernel) leaves the smallest sum over shot frames of the posterior deviation sigma, which is
+/// the smallest sum of predicted errors errorBias + errorScale sigma whenever errorScale > 0;
+/// the posterior is updated by a rank-one step, never refitted. Ties go to the earlier
+/// candidate, so the result is deterministic and does not depend on `threads`.
+///
+///   candidates  C x featureCount()   (PosePredictor::blockFeatures of the candidate clip)
+///   shots       S x featureCount()   (the same of the shots' frames)
+///
+/// Returns min(count, C) suggestions in the order picked (C x S doubles of working memory).
+/// Error(kUsage) when count < 1; Error(kInput) when the model is not fitted or a matrix has
+/// the wrong width or no rows.
+std::vector<FrameSuggestion> suggestFrames(const PoseModel& model,
+                                           const Eigen::Ref<const Eigen::MatrixXd>& candidates,
+                                           const Eigen::Ref<const Eigen::MatrixXd>& shots,
+                                           int count, int threads);
 
 }  // namespace drivenshape

@@ -1,0 +1,276 @@
+// `drivenshape db build`: the database of a reference clip, the pose model over it and any
+// extra clips (--also), and the frames worth simulating next (--suggest).
+
+#include "commands.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include <drivenshape/database.h>
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include "atomic_file.h"
+#include "json_text.h"
+
+#include "cli_args.h"
+
+namespace drivenshape::cli {
+namespace {
+
+/// A cache with the frames to read: CACHE[:FRAMES].
+struct CacheSpec {
+  std::string path;
+  std::vector<int> frames;  ///< empty = every frame
+};
+
+/// Splits CACHE[:FRAMES] at the last ':' when what follows is a frame list (digits, '-', ',',
+/// 'x') and the whole word is not an existing file.
+CacheSpec parseCacheSpec(const std::string& word) {
+  const std::size_t colon = word.rfind(':');
+  if (colon == std::string::npos || colon + 1 == word.size() || std::filesystem::exists(word)) {
+    return {word, {}};
+  }
+  const std::string range = word.substr(colon + 1);
+  if (range.find_first_not_of("0123456789-,x") != std::string::npos) {
+    return {word, {}};
+  }
+  return {word.substr(0, colon), parseFrameRange(range)};
+}
+
+std::string framesText(const std::vector<int>& frames) {
+  return frames.empty() ? std::string("all") : formatFrameRange(frames);
+}
+
+/// Prints the suggestions (stdout) and writes them as JSON to `jsonPath` if not empty.
+void reportSuggestions(const std::vector<ReferenceSuggestion>& suggestions,
+                       const CacheSpec& candidate, const std::vector<CacheSpec>& shots,
+                       const Database& db, const std::string& jsonPath) {
+  std::cout << "suggested frames of " << candidate.path
+            << " to simulate and add (mean predicted error of the shot frames before -> after, "
+               "scene units):\n";
+  for (std::size_t i = 0; i < suggestions.size(); ++i) {
+    const ReferenceSuggestion& s = suggestions[i];
+    std::cout << "  " << std::setw(3) << i + 1 << "  frame " << std::setw(6) << s.frame << "  "
+              << s.errorBefore << " -> " << s.errorAfter << "\n";
+  }
+  if (jsonPath.empty()) {
+    return;
+  }
+  nlohmann::json shotList = nlohmann::json::array();
+  for (const CacheSpec& shot : shots) {
+    shotList.push_back({{"driver", shot.path}, {"frames", framesText(shot.frames)}});
+  }
+  nlohmann::json list = nlohmann::json::array();
+  for (const ReferenceSuggestion& s : suggestions) {
+    list.push_back({{"frame", s.frame},
+                    {"error_before", s.errorBefore},
+                    {"error_after", s.errorAfter},
+                    {"sigma_before", s.sigmaBefore},
+                    {"sigma_after", s.sigmaAfter}});
+  }
+  const nlohmann::json report{
+      {"candidate", {{"driver", candidate.path}, {"frames", framesText(candidate.frames)}}},
+      {"shots", shotList},
+      {"model",
+       {{"reference_frames", db.poseModel.frameCount()},
+        {"error_bias", db.poseModel.errorBias},
+        {"error_scale", db.poseModel.errorScale}}},
+      {"suggestions", list}};
+  writeFileAtomically(jsonPath, jsonText(report, 1) + "\n");
+}
+
+}  // namespace
+
+int runDbBuild(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape db build --driver-mesh M.obj --driven-mesh M.obj --driver CACHE "
+      "--driven CACHE -o DB",
+      "Builds a DrivenShape database from a reference animation: a greedy farthest-point pick "
+      "of driver shapes (seeded with --add-frames, else with the settled rest pose: the "
+      "latest candidate frame whose driver is as close to the rest driver as any, i.e. the end "
+      "of the opening hold, once the cloth has draped), each paired with the driven shape of "
+      "the same frame. --also adds reference clips the pose model is fitted on; --suggest lists "
+      "the frames of a candidate clip worth simulating for the given shots.");
+  parser.option("--driver-mesh", "M.obj", "driver rest mesh (topology, groups)", "", true)
+      .option("--driven-mesh", "M.obj", "driven rest mesh (topology, UVs, groups)", "", true)
+      .option("--driver", "CACHE", "driver reference cache (.pc2 or name.####.exr)", "", true)
+      .option("--driven", "CACHE", "driven reference cache, same frames", "", true)
+      .option("--frames", "RANGE", "candidate frames, e.g. 1-320 or 21-320x2", "all")
+      .repeated("--also", "DRIVER DRIVEN[:FRAMES]", 2,
+                "another reference clip of the same character and cloth: the pose model is "
+                "fitted over its frames too (all, or FRAMES); the shapes are still picked from "
+                "--driver/--driven")
+      .option("--count", "N", "shapes to keep", "30")
+      .option("--add-frames", "LIST", "frames always kept (they seed the pick)")
+      .option("--remove-frames", "LIST", "frames never kept")
+      .option("--duplicate-tolerance", "X",
+              "reject shapes within X * driver bbox diagonal (RMS) of a kept one", "0.001")
+      .option("--model", "KIND",
+              "pose: also fit the pose model over every candidate frame (the rest binding plus "
+              "a learned correction; what `bake` evaluates by default); none: the picks only",
+              "pose")
+      .option("--model-parts", "N",
+              "rigid parts of the driver the pose model reads its joints from (0 = as many as "
+              "the clip shows)",
+              "0")
+      .option("--model-velocity", "N",
+              "frames back the pose model's velocity feature looks (0 = no velocity)", "3")
+      .option("--model-history", "N",
+              "frames the pose model's history feature averages (0 = no history)", "15")
+      .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
+      .option("--rig", "RIG.json",
+              "take the parts from a rig instead: bone_names, bones (name, parent) and "
+              "driver_weights (one row per driver vertex); each vertex goes to its heaviest "
+              "bone")
+      .option("--suggest", "N",
+              "after fitting, print the N frames of --candidate that, simulated and added with "
+              "--also, would most lower the predicted error of the --shot frames (fewer if the "
+              "candidate clip is shorter)")
+      .option("--candidate", "DRIVER[:FRAMES]", "the driver clip --suggest picks frames from")
+      .repeated("--shot", "DRIVER[:FRAMES]", 1, "a shot's driver cache --suggest improves")
+      .option("--suggest-json", "PATH", "also write the suggestions as JSON")
+      .option("-o", "DB", "database file to write (optional with --suggest)")
+      .flag("--quiet", "do not list the picks")
+      .epilog(
+          "Exit codes: 0 success, 1 internal error, 2 usage, 3 input (a missing or "
+          "malformed file, a cache that does not match the meshes), 4 output, 6 numerical.");
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  DatabaseBuildOptions options;
+  options.count = parser.getInt("--count", 1);
+  options.duplicateTolerance = parser.getDouble("--duplicate-tolerance", 0.0);
+  if (parser.has("--frames")) {
+    options.frames = parseFrameRange(parser.get("--frames"));
+  }
+  if (parser.has("--add-frames")) {
+    options.addFrames = parseFrameRange(parser.get("--add-frames"));
+  }
+  if (parser.has("--remove-frames")) {
+    options.removeFrames = parseFrameRange(parser.get("--remove-frames"));
+  }
+  const std::string model = parser.get("--model");
+  if (model != "pose" && model != "none") {
+    DS_THROW(kUsage, "--model takes pose or none (got '", model, "')");
+  }
+  options.poseModel = model == "pose";
+  options.model.parts = parser.getInt("--model-parts", 0);
+  if (options.model.parts == 1 || options.model.parts > 64) {
+    DS_THROW(kUsage, "--model-parts takes 0 (found from the clip) or 2..64 (got ",
+             options.model.parts, ")");
+  }
+  options.model.velocityLag = parser.getInt("--model-velocity", 0);
+  options.model.historyFrames = parser.getInt("--model-history", 0);
+  options.model.rank = parser.getInt("--model-rank", 1);
+  if (options.model.velocityLag > 60 || options.model.historyFrames > 120) {
+    DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",
+             options.model.velocityLag, " and ", options.model.historyFrames, ")");
+  }
+  const bool suggest = parser.has("--suggest");
+  const int suggestCount = suggest ? parser.getInt("--suggest", 1) : 0;
+  if (!suggest) {
+    for (const char* name : {"--candidate", "--shot", "--suggest-json"}) {
+      if (parser.has(name)) {
+        DS_THROW(kUsage, name, " goes with --suggest N");
+      }
+    }
+    if (!parser.has("-o")) {
+      DS_THROW(kUsage,
+               "missing required option -o DB for `db build` (only --suggest may go "
+               "without it); see --help");
+    }
+  } else {
+    if (!parser.has("--candidate") || !parser.has("--shot")) {
+      DS_THROW(kUsage,
+               "--suggest needs --candidate DRIVER[:FRAMES] and at least one --shot "
+               "DRIVER[:FRAMES]");
+    }
+    if (!options.poseModel) {
+      DS_THROW(kUsage, "--suggest reads the pose model; drop --model none");
+    }
+  }
+  if (!parser.all("--also").empty() && !options.poseModel) {
+    DS_THROW(kUsage, "--also clips feed the pose model; drop --model none or the --also clips");
+  }
+  const std::string output = parser.has("-o") ? parser.get("-o") : std::string();
+  if (!output.empty()) {
+    checkOutputFolderWritable(output);
+  }
+  const std::string jsonPath = parser.has("--suggest-json") ? parser.get("--suggest-json") : "";
+  if (!jsonPath.empty()) {
+    checkOutputFolderWritable(jsonPath);
+  }
+  // Parse every cache word before reading anything (usage errors first).
+  std::vector<std::pair<std::string, CacheSpec>> alsoSpecs;
+  for (const std::vector<std::string>& words : parser.all("--also")) {
+    alsoSpecs.emplace_back(words[0], parseCacheSpec(words[1]));
+  }
+  const CacheSpec candidateSpec = suggest ? parseCacheSpec(parser.get("--candidate")) : CacheSpec{};
+  std::vector<CacheSpec> shotSpecs;
+  for (const std::vector<std::string>& words : parser.all("--shot")) {
+    shotSpecs.push_back(parseCacheSpec(words[0]));
+  }
+
+  const Mesh driverMesh = readObj(parser.get("--driver-mesh"));
+  const Mesh drivenMesh = readObj(parser.get("--driven-mesh"));
+  if (parser.has("--rig")) {
+    readRigParts(parser.get("--rig"), driverMesh.vertexCount(), options.model.partOf,
+                 options.model.parentOf);
+  }
+  const auto driver = openPointCache(parser.get("--driver"), 0);
+  const auto driven = openPointCache(parser.get("--driven"), 0);
+  std::vector<std::unique_ptr<PointCacheReader>> caches;
+  std::vector<ReferenceClip> clips;
+  for (const auto& [driverPath, drivenSpec] : alsoSpecs) {
+    caches.push_back(openPointCache(driverPath, 0));
+    caches.push_back(openPointCache(drivenSpec.path, 0));
+    clips.push_back({caches[caches.size() - 2].get(), caches.back().get(), drivenSpec.frames});
+  }
+  DriverClip candidate;
+  std::vector<DriverClip> shots;
+  if (suggest) {
+    caches.push_back(openPointCache(candidateSpec.path, 0));
+    candidate = {caches.back().get(), candidateSpec.frames};
+    for (const CacheSpec& spec : shotSpecs) {
+      caches.push_back(openPointCache(spec.path, 0));
+      shots.push_back({caches.back().get(), spec.frames});
+    }
+  }
+  std::ostream* log = parser.has("--quiet") ? nullptr : &std::cerr;
+  const Database db = buildDatabase(driverMesh, drivenMesh, *driver, *driven, clips, options, log);
+  if (!output.empty()) {
+    saveDatabase(output, db);
+    std::cout << "database: " << absolute(output) << " (" << db.shapeCount() << " shapes, driver "
+              << db.driverVertexCount() << " vertices, driven " << db.drivenVertexCount()
+              << " vertices)\n";
+  }
+  if (suggest) {
+    if (db.poseModel.empty()) {
+      DS_THROW(kInput,
+               "--suggest reads the pose model, and the reference frames were too few to "
+               "fit one (it needs 10)");
+    }
+    const std::vector<ReferenceSuggestion> suggestions =
+        suggestReferenceFrames(db, candidate, shots, suggestCount, options.model.threads, log);
+    reportSuggestions(suggestions, candidateSpec, shotSpecs, db, jsonPath);
+    if (log != nullptr) {
+      std::vector<int> frames;
+      for (const ReferenceSuggestion& s : suggestions) {
+        frames.push_back(s.frame);
+      }
+      std::sort(frames.begin(), frames.end());
+      *log << "to add them: simulate the cloth of " << candidateSpec.path
+           << " and rebuild with --also " << candidateSpec.path
+           << " CLOTH.pc2:" << formatFrameRange(frames)
+           << " (velocity and history read the driver's earlier frames)\n";
+    }
+  }
+  return 0;
+}
+
+}  // namespace drivenshape::cli
