@@ -137,16 +137,6 @@ std::vector<float> clothOnlyResolution(const Mesh& driverMesh, const Shot& shot,
   return cloth;
 }
 
-/// Mean per-vertex distance between two frame blocks (scene units).
-double meanDistance(const std::vector<float>& a, const std::vector<float>& b) {
-  double sum = 0.0;
-  for (std::size_t i = 0; i < a.size(); i += 3) {
-    sum += (Eigen::Vector3d(a[i], a[i + 1], a[i + 2]) - Eigen::Vector3d(b[i], b[i + 1], b[i + 2]))
-               .norm();
-  }
-  return sum / static_cast<double>(a.size() / 3);
-}
-
 /// "inside_vertices" of an evaluator's report settings, 0 when absent.
 int reportedInsideVertices(const Evaluator& evaluator) {
   const nlohmann::json settings = nlohmann::json::parse(evaluator.describeSettings());
@@ -175,9 +165,9 @@ TEST_F(SidesTest, MuscleUnderTheSkinBakesToTheInsetTruthWithTheDefaults) {
   const Evaluation raw = unresolved.evaluate(shot.frames, shot.driver);
   const std::vector<float> before = clothOnlyResolution(db.driverMesh, shot, raw.cloth);
 
-  const double errorDefaults = meanDistance(resolved.cloth, truth);
-  const double errorRaw = meanDistance(raw.cloth, truth);
-  const double errorBefore = meanDistance(before, truth);
+  const double errorDefaults = testing::meanVertexDistance(resolved.cloth, truth);
+  const double errorRaw = testing::meanVertexDistance(raw.cloth, truth);
+  const double errorBefore = testing::meanVertexDistance(before, truth);
   std::printf(
       "[ measured ] muscle %.0f mm under the skin, mean error to the inset truth: defaults %.4f "
       "mm, --no-resolve %.4f mm, cloth-only resolution (before sides) %.4f mm (limit %.2f mm)\n",

@@ -153,16 +153,6 @@ TEST(PoseModel, FeaturesAreJointRotationsWhateverTheCharacterStands) {
   }
 }
 
-/// Mean vertex distance between two F x 3V blocks.
-double meanDistance(const std::vector<float>& a, const std::vector<float>& b) {
-  double sum = 0.0;
-  for (std::size_t i = 0; i < a.size(); i += 3) {
-    sum += std::sqrt(std::pow(double(a[i]) - b[i], 2) + std::pow(double(a[i + 1]) - b[i + 1], 2) +
-                     std::pow(double(a[i + 2]) - b[i + 2], 2));
-  }
-  return sum / static_cast<double>(a.size() / 3);
-}
-
 TEST_F(PoseModelClTest, TheModelBeatsTheBindingOnFramesItNeverSaw) {
   const Database& db = sampleDatabase();
   ASSERT_FALSE(db.poseModel.empty()) << "db build fits the pose model by default";
@@ -178,8 +168,8 @@ TEST_F(PoseModelClTest, TheModelBeatsTheBindingOnFramesItNeverSaw) {
   bind.weightMode = WeightMode::kBind;
   const Evaluation withModel = Evaluator(db, model, cl.view()).evaluate(frames, pose);
   const Evaluation binding = Evaluator(db, bind, cl.view()).evaluate(frames, pose);
-  const double modelError = meanDistance(withModel.cloth, expected);
-  const double bindError = meanDistance(binding.cloth, expected);
+  const double modelError = testing::meanVertexDistance(withModel.cloth, expected);
+  const double bindError = testing::meanVertexDistance(binding.cloth, expected);
   // The simulated truth of the sleeve's test clip (a motion the train clip does not hold).
   EXPECT_LT(modelError, 0.8 * bindError)
       << "pose model " << modelError << " vs binding " << bindError << " (scene units)";

@@ -197,16 +197,6 @@ TEST(ReferenceClips, ClipsOfAnotherMeshOrWithoutTheirFramesAreRefusedByName) {
       ErrorCode::kUsage, "pose model");
 }
 
-/// Mean vertex distance between two F x 3V blocks.
-double meanDistance(const std::vector<float>& a, const std::vector<float>& b) {
-  double sum = 0.0;
-  for (std::size_t i = 0; i < a.size(); i += 3) {
-    sum += std::sqrt(std::pow(double(a[i]) - b[i], 2) + std::pow(double(a[i + 1]) - b[i + 1], 2) +
-                     std::pow(double(a[i + 2]) - b[i + 2], 2));
-  }
-  return sum / static_cast<double>(a.size() / 3);
-}
-
 TEST(ReferenceClips, ASecondClipLowersTheErrorOnItsMotion) {
   // The test clip's first half as a second clip; its second half (held out) is the shot.
   const Database one = buildWithClips({}, {});
@@ -226,7 +216,8 @@ TEST(ReferenceClips, ASecondClipLowersTheErrorOnItsMotion) {
     for (int f = 24; f < 48; ++f) {
       predicted += e.records[f].predictedError / 24.0;
     }
-    return meanDistance(std::vector<float>(e.cloth.begin() + 24 * dd, e.cloth.end()), expected);
+    return testing::meanVertexDistance(std::vector<float>(e.cloth.begin() + 24 * dd, e.cloth.end()),
+                                       expected);
   };
   double predictedOne = 0.0, predictedTwo = 0.0;
   const double errorOne = heldOut(one, predictedOne);

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -124,6 +125,16 @@ cl::Device& OpenClTest::device() {
 }
 cl::CommandQueue& OpenClTest::queue() {
   return clState()->queue;
+}
+
+double meanVertexDistance(const std::vector<float>& a, const std::vector<float>& b) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i + 2 < a.size(); i += 3) {
+    const double dx = double(a[i]) - b[i], dy = double(a[i + 1]) - b[i + 1],
+                 dz = double(a[i + 2]) - b[i + 2];
+    sum += std::sqrt(dx * dx + dy * dy + dz * dz);
+  }
+  return a.empty() ? 0.0 : sum / static_cast<double>(a.size() / 3);
 }
 
 }  // namespace drivenshape::testing

@@ -10,6 +10,7 @@
 #include <functional>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <drivenshape/error.h>
 
@@ -179,6 +180,10 @@ class TempDir {
 /// Runs `call` and expects it to throw a drivenshape::Error with `code` whose message contains
 /// `fragment`; a test failure (with the message) otherwise, also when nothing is thrown.
 void expectThrows(const std::function<void()>& call, ErrorCode code, const std::string& fragment);
+
+/// Mean per-vertex distance between two blocks of frames of interleaved xyz (scene units): the
+/// mean vertex error of `a` against `b`.
+double meanVertexDistance(const std::vector<float>& a, const std::vector<float>& b);
 
 // ---- OpenCL ----
 
