@@ -302,14 +302,8 @@ FitFrames gatherFitFrames(Database& db, const std::vector<int>& candidates,
     const ReferenceClip& clip = extraClips[c];
     const std::string what = "reference clip " + std::to_string(c + 2);
     std::vector<int> frames = clipFrames(*clip.driver, clip.frames, what);
-    for (int frame : frames) {
-      if (!clip.driven->hasFrame(frame)) {
-        const std::vector<int> held = clip.driven->frames();
-        DS_THROW(kInput, what, ": driven cache '", clip.driven->path(), "' has no frame ", frame,
-                 " (it holds ", held.empty() ? std::string("no frames") : formatFrameRange(held),
-                 "); give the driven cache of the same frames");
-      }
-    }
+    checkFramesHeld(*clip.driven, frames, what, "driven ",
+                    "give the driven cache of the same frames");
     clips.push_back({clip.driver, clip.driven, std::move(frames), {}});
   }
   std::vector<std::array<int, 2>> ranges;

@@ -19,6 +19,18 @@ void checkClipVertexCount(const PointCacheReader& cache, const Mesh& mesh, const
   }
 }
 
+void checkFramesHeld(const PointCacheReader& cache, const std::vector<int>& frames,
+                     const std::string& what, const char* role, const char* advice) {
+  for (int frame : frames) {
+    if (!cache.hasFrame(frame)) {
+      const std::vector<int> held = cache.frames();
+      DS_THROW(kInput, what, ": ", role, "cache '", cache.path(), "' has no frame ", frame,
+               " (it holds ", held.empty() ? std::string("no frames") : formatFrameRange(held),
+               "); ", advice);
+    }
+  }
+}
+
 std::vector<int> clipFrames(const PointCacheReader& cache, std::vector<int> frames,
                             const std::string& what) {
   if (frames.empty()) {
@@ -29,14 +41,7 @@ std::vector<int> clipFrames(const PointCacheReader& cache, std::vector<int> fram
   if (frames.empty()) {
     DS_THROW(kInput, what, ": cache '", cache.path(), "' holds no frames");
   }
-  for (int frame : frames) {
-    if (!cache.hasFrame(frame)) {
-      const std::vector<int> held = cache.frames();
-      DS_THROW(kInput, what, ": cache '", cache.path(), "' has no frame ", frame, " (it holds ",
-               held.empty() ? std::string("no frames") : formatFrameRange(held),
-               "); choose frames within that range");
-    }
-  }
+  checkFramesHeld(cache, frames, what, "", "choose frames within that range");
   return frames;
 }
 

@@ -17,6 +17,11 @@ namespace drivenshape {
 void checkClipVertexCount(const PointCacheReader& cache, const Mesh& mesh, const char* role,
                           const std::string& what);
 
+/// Throws Error(kInput) naming `what`, the `role` cache ("" or "driven ") and the range it holds
+/// unless it holds every frame of `frames`; the message ends with `advice`.
+void checkFramesHeld(const PointCacheReader& cache, const std::vector<int>& frames,
+                     const std::string& what, const char* role, const char* advice);
+
 /// A clip's frames: `frames` sorted without repeats, or every frame of the cache when empty.
 /// Throws Error(kInput) naming `what` and the cache when it lacks one of them or holds none.
 std::vector<int> clipFrames(const PointCacheReader& cache, std::vector<int> frames,
