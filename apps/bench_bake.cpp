@@ -184,6 +184,10 @@ int runBench(const std::vector<std::string>& args) {
       .flag("--no-correct", "blend only (no collision correction)")
       .flag("--no-audit", "skip the per-frame audit")
       .flag("--no-resolve", "skip the penetration resolution")
+      .option("--exit-fade", "K", "the resolution's exit fade (as for bake)", "0.15")
+      .option("--also-exit-fade", "K",
+              "bake on OpenCL a second time with this exit fade (e.g. 0, before the fade) in the "
+              "same run")
       .flag("--sync", "fsync every output before its rename")
       .option("--blend", "MODE", "world (the talk: correction searches P~) or local", "local")
       .option("--weights", "MODE",
@@ -262,6 +266,7 @@ int runBench(const std::vector<std::string>& args) {
   options.evaluator.correct = !parser.has("--no-correct");
   options.evaluator.audit = !parser.has("--no-audit");
   options.evaluator.resolve = !parser.has("--no-resolve");
+  options.evaluator.exitFade = parser.getDouble("--exit-fade", 0.0);
   options.syncOutputs = parser.has("--sync");
   options.evaluator.blend = ds::parseBlendMode(parser.get("--blend"), "--blend");
   options.evaluator.align = ds::parseAlignMode(parser.get("--align"), "--align");
@@ -319,6 +324,14 @@ int runBench(const std::vector<std::string>& args) {
     const ds::BakeResult again = ds::bake(db, *shotCache, *clDevice, other);
     printRow("same, weights " + parser.get("--also-weights"), again, peakRssMiB());
     report["opencl_" + parser.get("--also-weights")] = timesJson(again, peakRssMiB());
+  }
+  if (parser.has("--also-exit-fade")) {
+    ds::BakeOptions other = options;
+    other.evaluator.exitFade = parser.getDouble("--also-exit-fade", 0.0);
+    other.outputPattern = (root / "cl" / "fade.####.exr").string();
+    const ds::BakeResult again = ds::bake(db, *shotCache, *clDevice, other);
+    printRow("same, exit fade " + parser.get("--also-exit-fade"), again, peakRssMiB());
+    report["opencl_exit_fade_" + parser.get("--also-exit-fade")] = timesJson(again, peakRssMiB());
   }
   if (fullSearch) {
     report["opencl"]["same_files_as_full_search"] =

@@ -386,6 +386,13 @@ int runBake(const std::vector<std::string>& args) {
               "inside it) moves out to D along the surface normal (0.002 = 2 mm in metre "
               "scenes)",
               "0.002")
+      .option("--exit-fade", "K",
+              "penetration resolution: a vertex deep inside the body whose second-nearest exit "
+              "(elsewhere on the skin) is within K x its depth of the nearest moves only part "
+              "of the way, none where they tie, so cloth caught in a limb or in a bent joint "
+              "that passes through itself does not jump across it between frames (0 = always "
+              "all the way)",
+              "0.15")
       .flag("--no-resolve", "skip the penetration resolution")
       .option("--regions", "FILE.json",
               "region-local weights: one QP per region (driver groups) mixed over the matching "
@@ -481,6 +488,7 @@ int bakeParsed(const ArgParser& parser) {
   }
   options.evaluator.resolve = !parser.has("--no-resolve");
   options.evaluator.skinOffset = parser.getDouble("--skin-offset", 0.0);
+  options.evaluator.exitFade = parser.getDouble("--exit-fade", 0.0);
   if (parser.has("--regions")) {
     options.regionsPath = parser.get("--regions");
   }

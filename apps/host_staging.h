@@ -30,6 +30,7 @@ class HostStagingClosest final : public ClosestBackend {
     mInner->setSides(sides);
     mSides = sides;
   }
+  void setExitFade(float fade) override { mInner->setExitFade(fade); }
   void closest(int f, const float* poses, const float* points, SurfaceHit* hits) override {
     mInner->closest(f, poses, points, hits);
   }

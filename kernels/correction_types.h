@@ -56,8 +56,8 @@ typedef struct DsResolveParams {
   ds_int triangleCount;  // T
   float offset;          // scene units, >= 0
   ds_int sided;          // 1: read each point's side from `sides`; 0: every point lives outside
-  ds_int pad1;
-  ds_int pad2;
+  float fade;            // dsResolve's exit fade (ClosestBackend::setExitFade), 0 = off
+  ds_int nodeCount;      // N, the BVH's nodes (read when fade > 0)
 } DsResolveParams;
 
 // One node of a bounding-volume hierarchy over driver triangles (kernels/bvh.cl, built by

@@ -12,8 +12,15 @@
 // to q + offset N / |N|, an inside point with s > -offset to q - offset N / |N|, and the frame's
 // counter moves[f] is incremented; otherwise p stays.
 //
+// The exit fade (params.fade > 0; host reference: HostClosest::exitFraction): a point on the
+// wrong side at depth d = |p - q| moves only the fraction a = clamp((d2 - d) / (fade d), 0, 1)
+// of the way, with d2 its distance to the nearest other exit: the least distance to a triangle
+// whose closest point lies farther than d from q, found by a walk of the BVH refitted to this
+// block's poses (bvh.cl).
+//
 // Mapping: 1-D, local size DS_LOCAL_SIZE, one item per (frame f, point i), item id f * Vd + i.
-// Requires the sources of closest.cl and transfer.cl before it (dsLoadPoint).
+// Requires the sources of closest.cl, transfer.cl (dsLoadPoint) and bvh.cl (dsBoxDistance2)
+// before it.
 //
 //   poses            F x 3Vp float
 //   triangles        T x 3 int
@@ -25,6 +32,8 @@
 //   points           F x 3Vd float, updated in place
 //   moved            F int, incremented atomically (the host zeroes them)
 //   sides            Vd char, +1 or -1 (read only when params.sided is 1), shared by every frame
+//   nodes, leafTriangles, boxes, pointRoot   the BVH as bvh.cl reads it (dsResolve only; read
+//                    only when params.fade > 0)
 
 // Unit normal of triangle s; zero for a zero-area triangle.
 inline ds_real3 dsFaceNormal(__global const float* pose, __global const int* triangles, int s) {
@@ -95,11 +104,69 @@ inline ds_real dsSignedDistance(__global const float* pose, __global const int* 
   return side < 0 ? -distance : distance;
 }
 
+// The nearest other exit of p (see above): the least distance from p to a triangle of the tree
+// at `root` whose closest point lies farther than `depth` from q; INFINITY when there is none.
+inline ds_real dsOtherExit(ds_real3 p, ds_real3 q, ds_real depth, __global const float* pose,
+                           __global const DsBvhNode* nodes, __global const int4* leafTriangles,
+                           __global const float* frameBoxes, int root) {
+  ds_real best = INFINITY;  // squared
+  const ds_real reach = depth * depth;
+  int stack[DS_BVH_MAX_DEPTH];
+  ds_real stackDistance[DS_BVH_MAX_DEPTH];
+  int sp = 0;
+  int node = root;
+  while (node >= 0) {
+    const DsBvhNode current = nodes[node];
+    int next = -1;
+    if (current.count > 0) {
+      for (int k = current.first; k < current.first + current.count; ++k) {
+        const int4 tri = leafTriangles[k];
+        const ds_real3 a = dsLoad3(pose, tri.x);
+        const ds_real3 b = dsLoad3(pose, tri.y);
+        const ds_real3 c = dsLoad3(pose, tri.z);
+        ds_real u;
+        ds_real v;
+        const ds_real d2 = dsTriangleDistance2(p, a, b, c, &u, &v);
+        if (d2 < best) {
+          const ds_real3 e = a + u * (b - a) + v * (c - a) - q;
+          if (dot(e, e) > reach) {
+            best = d2;
+          }
+        }
+      }
+    } else {
+      const ds_real dl = dsBoxDistance2(p, frameBoxes + (size_t)current.left * 6);
+      const ds_real dr = dsBoxDistance2(p, frameBoxes + (size_t)current.right * 6);
+      const int leftFirst = dl <= dr;
+      const ds_real dNear = leftFirst ? dl : dr;
+      const ds_real dFar = leftFirst ? dr : dl;
+      if (dNear < best) {
+        next = leftFirst ? current.left : current.right;
+        if (dFar < best) {
+          stack[sp] = leftFirst ? current.right : current.left;
+          stackDistance[sp] = dFar;
+          ++sp;
+        }
+      }
+    }
+    while (next < 0 && sp > 0) {
+      --sp;
+      if (stackDistance[sp] < best) {
+        next = stack[sp];
+      }
+    }
+    node = next;
+  }
+  return sqrt(best);
+}
+
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResolve(
     __global const float* poses, __global const int* triangles, __global const int* edgeStart,
     __global const int* edgeTriangles, __global const int* vertexStart,
     __global const int* vertexTriangles, __global const DsSurfaceHit* hits, __global float* points,
-    __global int* moved, __global const char* sides, const DsResolveParams params) {
+    __global int* moved, __global const char* sides, const DsResolveParams params,
+    __global const DsBvhNode* nodes, __global const int4* leafTriangles,
+    __global const float* boxes, __global const int* pointRoot) {
   const int item = (int)get_global_id(0);
   if (item >= params.frameCount * params.pointCount) {
     return;
@@ -108,15 +175,29 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
   __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
   ds_real3 q;
   ds_real3 normal;
+  const ds_real3 p = dsLoadPoint(points, item);
   const ds_real signedDistance =
       dsSignedDistance(pose, triangles, edgeStart, edgeTriangles, vertexStart, vertexTriangles,
-                       hits[item], dsLoadPoint(points, item), &q, &normal);
+                       hits[item], p, &q, &normal);
   const ds_real length = sqrt(dot(normal, normal));
   // Inside points mirror outside ones: the offset surface under the skin is at -offset.
-  const bool inside = params.sided != 0 && sides[item - frame * params.pointCount] < 0;
+  const int point = item - frame * params.pointCount;
+  const bool inside = params.sided != 0 && sides[point] < 0;
   const ds_real target = inside ? -(ds_real)params.offset : (ds_real)params.offset;
   if (length > 0 && (inside ? signedDistance > target : signedDistance < target)) {
-    const ds_real3 result = q + (target / length) * normal;
+    const ds_real3 full = q + (target / length) * normal;
+    ds_real fraction = 1;
+    const ds_real depth = fabs(signedDistance);
+    if (params.fade > 0 && depth > 0 && (inside ? signedDistance > 0 : signedDistance < 0)) {
+      const ds_real other =
+          dsOtherExit(p, q, depth, pose, nodes, leafTriangles,
+                      boxes + (size_t)frame * (size_t)params.nodeCount * 6, pointRoot[point]);
+      fraction = clamp((other - depth) / ((ds_real)params.fade * depth), (ds_real)0, (ds_real)1);
+    }
+    if (fraction <= 0) {
+      return;
+    }
+    const ds_real3 result = fraction < 1 ? p + fraction * (full - p) : full;
     points[3 * item] = (float)result.x;
     points[3 * item + 1] = (float)result.y;
     points[3 * item + 2] = (float)result.z;

@@ -252,8 +252,8 @@ void bindSettings(py::module_& module) {
       .def(py::init([](const std::string& weightMode, const std::string& align,
                        std::string alignGroup, const std::string& blend, bool correct,
                        std::optional<BindingMask> bindingMask, bool resolve, double skinOffset,
-                       std::optional<RegionSet> regions, double maxWeightChange, bool audit,
-                       std::optional<LayerSettings> layers, int threads) {
+                       double exitFade, std::optional<RegionSet> regions, double maxWeightChange,
+                       bool audit, std::optional<LayerSettings> layers, int threads) {
              EvaluatorSettings settings;
              settings.weightMode = parseWeightMode(weightMode, "weight_mode");
              settings.align = parseAlignMode(align, "align");
@@ -263,6 +263,7 @@ void bindSettings(py::module_& module) {
              settings.bindingMask = std::move(bindingMask);
              settings.resolve = resolve;
              settings.skinOffset = skinOffset;
+             settings.exitFade = exitFade;
              settings.regions = std::move(regions);
              settings.maxWeightChange = maxWeightChange;
              settings.audit = audit;
@@ -277,8 +278,8 @@ void bindSettings(py::module_& module) {
            py::arg("align_group") = defaults.alignGroup,
            py::arg("blend") = blendModeName(defaults.blend), py::arg("correct") = defaults.correct,
            py::arg("binding_mask") = py::none(), py::arg("resolve") = defaults.resolve,
-           py::arg("skin_offset") = defaults.skinOffset, py::arg("regions") = py::none(),
-           py::arg("max_weight_change") = defaults.maxWeightChange,
+           py::arg("skin_offset") = defaults.skinOffset, py::arg("exit_fade") = defaults.exitFade,
+           py::arg("regions") = py::none(), py::arg("max_weight_change") = defaults.maxWeightChange,
            py::arg("audit") = defaults.audit, py::arg("layers") = py::none(),
            py::arg("threads") = defaults.threads)
       .def_property(
@@ -305,6 +306,7 @@ void bindSettings(py::module_& module) {
           })
       .def_readwrite("resolve", &EvaluatorSettings::resolve)
       .def_readwrite("skin_offset", &EvaluatorSettings::skinOffset)
+      .def_readwrite("exit_fade", &EvaluatorSettings::exitFade)
       .def_property(
           "regions", [](const EvaluatorSettings& s) { return s.regions; },
           [](EvaluatorSettings& s, std::optional<RegionSet> regions) {
@@ -326,7 +328,7 @@ void bindSettings(py::module_& module) {
              << blendModeName(s.blend) << "', correct=" << (s.correct ? "True" : "False")
              << ", binding_mask=" << (s.bindingMask ? "<BindingMask>" : "None")
              << ", resolve=" << (s.resolve ? "True" : "False") << ", skin_offset=" << s.skinOffset
-             << ", regions=" << (s.regions ? "<RegionSet>" : "None")
+             << ", exit_fade=" << s.exitFade << ", regions=" << (s.regions ? "<RegionSet>" : "None")
              << ", max_weight_change=" << s.maxWeightChange
              << ", audit=" << (s.audit ? "True" : "False")
              << ", layers=" << (s.layers.empty() ? "None" : "<LayerSettings>")

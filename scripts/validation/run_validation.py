@@ -20,6 +20,7 @@ mean error of the frames the verdict calls covered. Writes everything under --ou
 
 Usage: scripts/validation/run_validation.py [--reference ../shared/data] [--clips DIR]
        [--build build] [--out out/validation] [--modes talk,bind,qp,defaults] [--only NAME...]
+       [--db-flags FLAGS] [--bake-flags FLAGS]
        scripts/validation/run_validation.py --from-tables RUN1/table.json RUN2/table.json ...
 """
 import argparse
@@ -95,6 +96,8 @@ def main():
     ap.add_argument("--modes", default="talk,bind,qp,defaults")
     ap.add_argument("--only", nargs="*", default=[])
     ap.add_argument("--db-flags", default="", help="extra `db build` flags")
+    ap.add_argument("--bake-flags", default="",
+                    help="extra `bake` flags of the defaults mode (e.g. --exit-fade 0.2)")
     ap.add_argument("--from-tables", nargs="+", metavar="TABLE.json",
                     help="print the table of earlier runs (their table.json) together, bake nothing")
     a = ap.parse_args()
@@ -131,7 +134,7 @@ def main():
             report = os.path.join(out, "report.json")
             run([ds, "bake", "--db", db, "--driver", f"{d}/{family}.driver.pc2", "--frames",
                  frames, "--quiet", "-o", f"{out}/cloth.####.exr", "--report", report]
-                + MODES[mode], log)
+                + MODES[mode] + (a.bake_flags.split() if mode == "defaults" else []), log)
             ev = os.path.join(out, "eval.json")
             run([ds, "eval", "--truth", f"{d}/{family}.driven.pc2", "--bake",
                  f"{out}/cloth.####.exr", "--frames", frames, "--driver",

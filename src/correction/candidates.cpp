@@ -155,6 +155,13 @@ void checkOffset(float offset) {
   }
 }
 
+void checkExitFade(float fade) {
+  if (!std::isfinite(fade) || fade < 0.0f) {
+    DS_THROW(kInput, "penetration resolution: the exit fade is ", fade,
+             "; it must be a finite number >= 0 (0 = off)");
+  }
+}
+
 void checkSides(const std::vector<std::int8_t>& sides, int pointCount) {
   if (!sides.empty() && sides.size() != static_cast<std::size_t>(pointCount)) {
     DS_THROW(kInput, "side table: ", sides.size(), " entries for ", pointCount,

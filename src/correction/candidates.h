@@ -53,6 +53,9 @@ void checkRebuild(const CandidateSearch& search, int frameCount, const SurfaceHi
 /// Throws Error(kInput) unless the resolution's offset is finite and >= 0.
 void checkOffset(float offset);
 
+/// Throws Error(kInput) unless the resolution's exit fade is finite and >= 0.
+void checkExitFade(float fade);
+
 /// Checks a resolve call (see ClosestBackend::resolve): also the offset (checkOffset).
 void checkResolve(const CandidateSearch& search, int frameCount, const float* poses,
                   const SurfaceHit* hits, float offset, const float* points);

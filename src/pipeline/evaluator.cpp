@@ -171,6 +171,10 @@ struct Evaluator::Impl {
     hasher.addValue(model.local);
     hasher.addValue(settings.resolve);
     hasher.addValue(settings.resolve ? settings.skinOffset : 0.0);
+    // Off, the exit fade leaves the hash of the bakes before it.
+    if (settings.resolve && settings.exitFade > 0) {
+      hasher.addValue(settings.exitFade);
+    }
     hasher.addValue(settings.regions.has_value());
     if (settings.regions) {
       hasher.addValue(settings.regions->falloff);
@@ -320,6 +324,7 @@ std::string Evaluator::describeSettings() const {
       {"blend", blendModeName(mImpl->model.local ? BlendMode::kLocal : BlendMode::kWorld)},
       {"resolve", settings.resolve},
       {"skin_offset", settings.skinOffset},
+      {"exit_fade", settings.exitFade},
       {"regions", nlohmann::json::array()},
       {"region_falloff", 0},
       {"max_weight_change", settings.maxWeightChange},

@@ -106,6 +106,9 @@ EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
     DS_THROW(kUsage, "the skin offset must be a distance >= 0 in scene units (got ",
              settings.skinOffset, ")");
   }
+  if (!std::isfinite(settings.exitFade) || settings.exitFade < 0) {
+    DS_THROW(kUsage, "the exit fade must be a number >= 0 (0 = off; got ", settings.exitFade, ")");
+  }
   if (!std::isfinite(settings.maxWeightChange) || settings.maxWeightChange < 0 ||
       settings.maxWeightChange > 1) {
     DS_THROW(kUsage, "the maximum weight change must be in [0, 1] (0 = off; got ",

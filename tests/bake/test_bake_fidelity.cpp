@@ -741,6 +741,7 @@ TEST_F(FidelityTest, ReportAndSettingsHashRecordEveryFidelitySetting) {
   EXPECT_EQ(settings.at("blend"), "local");
   EXPECT_EQ(settings.at("resolve"), true);
   EXPECT_DOUBLE_EQ(settings.at("skin_offset").get<double>(), options.evaluator.skinOffset);
+  EXPECT_DOUBLE_EQ(settings.at("exit_fade").get<double>(), options.evaluator.exitFade);
   EXPECT_EQ(settings.at("max_weight_change"), 0.0);
   for (const auto& frame : report.at("frames")) {
     EXPECT_TRUE(frame.contains("align_rotation"));
@@ -754,6 +755,8 @@ TEST_F(FidelityTest, ReportAndSettingsHashRecordEveryFidelitySetting) {
       [](BakeOptions& o) { o.evaluator.blend = BlendMode::kWorld; },
       [](BakeOptions& o) { o.evaluator.resolve = false; },
       [](BakeOptions& o) { o.evaluator.skinOffset = 0.004; },
+      [](BakeOptions& o) { o.evaluator.exitFade = 0.0; },
+      [](BakeOptions& o) { o.evaluator.exitFade = 0.3; },
       [](BakeOptions& o) { o.evaluator.maxWeightChange = 0.1; },
   };
   for (std::size_t c = 0; c < changes.size(); ++c) {

@@ -398,6 +398,105 @@ TEST_F(CorrectionClTest, ResolveWithZeroOffsetMovesOnlyInsidePointsOntoTheSurfac
   }
 }
 
+/// A slab |z| <= kHalf (the subdivided cube flattened) and points on a line across its middle
+/// plane, where the two exits (top and bottom) tie: the exit fade in closed form. For a point at
+/// height e the nearest exit is the near face at depth d = kHalf - |e|; the nearest other exit
+/// is the far face at kHalf + |e| (every triangle of the near face whose closest point lies
+/// farther than d from q is at least sqrt(2) d away, farther still while |e| < 0.03), so the
+/// fraction of the move is clamp(2 |e| / (fade d), 0, 1).
+constexpr float kHalf = 0.2f;
+constexpr float kFade = 0.3f;
+
+PosedScene makeSlabScene(const std::vector<float>& heights) {
+  PosedScene scene;
+  scene.mesh = subdividedCube(16);
+  for (int v = 0; v < scene.mesh.vertexCount(); ++v) {
+    scene.mesh.positions(v, 2) *= kHalf;
+  }
+  scene.frameCount = 1;
+  scene.poses.assign(scene.mesh.positions.data(),
+                     scene.mesh.positions.data() + 3 * scene.mesh.vertexCount());
+  for (const float e : heights) {
+    scene.points.insert(scene.points.end(), {0.1f, 0.05f, e});
+  }
+  scene.pointCount = static_cast<int>(heights.size());
+  return scene;
+}
+
+std::vector<float> resolvedOnSlab(ClosestBackend& backend, ClosestBackend& host,
+                                  const PosedScene& scene, float fade) {
+  const BindingMask all = BindingMask::all(scene.pointCount);
+  const std::vector<SurfaceHit> hits =
+      closestHits(host, scene.mesh, all, 1, scene.poses.data(), scene.points.data());
+  backend.setSurface(scene.mesh, all);
+  backend.setExitFade(fade);
+  std::vector<float> points = scene.points;
+  backend.resolve(1, scene.poses.data(), hits.data(), kOffset, points.data(), nullptr);
+  return points;
+}
+
+TEST_F(CorrectionClTest, ExitFadeMovesPointsWithTwoNearlyEqualExitsPartOfTheWay) {
+  // Off the middle plane by 0, 2, 5, 10, 20 and 30 thousandths (fractions 0 to 1), and a deep
+  // point nearer the top face (no other exit near: it moves all the way).
+  const std::vector<float> heights = {0.0f,  0.002f,  -0.005f, 0.01f, -0.01f,
+                                      0.02f, -0.025f, 0.03f,   0.1f};
+  const PosedScene scene = makeSlabScene(heights);
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    const std::vector<float> points = resolvedOnSlab(*backend, *hostBackend(), scene, kFade);
+    for (std::size_t i = 0; i < heights.size(); ++i) {
+      const double e = heights[i];
+      const double depth = kHalf - std::fabs(e);
+      const double fraction = std::min(2.0 * std::fabs(e) / (kFade * depth), 1.0);
+      const double target = std::copysign(kHalf + kOffset, e == 0.0 ? 1.0 : e);
+      const double expected = e + fraction * (target - e);
+      // The slab's scale is 1 (half-width 1), so the relative tolerance is absolute here.
+      EXPECT_NEAR(points[3 * i], 0.1f, kResolveRelTol) << "point " << i;
+      EXPECT_NEAR(points[3 * i + 1], 0.05f, kResolveRelTol) << "point " << i;
+      EXPECT_NEAR(points[3 * i + 2], expected, kResolveRelTol)
+          << "point " << i << " at height " << e << ": fraction " << fraction;
+    }
+  }
+}
+
+TEST_F(CorrectionClTest, ExitFadeMakesTheMoveContinuousAcrossTheMiddleOfALimb) {
+  // A point swept across the slab's middle plane in steps of 1e-3: without the fade it jumps
+  // from the bottom face to the top one (2 kHalf + 2 offsets); with it, every step moves it by
+  // at most the step times 1 + (the fraction's slope, below 2 / (fade (kHalf - 0.03))) x (the
+  // length of the move, below kHalf + kOffset + 0.03).
+  std::vector<float> heights;
+  for (int k = -30; k <= 30; ++k) {
+    heights.push_back(0.001f * static_cast<float>(k) + 0.0005f);
+  }
+  const PosedScene scene = makeSlabScene(heights);
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    for (const float fade : {0.0f, kFade}) {
+      const std::vector<float> points = resolvedOnSlab(*backend, *hostBackend(), scene, fade);
+      double largestStep = 0.0;
+      for (std::size_t i = 1; i < heights.size(); ++i) {
+        largestStep = std::max(
+            largestStep, static_cast<double>(std::fabs(points[3 * i + 2] - points[3 * i - 1])));
+      }
+      if (fade == 0.0f) {
+        EXPECT_GT(largestStep, 2.0 * kHalf) << "without the fade the point jumps across";
+      } else {
+        const double slope = 2.0 / (kFade * (kHalf - 0.03));
+        EXPECT_LT(largestStep, 0.001 * (1.0 + slope * (kHalf + kOffset + 0.03)))
+            << "with the fade the move is continuous";
+      }
+    }
+  }
+}
+
+TEST_F(CorrectionClTest, ExitFadeRejectsNegativeAndNonFiniteValues) {
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    expectThrows([&] { backend->setExitFade(-0.1f); }, ErrorCode::kInput, "exit fade");
+    expectThrows([&] { backend->setExitFade(NAN); }, ErrorCode::kInput, "exit fade");
+  }
+}
+
 TEST_F(CorrectionClTest, ResolveRejectsNonFiniteInputBadOffsetsAndForeignHits) {
   const CubeScene scene = makeCubeScene();
   const int vd = scene.pointCount;

@@ -60,6 +60,7 @@ def evaluator_kwargs(settings):
         correct=settings.correct,
         resolve=settings.resolve,
         skin_offset=settings.skin_offset,
+        exit_fade=settings.exit_fade,
         max_weight_change=settings.max_weight_change,
         audit=settings.audit,
         threads=settings.threads,

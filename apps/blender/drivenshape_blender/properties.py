@@ -107,6 +107,12 @@ class DrivenShapeSettings(bpy.types.PropertyGroup):
         update=_settings_changed,
         description="Distance the penetration resolution keeps between cloth and driver "
         "(scene units)")
+    exit_fade: FloatProperty(
+        name="Exit Fade", default=0.15, min=0.0, soft_max=1.0, precision=2, step=1,
+        update=_settings_changed,
+        description="Cloth deep in a limb or a bent joint whose two nearest exits are nearly "
+        "equally far moves only part of the way out, so it does not jump across (0: always "
+        "all the way)")
     max_weight_change: FloatProperty(
         name="Temporal Bound", default=0.0, min=0.0, max=1.0, precision=3, step=1,
         update=_settings_changed,

@@ -84,6 +84,9 @@ class DRIVENSHAPE_PT_settings(_Panel, bpy.types.Panel):
         row = column.row()
         row.active = settings.resolve
         row.prop(settings, "skin_offset")
+        row = column.row()
+        row.active = settings.resolve
+        row.prop(settings, "exit_fade")
         layout.prop(settings, "max_weight_change")
         layout.prop(settings, "audit")
         layout.prop(settings, "space")

@@ -450,6 +450,8 @@ def _parser():
     add("--no-correct", action="store_true", help="skip the collision correction")
     add("--bind", metavar="MAP", help="binding mask (JSON)")
     add("--skin-offset", metavar="D", type=float, default=0.002, help="[default: 0.002]")
+    add("--exit-fade", metavar="K", type=float, default=0.15,
+        help="deep vertices with two nearly equal exits move part of the way [default: 0.15]")
     add("--no-resolve", action="store_true", help="skip the penetration resolution")
     add("--regions", metavar="FILE.json", help="region-local weights")
     add("--max-weight-change", metavar="TAU", type=float, default=0.0,
@@ -495,7 +497,7 @@ def _settings(args, db):
         weight_mode=args.weights, align=args.align, align_group=args.align_group,
         blend=args.blend, correct=not args.no_correct,
         binding_mask=ds.load_binding_mask(args.bind, db) if args.bind else None,
-        resolve=not args.no_resolve, skin_offset=args.skin_offset,
+        resolve=not args.no_resolve, skin_offset=args.skin_offset, exit_fade=args.exit_fade,
         regions=ds.load_regions(args.regions, db) if args.regions else None,
         max_weight_change=args.max_weight_change, audit=not args.no_audit, layers=layers,
         threads=args.threads)

@@ -73,8 +73,8 @@ class ClClosest final : public ClosestBackend {
         {{kernels::kCorrectionTypesSourceName, kernels::kCorrectionTypesSource},
          {kernels::kClosestSourceName, kernels::kClosestSource},
          {kernels::kTransferSourceName, kernels::kTransferSource},
-         {kernels::kResolveSourceName, kernels::kResolveSource},
          {kernels::kBvhSourceName, kernels::kBvhSource},
+         {kernels::kResolveSourceName, kernels::kResolveSource},
          {kernels::kCertificateSourceName, kernels::kCertificateSource}},
         defines);
     cl_util::guard("creating the correction kernels", [&] {
@@ -119,6 +119,11 @@ class ClClosest final : public ClosestBackend {
       mCertifiable = correction::certifiable(mBvh, mSearch.triangleCount());
       mNodeTriangle = upload(correction::nodeTriangles(mBvh));
     });
+  }
+
+  void setExitFade(float fade) override {
+    correction::checkExitFade(fade);
+    mFade = fade;
   }
 
   void setSides(const std::vector<std::int8_t>& sides) override {
@@ -194,7 +199,7 @@ class ClClosest final : public ClosestBackend {
     DeviceArray& hitsOn = onDevice(hits, mViewHits);
     DeviceArray& pointsOn = onDevice(points, mViewPoints);
     launchSigned(mCountInsideKernel, frameCount, posesOn, hitsOn, cl_util::readBuffer(pointsOn),
-                 0.0f, inside, "running the inside-count kernel");
+                 0.0f, 0.0f, inside, "running the inside-count kernel");
   }
 
   void closestBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
@@ -590,18 +595,29 @@ class ClClosest final : public ClosestBackend {
     }
     std::vector<int> counts(static_cast<std::size_t>(frameCount), 0);
     if (mSearch.pointCount() > 0) {
+      cl_util::guard("refitting the BVH for the exit fade", [&] {
+        // The boxes are read only with the fade on; any buffer stands in for them otherwise.
+        const cl::Buffer& boxes =
+            mFade > 0.0f ? refitBoxes(frameCount, cl_util::readBuffer(poses)) : mNodes;
+        mResolveKernel.setArg(11, mNodes);
+        mResolveKernel.setArg(12, mLeafTriangles);
+        mResolveKernel.setArg(13, boxes);
+        mResolveKernel.setArg(14, mPointRoot);
+      });
       launchSigned(mResolveKernel, frameCount, poses, hits, cl_util::modifyBuffer(points), offset,
-                   counts.data(), "running the penetration-resolution kernel");
+                   mFade, counts.data(), "running the penetration-resolution kernel");
     }
     if (moved != nullptr) {
       std::copy(counts.begin(), counts.end(), moved);
     }
   }
 
-  /// Runs dsResolve or dsCountInside (same arguments, the side table included) over every point
-  /// of `frameCount` frames and reads back their per-frame counters into `counts`.
+  /// Runs dsResolve or dsCountInside (same first arguments, the side table included; dsResolve's
+  /// BVH arguments are set by the caller) over every point of `frameCount` frames and reads back
+  /// their per-frame counters into `counts`.
   void launchSigned(cl::Kernel& kernel, int frameCount, DeviceArray& poses, DeviceArray& hits,
-                    const cl::Buffer& pointsBuffer, float offset, int* counts, const char* what) {
+                    const cl::Buffer& pointsBuffer, float offset, float fade, int* counts,
+                    const char* what) {
     const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
     const std::size_t countBytes = static_cast<std::size_t>(frameCount) * sizeof(cl_int);
     DsResolveParams params{};
@@ -611,6 +627,8 @@ class ClClosest final : public ClosestBackend {
     params.triangleCount = mSearch.triangleCount();
     params.offset = offset;
     params.sided = mSided ? 1 : 0;
+    params.fade = fade;
+    params.nodeCount = static_cast<cl_int>(mBvh.nodes.size());
     cl_util::guard(what, [&] {
       const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
       const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);
@@ -676,6 +694,7 @@ class ClClosest final : public ClosestBackend {
   bool mSeeded = false;
   cl::Buffer mSides;  ///< Vd chars (ClosestBackend::setSides), or a placeholder when !mSided
   bool mSided = false;
+  float mFade = 0.0f;  ///< setExitFade()
   bool mCertifiable = false;
   cl::Buffer mNodeTriangle;
   cl_util::GrowingBuffer mCones{CL_MEM_READ_WRITE};

@@ -41,6 +41,11 @@ class HostClosest final : public ClosestBackend {
     mSides.clear();
   }
 
+  void setExitFade(float fade) override {
+    correction::checkExitFade(fade);
+    mFade = fade;
+  }
+
   void setSides(const std::vector<std::int8_t>& sides) override {
     correction::checkSides(sides, mSearch.pointCount());
     mSides = sides;
@@ -231,6 +236,7 @@ class HostClosest final : public ClosestBackend {
     const correction::FeatureView features = correction::viewOf(mFeatures);
     parallelFor(frameCount, mSearch.threads(), [&](int f) {
       const float* pose = poses + static_cast<std::size_t>(f) * poseStride;
+      std::vector<float> boxes;  // exitFraction()'s, of this frame
       int count = 0;
       for (int i = 0; i < pointCount; ++i) {
         const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
@@ -251,11 +257,18 @@ class HostClosest final : public ClosestBackend {
         const bool inside = !mSides.empty() && mSides[static_cast<std::size_t>(i)] == kSideInside;
         const double target = inside ? -static_cast<double>(offset) : static_cast<double>(offset);
         if (length > 0.0 && (inside ? signedDistance > target : signedDistance < target)) {
-          const Eigen::Vector3d result = q + (target / length) * normal;
-          for (int k = 0; k < 3; ++k) {
-            points[3 * item + static_cast<std::size_t>(k)] = static_cast<float>(result[k]);
+          const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
+          const bool wrongSide = inside ? signedDistance > 0.0 : signedDistance < 0.0;
+          const double fraction =
+              mFade > 0.0f && wrongSide ? exitFraction(pose, p, q, distance, boxes) : 1.0;
+          if (fraction > 0.0) {
+            const Eigen::Vector3d full = q + (target / length) * normal;
+            const Eigen::Vector3d result = fraction < 1.0 ? p + fraction * (full - p) : full;
+            for (int k = 0; k < 3; ++k) {
+              points[3 * item + static_cast<std::size_t>(k)] = static_cast<float>(result[k]);
+            }
+            ++count;
           }
-          ++count;
         }
       }
       if (moved != nullptr) {
@@ -265,6 +278,56 @@ class HostClosest final : public ClosestBackend {
   }
 
  private:
+  /// setExitFade()'s fraction of the move for a point p at depth `depth` from its closest point
+  /// q on `pose`: the nearest other exit by brute force over every triangle. Only exits nearer
+  /// than (1 + fade) depth change the fraction, so triangles whose box (`boxes`: min xyz, max
+  /// xyz per triangle of this pose, filled on the first call) is farther are skipped.
+  double exitFraction(const float* pose, const Eigen::Vector3d& p, const Eigen::Vector3d& q,
+                      double depth, std::vector<float>& boxes) const {
+    if (depth <= 0.0) {
+      return 1.0;
+    }
+    const std::int32_t* triangles = mSearch.triangles().data();
+    const int triangleCount = mSearch.triangleCount();
+    if (boxes.empty()) {
+      boxes.resize(6 * static_cast<std::size_t>(triangleCount));
+      for (int t = 0; t < triangleCount; ++t) {
+        float* box = boxes.data() + 6 * static_cast<std::size_t>(t);
+        for (int k = 0; k < 3; ++k) {
+          const float* corner[3] = {pose + 3 * static_cast<std::size_t>(triangles[3 * t]),
+                                    pose + 3 * static_cast<std::size_t>(triangles[3 * t + 1]),
+                                    pose + 3 * static_cast<std::size_t>(triangles[3 * t + 2])};
+          box[k] = std::min({corner[0][k], corner[1][k], corner[2][k]});
+          box[3 + k] = std::max({corner[0][k], corner[1][k], corner[2][k]});
+        }
+      }
+    }
+    double other = (1.0 + mFade) * depth;  // beyond it the fraction is 1 anyway
+    for (int t = 0; t < triangleCount; ++t) {
+      const float* box = boxes.data() + 6 * static_cast<std::size_t>(t);
+      double outside2 = 0.0;
+      for (int k = 0; k < 3; ++k) {
+        const double e = std::max(
+            {static_cast<double>(box[k]) - p[k], 0.0, p[k] - static_cast<double>(box[3 + k])});
+        outside2 += e * e;
+      }
+      if (outside2 >= other * other) {
+        continue;
+      }
+      const std::int32_t* tri = triangles + 3 * static_cast<std::size_t>(t);
+      const Eigen::Vector3d a = loadPoint(pose, tri[0]);
+      const Eigen::Vector3d b = loadPoint(pose, tri[1]);
+      const Eigen::Vector3d c = loadPoint(pose, tri[2]);
+      double u = 0.0;
+      double v = 0.0;
+      const double d2 = correction::triangleDistance2(p, a, b, c, u, v);
+      if (d2 < other * other && (a + u * (b - a) + v * (c - a) - q).squaredNorm() > depth * depth) {
+        other = std::sqrt(d2);
+      }
+    }
+    return std::min(std::max((other - depth) / (mFade * depth), 0.0), 1.0);
+  }
+
   correction::CandidateSearch mSearch;
   correction::FeatureTables mFeatures;
   correction::CandidateTable mCandidates;
@@ -273,6 +336,7 @@ class HostClosest final : public ClosestBackend {
   std::vector<int> mCleared;
   std::unique_ptr<InsideAudit> mInside;
   std::vector<std::int8_t> mSides;  ///< Vd, or empty: every point outside
+  float mFade = 0.0f;               ///< setExitFade()
 };
 
 }  // namespace

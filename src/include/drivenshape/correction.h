@@ -145,6 +145,18 @@ class ClosestBackend {
   /// Throws Error(kInput) on a wrong length or another value.
   virtual void setSides(const std::vector<std::int8_t>& sides) = 0;
 
+  /// The exit fade of resolve() (>= 0; 0, the default after construction, turns it off): a
+  /// point on the wrong side of the skin at depth d = |p - q| is moved only the fraction
+  /// a = clamp((d2 - d) / (fade d), 0, 1) of the way to its target, where d2 is its distance to
+  /// the nearest *other* exit: the least distance to a triangle whose own closest point lies
+  /// farther than d from q (brute force on the host, a walk of the refitted BVH on OpenCL).
+  /// Where two exits are about equally near (deep inside a limb, or where the driver passes
+  /// through itself at a bent joint) the nearest one flips from frame to frame and a full move
+  /// jumps across the limb; faded, the point stays put there and moves continuously as one exit
+  /// wins. A point within the offset on its own side always moves all the way. Throws
+  /// Error(kInput) on a negative or non-finite fade.
+  virtual void setExitFade(float fade) = 0;
+
   /// For every point of every frame, the closest triangle of that frame's pose among the
   /// triangles its mask allows: the distance equals a brute-force search over those triangles
   /// (to rounding), distances within a tie band of about 1e-7 of the scene scale count as
@@ -181,8 +193,9 @@ class ClosestBackend {
   /// driver triangle (a search with BindingMask::all). With s the signed distance (InsideAudit's
   /// angle-weighted pseudo-normal sign), q the closest point and N the unit pseudo-normal at q
   /// (face normal, edge normal or angle-weighted vertex normal), an outside point with
-  /// s < offset moves to q + offset * N, an inside point with s > -offset to q - offset * N;
-  /// other points (and points where N is zero) are left untouched. Points are updated in
+  /// s < offset moves to q + offset * N, an inside point with s > -offset to q - offset * N
+  /// (on the wrong side, only part of the way when setExitFade() is on); other points (and
+  /// points where N is zero, or whose fade is 0) are left untouched. Points are updated in
   /// place; moved[f] receives how many points of frame f moved (may be null).
   ///   poses  F x 3Vp;  hits  F x Vd;  points  F x 3Vd;  moved  F
   /// offset >= 0 in scene units. Throws Error(kNumerical) on NaN/infinite input.

@@ -90,6 +90,12 @@ struct EvaluatorSettings {
   /// closest point on the driver (every triangle, no mask).
   bool resolve = true;
   double skinOffset = 0.002;
+  /// The resolution's exit fade (ClosestBackend::setExitFade; 0 = off): a vertex deep on the
+  /// wrong side whose two nearest exits are nearly equally far (inside a limb, or where the
+  /// driver passes through itself at a bent joint) moves only part of the way, none when they
+  /// tie, so it does not jump across the limb between frames. Chosen on the validation table
+  /// (docs/validation.md).
+  double exitFade = 0.15;
   /// Region-local weights: one QP per region, mixed with its partition of unity; empty = one
   /// QP on every driver row.
   std::optional<RegionSet> regions;

@@ -2,8 +2,9 @@
 // its side of the skin (Model::sides), at least the skin offset from it. Cloth inside the body
 // or closer than the offset moves out to the offset along the pseudo-normal at its closest
 // point; a vertex that lives under the skin (a muscle) and came closer than the offset, or
-// through the skin, moves in to the offset. With the audit on, the vertices on the wrong side
-// before the move are counted here too.
+// through the skin, moves in to the offset; a vertex deep on the wrong side with two nearly
+// equally near exits moves only part of the way (EvaluatorSettings::exitFade). With the audit on,
+// the vertices on the wrong side before the move are counted here too.
 
 #include "../stage.h"
 
@@ -12,7 +13,10 @@ namespace {
 
 class ResolveStage final : public Stage {
  public:
-  explicit ResolveStage(Model& model) : mModel(model) { model.sides(); }
+  explicit ResolveStage(Model& model) : mModel(model) {
+    model.sides();
+    model.audit().setExitFade(static_cast<float>(model.settings.exitFade));
+  }
 
   const char* name() const override { return "resolve"; }
 
