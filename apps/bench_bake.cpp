@@ -28,6 +28,7 @@
 #include "cli_args.h"
 #include "device_choice.h"
 #include "host_staging.h"
+#include "run_main.h"
 #include "synthetic_workload.h"
 
 namespace ds = drivenshape;
@@ -380,11 +381,5 @@ int runBench(const std::vector<std::string>& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return runBench(std::vector<std::string>(argv + 1, argv + argc));
-  } catch (const ds::Error& error) {
-    std::fprintf(stderr, "drivenshape_bench: %s: %s\n", ds::errorCodeName(error.code()),
-                 error.what());
-    return static_cast<int>(error.code());
-  }
+  return drivenshape::cli::runMain("drivenshape_bench", argc, argv, runBench);
 }

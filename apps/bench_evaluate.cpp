@@ -27,6 +27,7 @@
 #include "cli_args.h"
 #include "device_choice.h"
 #include "host_staging.h"
+#include "run_main.h"
 
 namespace ds = drivenshape;
 
@@ -182,11 +183,5 @@ int run(const std::vector<std::string>& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(std::vector<std::string>(argv + 1, argv + argc));
-  } catch (const ds::Error& error) {
-    std::fprintf(stderr, "drivenshape_bench_evaluate: %s: %s\n", ds::errorCodeName(error.code()),
-                 error.what());
-    return static_cast<int>(error.code());
-  }
+  return drivenshape::cli::runMain("drivenshape_bench_evaluate", argc, argv, run);
 }

@@ -46,6 +46,7 @@
 
 #include "cli_args.h"
 #include "exr_zip_writer.h"
+#include "run_main.h"
 #include "synthetic_workload.h"
 
 namespace ds = drivenshape;
@@ -538,14 +539,5 @@ int runBench(const std::vector<std::string>& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return runBench(std::vector<std::string>(argv + 1, argv + argc));
-  } catch (const ds::Error& error) {
-    std::fprintf(stderr, "drivenshape_bench_exr: %s: %s\n", ds::errorCodeName(error.code()),
-                 error.what());
-    return static_cast<int>(error.code());
-  } catch (const std::exception& error) {
-    std::fprintf(stderr, "drivenshape_bench_exr: %s\n", error.what());
-    return 1;
-  }
+  return drivenshape::cli::runMain("drivenshape_bench_exr", argc, argv, runBench);
 }

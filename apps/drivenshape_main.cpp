@@ -16,6 +16,7 @@
 #include "export_command.h"
 #include "farm_command.h"
 #include "posmap_command.h"
+#include "run_main.h"
 
 namespace {
 
@@ -78,19 +79,5 @@ int dispatch(const std::vector<std::string>& words) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return dispatch(std::vector<std::string>(argv + 1, argv + argc));
-  } catch (const drivenshape::Error& error) {
-    std::fprintf(stderr, "drivenshape: %s: %s\n", drivenshape::errorCodeName(error.code()),
-                 error.what());
-    return static_cast<int>(error.code());
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr,
-                 "drivenshape: internal error: out of memory; bake fewer frames per "
-                 "chunk (--chunk) or on a machine with more memory\n");
-    return static_cast<int>(drivenshape::ErrorCode::kInternal);
-  } catch (const std::exception& error) {
-    std::fprintf(stderr, "drivenshape: internal error: %s\n", error.what());
-    return static_cast<int>(drivenshape::ErrorCode::kInternal);
-  }
+  return drivenshape::cli::runMain("drivenshape", argc, argv, dispatch);
 }

@@ -1,0 +1,37 @@
+#pragma once
+
+// The one `main` of every tool in apps/: runs the tool's body with its command-line arguments
+// and turns what escapes it into the documented exit codes (docs/commands.md), with one line on
+// stderr naming the tool: a drivenshape::Error exits with its code, running out of memory and
+// any other exception with kInternal (1).
+
+#include <cstdio>
+#include <exception>
+#include <new>
+#include <string>
+#include <vector>
+
+#include <drivenshape/error.h>
+
+namespace drivenshape::cli {
+
+template <typename Body>
+int runMain(const char* tool, int argc, char** argv, Body&& body) {
+  try {
+    return body(std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const Error& error) {
+    std::fprintf(stderr, "%s: %s: %s\n", tool, errorCodeName(error.code()), error.what());
+    return static_cast<int>(error.code());
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr,
+                 "%s: internal error: out of memory; work on fewer frames at once (--batch, "
+                 "--chunk-size) or on a machine with more memory\n",
+                 tool);
+    return static_cast<int>(ErrorCode::kInternal);
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "%s: internal error: %s\n", tool, error.what());
+    return static_cast<int>(ErrorCode::kInternal);
+  }
+}
+
+}  // namespace drivenshape::cli
