@@ -95,7 +95,9 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "validation"))
     ap.add_argument("--modes", default="talk,bind,qp,defaults")
     ap.add_argument("--only", nargs="*", default=[])
-    ap.add_argument("--db-flags", default="", help="extra `db build` flags")
+    ap.add_argument("--db-flags", default="",
+                    help="extra `db build` flags; {scene} becomes the character's reference "
+                    "folder (e.g. --rig {scene}/rig.json)")
     ap.add_argument("--bake-flags", default="",
                     help="extra `bake` flags of the defaults mode (e.g. --exit-fade 0.2)")
     ap.add_argument("--from-tables", nargs="+", metavar="TABLE.json",
@@ -118,7 +120,8 @@ def main():
         db = os.path.join(a.out, scene + ".dsdb")
         run([ds, "db", "build", "--driver-mesh", f"{src}/driver_rest.obj", "--driven-mesh",
              f"{src}/driven_rest.obj", "--driver", f"{src}/train.driver.pc2", "--driven",
-             f"{src}/train.driven.pc2", "--count", "30", "-o", db] + a.db_flags.split(), log)
+             f"{src}/train.driven.pc2", "--count", "30", "-o", db]
+            + a.db_flags.replace("{scene}", src).split(), log)
         dbs[scene] = (db, src)
     rows, pooled_pred, pooled_true = [], [], []
     for name, scene, d, family in clips(a.clips, a.reference):
