@@ -18,48 +18,10 @@
 namespace drivenshape {
 namespace {
 
+using testing::countedRanks;
 using testing::expectThrows;
 using testing::kRankCorrelationTol;
-
-// ---- Brute-force reference: ranks by counting, Pearson with means taken from the data ----
-
-/// 1 + the values below + half the other values equal to it: the mean of the positions the tie
-/// group occupies, found by counting (O(n^2)), not by sorting.
-std::vector<double> countedRanks(const std::vector<double>& v) {
-  std::vector<double> ranks;
-  for (double a : v) {
-    int below = 0, equal = 0;
-    for (double b : v) {
-      below += b < a ? 1 : 0;
-      equal += b == a ? 1 : 0;
-    }
-    ranks.push_back(1.0 + below + 0.5 * (equal - 1));
-  }
-  return ranks;
-}
-
-/// Pearson's correlation, means computed from the values (two passes). NaN when a side is
-/// constant.
-double pearson(const std::vector<double>& x, const std::vector<double>& y) {
-  auto constant = [](const std::vector<double>& v) {
-    return std::all_of(v.begin(), v.end(), [&](double a) { return a == v[0]; });
-  };
-  if (constant(x) || constant(y)) {
-    return std::nan("");
-  }
-  double mx = 0.0, my = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    mx += x[i] / static_cast<double>(x.size());
-    my += y[i] / static_cast<double>(y.size());
-  }
-  double sxy = 0.0, sxx = 0.0, syy = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    sxy += (x[i] - mx) * (y[i] - my);
-    sxx += (x[i] - mx) * (x[i] - mx);
-    syy += (y[i] - my) * (y[i] - my);
-  }
-  return sxy / std::sqrt(sxx * syy);
-}
+using testing::referencePearson;
 
 TEST(RankCorrelation, AverageRanksOfAHandExample) {
   // 0.3 once, 0.1 twice (positions 1 and 2), 0.7 three times (positions 4, 5, 6).
@@ -89,7 +51,7 @@ TEST(RankCorrelation, MatchesBruteForceWithAndWithoutTies) {
     const std::vector<double> rx = countedRanks(x), ry = countedRanks(y);
     ASSERT_EQ(averageRanks(x), rx) << where;  // exact: every rank is a whole number or a half
     ASSERT_EQ(averageRanks(y), ry) << where;
-    const double expected = pearson(rx, ry);
+    const double expected = referencePearson(rx, ry);
     const std::optional<double> rho = spearmanCorrelation(x, y);
     if (std::isnan(expected)) {
       EXPECT_FALSE(rho.has_value()) << where << ": a constant side has no correlation";
@@ -271,8 +233,8 @@ TEST(CoverageCheck, MatchesFramesAndSummarisesTheVerdict) {
   EXPECT_EQ(c.verdictHolds, std::optional<bool>(true));  // 0.325 <= 0.5
   // Predicted 0.4 0.1 0.9 0.2 0.3 0.6 against true 0.45 0.05 0.8 0.6 0.2 0.7.
   EXPECT_NEAR(c.spearman.value(),
-              pearson(countedRanks({0.4, 0.1, 0.9, 0.2, 0.3, 0.6}),
-                      countedRanks({0.45, 0.05, 0.8, 0.6, 0.2, 0.7})),
+              referencePearson(countedRanks({0.4, 0.1, 0.9, 0.2, 0.3, 0.6}),
+                               countedRanks({0.45, 0.05, 0.8, 0.6, 0.2, 0.7})),
               kRankCorrelationTol);
 
   // Over the tolerance: the verdict fails.

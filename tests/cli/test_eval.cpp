@@ -40,6 +40,7 @@ using testing::expectThrows;
 using testing::kEvalDepthRelTol;
 using testing::kEvalErrorRelTol;
 using testing::kTransferRelTol;
+using testing::referenceSpearman;
 using testing::runCli;
 using testing::sample;
 using testing::slurp;
@@ -585,33 +586,6 @@ TEST(EvalCommand, ClearErrors) {
 }
 
 // ---- eval --report: the bake's coverage verdict against the truth ----
-
-/// Spearman's rank correlation computed here, apart from the tool: average ranks by counting
-/// (1 + values below + half the other equal ones), then Pearson with means from the data.
-double referenceSpearman(const std::vector<double>& x, const std::vector<double>& y) {
-  auto ranks = [](const std::vector<double>& v) {
-    std::vector<double> r;
-    for (double a : v) {
-      const auto below = std::count_if(v.begin(), v.end(), [&](double b) { return b < a; });
-      const auto equal = std::count(v.begin(), v.end(), a);
-      r.push_back(1.0 + double(below) + 0.5 * double(equal - 1));
-    }
-    return r;
-  };
-  const std::vector<double> rx = ranks(x), ry = ranks(y);
-  double mx = 0.0, my = 0.0;
-  for (std::size_t i = 0; i < rx.size(); ++i) {
-    mx += rx[i] / double(rx.size());
-    my += ry[i] / double(ry.size());
-  }
-  double sxy = 0.0, sxx = 0.0, syy = 0.0;
-  for (std::size_t i = 0; i < rx.size(); ++i) {
-    sxy += (rx[i] - mx) * (ry[i] - my);
-    sxx += (rx[i] - mx) * (rx[i] - mx);
-    syy += (ry[i] - my) * (ry[i] - my);
-  }
-  return sxy / std::sqrt(sxx * syy);
-}
 
 /// A pose-model database of the sleeve (the default `db build`) in `dir`.
 std::string buildPoseDb(const TempDir& dir) {

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -135,6 +136,44 @@ double meanVertexDistance(const std::vector<float>& a, const std::vector<float>&
     sum += std::sqrt(dx * dx + dy * dy + dz * dz);
   }
   return a.empty() ? 0.0 : sum / static_cast<double>(a.size() / 3);
+}
+
+std::vector<double> countedRanks(const std::vector<double>& v) {
+  std::vector<double> ranks;
+  for (double a : v) {
+    int below = 0, equal = 0;
+    for (double b : v) {
+      below += b < a ? 1 : 0;
+      equal += b == a ? 1 : 0;
+    }
+    ranks.push_back(1.0 + below + 0.5 * (equal - 1));
+  }
+  return ranks;
+}
+
+double referencePearson(const std::vector<double>& x, const std::vector<double>& y) {
+  auto constant = [](const std::vector<double>& v) {
+    return std::all_of(v.begin(), v.end(), [&](double a) { return a == v[0]; });
+  };
+  if (constant(x) || constant(y)) {
+    return std::nan("");
+  }
+  double mx = 0.0, my = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    mx += x[i] / static_cast<double>(x.size());
+    my += y[i] / static_cast<double>(y.size());
+  }
+  double sxy = 0.0, sxx = 0.0, syy = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    sxy += (x[i] - mx) * (y[i] - my);
+    sxx += (x[i] - mx) * (x[i] - mx);
+    syy += (y[i] - my) * (y[i] - my);
+  }
+  return sxy / std::sqrt(sxx * syy);
+}
+
+double referenceSpearman(const std::vector<double>& x, const std::vector<double>& y) {
+  return referencePearson(countedRanks(x), countedRanks(y));
 }
 
 }  // namespace drivenshape::testing

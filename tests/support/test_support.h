@@ -185,6 +185,19 @@ void expectThrows(const std::function<void()>& call, ErrorCode code, const std::
 /// mean vertex error of `a` against `b`.
 double meanVertexDistance(const std::vector<float>& a, const std::vector<float>& b);
 
+// ---- Rank correlation, computed apart from src/bake/coverage_check.cpp ----
+
+/// Average ranks by counting (O(n^2), no sorting): 1 + the values below + half the other values
+/// equal to it, i.e. the mean of the positions its tie group occupies.
+std::vector<double> countedRanks(const std::vector<double>& v);
+
+/// Pearson's correlation with the means taken from the values (two passes). NaN when a side is
+/// constant.
+double referencePearson(const std::vector<double>& x, const std::vector<double>& y);
+
+/// Spearman's rank correlation: referencePearson of the countedRanks.
+double referenceSpearman(const std::vector<double>& x, const std::vector<double>& y);
+
 // ---- OpenCL ----
 
 /// The OpenCL device all tests run on: the first device of the first platform (PoCL in CI),
