@@ -247,7 +247,8 @@ class HostClosest final : public ClosestBackend {
         const double v = hit.v;
         const Eigen::Vector3d q =
             a + u * (loadPoint(pose, tri[1]) - a) + v * (loadPoint(pose, tri[2]) - a);
-        const Eigen::Vector3d offsetVector = loadPoint(points, static_cast<long>(item)) - q;
+        const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
+        const Eigen::Vector3d offsetVector = p - q;
         const Eigen::Vector3d normal =
             correction::pseudoNormal(pose, triangles, features, hit.triangle, u, v);
         const double distance = offsetVector.norm();
@@ -257,7 +258,6 @@ class HostClosest final : public ClosestBackend {
         const bool inside = !mSides.empty() && mSides[static_cast<std::size_t>(i)] == kSideInside;
         const double target = inside ? -static_cast<double>(offset) : static_cast<double>(offset);
         if (length > 0.0 && (inside ? signedDistance > target : signedDistance < target)) {
-          const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
           const bool wrongSide = inside ? signedDistance > 0.0 : signedDistance < 0.0;
           const double fraction =
               mFade > 0.0f && wrongSide ? exitFraction(pose, p, q, distance, boxes) : 1.0;
