@@ -261,6 +261,32 @@ VectorXd meanVertexError(const MatrixXd& predicted, const MatrixXd& truth,
 
 }  // namespace
 
+std::array<double, 2> fitErrorLine(const Eigen::Ref<const Eigen::VectorXd>& sigma,
+                                   const Eigen::Ref<const Eigen::VectorXd>& error) {
+  if (sigma.size() != error.size() || sigma.size() < 2) {
+    DS_THROW(kInput,
+             "fitting the error predictor needs as many deviations as errors, at least 2 (got ",
+             sigma.size(), " and ", error.size(), ")");
+  }
+  // Two unknowns, non-negative: the unconstrained least squares when it is feasible, else the
+  // better of the two one-coefficient fits (the minimum then lies on a boundary).
+  const double n = static_cast<double>(sigma.size());
+  const double s1 = sigma.sum(), s2 = sigma.squaredNorm(), e1 = error.sum(), se = sigma.dot(error);
+  const double det = n * s2 - s1 * s1;
+  if (det > 1e-12 * n * s2) {
+    const double bias = (s2 * e1 - s1 * se) / det, scale = (n * se - s1 * e1) / det;
+    if (bias >= 0.0 && scale >= 0.0) {
+      return {bias, scale};
+    }
+  }
+  const auto cost = [&](double bias, double scale) {
+    return (error.array() - bias - scale * sigma.array()).square().sum();
+  };
+  const std::array<double, 2> biasOnly = {std::max(0.0, e1 / n), 0.0};
+  const std::array<double, 2> scaleOnly = {0.0, s2 > 0.0 ? std::max(0.0, se / s2) : 0.0};
+  return cost(scaleOnly[0], scaleOnly[1]) < cost(biasOnly[0], biasOnly[1]) ? scaleOnly : biasOnly;
+}
+
 MatrixXd poseKernel(const MatrixXd& a, const MatrixXd& b, double lengthScale, double linearWeight) {
   return kernelMatrix(a, b, lengthScale, linearWeight);
 }
@@ -447,7 +473,7 @@ PosePredictor::Prediction PosePredictor::predict(const double* features) const {
   p.weights = mCoefficients * k;
   const double prior = mModel.linearWeight * x.squaredNorm() + 1.0;
   p.sigma = std::sqrt(std::max(0.0, prior - k.dot(mKernelInverse * k)));
-  p.predictedError = mModel.errorBias + mModel.errorScale * p.sigma;
+  p.predictedError = std::max(0.0, mModel.errorBias + mModel.errorScale * p.sigma);
   return p;
 }
 
@@ -616,12 +642,9 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
   model.crossValidationError = error.mean();
   model.bindingError = bindingError.mean();
   {
-    Eigen::MatrixXd a(t, 2);
-    a.col(0).setOnes();
-    a.col(1) = sigma;
-    const Eigen::Vector2d fit = (a.transpose() * a).ldlt().solve(a.transpose() * error);
-    model.errorBias = fit[0];
-    model.errorScale = fit[1];
+    const std::array<double, 2> line = fitErrorLine(sigma, error);
+    model.errorBias = line[0];
+    model.errorScale = line[1];
   }
   model.frameErrors.assign(error.data(), error.data() + error.size());
 

@@ -180,6 +180,66 @@ TEST_F(PoseModelClTest, TheModelBeatsTheBindingOnFramesItNeverSaw) {
   }
 }
 
+TEST_F(PoseModelClTest, ANegativeErrorLineStillPredictsEveryFrame) {
+  // A database written before the line was kept non-negative may hold a negative bias: its
+  // predictions are clamped at 0, never dropped (the report writes a prediction >= 0 only).
+  Database db = sampleDatabase();
+  db.poseModel.errorBias = -1.0e6;
+  const auto driver = openPointCache(sample("test.driver.pc2"));
+  const std::vector<int> frames = driver->frames();
+  testing::Backends cl = clBackends();
+  const Evaluation out =
+      Evaluator(db, EvaluatorSettings(), cl.view()).evaluate(frames, readFrames(*driver, frames));
+  for (const FrameRecord& record : out.records) {
+    EXPECT_EQ(record.predictedError, 0.0) << "frame " << record.frame;
+    EXPECT_EQ(record.flagged, 0) << "frame " << record.frame;
+  }
+}
+
+TEST(PoseModel, TheErrorLineIsTheBestNonNegativeLine) {
+  // Against a brute-force search over a grid of non-negative lines: the fitted line's squared
+  // error is never above the grid's best, and the line is within one grid step of it.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const int n = 200;
+  Eigen::VectorXd sigma(n);
+  for (int i = 0; i < n; ++i) {
+    sigma[i] = 0.3 + 0.7 * unit(rng);
+  }
+  struct Case {
+    const char* what;
+    double bias, scale;  // the truth, before noise
+  };
+  // Inside the feasible set, and two whose unconstrained fits have a negative bias or scale.
+  for (const Case c : {Case{"interior", 0.01, 0.02}, Case{"negative bias", -0.5, 2.0},
+                       Case{"negative scale", 1.5, -1.0}}) {
+    Eigen::VectorXd error(n);
+    for (int i = 0; i < n; ++i) {
+      error[i] = std::max(0.0, c.bias + c.scale * sigma[i] + 0.005 * (unit(rng) - 0.5));
+    }
+    const std::array<double, 2> line = fitErrorLine(sigma, error);
+    ASSERT_GE(line[0], 0.0) << c.what;
+    ASSERT_GE(line[1], 0.0) << c.what;
+    const auto cost = [&](double b, double s) {
+      return (error.array() - b - s * sigma.array()).square().sum();
+    };
+    const double step = 1e-3;
+    double best = cost(0.0, 0.0), bestBias = 0.0, bestScale = 0.0;
+    for (int i = 0; i <= 2000; ++i) {
+      for (int j = 0; j <= 2500; ++j) {
+        const double value = cost(i * step, j * step);
+        if (value < best) {
+          best = value, bestBias = i * step, bestScale = j * step;
+        }
+      }
+    }
+    EXPECT_LE(cost(line[0], line[1]), best * (1.0 + 1e-12)) << c.what;
+    EXPECT_NEAR(line[0], bestBias, step) << c.what;
+    EXPECT_NEAR(line[1], bestScale, step) << c.what;
+  }
+  EXPECT_THROW(fitErrorLine(sigma, Eigen::VectorXd::Zero(3)), Error);
+}
+
 TEST_F(PoseModelClTest, HistoryReadsTheSameFramesInBlocksAsInOneCall) {
   const Database& db = sampleDatabase();
   const auto driver = openPointCache(sample("test.driver.pc2"));

@@ -63,7 +63,9 @@ struct PoseModel {
   std::vector<float> coefficients;  ///< rank x T: basis weights c = coefficients k(x)
   std::vector<float> basis;         ///< rank x 3Vd offsets in the rest binding's local frames
   /// Predicted mean vertex error of a frame = errorBias + errorScale * sigma (scene units), with
-  /// sigma the kernel's posterior standard deviation; fitted on the clip's cross-validation.
+  /// sigma the kernel's posterior standard deviation; fitted on the clip's cross-validation
+  /// (fitErrorLine: both non-negative; a database written before that may hold a negative
+  /// bias, and PosePredictor::predict clamps its predictions at 0).
   double errorBias = 0.0;
   double errorScale = 0.0;
   /// Cross-validated mean vertex error over the reference clip (scene units) and, for scale,
@@ -110,6 +112,14 @@ void parseRigParts(const std::string& text, const std::string& source, int drive
 /// The same from a file.
 void readRigParts(const std::string& path, int driverVertexCount, std::vector<int>& partOf,
                   std::vector<int>& parentOf);
+
+/// The error predictor's line: errorBias and errorScale of error ~ errorBias + errorScale sigma
+/// over the reference frames' cross-validated mean vertex errors `error` and posterior
+/// deviations `sigma` (same length, at least 2), least squares with both coefficients kept
+/// non-negative, so that no pose is predicted a negative error. Error(kInput) when the lengths
+/// differ or are below 2.
+std::array<double, 2> fitErrorLine(const Eigen::Ref<const Eigen::VectorXd>& sigma,
+                                   const Eigen::Ref<const Eigen::VectorXd>& error);
 
 /// Finds `parts` rigid parts of the driver over `frameCount` frames (frame-major, V x 3 each):
 /// hard assignment of every vertex to the part whose per-frame rigid motions explain its
