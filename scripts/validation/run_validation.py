@@ -20,7 +20,7 @@ mean error of the frames the verdict calls covered. Writes everything under --ou
 
 Usage: scripts/validation/run_validation.py [--reference ../shared/data] [--clips DIR]
        [--build build] [--out out/validation] [--modes talk,bind,qp,defaults] [--only NAME...]
-       [--db-flags FLAGS] [--bake-flags FLAGS]
+       [--skip NAME...] [--db-flags FLAGS] [--bake-flags FLAGS]
        scripts/validation/run_validation.py --from-tables RUN1/table.json RUN2/table.json ...
 """
 import argparse
@@ -95,9 +95,13 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "validation"))
     ap.add_argument("--modes", default="talk,bind,qp,defaults")
     ap.add_argument("--only", nargs="*", default=[])
+    ap.add_argument("--skip", nargs="*", default=[],
+                    help="clips to leave out (e.g. those given to `db build --also`)")
     ap.add_argument("--db-flags", default="",
                     help="extra `db build` flags; {scene} becomes the character's reference "
-                    "folder (e.g. --rig {scene}/rig.json)")
+                    "folder (e.g. --rig {scene}/rig.json), {character} its name (pants, sleeve; "
+                    "e.g. --also CLIPS/{character}_rom31/{character}/train.driver.pc2 "
+                    "CLIPS/{character}_rom31/{character}/train.driven.pc2)")
     ap.add_argument("--bake-flags", default="",
                     help="extra `bake` flags of the defaults mode (e.g. --exit-fade 0.2)")
     ap.add_argument("--from-tables", nargs="+", metavar="TABLE.json",
@@ -121,11 +125,11 @@ def main():
         run([ds, "db", "build", "--driver-mesh", f"{src}/driver_rest.obj", "--driven-mesh",
              f"{src}/driven_rest.obj", "--driver", f"{src}/train.driver.pc2", "--driven",
              f"{src}/train.driven.pc2", "--count", "30", "-o", db]
-            + a.db_flags.replace("{scene}", src).split(), log)
+            + a.db_flags.replace("{scene}", src).replace("{character}", scene).split(), log)
         dbs[scene] = (db, src)
     rows, pooled_pred, pooled_true = [], [], []
     for name, scene, d, family in clips(a.clips, a.reference):
-        if a.only and name.split()[0] not in a.only:
+        if (a.only and name.split()[0] not in a.only) or name.split()[0] in a.skip:
             continue
         meta = json.load(open(os.path.join(d, family + ".json")))
         frames = f"{meta['motion_start_frame']}-{meta['frame_end']}"
