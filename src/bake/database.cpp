@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 #include <string_view>
 
+#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/version.h>
@@ -150,6 +151,10 @@ void saveDatabase(const std::string& path, const Database& db) {
       block("driven_face_group", cm.faceGroup, {static_cast<std::int64_t>(cm.faceGroup.size())}),
       block("driven_uvs", drivenUv, {static_cast<std::int64_t>(cm.uvs.size()), 2}),
   };
+  const std::vector<int> sides(db.drivenSides.begin(), db.drivenSides.end());
+  if (!sides.empty()) {
+    blocks.push_back(block("driven_sides", sides, {vd}));
+  }
   const PoseModel& model = db.poseModel;
   if (!model.empty()) {
     const std::int64_t t = model.frameCount(), r = model.rank(), d = model.featureCount();
@@ -488,6 +493,18 @@ Database loadDatabase(const std::string& path) {
     db.created = header.at("created").get<std::string>();
     if (header.contains("pose_model")) {
       readPoseModel(blocks, header.at("pose_model"), path, db);
+    }
+    if (blocks.count("driven_sides") > 0) {
+      const std::vector<int> sides =
+          blocks.read<int>("driven_sides", static_cast<std::size_t>(db.drivenVertexCount()));
+      for (std::size_t v = 0; v < sides.size(); ++v) {
+        if (sides[v] != kSideInside && sides[v] != kSideOutside) {
+          DS_THROW(kInput, "'", path, "': block 'driven_sides' gives driven vertex ", v,
+                   " the side ", sides[v],
+                   " (1 outside or -1 inside); the file is corrupt, rebuild it");
+        }
+      }
+      db.drivenSides.assign(sides.begin(), sides.end());
     }
   } catch (const json::exception& error) {
     DS_THROW(kInput, "'", path, "': database header is incomplete (", error.what(),

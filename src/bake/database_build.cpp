@@ -10,7 +10,9 @@
 
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
+#include <drivenshape/device.h>
 #include <drivenshape/error.h>
+#include <drivenshape/evaluator.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/version.h>
 #include "reference_frames.h"
@@ -470,6 +472,14 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
   fillPickedShapes(db, shapes, picker.picks(), driverValues, drivenCache, drivenMesh);
   if (options.poseModel) {
     fitModel(db, candidates, shapes, driverCache, drivenCache, extraClips, options.model, log);
+  }
+  // The side of the skin every driven vertex lives on, once here rather than at every bake's
+  // start (on the host reference path: exact, and the same on every machine).
+  db.drivenSides = learnDrivenSides(db, *openDevice("host"), options.model.threads);
+  if (log != nullptr) {
+    const auto inside = std::count(db.drivenSides.begin(), db.drivenSides.end(), kSideInside);
+    *log << "sides: " << inside << " of " << db.drivenVertexCount()
+         << " driven vertices live inside the driver\n";
   }
   return db;
 }

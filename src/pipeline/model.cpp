@@ -187,7 +187,9 @@ std::unique_ptr<ClosestBackend> Model::makeClosest(const BindingMask& mask) {
 
 const std::vector<std::int8_t>& Model::sides() {
   if (!mSidesLearnt) {
-    mSides = learnSides(db, audit(), device, settings.clearanceCertificate, threads);
+    mSides = db.drivenSides.size() == static_cast<std::size_t>(vd)
+                 ? db.drivenSides
+                 : learnSides(db, audit(), device, settings.clearanceCertificate, threads);
     mInsideVertices = static_cast<int>(std::count(mSides.begin(), mSides.end(), kSideInside));
     if (mInsideVertices > 0) {
       audit().setSides(mSides);
@@ -350,6 +352,14 @@ ShapeTables makeShapeTables(const Database& database) {
       SimplexLeastSquares(pipeline::driverMatrix(database.driverShapes, database.shapeCount(),
                                                  database.driverVertexCount(), {})),
       database.driverShapes, database.drivenShapes);
+}
+
+std::vector<std::int8_t> learnDrivenSides(const Database& database, Device& device, int threads) {
+  ClosestOptions options;
+  options.threads = resolveThreads(threads);
+  std::unique_ptr<ClosestBackend> closest = device.makeClosest(options);
+  closest->setSurface(database.driverMesh, BindingMask::all(database.drivenVertexCount()));
+  return pipeline::learnSides(database, *closest, device, true, options.threads);
 }
 
 }  // namespace drivenshape

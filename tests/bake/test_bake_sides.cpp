@@ -12,10 +12,12 @@
 #include <cstdio>
 #include <cstring>
 #include <nlohmann/json.hpp>
+#include <string>
 #include <vector>
 
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
+#include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/point_cache.h>
 
@@ -224,10 +226,13 @@ TEST_F(SidesTest, ClothAndMuscleBandsEachStayOnTheirSideOfTheSkin) {
   const Evaluation clothResult = clothEvaluator.evaluate(shot.frames, shot.driver);
   EXPECT_EQ(reportedInsideVertices(mixedEvaluator), muscle);
   EXPECT_EQ(reportedInsideVertices(clothEvaluator), 0);
-  // The sides are learnt with the clearance certificate: the full search learns the same.
+  // The sides are learnt with the clearance certificate: the full search learns the same
+  // (on a copy without the sides `db build` stored, so that the evaluator learns them).
+  Database unstored = mixed;
+  unstored.drivenSides.clear();
   EvaluatorSettings fullSearch;
   fullSearch.clearanceCertificate = false;
-  EXPECT_EQ(reportedInsideVertices(Evaluator(mixed, fullSearch, cl.view())), muscle);
+  EXPECT_EQ(reportedInsideVertices(Evaluator(unstored, fullSearch, cl.view())), muscle);
 
   // Each vertex on its side, near the offset there.
   const std::vector<float> distances = signedDistances(driverMesh, shot, result.cloth);
@@ -308,6 +313,61 @@ TEST_F(SidesTest, ClothAndMuscleBandsEachStayOnTheirSideOfTheSkin) {
   for (std::size_t f = 0; f < shot.frames.size(); ++f) {
     EXPECT_EQ(hostResult.records[f].resolved, result.records[f].resolved) << shot.frames[f];
     EXPECT_EQ(hostResult.records[f].insideAfter, result.records[f].insideAfter) << shot.frames[f];
+  }
+}
+
+// `db build` stores the sides (learnt once, on the host reference path), so a bake need not
+// learn them at its start: the stored table is what every device learns, a bake with it is the
+// bake without it bit for bit, and it survives the database file.
+TEST_F(SidesTest, DbBuildStoresTheSidesEveryDeviceLearns) {
+  const Mesh driverMesh = readObj(sample("driver_rest.obj"));
+  const int vd = driverMesh.vertexCount();
+  const double middle =
+      0.5 * (driverMesh.positions.col(0).minCoeff() + driverMesh.positions.col(0).maxCoeff());
+  std::vector<double> bands(static_cast<std::size_t>(vd));
+  std::vector<std::int8_t> expected(static_cast<std::size_t>(vd));
+  for (int v = 0; v < vd; ++v) {
+    const bool inside = driverMesh.positions(v, 0) >= middle;
+    bands[static_cast<std::size_t>(v)] = inside ? -0.001 : 0.001;
+    expected[static_cast<std::size_t>(v)] = inside ? kSideInside : kSideOutside;
+  }
+  const Database stored = offsetDatabase(bands);
+  // The truth: the side each vertex was offset to.
+  ASSERT_EQ(stored.drivenSides, expected);
+  const Backends cl = clBackends();
+  const Backends host = hostBackends();
+  EXPECT_EQ(learnDrivenSides(stored, cl.view()), expected) << "PoCL";
+  EXPECT_EQ(learnDrivenSides(stored, host.view(), 1), expected) << "host, one thread";
+
+  Database unstored = stored;
+  unstored.drivenSides.clear();
+  const Shot shot = testShot();
+  for (const Backends* backends : {&cl, &host}) {
+    const Evaluation with =
+        Evaluator(stored, EvaluatorSettings(), backends->view()).evaluate(shot.frames, shot.driver);
+    const Evaluation without = Evaluator(unstored, EvaluatorSettings(), backends->view())
+                                   .evaluate(shot.frames, shot.driver);
+    ASSERT_EQ(with.cloth.size(), without.cloth.size());
+    EXPECT_EQ(
+        std::memcmp(with.cloth.data(), without.cloth.data(), with.cloth.size() * sizeof(float)), 0)
+        << backends->view().description();
+  }
+
+  TempDir dir;
+  saveDatabase(dir.file("stored.dsdb"), stored);
+  saveDatabase(dir.file("unstored.dsdb"), unstored);
+  EXPECT_EQ(loadDatabase(dir.file("stored.dsdb")).drivenSides, expected);
+  EXPECT_TRUE(loadDatabase(dir.file("unstored.dsdb")).drivenSides.empty());
+  Database corrupt = stored;
+  corrupt.drivenSides[7] = 0;
+  saveDatabase(dir.file("corrupt.dsdb"), corrupt);
+  try {
+    loadDatabase(dir.file("corrupt.dsdb"));
+    ADD_FAILURE() << "a side of 0 was accepted";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("'driven_sides' gives driven vertex 7"),
+              std::string::npos)
+        << error.what();
   }
 }
 

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/hash.h>
 
@@ -84,13 +85,21 @@ void loadAndCheck(const std::string& path) {
                         db.driverShapes.size() == k * 3 * db.driverVertexCount() &&
                         db.drivenShapes.size() == k * 3 * db.drivenVertexCount(),
                     "loadDatabase", "picks and shape blocks disagree with the shape count");
+  ds::fuzz::require(db.drivenSides.empty() ||
+                        db.drivenSides.size() == static_cast<std::size_t>(db.drivenVertexCount()),
+                    "loadDatabase", "the side table disagrees with the driven vertex count");
+  for (std::int8_t side : db.drivenSides) {
+    ds::fuzz::require(side == ds::kSideInside || side == ds::kSideOutside, "loadDatabase",
+                      "a driven vertex's side is neither inside nor outside");
+  }
   const std::uint64_t hash = db.contentHash();
   const std::string again = ds::fuzz::scratchPath("again.dsdb");
   ds::fuzz::expectSuccess("saveDatabase(loaded)", [&] { ds::saveDatabase(again, db); });
   ds::Database reloaded;
   ds::fuzz::expectSuccess("loadDatabase(saved)", [&] { reloaded = ds::loadDatabase(again); });
   ds::fuzz::require(reloaded.contentHash() == hash && reloaded.frames == db.frames &&
-                        reloaded.drivenMesh.groupNames == db.drivenMesh.groupNames,
+                        reloaded.drivenMesh.groupNames == db.drivenMesh.groupNames &&
+                        reloaded.drivenSides == db.drivenSides,
                     "saveDatabase/loadDatabase", "a loaded database changed when saved again");
 }
 

@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/layers.h>
@@ -252,6 +253,13 @@ void writeDatabaseFiles(const fs::path& corpus, const fs::path& regressions) {
   ds::Database clips = tinyDatabase(2);
   clips.extraClips.push_back({"more.driver.pc2", "more.driven.pc2", {1, 2, 3, 9}, 100000});
   writeBytes(corpus / "extra_clips.dsdb", databaseBytes(clips));
+  // The side of the skin of every driven vertex (db build stores it): cloth and muscle.
+  ds::Database sides = tinyDatabase(2);
+  for (int v = 0; v < sides.drivenVertexCount(); ++v) {
+    sides.drivenSides.push_back(v % 3 == 0 ? ds::kSideInside : ds::kSideOutside);
+  }
+  const std::string sidesBytes = databaseBytes(sides);
+  writeBytes(corpus / "driven_sides.dsdb", sidesBytes);
 
   // Crash report: a face offset past the face-vertex block, checksum valid -> heap overflow in
   // Mesh::triangulate.
@@ -264,6 +272,10 @@ void writeDatabaseFiles(const fs::path& corpus, const fs::path& regressions) {
                start.front() = std::numeric_limits<std::int32_t>::min() + 1;
                start.back() = std::numeric_limits<std::int32_t>::max();
              }));
+  // A side that is neither 1 nor -1, checksum valid: refused, naming the vertex.
+  writeBytes(regressions / "driven_sides_bad_value.dsdb",
+             withEditedBlock(sidesBytes, "driven_sides",
+                             [](std::vector<std::int32_t>& side) { side[1] = 5; }));
 }
 
 void writeWeightMapSeeds(const fs::path& dir) {

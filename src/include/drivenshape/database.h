@@ -79,6 +79,12 @@ struct Database {
   /// The pose model fitted over the whole reference clip (empty for databases built with
   /// --model none or by drivenshape before 0.2): what `--weights model` evaluates.
   PoseModel poseModel;
+  /// Which side of the driver's skin every driven vertex lives on (kSideOutside for cloth,
+  /// kSideInside for a muscle under the skin): learnDrivenSides, stored by `db build` so that a
+  /// bake need not learn it again. Empty in databases written before 2026-11-24 (and in ones
+  /// made in memory): an evaluator then learns it when it starts. Derived from the shapes, so
+  /// not part of the content hash.
+  std::vector<std::int8_t> drivenSides;
 
   int shapeCount() const { return static_cast<int>(frames.size()); }
   int driverVertexCount() const { return driverMesh.vertexCount(); }

@@ -126,6 +126,15 @@ bool blendsLocally(const EvaluatorSettings& settings);
 /// The weight mode the settings run on `database` (kAuto resolved).
 WeightMode resolvedWeightMode(const EvaluatorSettings& settings, const Database& database);
 
+/// Which side of the driver's skin every driven vertex of `database` lives on: kSideInside when
+/// it is inside the driver in more than half of the database's pairs (each driven shape against
+/// its own driver shape, exact closest points over every driver triangle and their signs),
+/// else kSideOutside. What `db build` stores (Database::drivenSides) and what an evaluator
+/// learns when the database holds none; the result does not depend on the device or `threads`
+/// (0 = all cores).
+std::vector<std::int8_t> learnDrivenSides(const Database& database, Device& device,
+                                          int threads = 0);
+
 /// What happened to one frame.
 struct FrameRecord {
   int frame = 0;
