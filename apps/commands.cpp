@@ -14,6 +14,7 @@
 #include <tuple>
 
 #include <drivenshape/bake.h>
+#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>
@@ -80,6 +81,24 @@ void infoDatabase(const std::string& path) {
               << ", driven " << clip.drivenSource << ", frames "
               << (clip.frames.empty() ? std::string("none") : formatFrameRange(clip.frames))
               << " (model frames + " << clip.frameOffset << ")\n";
+  }
+  const PoseModel& model = db.poseModel;
+  if (model.empty()) {
+    std::cout << "  pose model: none (bakes blend the picks with QP weights)\n";
+  } else {
+    std::cout << "  pose model: " << model.partCount() << " rigid parts, " << model.frameCount()
+              << " reference frames, " << model.featureCount() << " features, rank " << model.rank()
+              << "; cross-validated mean vertex error " << model.crossValidationError
+              << " (binding " << model.bindingError << "), predicted error " << model.errorBias
+              << " + " << model.errorScale << " sigma\n";
+  }
+  if (db.drivenSides.empty()) {
+    std::cout << "  side table: none (a bake learns it when it starts; rebuild the database "
+                 "with this drivenshape to store it)\n";
+  } else {
+    std::cout << "  side table: "
+              << std::count(db.drivenSides.begin(), db.drivenSides.end(), kSideInside) << " of "
+              << db.drivenVertexCount() << " driven vertices live inside the driver\n";
   }
   std::cout << "  picks (order, source frame, reason, RMS distance to earlier picks):\n";
   for (int i = 0; i < db.shapeCount(); ++i) {

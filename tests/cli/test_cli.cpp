@@ -86,6 +86,9 @@ TEST(Cli, EndToEndBuildBakeEvalInfo) {
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("5 shapes"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("seed"), std::string::npos) << r.out;
+  // The sleeve is cloth: every driven vertex outside.
+  EXPECT_NE(r.out.find("side table: 0 of 2244 driven vertices live inside"), std::string::npos)
+      << r.out;
 
   fs::create_directories(dir.file("out"));
   r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-10x3",
