@@ -117,8 +117,8 @@ std::vector<FrameSuggestion> suggestFrames(const PoseModel& model,
     suggestion.candidate = best;
     suggestion.sigmaBefore = meanSigma(shotVariance);
     suggestion.sigmaAfter = score[best] / s;
-    suggestion.errorBefore = model.errorBias + model.errorScale * suggestion.sigmaBefore;
-    suggestion.errorAfter = model.errorBias + model.errorScale * suggestion.sigmaAfter;
+    suggestion.errorBefore = model.predictedError(suggestion.sigmaBefore);
+    suggestion.errorAfter = model.predictedError(suggestion.sigmaAfter);
     out.push_back(suggestion);
 
     // The rank-one step: the picked candidate's posterior covariance with every candidate.

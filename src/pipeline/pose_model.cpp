@@ -473,7 +473,7 @@ PosePredictor::Prediction PosePredictor::predict(const double* features) const {
   p.weights = mCoefficients * k;
   const double prior = mModel.linearWeight * x.squaredNorm() + 1.0;
   p.sigma = std::sqrt(std::max(0.0, prior - k.dot(mKernelInverse * k)));
-  p.predictedError = std::max(0.0, mModel.errorBias + mModel.errorScale * p.sigma);
+  p.predictedError = mModel.predictedError(p.sigma);
   return p;
 }
 

@@ -14,6 +14,7 @@
 // from the reference clip; calibrated on the clip's own cross-validation it predicts the
 // frame's error (the coverage verdict).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <iosfwd>
@@ -65,7 +66,7 @@ struct PoseModel {
   /// Predicted mean vertex error of a frame = errorBias + errorScale * sigma (scene units), with
   /// sigma the kernel's posterior standard deviation; fitted on the clip's cross-validation
   /// (fitErrorLine: both non-negative; a database written before that may hold a negative
-  /// bias, and PosePredictor::predict clamps its predictions at 0).
+  /// bias, and predictedError() clamps at 0).
   double errorBias = 0.0;
   double errorScale = 0.0;
   /// Cross-validated mean vertex error over the reference clip (scene units) and, for scale,
@@ -77,6 +78,11 @@ struct PoseModel {
   std::vector<double> frameErrors;
 
   bool empty() const { return frames.empty(); }
+  /// The predicted mean vertex error at posterior deviation `sigma`: errorBias + errorScale
+  /// sigma, never below 0.
+  double predictedError(double sigma) const {
+    return std::max(0.0, errorBias + errorScale * sigma);
+  }
   int partCount() const { return static_cast<int>(parent.size()); }
   /// Features of one pose: 9 per part with a parent (its rotation relative to the parent's,
   /// minus the identity), 3 per root (the up axis in the root's frame, minus up).
@@ -198,8 +204,9 @@ class PosePredictor {
 /// A reference frame worth simulating (suggestFrames).
 struct FrameSuggestion {
   int candidate = -1;  ///< row of the candidate features
-  /// Mean predicted error (errorBias + errorScale sigma) over the shot frames before this
-  /// frame is added (with the suggestions before it) and after (scene units).
+  /// The predicted error (PoseModel::predictedError) of the shot frames' mean deviation before
+  /// this frame is added (with the suggestions before it) and after (scene units): their mean
+  /// predicted error, the line being non-negative.
   double errorBefore = 0.0;
   double errorAfter = 0.0;
   /// The same for the mean posterior deviation sigma.
