@@ -22,6 +22,7 @@
 #include <drivenshape/hash.h>
 #include <drivenshape/position_map.h>
 #include "atomic_file.h"
+#include "parallel.h"
 #include "progress.h"
 
 #include "cli_args.h"
@@ -177,6 +178,9 @@ int runInfo(const std::vector<std::string>& args) {
     return 0;
   }
   const std::string path = parser.positionals().front();
+  if (!hasFramePattern(path)) {
+    requireRegularFile(path, "file");
+  }
   if (hasFramePattern(path)) {
     const auto cache = openPointCache(path);
     const std::vector<int> frames = cache->frames();
@@ -210,16 +214,20 @@ namespace {
 /// Threads for host work: --threads if given, else the farm's SLURM_CPUS_PER_TASK, else 0
 /// (all cores).
 int threadsFor(int requested) {
+  int threads = 0;
+  std::string source = "--threads";
   if (requested > 0) {
-    return requested;
+    threads = requested;
+  } else if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK")) {
+    threads = std::max(0, std::atoi(slurm));
+    source = "SLURM_CPUS_PER_TASK";
   }
-  if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK")) {
-    const int cpus = std::atoi(slurm);
-    if (cpus > 0) {
-      return cpus;
-    }
+  const int clamped = clampThreads(threads);
+  if (clamped != threads) {
+    std::cerr << "note: " << source << " asks for " << threads << " threads; this machine has "
+              << hardwareThreads() << " hardware threads, using " << clamped << "\n";
   }
-  return 0;
+  return clamped;
 }
 
 /// The frames of one farm chunk: --chunk-size N frames starting at chunk --chunk-index of
@@ -457,6 +465,26 @@ int runBake(const std::vector<std::string>& args) {
 
 namespace {
 
+/// Refuses a bake whose outputs (frames, report, position maps) name the same file, or would
+/// overwrite one of its inputs.
+void checkBakePaths(const ArgParser& parser, const BakeOptions& options,
+                    const std::string& posmapPattern) {
+  std::vector<NamedPath> outputs = {{"-o", options.outputPattern, true},
+                                    {"--report", options.reportPath, false}};
+  if (!posmapPattern.empty()) {
+    outputs.push_back({"--posmap-out", posmapPattern, true});
+  }
+  const std::string driver = parser.get("--driver");
+  std::vector<NamedPath> inputs = {{"--db", parser.get("--db"), false},
+                                   {"--driver", driver, hasFramePattern(driver)}};
+  for (const char* option : {"--bind", "--regions"}) {
+    if (parser.has(option)) {
+      inputs.push_back({option, parser.get(option), false});
+    }
+  }
+  checkDistinctPaths(outputs, options.frames, inputs);
+}
+
 int bakeParsed(const ArgParser& parser) {
   BakeOptions options;
   options.frames = parseFrameRange(parser.get("--frames"));
@@ -528,6 +556,15 @@ int bakeParsed(const ArgParser& parser) {
     DS_THROW(kUsage, "-o '", options.outputPattern,
              "' has no frame token; use e.g. out/cloth.####.exr");
   }
+  std::string posmapPattern;
+  if (parser.has("--posmap")) {
+    posmapPattern = parser.has("--posmap-out") ? parser.get("--posmap-out")
+                                               : defaultPosmapPattern(options.outputPattern);
+    if (!hasFramePattern(posmapPattern)) {
+      DS_THROW(kUsage, "--posmap-out '", posmapPattern, "' has no frame token");
+    }
+  }
+  checkBakePaths(parser, options, posmapPattern);
   checkOutputFolderWritable(expandFramePattern(options.outputPattern, options.frames.front()));
 
   const Database db = loadDatabase(parser.get("--db"));
@@ -545,7 +582,6 @@ int bakeParsed(const ArgParser& parser) {
               << formatFrameRange(options.frames) << ") on " << device << "\n";
   }
   CliObserver observer(static_cast<long>(options.frames.size()), quiet);
-  std::string posmapPattern;
   if (parser.has("--posmap")) {
     PositionMapOptions maps;
     std::tie(maps.width, maps.height) =
@@ -557,11 +593,6 @@ int bakeParsed(const ArgParser& parser) {
     maps.zipEncoder = options.zipEncoder;
     maps.framesPerSecond = options.framesPerSecond;
     maps.threads = options.threads;
-    posmapPattern = parser.has("--posmap-out") ? parser.get("--posmap-out")
-                                               : defaultPosmapPattern(options.outputPattern);
-    if (!hasFramePattern(posmapPattern)) {
-      DS_THROW(kUsage, "--posmap-out '", posmapPattern, "' has no frame token");
-    }
     checkOutputFolderWritable(expandFramePattern(posmapPattern, options.frames.front()));
     observer.setPositionMaps(
         std::make_unique<PositionMapWriter>(db.drivenMesh, maps, target->makePositionMaps(),

@@ -347,6 +347,19 @@ int runEval(const std::vector<std::string>& args) {
   }
   if (parser.has("--json")) {
     checkOutputFolderWritable(parser.get("--json"));
+    std::vector<NamedPath> inputs;
+    for (const char* option : {"--truth", "--bake", "--driver"}) {
+      if (parser.has(option)) {
+        inputs.push_back({option, parser.get(option), hasFramePattern(parser.get(option))});
+      }
+    }
+    for (const char* option : {"--driver-mesh", "--driven-mesh", "--db", "--bind", "--report"}) {
+      if (parser.has(option)) {
+        inputs.push_back({option, parser.get(option), false});
+      }
+    }
+    checkDistinctPaths({{"--json", parser.get("--json"), false}},
+                       parseFrameRange(parser.get("--frames")), inputs);
   }
 
   // Read before the evaluation, so a bad report fails at once.

@@ -98,6 +98,20 @@ int runExport(const std::vector<std::string>& args) {
   if (wantObj) {
     checkOutputFolderWritable(parser.get("--obj"));
   }
+  {
+    std::vector<NamedPath> outputs;
+    for (const char* option : {"--pc2", "--obj"}) {
+      if (parser.has(option)) {
+        outputs.push_back({option, parser.get(option), false});
+      }
+    }
+    const std::string cache = parser.get("--cache");
+    std::vector<NamedPath> inputs = {{"--cache", cache, hasFramePattern(cache)}};
+    if (parser.has("--mesh")) {
+      inputs.push_back({"--mesh", parser.get("--mesh"), false});
+    }
+    checkDistinctPaths(outputs, frames, inputs);
+  }
 
   std::optional<Mesh> mesh;
   if (parser.has("--mesh")) {

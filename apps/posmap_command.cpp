@@ -74,6 +74,10 @@ int runPosmap(const std::vector<std::string>& args) {
     DS_THROW(kUsage, "-o '", output, "' has no frame token; use e.g. maps/cloth.####.exr");
   }
   checkOutputFolderWritable(expandFramePattern(output, frames.front()));
+  const std::string cachePath = parser.get("--cache");
+  checkDistinctPaths({{"-o", output, true}}, frames,
+                     {{"--cache", cachePath, hasFramePattern(cachePath)},
+                      {"--mesh", parser.get("--mesh"), false}});
 
   const std::string meshPath = parser.get("--mesh");
   const Mesh mesh = readObj(meshPath);

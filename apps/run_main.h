@@ -3,7 +3,8 @@
 // The one `main` of every tool in apps/: runs the tool's body with its command-line arguments
 // and turns what escapes it into the documented exit codes (docs/commands.md), with one line on
 // stderr naming the tool: a drivenshape::Error exits with its code, running out of memory and
-// any other exception with kInternal (1).
+// any other exception with kInternal (1). Messages are printed with unprintable bytes escaped
+// and very long ones shortened (a bad input's raw bytes or a path of thousands of bytes).
 
 #include <cstdio>
 #include <exception>
@@ -13,6 +14,8 @@
 
 #include <drivenshape/error.h>
 
+#include "text.h"
+
 namespace drivenshape::cli {
 
 template <typename Body>
@@ -20,7 +23,8 @@ int runMain(const char* tool, int argc, char** argv, Body&& body) {
   try {
     return body(std::vector<std::string>(argv + 1, argv + argc));
   } catch (const Error& error) {
-    std::fprintf(stderr, "%s: %s: %s\n", tool, errorCodeName(error.code()), error.what());
+    std::fprintf(stderr, "%s: %s: %s\n", tool, errorCodeName(error.code()),
+                 printableText(error.what()).c_str());
     return static_cast<int>(error.code());
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr,
@@ -29,7 +33,7 @@ int runMain(const char* tool, int argc, char** argv, Body&& body) {
                  tool);
     return static_cast<int>(ErrorCode::kInternal);
   } catch (const std::exception& error) {
-    std::fprintf(stderr, "%s: internal error: %s\n", tool, error.what());
+    std::fprintf(stderr, "%s: internal error: %s\n", tool, printableText(error.what()).c_str());
     return static_cast<int>(ErrorCode::kInternal);
   }
 }

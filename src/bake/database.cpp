@@ -15,6 +15,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -262,6 +263,10 @@ void saveDatabase(const std::string& path, const Database& db) {
 }
 
 bool isDatabaseFile(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    return false;  // a FIFO would block the read; a folder is not a database
+  }
   std::ifstream in(path, std::ios::binary);
   char magic[8] = {};
   return in.read(magic, 8) && std::memcmp(magic, kMagic, 8) == 0;

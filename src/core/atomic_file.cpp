@@ -1,114 +1,283 @@
 #include "atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <cerrno>
+#include <climits>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <random>
 #include <set>
+#include <streambuf>
 
 #include <drivenshape/error.h>
 
+#include "text.h"
+
 namespace drivenshape {
 namespace {
+
+constexpr const char* kTempMarker = ".tmp-";
+constexpr std::size_t kRandomDigits = 16;
+/// A temporary name is `.` + the (maybe shortened) name + kTempMarker + the random digits.
+constexpr std::size_t kTempExtraBytes = 1 + 5 + kRandomDigits;
+/// Paths in messages are cut to this many bytes (a path can be thousands of bytes long).
+constexpr std::size_t kPathInMessage = 240;
+
+std::string shown(const std::string& path) {
+  return printableText(path, kPathInMessage);
+}
 
 std::string folderOf(const std::string& path) {
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();
   return parent.empty() ? std::string(".") : parent.string();
 }
 
-/// What every temporary name of `finalPath` starts with: `.<name>.tmp-` (then `<pid>-<n>`).
-std::string tempPrefixFor(const std::string& finalPath) {
-  return "." + std::filesystem::path(finalPath).filename().string() + ".tmp-";
+/// The longest file name the folder's file system takes (255 on Linux file systems).
+std::size_t nameLimitOf(const std::string& folder) {
+  errno = 0;
+  const long limit = ::pathconf(folder.c_str(), _PC_NAME_MAX);
+  return limit > 0 ? static_cast<std::size_t>(limit) : 255;
 }
 
-std::string tempPathFor(const std::string& finalPath) {
-  static std::atomic<unsigned> counter{0};
-  const std::filesystem::path target(finalPath);
-  const std::string name =
-      tempPrefixFor(finalPath) + std::to_string(::getpid()) + "-" + std::to_string(counter++);
-  return (target.parent_path() / name).string();
+/// What every temporary name of `finalPath` starts with: `.<name>.tmp-`, the name cut short
+/// where the whole temporary name would pass the folder's name limit.
+std::string tempPrefixFor(const std::string& finalPath, std::size_t nameLimit) {
+  std::string name = std::filesystem::path(finalPath).filename().string();
+  if (name.size() + kTempExtraBytes > nameLimit) {
+    name.resize(nameLimit > kTempExtraBytes ? nameLimit - kTempExtraBytes : 0);
+  }
+  return "." + name + kTempMarker;
+}
+
+std::string randomDigits() {
+  static thread_local std::mt19937_64 generator = [] {
+    std::random_device device;  // the kernel's random source (getrandom)
+    std::seed_seq seed{device(), device(), device(), device()};
+    return std::mt19937_64(seed);
+  }();
+  static const char kHex[] = "0123456789abcdef";
+  std::string digits(kRandomDigits, '0');
+  std::uint64_t bits = generator();
+  for (char& digit : digits) {
+    digit = kHex[bits & 15u];
+    bits >>= 4;
+  }
+  return digits;
+}
+
+/// Throws Error(kOutput) when the name of `path` is longer than its folder allows.
+void checkNameLength(const std::string& path, const std::string& folder) {
+  const std::string name = std::filesystem::path(path).filename().string();
+  const std::size_t limit = nameLimitOf(folder);
+  if (name.size() > limit) {
+    DS_THROW(kOutput, "output name '", shown(name), "' is ", name.size(),
+             " bytes; the file system of folder '", shown(folder), "' allows at most ", limit,
+             " bytes per name: choose a shorter name");
+  }
 }
 
 }  // namespace
 
+/// An unbuffered std::streambuf over a C stream (which buffers): what AtomicFile::stream()
+/// writes through, seekable for writers that patch an offset table afterwards.
+class AtomicFile::Buffer : public std::streambuf {
+ public:
+  explicit Buffer(std::FILE* file) : mFile(file) {}
+
+ protected:
+  int_type overflow(int_type c) override {
+    if (traits_type::eq_int_type(c, traits_type::eof())) {
+      return traits_type::not_eof(c);
+    }
+    return std::fputc(c, mFile) == EOF ? traits_type::eof() : c;
+  }
+  std::streamsize xsputn(const char* data, std::streamsize count) override {
+    return static_cast<std::streamsize>(
+        std::fwrite(data, 1, static_cast<std::size_t>(count), mFile));
+  }
+  pos_type seekoff(off_type offset, std::ios_base::seekdir dir, std::ios_base::openmode) override {
+    const int whence = dir == std::ios_base::beg   ? SEEK_SET
+                       : dir == std::ios_base::cur ? SEEK_CUR
+                                                   : SEEK_END;
+    if (::fseeko(mFile, static_cast<off_t>(offset), whence) != 0) {
+      return pos_type(off_type(-1));
+    }
+    return pos_type(static_cast<off_type>(::ftello(mFile)));
+  }
+  pos_type seekpos(pos_type position, std::ios_base::openmode mode) override {
+    return seekoff(off_type(position), std::ios_base::beg, mode);
+  }
+  int sync() override { return std::fflush(mFile) == 0 ? 0 : -1; }
+
+ private:
+  std::FILE* mFile;
+};
+
 void checkOutputFolderWritable(const std::string& path) {
   const std::string folder = folderOf(path);
-  std::error_code ec;
-  if (!std::filesystem::is_directory(folder, ec)) {
-    DS_THROW(kOutput, "output folder '", folder, "' (for ", path,
-             ") does not exist; create it first");
+  if (path.size() >= PATH_MAX) {
+    DS_THROW(kOutput, "output path '", shown(path), "' is ", path.size(),
+             " bytes; the system allows at most ", PATH_MAX - 1,
+             " bytes per path (PATH_MAX): choose a shorter path");
+  }
+  struct stat status {};
+  if (::stat(folder.c_str(), &status) != 0) {
+    const int error = errno;
+    if (error == ENOENT) {
+      DS_THROW(kOutput, "output folder '", shown(folder), "' (for ", shown(path),
+               ") does not exist; create it first");
+    }
+    DS_THROW(kOutput, "output folder '", shown(folder), "' (for ", shown(path),
+             ") cannot be used: ", std::strerror(error));
+  }
+  if (!S_ISDIR(status.st_mode)) {
+    DS_THROW(kOutput, "output folder '", shown(folder), "' (for ", shown(path),
+             ") is not a folder");
   }
   if (::access(folder.c_str(), W_OK) != 0) {
-    DS_THROW(kOutput, "output folder '", folder, "' (for ", path,
+    DS_THROW(kOutput, "output folder '", shown(folder), "' (for ", shown(path),
              ") is not writable: ", std::strerror(errno));
   }
+  checkNameLength(path, folder);
 }
 
-AtomicFile::AtomicFile(std::string finalPath)
-    : mFinalPath(std::move(finalPath)), mTempPath(tempPathFor(mFinalPath)) {
+AtomicFile::AtomicFile(std::string finalPath) : mFinalPath(std::move(finalPath)) {
   checkOutputFolderWritable(mFinalPath);
+  const std::string folder = folderOf(mFinalPath);
+  const std::filesystem::path parent = std::filesystem::path(mFinalPath).parent_path();
+  const std::string prefix = tempPrefixFor(mFinalPath, nameLimitOf(folder));
+  // A name that exists (a file, or a link planted by someone else) is never opened: draw again.
+  for (int attempt = 0; attempt < 64 && mFile == nullptr; ++attempt) {
+    const std::string candidate = (parent / (prefix + randomDigits())).string();
+    const int fd =
+        ::open(candidate.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+    if (fd < 0) {
+      if (errno == EEXIST) {
+        continue;
+      }
+      DS_THROW(kOutput, "cannot create '", shown(mFinalPath), "' (temporary file '",
+               shown(candidate), "'): ", std::strerror(errno));
+    }
+    mFile = ::fdopen(fd, "wb");
+    if (mFile == nullptr) {
+      const int error = errno;
+      ::close(fd);
+      std::remove(candidate.c_str());
+      DS_THROW(kOutput, "cannot create '", shown(mFinalPath), "': ", std::strerror(error));
+    }
+    mTempPath = candidate;
+  }
+  if (mFile == nullptr) {
+    DS_THROW(kOutput, "cannot create '", shown(mFinalPath),
+             "': every temporary name tried in its folder exists already");
+  }
 }
 
 AtomicFile::~AtomicFile() {
-  if (!mCommitted) {
+  mStream.reset();
+  mBuffer.reset();
+  if (mFile != nullptr) {
+    std::fclose(mFile);
+  }
+  if (!mCommitted && !mTempPath.empty()) {
     std::remove(mTempPath.c_str());
   }
 }
 
+std::ostream& AtomicFile::stream() {
+  if (!mStream) {
+    mBuffer = std::make_unique<Buffer>(mFile);
+    mStream = std::make_unique<std::ostream>(mBuffer.get());
+  }
+  return *mStream;
+}
+
 void AtomicFile::commit(bool syncToDisk) {
-  if (syncToDisk) {
-    sync();
+  if (mFile == nullptr || mCommitted) {
+    DS_THROW(kInternal, "AtomicFile '", shown(mFinalPath), "' committed twice");
+  }
+  errno = 0;
+  const bool streamFailed = mStream && mStream->fail();
+  bool failed = streamFailed || std::fflush(mFile) != 0 || std::ferror(mFile) != 0;
+  int error = errno;
+  if (!failed && syncToDisk && ::fsync(::fileno(mFile)) != 0) {
+    failed = true;
+    error = errno;
+  }
+  mStream.reset();
+  mBuffer.reset();
+  const bool closeFailed = std::fclose(mFile) != 0;
+  if (closeFailed && !failed) {
+    failed = true;
+    error = errno;
+  }
+  mFile = nullptr;
+  if (failed) {
+    std::remove(mTempPath.c_str());
+    DS_THROW(kOutput, "cannot write '", shown(mFinalPath),
+             "': ", std::strerror(error != 0 ? error : EIO), "; is the disk full?");
   }
   if (std::rename(mTempPath.c_str(), mFinalPath.c_str()) != 0) {
     const int renameErrno = errno;
     std::remove(mTempPath.c_str());
-    DS_THROW(kOutput, "cannot move the finished file into place at '", mFinalPath,
+    DS_THROW(kOutput, "cannot move the finished file into place at '", shown(mFinalPath),
              "': ", std::strerror(renameErrno));
   }
   mCommitted = true;
 }
 
-void AtomicFile::sync() {
-  const int fd = ::open(mTempPath.c_str(), O_RDONLY);
-  if (fd < 0) {
-    DS_THROW(kOutput, "cannot reopen temporary file '", mTempPath, "' for ", mFinalPath, ": ",
-             std::strerror(errno));
+void requireRegularFile(const std::string& path, const std::string& what) {
+  struct stat status {};
+  if (::stat(path.c_str(), &status) != 0) {
+    DS_THROW(kInput, "cannot read ", what, " '", shown(path), "': ", std::strerror(errno));
   }
-  const int syncResult = ::fsync(fd);
-  const int syncErrno = errno;
-  ::close(fd);
-  if (syncResult != 0) {
-    std::remove(mTempPath.c_str());
-    DS_THROW(kOutput, "cannot flush '", mFinalPath, "' to disk: ", std::strerror(syncErrno));
+  if (S_ISDIR(status.st_mode)) {
+    DS_THROW(kInput, "cannot read ", what, " '", shown(path), "': it is a folder, not a file");
+  }
+  if (!S_ISREG(status.st_mode)) {
+    const char* kind = S_ISFIFO(status.st_mode)   ? "a FIFO (named pipe)"
+                       : S_ISSOCK(status.st_mode) ? "a socket"
+                       : S_ISCHR(status.st_mode)  ? "a character device"
+                       : S_ISBLK(status.st_mode)  ? "a block device"
+                                                  : "not a regular file";
+    DS_THROW(kInput, "cannot read ", what, " '", shown(path), "': it is ", kind,
+             ", not a regular file; copy the data to a file first");
   }
 }
 
 std::string readWholeFile(const std::string& path, const std::string& what) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    DS_THROW(kInput, "cannot read ", what, " '", path, "': it is a folder, not a file");
+  requireRegularFile(path, what);
+  // O_NONBLOCK: should the name have become a FIFO since the check, the open does not hang.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    DS_THROW(kInput, "cannot read ", what, " '", shown(path), "': ", std::strerror(errno));
   }
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (file == nullptr) {
-    DS_THROW(kInput, "cannot read ", what, " '", path, "': ", std::strerror(errno));
+  struct stat status {};
+  if (::fstat(fd, &status) != 0 || !S_ISREG(status.st_mode)) {
+    ::close(fd);
+    DS_THROW(kInput, "cannot read ", what, " '", shown(path), "': not a regular file");
   }
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   std::string bytes;
   char buffer[1 << 16];
-  std::size_t got;
-  while ((got = std::fread(buffer, 1, sizeof(buffer), file)) > 0) {
-    bytes.append(buffer, got);
+  for (;;) {
+    const ssize_t got = ::read(fd, buffer, sizeof(buffer));
+    if (got > 0) {
+      bytes.append(buffer, static_cast<std::size_t>(got));
+    } else if (got == 0) {
+      break;
+    } else if (errno != EINTR) {
+      const int readErrno = errno;
+      ::close(fd);
+      DS_THROW(kInput, "cannot read ", what, " '", shown(path), "': ", std::strerror(readErrno));
+    }
   }
-  const bool failed = std::ferror(file) != 0;
-  const int readErrno = errno;
-  std::fclose(file);
-  if (failed) {
-    DS_THROW(kInput, "cannot read ", what, " '", path, "': ", std::strerror(readErrno));
-  }
+  ::close(fd);
   return bytes;
 }
 
@@ -116,17 +285,19 @@ int removeStaleTempFiles(const std::vector<std::string>& finalPaths) {
   // One listing per folder: the temporary name of <name> starts with ".<name>.tmp-".
   std::map<std::string, std::set<std::string>> wanted;
   for (const std::string& path : finalPaths) {
-    wanted[folderOf(path)].insert(tempPrefixFor(path));
+    const std::string folder = folderOf(path);
+    wanted[folder].insert(tempPrefixFor(path, nameLimitOf(folder)));
   }
+  const std::size_t markerBytes = std::strlen(kTempMarker);
   int removed = 0;
   for (const auto& [folder, prefixes] : wanted) {
     std::error_code ec;
     for (std::filesystem::directory_iterator it(folder, ec), end; !ec && it != end;
          it.increment(ec)) {
       const std::string name = it->path().filename().string();
-      const std::size_t marker = name.rfind(".tmp-");
+      const std::size_t marker = name.rfind(kTempMarker);
       if (name.empty() || name[0] != '.' || marker == std::string::npos ||
-          prefixes.count(name.substr(0, marker + 5)) == 0) {
+          prefixes.count(name.substr(0, marker + markerBytes)) == 0) {
         continue;
       }
       std::error_code removeError;
@@ -140,17 +311,9 @@ int removeStaleTempFiles(const std::vector<std::string>& finalPaths) {
 
 void writeFileAtomically(const std::string& path, const std::string& bytes) {
   AtomicFile file(path);
-  std::FILE* stream = std::fopen(file.tempPath().c_str(), "wb");
-  if (stream == nullptr) {
-    DS_THROW(kOutput, "cannot create '", path, "': ", std::strerror(errno));
-  }
-  const std::size_t written = std::fwrite(bytes.data(), 1, bytes.size(), stream);
-  const bool flushed = std::fflush(stream) == 0;
-  const int writeErrno = errno;
-  std::fclose(stream);
-  if (written != bytes.size() || !flushed) {
-    DS_THROW(kOutput, "cannot write '", path, "' (", bytes.size(),
-             " bytes): ", std::strerror(writeErrno), "; is the disk full?");
+  if (std::fwrite(bytes.data(), 1, bytes.size(), file.file()) != bytes.size()) {
+    DS_THROW(kOutput, "cannot write '", shown(path), "' (", bytes.size(),
+             " bytes): ", std::strerror(errno), "; is the disk full?");
   }
   file.commit();
 }

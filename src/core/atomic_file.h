@@ -1,30 +1,45 @@
 #pragma once
 
+#include <cstdio>
+#include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
 namespace drivenshape {
 
-/// Writes a file so that readers only ever see the old file or the whole new one.
+/// Writes a file so that readers only ever see the old file or the whole new one, and so that
+/// nothing planted in the destination folder can redirect the write.
 ///
-/// The content goes to a temporary file in the destination folder (same file system),
-/// named `.<name>.tmp-<pid>-<n>`; commit() flushes it and renames it over the target.
-/// If the object is destroyed without commit() (an exception, a failed write) the
-/// temporary file is removed, so no partial output is ever left behind.
+/// The constructor creates a temporary file in the destination folder (same file system) under
+/// an unpredictable name, `.<name>.tmp-<16 random hex digits>`, exclusively (`O_CREAT | O_EXCL |
+/// O_NOFOLLOW`): an existing file or symbolic link at that name is never opened, a new name is
+/// drawn instead. The content is written through stream() or file(), i.e. through the file
+/// descriptor that was created, never by reopening the name. commit() flushes it and renames it
+/// over the target; rename replaces a symbolic link at the target, it never follows it. If the
+/// object is destroyed without commit() (an exception, a failed write) the temporary file is
+/// removed, so no partial output is ever left behind. A destination name so long that the
+/// temporary name would pass the folder's name limit gets a shortened temporary name.
 ///
 ///     AtomicFile file("out/cloth.1001.exr");
-///     writeSomething(file.tempPath());   // any writer that takes a path
+///     file.stream() << bytes;
 ///     file.commit();
 class AtomicFile {
  public:
-  /// Throws Error(kOutput) naming the folder when it does not exist or is not writable.
+  /// Throws Error(kOutput) naming the folder when it does not exist or is not writable, and
+  /// naming the limit when the file's name is longer than the file system allows.
   explicit AtomicFile(std::string finalPath);
   ~AtomicFile();
   AtomicFile(const AtomicFile&) = delete;
   AtomicFile& operator=(const AtomicFile&) = delete;
 
+  /// The temporary file's path, for messages only: write through stream() or file().
   const std::string& tempPath() const { return mTempPath; }
   const std::string& finalPath() const { return mFinalPath; }
+  /// The temporary file as a binary stream (seekable). Use either stream() or file().
+  std::ostream& stream();
+  /// The temporary file as a C stream. Use either stream() or file().
+  std::FILE* file() { return mFile; }
   /// Renames the finished file into place, after an fsync when `syncToDisk`; throws
   /// Error(kOutput) on failure (and removes the temp file). Without the fsync readers still see
   /// the old file or the whole new one, but after a power loss or kernel crash the new file can
@@ -32,10 +47,13 @@ class AtomicFile {
   void commit(bool syncToDisk = true);
 
  private:
-  void sync();
+  class Buffer;
 
   std::string mFinalPath;
   std::string mTempPath;
+  std::FILE* mFile = nullptr;
+  std::unique_ptr<Buffer> mBuffer;
+  std::unique_ptr<std::ostream> mStream;
   bool mCommitted = false;
 };
 
@@ -48,12 +66,18 @@ int removeStaleTempFiles(const std::vector<std::string>& finalPaths);
 void writeFileAtomically(const std::string& path, const std::string& bytes);
 
 /// The whole content of the file at `path`. Throws Error(kInput) "cannot read <what> '<path>':
-/// <reason>" when it is missing, a folder or unreadable; `what` names the kind of file
-/// ("database", "OBJ", "binding mask", ...).
+/// <reason>" when it is missing, a folder, not a regular file (a FIFO, a device) or unreadable;
+/// `what` names the kind of file ("database", "OBJ", "binding mask", ...).
 std::string readWholeFile(const std::string& path, const std::string& what);
 
+/// Throws Error(kInput) "cannot read <what> '<path>': <reason>" unless `path` names a regular
+/// file (or a link to one) that exists: a folder, a FIFO, a socket or a device is refused before
+/// anything opens it (opening a FIFO would block until a writer comes).
+void requireRegularFile(const std::string& path, const std::string& what);
+
 /// Throws Error(kOutput) naming the folder of `path` and the reason when a file cannot be
-/// created there. Call before long work so a bad -o fails in the first second.
+/// created there (missing, not a folder, not writable, a path or a name past the system's
+/// limits). Call before long work so a bad -o fails in the first second.
 void checkOutputFolderWritable(const std::string& path);
 
 }  // namespace drivenshape

@@ -6,6 +6,9 @@
 
 #include <cmath>
 #include <cstddef>
+#include <string>
+
+#include <drivenshape/error.h>
 
 namespace drivenshape {
 
@@ -17,6 +20,17 @@ inline std::size_t firstNonFinite(const float* data, std::size_t count) {
     }
   }
   return count;
+}
+
+/// Throws Error(kInput) "<source> frame F vertex V is not a finite number; ..." when the
+/// `values` floats at `xyz` (a frame, 3 per vertex) hold a NaN or an infinity.
+inline void requireFiniteFrame(const std::string& source, int frame, const float* xyz,
+                               std::size_t values) {
+  const std::size_t bad = firstNonFinite(xyz, values);
+  if (bad < values) {
+    DS_THROW(kInput, source, " frame ", frame, " vertex ", bad / 3,
+             " is not a finite number; fix the cache or leave the frame out");
+  }
 }
 
 }  // namespace drivenshape

@@ -14,9 +14,22 @@
 
 namespace drivenshape {
 
-/// Threads to use for `requested` (0 = one per hardware thread), never more than `work`.
+/// The machine's hardware threads (at least 1).
+inline int hardwareThreads() {
+  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
+
+/// `requested` threads (0 = one per hardware thread) within what the machine has: a request
+/// above its hardware threads gets that many (more only slows the work down, and a large count
+/// exhausts the threads a process may start, inside PoCL too).
+inline int clampThreads(int requested) {
+  return requested > 0 ? std::min(requested, hardwareThreads()) : requested;
+}
+
+/// Threads to use for `requested` (0 = one per hardware thread), never more than `work` nor
+/// the machine's hardware threads.
 inline int resolveThreads(int requested, int work) {
-  int threads = requested > 0 ? requested : static_cast<int>(std::thread::hardware_concurrency());
+  const int threads = requested > 0 ? clampThreads(requested) : hardwareThreads();
   return std::max(1, std::min(threads, work));
 }
 

@@ -17,3 +17,12 @@ inline std::string trimSpaces(const std::string& text) {
 }
 
 }  // namespace drivenshape
+
+namespace drivenshape {
+
+/// `text` made safe to print in a message: control characters and bytes that are not valid
+/// UTF-8 are written as `\xNN` (valid UTF-8, such as an accented file name, stays as it is), and
+/// a text longer than `maxBytes` keeps its start and end around "...(N bytes)...".
+std::string printableText(const std::string& text, std::size_t maxBytes = 4000);
+
+}  // namespace drivenshape

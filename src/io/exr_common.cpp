@@ -1,10 +1,10 @@
 #include "exr_common.h"
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
-#include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
 
@@ -25,6 +25,34 @@
 
 namespace drivenshape::exr_detail {
 namespace {
+
+/// OpenEXR's output stream over a std::ostream (Imf::StdOFStream takes only a std::ofstream,
+/// which would have to open the file by its name again).
+class ExrOStream : public Imf::OStream {
+ public:
+  ExrOStream(std::ostream& stream, const std::string& path)
+      : Imf::OStream(path.c_str()), mStream(stream), mPath(path) {}
+  void write(const char data[], int count) override {
+    errno = 0;
+    mStream.write(data, count);
+    check();
+  }
+  std::uint64_t tellp() override { return static_cast<std::uint64_t>(mStream.tellp()); }
+  void seekp(std::uint64_t position) override {
+    mStream.seekp(static_cast<std::streamoff>(position));
+    check();
+  }
+
+ private:
+  void check() const {
+    if (!mStream) {
+      DS_THROW(kOutput, "cannot write '", mPath, "': ", std::strerror(errno != 0 ? errno : EIO),
+               "; is the disk full?");
+    }
+  }
+  std::ostream& mStream;
+  std::string mPath;
+};
 
 /// The fields of a header that size what OpenEXR and our readers allocate.
 struct RawHeader {
@@ -265,6 +293,7 @@ ExrSharedHeader readSharedHeader(const std::string& path, const Imf::Header& hea
   ExrSharedHeader shared;
   if (const auto* frame = header.findTypedAttribute<Imf::IntAttribute>(kAttrFrame)) {
     shared.frame = frame->value();
+    shared.hasFrame = true;
   }
   if (const auto* hash = header.findTypedAttribute<Imf::StringAttribute>(kAttrTopologyHash)) {
     if (!hexToHash(hash->value(), shared.topologyHash)) {
@@ -304,11 +333,10 @@ void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], 
 }
 
 void writeExrAtomically(const std::string& path, const char* kind,
-                        const std::function<void(const std::string& tempPath)>& body,
-                        bool syncToDisk) {
+                        const std::function<void(std::ostream& stream)>& body, bool syncToDisk) {
   AtomicFile atomic(path);
   try {
-    body(atomic.tempPath());
+    body(atomic.stream());
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
@@ -317,13 +345,9 @@ void writeExrAtomically(const std::string& path, const char* kind,
   atomic.commit(syncToDisk);
 }
 
-void writeScanlines(const std::string& path, const std::string& tempPath, const Imf::Header& header,
+void writeScanlines(const std::string& path, std::ostream& stream, const Imf::Header& header,
                     const Imf::FrameBuffer& frameBuffer, int height, ZipEncoder zipEncoder,
                     int encodeThreads) {
-  std::ofstream stream(tempPath, std::ios::binary | std::ios::trunc);
-  if (!stream) {
-    DS_THROW(kOutput, "cannot create '", path, "' (temporary file ", tempPath, ")");
-  }
   const bool zip =
       header.compression() == Imf::ZIP_COMPRESSION || header.compression() == Imf::ZIPS_COMPRESSION;
   errno = 0;  // the system's reason, should a write fail
@@ -332,13 +356,12 @@ void writeScanlines(const std::string& path, const std::string& tempPath, const 
     encoding.threads = std::max(1, encodeThreads);
     writeZipExr(stream, header, frameBuffer, encoding);
   } else {
-    Imf::StdOFStream exrStream(stream, tempPath.c_str());
+    ExrOStream exrStream(stream, path);
     Imf::OutputFile file(exrStream, header);
     file.setFrameBuffer(frameBuffer);
     file.writePixels(height);
   }
   stream.flush();
-  stream.close();
   if (stream.fail()) {
     const int error = errno != 0 ? errno : EIO;
     DS_THROW(kOutput, "cannot write '", path, "': ", std::strerror(error), "; is the disk full?");

@@ -50,20 +50,21 @@ ExrSharedHeader readSharedHeader(const std::string& path, const Imf::Header& hea
 void insertXyzSlices(Imf::FrameBuffer& frameBuffer, const char* const names[3], const float* base,
                      std::size_t width);
 
-/// Writes `path` atomically: `body` writes the file at the temporary path it is given (with
-/// writeScanlines) and the file is renamed into place once `body` returns. drivenshape::Error
+/// Writes `path` atomically: `body` writes the file through the stream it is given (the
+/// exclusively created temporary file of `path`, see AtomicFile; with writeScanlines) and the
+/// file is renamed into place once `body` returns. drivenshape::Error
 /// passes through; any other exception becomes Error(kOutput) "cannot write <kind> EXR '<path>'".
 /// `syncToDisk`: fsync before the rename (AtomicFile::commit).
 void writeExrAtomically(const std::string& path, const char* kind,
-                        const std::function<void(const std::string& tempPath)>& body,
+                        const std::function<void(std::ostream& stream)>& body,
                         bool syncToDisk = true);
 
-/// Writes the `height` scan lines of `frameBuffer` with `header` to `tempPath` (the temporary
+/// Writes the `height` scan lines of `frameBuffer` with `header` to `stream` (the temporary
 /// file of `path`). ZIP and ZIPS images with ZipEncoder::kLibdeflate go through encodeZipExr
 /// (io/exr_zip_writer.h) on `encodeThreads` threads; everything else through OpenEXR's writer on
 /// our own stream, so that a failure while its destructor writes the offset table (which it
 /// swallows) still shows up as Error(kOutput).
-void writeScanlines(const std::string& path, const std::string& tempPath, const Imf::Header& header,
+void writeScanlines(const std::string& path, std::ostream& stream, const Imf::Header& header,
                     const Imf::FrameBuffer& frameBuffer, int height, ZipEncoder zipEncoder,
                     int encodeThreads);
 

@@ -231,7 +231,7 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
 
   writeExrAtomically(
       path, "point-cache",
-      [&](const std::string& tempPath) {
+      [&](std::ostream& stream) {
         std::vector<float> positions = paddedXyz(xyz, vertexCount, pixels);
         std::vector<float> normalData;
         if (normals != nullptr) {
@@ -287,7 +287,7 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
           insertXyzSlices(frameBuffer, kNormalChannels, normalData.data(), width);
         }
 
-        writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height),
+        writeScanlines(path, stream, header, frameBuffer, static_cast<int>(height),
                        options.zipEncoder, options.encodeThreads);
       },
       options.syncToDisk);

@@ -3,6 +3,8 @@
 #include <charconv>
 #include <cstdint>
 #include <cstdlib>
+#include <filesystem>
+#include <map>
 #include <unordered_set>
 
 #include <drivenshape/error.h>
@@ -260,6 +262,67 @@ std::string expandFramePattern(const std::string& pattern, int frame) {
   const io::FrameToken& token = tokens.front();
   return pattern.substr(0, token.pos) + io::formatFrameNumber(frame, token.width) +
          pattern.substr(token.pos + token.length);
+}
+
+namespace {
+
+/// `path` with its folder resolved (links, `..`, `.`) as far as it exists, for comparing names.
+class PathResolver {
+ public:
+  std::string resolve(const std::string& path) {
+    std::error_code absoluteError;
+    const std::filesystem::path full = std::filesystem::absolute(path, absoluteError);
+    const std::string folder = full.parent_path().string();
+    auto found = mFolders.find(folder);
+    if (found == mFolders.end()) {
+      std::error_code ec;
+      std::filesystem::path resolved = std::filesystem::weakly_canonical(folder, ec);
+      found = mFolders.emplace(folder, ec ? folder : resolved.string()).first;
+    }
+    return (std::filesystem::path(found->second) / full.filename()).lexically_normal().string();
+  }
+
+ private:
+  std::map<std::string, std::string> mFolders;
+};
+
+std::vector<std::string> namesOf(const NamedPath& named, const std::vector<int>& frames) {
+  if (!named.sequence) {
+    return {named.path};
+  }
+  std::vector<std::string> names;
+  names.reserve(frames.size());
+  for (int frame : frames) {
+    names.push_back(expandFramePattern(named.path, frame));
+  }
+  return names;
+}
+
+}  // namespace
+
+void checkDistinctPaths(const std::vector<NamedPath>& outputs, const std::vector<int>& frames,
+                        const std::vector<NamedPath>& inputs) {
+  PathResolver resolver;
+  std::map<std::string, const NamedPath*> written;
+  for (const NamedPath& output : outputs) {
+    for (const std::string& name : namesOf(output, frames)) {
+      const auto [at, inserted] = written.emplace(resolver.resolve(name), &output);
+      if (!inserted && at->second != &output) {
+        DS_THROW(kUsage, at->second->option, " '", at->second->path, "' and ", output.option, " '",
+                 output.path, "' both name the file '", name, "'; give each output its own name");
+      }
+    }
+  }
+  for (const NamedPath& input : inputs) {
+    for (const std::string& name : namesOf(input, frames)) {
+      const auto at = written.find(resolver.resolve(name));
+      if (at != written.end()) {
+        DS_THROW(kUsage, at->second->option, " '", at->second->path, "' would overwrite the input ",
+                 input.option, " '", input.path, "' (file '", name,
+                 "'); write the output elsewhere");
+      }
+    }
+  }
 }
 
 }  // namespace drivenshape

@@ -58,7 +58,8 @@ bool readAt(int fd, void* data, std::uint64_t bytes, std::uint64_t offset, int& 
 class Pc2Reader final : public PointCacheReader {
  public:
   explicit Pc2Reader(std::string path) : mPath(std::move(path)) {
-    mFd = ::open(mPath.c_str(), O_RDONLY | O_CLOEXEC);
+    requireRegularFile(mPath, "PC2");
+    mFd = ::open(mPath.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (mFd < 0) {
       DS_THROW(kInput, "cannot open PC2 '", mPath, "': ", std::strerror(errno));
     }
@@ -96,6 +97,7 @@ class Pc2Reader final : public PointCacheReader {
     if (!io::hostIsLittleEndian()) {
       io::swapWords(xyz, floats);
     }
+    checkFinite("PC2 '" + mPath + "'", frame, xyz);
   }
 
  private:
@@ -195,11 +197,6 @@ struct Pc2Writer::State {
   std::vector<float> swapped;
 
   explicit State(const std::string& target) : path(target), atomic(target) {}
-  ~State() {
-    if (file != nullptr) {
-      std::fclose(file);
-    }
-  }
   [[noreturn]] void fail(int error) {
     DS_THROW(kOutput, "cannot write '", path, "': ", std::strerror(error), "; is the disk full?");
   }
@@ -218,10 +215,7 @@ Pc2Writer::Pc2Writer(const std::string& path, int vertexCount, float startFrame,
   mState = std::make_unique<State>(path);
   mState->vertexCount = vertexCount;
   mState->frameCount = frameCount;
-  mState->file = std::fopen(mState->atomic.tempPath().c_str(), "wb");
-  if (mState->file == nullptr) {
-    DS_THROW(kOutput, "cannot create '", path, "': ", std::strerror(errno));
-  }
+  mState->file = mState->atomic.file();
   unsigned char header[kHeaderBytes];
   std::memcpy(header, kMagic, sizeof(kMagic));
   io::storeLeInt32(header + 12, 1);
@@ -261,13 +255,7 @@ void Pc2Writer::commit() {
     DS_THROW(kInternal, "Pc2Writer '", state.path, "': ", state.written, " of ", state.frameCount,
              " frames written at commit");
   }
-  bool ok = std::fflush(state.file) == 0;
-  const int writeErrno = errno;
-  ok = std::fclose(state.file) == 0 && ok;
-  state.file = nullptr;
-  if (!ok) {
-    state.fail(writeErrno);
-  }
+  state.file = nullptr;  // AtomicFile flushes, syncs and closes it
   state.atomic.commit();
 }
 

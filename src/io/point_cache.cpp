@@ -115,8 +115,15 @@ class ExrSequenceReader final : public PointCacheReader {
                " is missing; the sequence has frames ", formatFrameRange(mFrames));
     }
     std::vector<float> buffer;
-    readPointCacheExr(mFiles[static_cast<std::size_t>(index)], buffer, mVertexCount,
-                      mExpectedTopology);
+    const std::string& file = mFiles[static_cast<std::size_t>(index)];
+    const ExrPointCacheInfo info = readPointCacheExr(file, buffer, mVertexCount, mExpectedTopology);
+    if (info.hasFrame && info.frame != frame) {
+      DS_THROW(kInput, "point-cache EXR '", file, "' holds frame ", info.frame,
+               " (its header's dsFrame), not frame ", frame,
+               " as its name says: it was copied or renamed to the wrong place; rename it or "
+               "bake the frame again");
+    }
+    checkFinite("point-cache EXR '" + file + "'", frame, buffer.data());
     std::copy(buffer.begin(), buffer.end(), xyz);
   }
 
@@ -159,14 +166,21 @@ std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<i
   return data;
 }
 
+void PointCacheReader::checkFinite(const std::string& source, int frame, const float* xyz) const {
+  if (!mAllowNonFinite) {
+    requireFiniteFrame(source, frame, xyz, 3 * static_cast<std::size_t>(vertexCount()));
+  }
+}
+
 void readFiniteFrame(const PointCacheReader& cache, int frame, float* xyz,
                      const std::string& role) {
-  cache.readFrame(frame, xyz);
-  const std::size_t values = 3 * static_cast<std::size_t>(cache.vertexCount());
-  const std::size_t bad = firstNonFinite(xyz, values);
-  if (bad < values) {
-    DS_THROW(kInput, role, " '", cache.path(), "' frame ", frame, " vertex ", bad / 3,
-             " is not a finite number; fix the cache or leave the frame out");
+  try {
+    cache.readFrame(frame, xyz);  // the readers refuse non-finite positions themselves
+  } catch (const Error& error) {
+    if (error.code() != ErrorCode::kInput) {
+      throw;
+    }
+    throw Error(ErrorCode::kInput, role + ": " + error.what());
   }
 }
 

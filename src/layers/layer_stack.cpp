@@ -120,6 +120,10 @@ LayerStack::LayerStack(LayerSettings settings, const Mesh& drivenMesh, LayerBack
       mBackend(backend) {
   const std::size_t vertices = static_cast<std::size_t>(drivenMesh.vertexCount());
   if (mMixCache) {
+    // NaN in the other cache means "not simulated here" (a hood simulation need not cover the
+    // legs): a NaN where the weight map takes the other cache is refused when its frames are
+    // read, naming the vertex.
+    mMixCache->allowNonFinite();
     if (mOptions.mixCache.empty()) {
       mOptions.mixCache = "(in memory)";
     }

@@ -265,7 +265,7 @@ void writeWeightMapExr(const std::string& path, const std::vector<float>& weight
   const int vertexCount = static_cast<int>(weights.size());
   const std::size_t w = static_cast<std::size_t>(width);
   const std::size_t height = (weights.size() + w - 1) / w;
-  exr_detail::writeExrAtomically(path, "weight-map", [&](const std::string& tempPath) {
+  exr_detail::writeExrAtomically(path, "weight-map", [&](std::ostream& stream) {
     std::vector<float> values(w * height, 0.0f);
     std::copy(weights.begin(), weights.end(), values.begin());
     std::vector<float> coverage(w * height, 0.0f);
@@ -282,7 +282,7 @@ void writeWeightMapExr(const std::string& path, const std::vector<float>& weight
     frameBuffer.insert(exr_detail::kCoverageChannel,
                        Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(coverage.data()),
                                   sizeof(float), sizeof(float) * w));
-    exr_detail::writeScanlines(path, tempPath, header, frameBuffer, static_cast<int>(height),
+    exr_detail::writeScanlines(path, stream, header, frameBuffer, static_cast<int>(height),
                                ZipEncoder::kLibdeflate, 1);
   });
 }

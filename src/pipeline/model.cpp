@@ -5,8 +5,10 @@
 #include <cstdint>
 #include <thread>
 
+#include <drivenshape/align.h>
 #include <drivenshape/error.h>
 #include "parallel.h"
+#include "text.h"
 
 #include "stage.h"
 
@@ -101,6 +103,19 @@ EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
     DS_THROW(kUsage,
              "regions and a maximum weight change apply to the QP weights only (weight mode "
              "qp)");
+  }
+  if (!settings.alignGroup.empty() && settings.alignGroup != "all") {
+    // Checked whichever weights run, so that a typo is never silently dropped.
+    const std::string source = "align group '" + printableText(settings.alignGroup, 200) + "'";
+    selectVertices(db.driverMesh, settings.alignGroup, source + " (driver mesh)");
+    if (settings.weightMode == WeightMode::kModel || settings.weightMode == WeightMode::kBind ||
+        settings.align == AlignMode::kNone) {
+      DS_THROW(kUsage, "the ", source,
+               " picks the driver vertices of the rigid alignment, which the pose model, the "
+               "bind baseline and align none do not run (here weights ",
+               weightModeName(settings.weightMode), ", align ", alignModeName(settings.align),
+               "); drop it, or choose weights qp");
+    }
   }
   if (!std::isfinite(settings.skinOffset) || settings.skinOffset < 0) {
     DS_THROW(kUsage, "the skin offset must be a distance >= 0 in scene units (got ",

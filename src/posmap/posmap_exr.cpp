@@ -113,7 +113,7 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
   const std::size_t rowTexels = static_cast<std::size_t>(width);
   const ChannelNames names = channelNames(header.channels);
 
-  writeExrAtomically(path, "position-map", [&](const std::string& tempPath) {
+  writeExrAtomically(path, "position-map", [&](std::ostream& stream) {
     Imf::Header exrHeader(width, height);
     exrHeader.compression() = toImf(header.compression);
     for (int k = 0; k < 3; ++k) {
@@ -163,7 +163,7 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
       insertXyzSlices(frameBuffer, names.normal, normals, rowTexels);
     }
 
-    writeScanlines(path, tempPath, exrHeader, frameBuffer, height, header.zipEncoder,
+    writeScanlines(path, stream, exrHeader, frameBuffer, height, header.zipEncoder,
                    header.encodeThreads);
   });
 }

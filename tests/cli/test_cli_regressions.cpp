@@ -4,9 +4,15 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -219,6 +225,249 @@ TEST(CliRegression, ResumeRemovesTemporaryFilesOfItsOwnFrames) {
   EXPECT_FALSE(fs::exists(out + "/.cloth.0002.exr.tmp-99999-0"));
   EXPECT_TRUE(fs::exists(out + "/.cloth.0009.exr.tmp-99999-0"));
   EXPECT_NE(baked[3].find("removed 1 temporary file"), std::string::npos) << baked[3];
+}
+
+// ---- Issue 28: nothing written where it must not be ----
+
+/// A file outside the outputs that a planted link points to, and its content.
+struct Victim {
+  std::string path;
+  std::string content = "the victim's own bytes";
+};
+
+/// Plants a symbolic link to `victim` at `name`.
+void plantLink(const Victim& victim, const std::string& name) {
+  fs::create_symlink(victim.path, name);
+}
+
+/// `name` is a regular file now (the link replaced, not followed).
+void expectRegularFile(const std::string& name) {
+  EXPECT_TRUE(fs::is_regular_file(fs::symlink_status(name))) << name << " is still a link";
+}
+
+// Links planted at output names (a shared farm folder is writable by many users) made every
+// writer write through them: the file they pointed to was overwritten with EXR data and the
+// frames became links to it. Every writer now replaces a link at its output name; its temporary
+// file is created exclusively under an unpredictable name.
+TEST(CliRegression, LinksPlantedAtEveryOutputNameAreReplacedNotFollowed) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  Victim victim{dir.file("victim.txt")};
+  writeText(victim.path, victim.content);
+  const std::string out = dir.file("shot");
+  fs::create_directory(out);
+  const std::vector<std::string> outputs = {
+      out + "/cloth.0001.exr",  out + "/cloth.0002.exr", out + "/cloth.report.json",
+      out + "/maps.0001.exr",   out + "/maps.0002.exr",  out + "/cloth.pc2",
+      out + "/first.obj",       out + "/eval.json",      out + "/again.dsdb",
+      out + "/posmap.0001.exr", out + "/job.sbatch"};
+  for (const std::string& name : outputs) {
+    plantLink(victim, name);
+  }
+  const std::string pattern = out + "/cloth.####.exr";
+  CliRun r = runCli(
+      dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-2", "--quiet",
+            "-o", pattern, "--posmap", "32", "--posmap-out", out + "/maps.####.exr"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = runCli(dir, {"export", "--cache", pattern, "--frames", "1-2", "--pc2", out + "/cloth.pc2",
+                   "--obj", out + "/first.obj", "--mesh", sample("driven_rest.obj")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake", pattern, "--frames",
+                   "1-2", "--json", out + "/eval.json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+                   sample("train.driven.pc2"), "--count", "3", "--model", "none", "--quiet", "-o",
+                   out + "/again.dsdb"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache", pattern, "--frames",
+                   "1", "--res", "32", "-o", out + "/posmap.####.exr"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = runCli(dir, {"farm", "slurm", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
+                   "1-2", "-o", pattern, "-O", out + "/job.sbatch", "--chunk-size", "1"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(slurp(victim.path), victim.content) << "a writer wrote through a planted link";
+  for (const std::string& name : outputs) {
+    expectRegularFile(name);
+  }
+  EXPECT_NE(slurp(out + "/cloth.0001.exr"), slurp(out + "/cloth.0002.exr"));
+  for (const std::string& name : filesIn(dir.path())) {
+    EXPECT_EQ(name.find(".tmp-"), std::string::npos) << "temporary file left: " << name;
+  }
+}
+
+// `--report a.0002.exr` replaced frame 2 of `-o a.####.exr`, and `--posmap-out` equal to `-o`
+// replaced every cache with a position map, with exit 0. Outputs that name one file, or an
+// output that names an input, are refused before any work.
+TEST(CliRegression, OutputsThatNameOneFileAreRefusedBeforeAnyWork) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  const std::string pattern = dir.file("a.####.exr");
+  std::vector<std::string> args = bakeArgs(db, "1-3", pattern);
+  args.insert(args.end(), {"--report", dir.file("a.0002.exr")});
+  expectError(runCli(dir, args), 2, "--report");
+  args = bakeArgs(db, "1-3", pattern);
+  args.insert(args.end(), {"--posmap", "32", "--posmap-out", dir.file("a.%04d.exr")});
+  CliRun r = runCli(dir, args);
+  expectError(r, 2, "--posmap-out");
+  EXPECT_NE(r.err.find("-o '"), std::string::npos) << r.err;
+  args = bakeArgs(db, "1-3", pattern);
+  args.insert(args.end(), {"--report", db});
+  expectError(runCli(dir, args), 2, "--db");
+  EXPECT_FALSE(fs::exists(dir.file("a.0001.exr")));
+
+  r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-2",
+                   "--quiet", "-o", pattern});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string frame1 = slurp(dir.file("a.0001.exr"));
+  expectError(
+      runCli(dir, {"export", "--cache", pattern, "--frames", "1-2", "--pc2", dir.file("x.obj"),
+                   "--obj", dir.file("x.obj"), "--mesh", sample("driven_rest.obj")}),
+      2, "--obj");
+  expectError(runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake", pattern,
+                           "--frames", "1-2", "--json", dir.file("a.0001.exr")}),
+              2, "--bake");
+  expectError(runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache", pattern,
+                           "--frames", "1", "--res", "32", "-o", dir.file("./a.####.exr")}),
+              2, "--cache");
+  EXPECT_EQ(slurp(dir.file("a.0001.exr")), frame1);
+  EXPECT_FALSE(fs::exists(dir.file("x.obj")));
+}
+
+// `--threads 100000` (or SLURM_CPUS_PER_TASK=100000) aborted inside PoCL ("PTHREAD ERROR",
+// exit 134). Thread counts are clamped to the machine's hardware threads, and the log says so.
+TEST(CliRegression, ThreadCountsPastTheMachineAreClampedAndSaidSo) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  std::vector<std::string> args = bakeArgs(db, "1-2", dir.file("a.####.exr"));
+  args.insert(args.end(), {"--threads", "100000"});
+  CliRun r = runCli(dir, args);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("--threads asks for 100000 threads"), std::string::npos) << r.err;
+  ::setenv("SLURM_CPUS_PER_TASK", "100000", 1);
+  r = runCli(dir, bakeArgs(db, "1-2", dir.file("b.####.exr")));
+  ::unsetenv("SLURM_CPUS_PER_TASK");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("SLURM_CPUS_PER_TASK asks for 100000 threads"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(dir.file("a.0002.exr")), slurp(dir.file("b.0002.exr")));
+}
+
+// `--align-group` was checked and used only with --weights qp: with the default pose model an
+// unknown group, `2146` (past the last vertex) and `0-3` all exited 0 and changed nothing.
+TEST(CliRegression, AlignGroupIsCheckedWhicheverWeightsRun) {
+  TempDir dir;
+  const std::string db = dir.file("pose.dsdb");
+  CliRun r =
+      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string out = dir.file("a.####.exr");
+  for (const std::string group : {"nosuchgroup", "2146"}) {
+    std::vector<std::string> args = bakeArgs(db, "1", out);
+    args.insert(args.end(), {"--align-group", group});
+    expectError(runCli(dir, args), 3, "align group '" + group + "'");
+  }
+  std::vector<std::string> args = bakeArgs(db, "1", out);
+  args.insert(args.end(), {"--align-group", "0-3"});
+  r = runCli(dir, args);
+  expectError(r, 2, "align group '0-3'");
+  EXPECT_NE(r.err.find("weights model"), std::string::npos) << r.err;
+  args.insert(args.end(), {"--weights", "qp"});
+  r = runCli(dir, args);
+  EXPECT_EQ(r.code, 0) << r.err;
+}
+
+// `eval`, `export` and `posmap` took a point cache whose header says frame 2 at the frame-3
+// path (only `bake --skip-existing` refused it), and `export --cache x.pc2` copied NaN into its
+// output.
+TEST(CliRegression, ReadersCheckAFramesOwnNumberAndFiniteness) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  const std::string pattern = dir.file("a.####.exr");
+  CliRun r = runCli(dir, bakeArgs(db, "1-3", pattern));
+  ASSERT_EQ(r.code, 0) << r.err;
+  fs::copy_file(dir.file("a.0002.exr"), dir.file("a.0003.exr"),
+                fs::copy_options::overwrite_existing);
+  const std::string culprit = "a.0003.exr' holds frame 2";
+  expectError(runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake", pattern,
+                           "--frames", "1-3"}),
+              3, culprit);
+  expectError(
+      runCli(dir, {"export", "--cache", pattern, "--frames", "1-3", "--pc2", dir.file("x.pc2")}), 3,
+      culprit);
+  expectError(runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache", pattern,
+                           "--frames", "3", "--res", "32", "-o", dir.file("m.####.exr")}),
+              3, culprit);
+  // A PC2 with a NaN at frame 2, vertex 7 (the sample's frames start at 1, one per sample).
+  std::string pc2 = slurp(sample("test.driven.pc2"));
+  int points = 0;
+  std::memcpy(&points, pc2.data() + 16, 4);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(&pc2[32 + (static_cast<std::size_t>(points) + 7) * 12 + 4], &nan, 4);
+  writeText(dir.file("nan.pc2"), pc2);
+  expectError(runCli(dir, {"export", "--cache", dir.file("nan.pc2"), "--frames", "1-3", "--pc2",
+                           dir.file("y.pc2")}),
+              3, "frame 2 vertex 7 is not a finite number");
+  EXPECT_FALSE(fs::exists(dir.file("x.pc2")));
+  EXPECT_FALSE(fs::exists(dir.file("y.pc2")));
+}
+
+/// Makes the folder `depth` levels of `name` below `root` (relative steps, so that the whole
+/// path may pass PATH_MAX) and returns its path.
+std::string makeDeepFolder(const std::string& root, const std::string& name, int depth) {
+  std::string path = root;
+  int parent = ::open(root.c_str(), O_RDONLY | O_DIRECTORY);
+  for (int i = 0; i < depth; ++i) {
+    EXPECT_EQ(::mkdirat(parent, name.c_str(), 0755), 0);
+    const int child = ::openat(parent, name.c_str(), O_RDONLY | O_DIRECTORY);
+    ::close(parent);
+    parent = child;
+    path += "/" + name;
+  }
+  ::close(parent);
+  return path;
+}
+
+// A 5,044-byte folder that exists was reported as "does not exist"; a valid 254-byte output
+// name failed after setup because its temporary name passed 255 bytes; `info` on a FIFO blocked
+// forever; messages echoed a bad input's raw bytes.
+TEST(CliRegression, LongNamesFifosAndRawBytesGetClearMessages) {
+  TempDir dir;
+  const std::string deep = makeDeepFolder(dir.path(), std::string(200, 'd'), 25);
+  ASSERT_GT(deep.size(), 5000u);
+  const std::string source = sample("test.driven.pc2");
+  CliRun r =
+      runCli(dir, {"export", "--cache", source, "--frames", "1-2", "--pc2", deep + "/x.pc2"});
+  expectError(r, 4, "PATH_MAX");
+  EXPECT_EQ(r.err.find("does not exist"), std::string::npos) << r.err;
+  EXPECT_LT(r.err.size(), 1000u) << "the path is shortened in the message";
+
+  const std::string longest = std::string(250, 'n') + ".pc2";  // 254 bytes: valid
+  r = runCli(dir, {"export", "--cache", source, "--frames", "1-2", "--pc2", dir.file(longest)});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::is_regular_file(dir.file(longest)));
+  const std::string tooLong = std::string(252, 'n') + ".pc2";
+  expectError(
+      runCli(dir, {"export", "--cache", source, "--frames", "1-2", "--pc2", dir.file(tooLong)}), 4,
+      "bytes per name");
+
+  ASSERT_EQ(::mkfifo(dir.file("pipe.pc2").c_str(), 0600), 0);
+  ASSERT_EQ(::mkfifo(dir.file("pipe").c_str(), 0600), 0);
+  const auto start = std::chrono::steady_clock::now();
+  expectError(runCli(dir, {"info", dir.file("pipe.pc2")}), 3, "FIFO");
+  expectError(runCli(dir, {"info", dir.file("pipe")}), 3, "FIFO");
+  expectError(runCli(dir, {"export", "--cache", dir.file("pipe.pc2"), "--frames", "1", "--pc2",
+                           dir.file("z.pc2")}),
+              3, "FIFO");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
+
+  writeText(dir.file("report.json"), "{\"frames\": \xf7\x01}");
+  r = runCli(dir, {"eval", "--truth", source, "--bake", source, "--frames", "1-2", "--report",
+                   dir.file("report.json")});
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_EQ(r.err.find('\xf7'), std::string::npos) << "raw byte echoed";
+  EXPECT_NE(r.err.find("\\xf7"), std::string::npos) << r.err;
 }
 
 }  // namespace

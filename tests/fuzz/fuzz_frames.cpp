@@ -1,5 +1,7 @@
 // Frame ranges and frame patterns (src/io/frames.cpp): parseFrameRange, its round trip through
-// formatFrameRange, and the pattern helpers on the same text.
+// formatFrameRange, and the pattern helpers on the same text; checkDistinctPaths on the text as
+// two output names (split at its first newline), and printableText (src/core/text.h), which
+// prints every bad input in messages.
 //
 // parseFrameRange accepts up to 10 million frames by design (frames.cpp, kMaxFrames), which takes
 // seconds under ASan: texts whose numbers span more than kMaxSpan are not parsed, so the fuzzer
@@ -13,6 +15,7 @@
 #include <drivenshape/frames.h>
 
 #include "fuzz_support.h"
+#include "text.h"
 
 namespace ds = drivenshape;
 
@@ -71,5 +74,26 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       (void)name;
     });
   }
+  // Two outputs named by the text's halves (relative names: nothing is created).
+  const std::size_t split = text.find('\n');
+  if (split != std::string::npos && text.find('\0') == std::string::npos) {
+    const std::string first = text.substr(0, split), second = text.substr(split + 1);
+    const std::vector<int> few = {1, 2, 1001};
+    ds::fuzz::expectOnlyErrors("checkDistinctPaths", [&] {
+      ds::checkDistinctPaths({{"-o", first, ds::hasFramePattern(first)},
+                              {"--report", second, ds::hasFramePattern(second)}},
+                             few);
+      ds::fuzz::require(first != second || first.empty(), "checkDistinctPaths",
+                        "accepted two outputs with one name");
+    });
+  }
+  std::string shown;
+  ds::fuzz::expectSuccess("printableText", [&] { shown = ds::printableText(text, 64); });
+  for (const char c : shown) {
+    const auto byte = static_cast<unsigned char>(c);
+    ds::fuzz::require(byte >= 0x20 || c == '\n' || c == '\t', "printableText",
+                      "left a control byte in the text");
+  }
+  ds::fuzz::require(shown.size() <= 4 * 64 + 40, "printableText", "did not shorten the text");
   return 0;
 }

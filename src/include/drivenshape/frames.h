@@ -31,4 +31,18 @@ std::string sequenceStem(const std::string& pattern);
 /// than one.
 std::string expandFramePattern(const std::string& pattern, int frame);
 
+/// One file or file sequence a command reads or writes, by the option that names it.
+struct NamedPath {
+  std::string option;  ///< how the user named it: "-o", "--report", "--driver" ...
+  std::string path;    ///< a path, or a pattern when `sequence`
+  bool sequence = false;
+};
+
+/// Refuses, before any work, a command whose outputs could name the same file, or whose output
+/// would replace one of its inputs: Error(kUsage) naming both options and the file. Sequences
+/// are expanded over `frames`; paths are compared after resolving the folders that exist (so
+/// `a/../b.exr`, `./b.exr` and a link to the folder are the same file).
+void checkDistinctPaths(const std::vector<NamedPath>& outputs, const std::vector<int>& frames,
+                        const std::vector<NamedPath>& inputs = {});
+
 }  // namespace drivenshape

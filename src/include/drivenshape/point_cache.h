@@ -21,10 +21,23 @@ class PointCacheReader {
   virtual std::vector<int> frames() const = 0;
   virtual bool hasFrame(int frame) const = 0;
   /// Reads one frame into `xyz` (vertexCount() * 3 floats, interleaved). Throws Error(kInput)
-  /// naming the file and frame if the frame is missing or unreadable.
+  /// naming the file and frame if the frame is missing or unreadable, if it holds a NaN or
+  /// infinite position (naming the vertex; unless allowNonFinite), and, for an EXR sequence, if
+  /// the file's header holds another frame than its name says.
   virtual void readFrame(int frame, float* xyz) const = 0;
   /// The file or pattern this reads, for messages.
   virtual const std::string& path() const = 0;
+  /// Lets readFrame return NaN and infinite positions: only for a cache where they mean "not
+  /// covered here" (a mix layer's other cache, where the weight map keeps the cloth).
+  void allowNonFinite() { mAllowNonFinite = true; }
+
+ protected:
+  /// Throws Error(kInput) naming `source`, the frame and the vertex of the first NaN or
+  /// infinite position of `xyz` (vertexCount() * 3 floats), unless allowNonFinite.
+  void checkFinite(const std::string& source, int frame, const float* xyz) const;
+
+ private:
+  bool mAllowNonFinite = false;
 };
 
 /// Opens `spec`: a `.pc2` file, or an EXR sequence pattern (`out.####.exr`, `%04d`, `$F4`).
@@ -145,6 +158,7 @@ void writePointCacheExr(const std::string& path, int vertexCount, const float* x
 /// meaning). A missing attribute keeps its default.
 struct ExrSharedHeader {
   int frame = 0;
+  bool hasFrame = false;  ///< the file has the frame attribute (`frame` is 0 otherwise)
   std::uint64_t topologyHash = 0;
   std::string toolVersion;
   double framesPerSecond = 0.0;  ///< 0 when the file has none
