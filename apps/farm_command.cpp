@@ -9,6 +9,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <string_view>
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
@@ -151,12 +152,51 @@ std::string safeName(const std::string& text) {
   return name.empty() ? std::string("drivenshape") : name;
 }
 
+/// `option 'value'` for messages, on one line: control characters (C0, DEL and C1) shown as
+/// their bytes, \xNN.
+std::string culprit(const std::string& option, const std::string& value) {
+  const auto hex = [](unsigned char byte) {
+    const char* digits = "0123456789abcdef";
+    return std::string("\\x") + digits[byte >> 4] + digits[byte & 15];
+  };
+  std::string text = option + " '";
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const auto byte = static_cast<unsigned char>(value[i]);
+    const auto next = i + 1 < value.size() ? static_cast<unsigned char>(value[i + 1]) : 0;
+    if (byte < 0x20 || byte == 0x7F) {
+      text += hex(byte);
+    } else if (byte == 0xC2 && next >= 0x80 && next <= 0x9F) {
+      text += hex(byte) + hex(next);
+      ++i;
+    } else {
+      text += value[i];
+    }
+  }
+  return text + "'";
+}
+
+/// True when `text` holds a control character other than those in `allowed`: C0 (below 0x20),
+/// DEL, or C1 (U+0080-U+009F, in UTF-8 the bytes C2 80-C2 9F).
+bool hasControlCharacter(const std::string& text, const std::string& allowed = std::string()) {
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    const bool c1 = byte == 0xC2 && i + 1 < text.size() &&
+                    static_cast<unsigned char>(text[i + 1]) >= 0x80 &&
+                    static_cast<unsigned char>(text[i + 1]) <= 0x9F;
+    if ((byte < 0x20 || byte == 0x7F || c1) && allowed.find(text[i]) == std::string::npos) {
+      return true;
+    }
+  }
+  return false;
+}
+
 /// What both schedulers need: one bake command per chunk, everything absolute.
 struct FarmJob {
   std::string binary;         ///< absolute path of the drivenshape executable
   std::string database;       ///< absolute
   std::string driver;         ///< absolute .pc2 or EXR sequence pattern
   std::string frames;         ///< --frames as given (validated)
+  std::string framesText;     ///< --frames for comments and descriptions, at most 200 bytes
   std::string outputPattern;  ///< absolute, with a frame token
   std::string outputFolder;   ///< absolute folder of outputPattern
   /// Each task's JSON report, `<output folder>/<stem>.chunk<I>.report.json` (tasks run side by
@@ -212,17 +252,29 @@ FarmJob jobFrom(const ArgParser& parser) {
   job.frames = parser.get("--frames");
   const std::vector<int> frames = parseFrameRange(job.frames);
   job.frameCount = static_cast<int>(frames.size());
+  job.framesText = job.frames;
+  if (job.framesText.size() > 200) {  // a long list of frames
+    job.framesText = "frames " + std::to_string(*std::min_element(frames.begin(), frames.end())) +
+                     " to " + std::to_string(*std::max_element(frames.begin(), frames.end()));
+  }
   job.chunkSize = parser.getInt("--chunk-size", 1);
   job.chunks = (job.frameCount + job.chunkSize - 1) / job.chunkSize;
   if (!hasFramePattern(job.outputPattern)) {
     DS_THROW(kUsage, "-o '", parser.get("-o"), "' has no frame token; use e.g. out/cloth.####.exr");
   }
+  // What the bake checks of its (absolute) pattern, with the bake's own function: exactly one
+  // frame token in the whole path (a '#' in a folder name counts). Every task's bake would exit
+  // 2 on a pattern it refuses, so the farm command refuses it before writing a job.
+  try {
+    expandFramePattern(job.outputPattern, frames.front());
+  } catch (const Error& error) {
+    throw Error(error.code(), "-o '" + parser.get("-o") + "': " + error.what() +
+                                  "; every task's bake would refuse it");
+  }
   job.name = parser.has("--job-name") ? parser.get("--job-name")
                                       : "ds_" + safeName(sequenceStem(job.outputPattern));
-  if (job.name.empty() || job.name.size() > 128 ||
-      std::any_of(job.name.begin(), job.name.end(),
-                  [](char c) { return std::iscntrl(static_cast<unsigned char>(c)); })) {
-    DS_THROW(kUsage, "--job-name must be 1 to 128 printable characters");
+  if (job.name.empty() || job.name.size() > 128 || hasControlCharacter(job.name)) {
+    DS_THROW(kUsage, culprit("--job-name", job.name), ": a job name is 1 to 128 printable bytes");
   }
   if (parser.has("--time")) {
     job.timeLimit = parser.get("--time");
@@ -303,30 +355,79 @@ void createOutputFolder(const FarmJob& job) {
 
 // ---- Slurm -------------------------------------------------------------------------------
 
-std::string slurmScript(const FarmJob& job, const std::string& logDir,
+/// The value of an `#SBATCH --name=value` line, one rule for every value that lands in one:
+/// a control character (a line break would end the line) is refused naming `who` (the option
+/// it comes from, and its value); a value of plain characters is written as it is; any
+/// other is double-quoted with '"' and '\' escaped by a backslash, which sbatch reads back
+/// exactly (unquoted, a space ends the value and a '#' starts a comment).
+std::string sbatchValue(const std::string& value, const std::string& who) {
+  if (hasControlCharacter(value)) {
+    DS_THROW(kUsage, who,
+             " holds a control character (a line break, tab, ...), which an "
+             "#SBATCH line cannot carry; choose another value");
+  }
+  const bool plain = !value.empty() && std::all_of(value.begin(), value.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) ||
+           std::string_view("._-+,:/=@%").find(c) != std::string_view::npos;
+  });
+  if (plain) {
+    return value;
+  }
+  std::string quoted = "\"";
+  for (char c : value) {
+    if (c == '"' || c == '\\') {
+      quoted += '\\';
+    }
+    quoted += c;
+  }
+  return quoted + "\"";
+}
+
+/// The `--output` pattern of the task logs, `logDir/NAME_%A_%a.log`, as an #SBATCH value:
+/// every '%' of the folder doubled (Slurm's literal '%'). A backslash is refused: in a path
+/// Slurm turns its %A/%a replacement off (and the task fails to launch).
+std::string slurmLogPattern(const std::string& logDir, const std::string& jobName,
+                            const std::string& who) {
+  if (logDir.find('\\') != std::string::npos) {
+    DS_THROW(kUsage, who,
+             " holds a backslash, which Slurm's log file names cannot carry "
+             "(it turns off their %A/%a replacement); choose another folder");
+  }
+  std::string pattern;
+  for (char c : logDir) {
+    pattern += c;
+    if (c == '%') {
+      pattern += '%';
+    }
+  }
+  return sbatchValue(pattern + "/" + safeName(jobName) + "_%A_%a.log", who);
+}
+
+std::string slurmScript(const FarmJob& job, const std::string& logPattern,
                         const std::string& partition) {
   const std::string last = std::to_string(job.chunks - 1);
   std::ostringstream s;
   s << "#!/bin/bash\n"
     << "# Written by drivenshape " << kVersion << " (`drivenshape farm slurm`): " << job.frameCount
-    << " frames (" << job.frames << ") in " << job.chunks << " chunks of up to " << job.chunkSize
-    << ".\n"
+    << " frames (" << job.framesText << ") in " << job.chunks << " chunks of up to "
+    << job.chunkSize << ".\n"
     << "# Array index I is a chunk number, never a frame number: task I bakes frames\n"
     << "# [I*" << job.chunkSize << ", (I+1)*" << job.chunkSize
     << ") of the range. Every task passes --skip-existing, so a requeued or\n"
     << "# resubmitted task keeps its finished frames; resubmit failed chunks with\n"
     << "#   sbatch --array=I,J "
     << "<this file>\n"
-    << "#SBATCH --job-name=" << job.name << "\n"
+    << "#SBATCH --job-name=" << sbatchValue(job.name, culprit("--job-name", job.name)) << "\n"
     << "#SBATCH --array=0-" << last << "\n"
-    << "#SBATCH --output=" << logDir << "/" << safeName(job.name) << "_%A_%a.log\n"
+    << "#SBATCH --output=" << logPattern << "\n"
     << "#SBATCH --open-mode=append\n"
     << "#SBATCH --ntasks=1\n";
   if (!partition.empty()) {
-    s << "#SBATCH --partition=" << partition << "\n";
+    s << "#SBATCH --partition=" << sbatchValue(partition, culprit("--partition", partition))
+      << "\n";
   }
   if (!job.timeLimit.empty()) {
-    s << "#SBATCH --time=" << job.timeLimit << "\n";
+    s << "#SBATCH --time=" << sbatchValue(job.timeLimit, culprit("--time", job.timeLimit)) << "\n";
   }
   if (job.cpus > 0) {
     s << "#SBATCH --cpus-per-task=" << job.cpus << "\n";
@@ -444,17 +545,19 @@ int runFarmSlurm(const std::vector<std::string>& args) {
   const std::string logDir = absolute(
       parser.has("--log-dir") ? parser.get("--log-dir")
                               : (fs::path(job.outputPattern).parent_path() / "logs").string());
-  if (logDir.find_first_of(" \t\n%") != std::string::npos) {
-    DS_THROW(kUsage, "--log-dir '", logDir,
-             "' holds a space or '%', which #SBATCH lines cannot "
-             "carry; choose another folder");
-  }
+  const std::string logCulprit =
+      parser.has("--log-dir")
+          ? culprit("--log-dir", parser.get("--log-dir"))
+          : culprit("the log folder (--log-dir, default OUT folder/logs)", logDir);
+  // Every value is checked before anything is made or written.
+  const std::string script =
+      slurmScript(job, slurmLogPattern(logDir, job.name, logCulprit), parser.get("--partition"));
   const std::string jobFile = absolute(parser.get("-O"));
   checkOutputFolderWritable(jobFile);
   // Slurm opens the task logs before the script runs: the folder must exist at submission.
   makeFolder(logDir, "log");
   createOutputFolder(job);
-  writeFileAtomically(jobFile, slurmScript(job, logDir, parser.get("--partition")));
+  writeFileAtomically(jobFile, script);
   fs::permissions(jobFile, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
                   fs::perm_options::add);
   std::cout << "slurm job: " << jobFile << " (" << job.chunks << " array tasks 0-" << job.chunks - 1
@@ -507,7 +610,7 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
   json step{{"name", "Bake"},
             {"description", "One task per chunk of " + std::to_string(job.chunkSize) +
                                 " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " +
-                                job.frames + ", keeping finished frames (--skip-existing)."},
+                                job.framesText + ", keeping finished frames (--skip-existing)."},
             {"parameterSpace",
              {{"taskParameterDefinitions",
                json::array({{{"name", "Chunk"},
@@ -546,7 +649,7 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
   return json{{"specificationVersion", "jobtemplate-2023-09"},
               {"name", job.name},
               {"description", "drivenshape " + std::string(kVersion) + " bake of " +
-                                  std::to_string(job.frameCount) + " frames (" + job.frames +
+                                  std::to_string(job.frameCount) + " frames (" + job.framesText +
                                   ") in " + std::to_string(job.chunks) + " chunks"},
               {"parameterDefinitions",
                json::array({{{"name", "DrivenshapeBinary"},
