@@ -4,10 +4,13 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string_view>
 
@@ -574,6 +577,212 @@ int runFarmSlurm(const std::vector<std::string>& args) {
 
 // ---- Open Job Description ------------------------------------------------------------------
 
+// Limits of the 2023-09 template schema (openjd-model), in characters (code points).
+constexpr std::size_t kOpenJdMaxName = 512;
+constexpr std::size_t kOpenJdMaxDescription = 2048;
+constexpr std::size_t kOpenJdMaxParameterValue = 1024;
+constexpr std::size_t kOpenJdMaxVariableValue = 2048;
+constexpr int kOpenJdMaxNotifySeconds = 600;
+
+/// Whether `text` is well-formed UTF-8 (no overlong forms, surrogates or values past U+10FFFF).
+bool isUtf8(const std::string& text) {
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    std::size_t length = 1;
+    std::uint32_t point = byte;
+    if (byte >= 0xF0 && byte <= 0xF4) {
+      length = 4;
+      point = byte & 0x07u;
+    } else if (byte >= 0xE0) {
+      length = byte <= 0xEF ? 3 : 0;
+      point = byte & 0x0Fu;
+    } else if (byte >= 0xC2) {
+      length = byte <= 0xDF ? 2 : 0;
+      point = byte & 0x1Fu;
+    } else if (byte >= 0x80) {
+      length = 0;  // a continuation byte first, or an overlong 0xC0/0xC1 lead
+    }
+    if (length == 0 || i + length > text.size()) {
+      return false;
+    }
+    for (std::size_t k = 1; k < length; ++k) {
+      const auto next = static_cast<unsigned char>(text[i + k]);
+      if ((next & 0xC0u) != 0x80u) {
+        return false;
+      }
+      point = (point << 6) | (next & 0x3Fu);
+    }
+    if ((length == 3 && (point < 0x800 || (point >= 0xD800 && point <= 0xDFFF))) ||
+        (length == 4 && (point < 0x10000 || point > 0x10FFFF))) {
+      return false;
+    }
+    i += length;
+  }
+  return true;
+}
+
+/// Characters of UTF-8 `text`, as Open Job Description counts lengths.
+std::size_t characterCount(const std::string& text) {
+  return static_cast<std::size_t>(std::count_if(text.begin(), text.end(), [](char c) {
+    return (static_cast<unsigned char>(c) & 0xC0u) != 0x80u;
+  }));
+}
+
+/// A value of the command line that lands in a format string of the template (the job name,
+/// an argument of the bake): Open Job Description reads `{{`...`}}` there as an expression and
+/// has no escape for the braces, and allows no control characters but `allowedControls`.
+/// Refused with Error(kUsage) naming `who`.
+void checkTemplateText(const std::string& who, const std::string& text,
+                       const std::string& allowedControls) {
+  if (!isUtf8(text)) {
+    DS_THROW(kUsage, who, " is not valid UTF-8, which an Open Job Description template holds");
+  }
+  if (text.find("{{") != std::string::npos || text.find("}}") != std::string::npos) {
+    DS_THROW(kUsage, who,
+             " holds '{{' or '}}', which Open Job Description reads as an expression (it has "
+             "no escape for them); remove them");
+  }
+  if (hasControlCharacter(text, allowedControls)) {
+    DS_THROW(kUsage, who,
+             " holds a control character, which Open Job Description does not "
+             "allow there");
+  }
+}
+
+/// A path that becomes a job parameter value: UTF-8 (the template and its values are UTF-8
+/// text, other bytes would change the path) of at most kOpenJdMaxParameterValue characters.
+void checkTemplatePath(const std::string& who, const std::string& path) {
+  if (!isUtf8(path)) {
+    DS_THROW(kUsage, who,
+             " is not valid UTF-8, which an Open Job Description template holds; "
+             "rename it");
+  }
+  if (characterCount(path) > kOpenJdMaxParameterValue) {
+    DS_THROW(kUsage, who, " is ", characterCount(path),
+             " characters long as an absolute path; "
+             "an Open Job Description job parameter holds at most ",
+             kOpenJdMaxParameterValue);
+  }
+}
+
+/// The template's own check before it is written: what openjd-model (`openjd check`) refuses
+/// in the fields this command writes. Every string UTF-8; the format strings (name, command,
+/// arguments, environment variables) with balanced `{{ }}` around only the expressions this
+/// command writes (the job's parameters, the step's task parameters, the session folder) and
+/// no control characters (arguments may break lines); names, descriptions and parameter
+/// defaults within their lengths; the notify period within 1..600 s. The checks of the options
+/// come first and name the option, so a failure here is a bug: Error(kInternal).
+void checkJobTemplate(const nlohmann::ordered_json& jobTemplate) {
+  using json = nlohmann::ordered_json;
+  const auto fail = [](const std::string& where, const std::string& why) {
+    DS_THROW(kInternal, "the Open Job Description template would fail `openjd check`: ", where, " ",
+             why, "; please report this with the command line");
+  };
+  std::function<void(const json&, const std::string&)> checkUtf8 = [&](const json& value,
+                                                                       const std::string& where) {
+    if (value.is_string() && !isUtf8(value.get_ref<const std::string&>())) {
+      fail(where, "is not valid UTF-8");
+    }
+    if (value.is_object()) {
+      for (const auto& item : value.items()) {
+        if (!isUtf8(item.key())) {
+          fail(where, "has a key that is not valid UTF-8");
+        }
+        checkUtf8(item.value(), where + "." + item.key());
+      }
+    } else if (value.is_array()) {
+      for (std::size_t i = 0; i < value.size(); ++i) {
+        checkUtf8(value[i], where + "[" + std::to_string(i) + "]");
+      }
+    }
+  };
+  checkUtf8(jobTemplate, "template");
+  const auto text = [&](const json& value, const std::string& where, std::size_t minLength,
+                        std::size_t maxLength, const char* allowedControls) {
+    if (!value.is_string()) {
+      fail(where, "is not a string");
+    }
+    const std::string& content = value.get_ref<const std::string&>();
+    const std::size_t length = characterCount(content);
+    if (length < minLength || length > maxLength) {
+      fail(where, "has " + std::to_string(length) + " characters, not " +
+                      std::to_string(minLength) + " to " + std::to_string(maxLength));
+    }
+    if (allowedControls != nullptr && hasControlCharacter(content, allowedControls)) {
+      fail(where, "holds a control character");
+    }
+    return content;
+  };
+  // OpenJD finds the next "{{" and the next "}}" and parses what lies between as an expression.
+  const auto formatString = [&](const json& value, const std::string& where,
+                                const std::set<std::string>& symbols, std::size_t minLength,
+                                std::size_t maxLength, const char* allowedControls) {
+    const std::string content = text(value, where, minLength, maxLength, allowedControls);
+    std::size_t at = 0;
+    for (;;) {
+      const std::size_t open = content.find("{{", at);
+      const std::size_t close = content.find("}}", at);
+      if (open == std::string::npos && close == std::string::npos) {
+        break;
+      }
+      if (open == std::string::npos || close < open) {
+        fail(where, "'" + content + "' has '}}' without '{{'");
+      }
+      std::string expression = content.substr(open + 2, close - open - 2);
+      expression.erase(0, expression.find_first_not_of(' '));
+      expression.erase(expression.find_last_not_of(' ') + 1);
+      if (symbols.count(expression) == 0) {
+        fail(where, "'" + content + "' refers to '" + expression + "', which is not defined");
+      }
+      at = close + 2;
+    }
+  };
+  const auto description = [&](const json& owner, const std::string& where) {
+    if (owner.contains("description")) {
+      text(owner.at("description"), where + ".description", 1, kOpenJdMaxDescription, "\r\n\t");
+    }
+  };
+  std::set<std::string> jobSymbols;
+  for (const json& parameter : jobTemplate.at("parameterDefinitions")) {
+    const std::string name = parameter.at("name").get<std::string>();
+    jobSymbols.insert("Param." + name);
+    description(parameter, "parameter " + name);
+    if (parameter.contains("default")) {
+      text(parameter.at("default"), "parameter " + name + ".default", 0, kOpenJdMaxParameterValue,
+           nullptr);
+    }
+  }
+  formatString(jobTemplate.at("name"), "the job name", jobSymbols, 1, kOpenJdMaxName, "");
+  description(jobTemplate, "the job");
+  for (const json& step : jobTemplate.at("steps")) {
+    const std::string where = "step " + step.at("name").get<std::string>();
+    description(step, where);
+    std::set<std::string> symbols = jobSymbols;
+    symbols.insert("Session.WorkingDirectory");
+    for (const json& parameter : step.at("parameterSpace").at("taskParameterDefinitions")) {
+      symbols.insert("Task.Param." + parameter.at("name").get<std::string>());
+    }
+    for (const json& environment : step.at("stepEnvironments")) {
+      description(environment, where + " environment");
+      for (const auto& variable : environment.at("variables").items()) {
+        formatString(variable.value(), where + " variable " + variable.key(), symbols, 0,
+                     kOpenJdMaxVariableValue, "");
+      }
+    }
+    const json& onRun = step.at("script").at("actions").at("onRun");
+    formatString(onRun.at("command"), where + " command", symbols, 1, SIZE_MAX, "");
+    for (std::size_t i = 0; i < onRun.at("args").size(); ++i) {
+      formatString(onRun.at("args")[i], where + " argument " + std::to_string(i + 1), symbols, 0,
+                   SIZE_MAX, "\r\n");
+    }
+    const int notify = onRun.at("cancelation").at("notifyPeriodInSeconds").get<int>();
+    if (notify < 1 || notify > kOpenJdMaxNotifySeconds) {
+      fail(where, "notifyPeriodInSeconds " + std::to_string(notify) + " is outside 1..600");
+    }
+  }
+}
+
 /// The template. PATH parameters (path-mapped by render managers) hold the data. The spec
 /// only allows relative defaults that stay inside the template's folder `templateDir` (they are
 /// joined to it when a job is created), so a path gets a default only there; every path's
@@ -751,11 +960,30 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
                  "--chunk-size\n";
   }
   const long timeout = job.timeLimit.empty() ? 0 : parseTimeLimit(job.timeLimit);
+  const int cancelGrace = parser.getInt("--cancel-grace", 1);
+  if (cancelGrace > kOpenJdMaxNotifySeconds) {
+    DS_THROW(kUsage, "--cancel-grace ", cancelGrace, " is outside 1..", kOpenJdMaxNotifySeconds,
+             " seconds, the notify period Open Job Description allows");
+  }
+  // What lands in the template's format strings and job parameters, checked naming its option.
+  checkTemplateText(culprit("--job-name", job.name), job.name, "");
+  for (const std::string& word : job.extraArgs) {
+    checkTemplateText(culprit("--extra-args", parser.get("--extra-args")), word, "\r\n");
+  }
+  if (job.perChunkReport) {  // the report argument holds the output's name
+    checkTemplateText(
+        culprit("-o", parser.get("-o")) + " (its name is part of each task's --report argument)",
+        sequenceStem(job.outputPattern), "");
+  }
+  checkTemplatePath(culprit("--db", parser.get("--db")), job.database);
+  checkTemplatePath(culprit("--driver", parser.get("--driver")), job.driver);
+  checkTemplatePath(culprit("-o", parser.get("-o")), job.outputPattern);
+  checkTemplatePath(culprit("--binary", job.binary), job.binary);
   const std::string jobFile = absolute(parser.get("-O"));
   nlohmann::ordered_json values = nlohmann::ordered_json::object();
   const nlohmann::ordered_json jobTemplate =
-      openJobTemplate(job, fs::path(jobFile).parent_path().string(), timeout,
-                      parser.getInt("--cancel-grace", 1), values);
+      openJobTemplate(job, fs::path(jobFile).parent_path().string(), timeout, cancelGrace, values);
+  checkJobTemplate(jobTemplate);
   const std::string valuesFile = parametersPathFor(jobFile);
   std::string text;
   if (hasSuffix(jobFile, ".yaml") || hasSuffix(jobFile, ".yml")) {
