@@ -4,11 +4,15 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
+#include <string_view>
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
@@ -151,12 +155,51 @@ std::string safeName(const std::string& text) {
   return name.empty() ? std::string("drivenshape") : name;
 }
 
+/// `option 'value'` for messages, on one line: control characters (C0, DEL and C1) shown as
+/// their bytes, \xNN.
+std::string culprit(const std::string& option, const std::string& value) {
+  const auto hex = [](unsigned char byte) {
+    const char* digits = "0123456789abcdef";
+    return std::string("\\x") + digits[byte >> 4] + digits[byte & 15];
+  };
+  std::string text = option + " '";
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const auto byte = static_cast<unsigned char>(value[i]);
+    const auto next = i + 1 < value.size() ? static_cast<unsigned char>(value[i + 1]) : 0;
+    if (byte < 0x20 || byte == 0x7F) {
+      text += hex(byte);
+    } else if (byte == 0xC2 && next >= 0x80 && next <= 0x9F) {
+      text += hex(byte) + hex(next);
+      ++i;
+    } else {
+      text += value[i];
+    }
+  }
+  return text + "'";
+}
+
+/// True when `text` holds a control character other than those in `allowed`: C0 (below 0x20),
+/// DEL, or C1 (U+0080-U+009F, in UTF-8 the bytes C2 80-C2 9F).
+bool hasControlCharacter(const std::string& text, const std::string& allowed = std::string()) {
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    const bool c1 = byte == 0xC2 && i + 1 < text.size() &&
+                    static_cast<unsigned char>(text[i + 1]) >= 0x80 &&
+                    static_cast<unsigned char>(text[i + 1]) <= 0x9F;
+    if ((byte < 0x20 || byte == 0x7F || c1) && allowed.find(text[i]) == std::string::npos) {
+      return true;
+    }
+  }
+  return false;
+}
+
 /// What both schedulers need: one bake command per chunk, everything absolute.
 struct FarmJob {
   std::string binary;         ///< absolute path of the drivenshape executable
   std::string database;       ///< absolute
   std::string driver;         ///< absolute .pc2 or EXR sequence pattern
   std::string frames;         ///< --frames as given (validated)
+  std::string framesText;     ///< --frames for comments and descriptions, at most 200 bytes
   std::string outputPattern;  ///< absolute, with a frame token
   std::string outputFolder;   ///< absolute folder of outputPattern
   /// Each task's JSON report, `<output folder>/<stem>.chunk<I>.report.json` (tasks run side by
@@ -212,17 +255,29 @@ FarmJob jobFrom(const ArgParser& parser) {
   job.frames = parser.get("--frames");
   const std::vector<int> frames = parseFrameRange(job.frames);
   job.frameCount = static_cast<int>(frames.size());
+  job.framesText = job.frames;
+  if (job.framesText.size() > 200) {  // a long list of frames
+    job.framesText = "frames " + std::to_string(*std::min_element(frames.begin(), frames.end())) +
+                     " to " + std::to_string(*std::max_element(frames.begin(), frames.end()));
+  }
   job.chunkSize = parser.getInt("--chunk-size", 1);
   job.chunks = (job.frameCount + job.chunkSize - 1) / job.chunkSize;
   if (!hasFramePattern(job.outputPattern)) {
     DS_THROW(kUsage, "-o '", parser.get("-o"), "' has no frame token; use e.g. out/cloth.####.exr");
   }
+  // What the bake checks of its (absolute) pattern, with the bake's own function: exactly one
+  // frame token in the whole path (a '#' in a folder name counts). Every task's bake would exit
+  // 2 on a pattern it refuses, so the farm command refuses it before writing a job.
+  try {
+    expandFramePattern(job.outputPattern, frames.front());
+  } catch (const Error& error) {
+    throw Error(error.code(), "-o '" + parser.get("-o") + "': " + error.what() +
+                                  "; every task's bake would refuse it");
+  }
   job.name = parser.has("--job-name") ? parser.get("--job-name")
                                       : "ds_" + safeName(sequenceStem(job.outputPattern));
-  if (job.name.empty() || job.name.size() > 128 ||
-      std::any_of(job.name.begin(), job.name.end(),
-                  [](char c) { return std::iscntrl(static_cast<unsigned char>(c)); })) {
-    DS_THROW(kUsage, "--job-name must be 1 to 128 printable characters");
+  if (job.name.empty() || job.name.size() > 128 || hasControlCharacter(job.name)) {
+    DS_THROW(kUsage, culprit("--job-name", job.name), ": a job name is 1 to 128 printable bytes");
   }
   if (parser.has("--time")) {
     job.timeLimit = parser.get("--time");
@@ -303,30 +358,79 @@ void createOutputFolder(const FarmJob& job) {
 
 // ---- Slurm -------------------------------------------------------------------------------
 
-std::string slurmScript(const FarmJob& job, const std::string& logDir,
+/// The value of an `#SBATCH --name=value` line, one rule for every value that lands in one:
+/// a control character (a line break would end the line) is refused naming `who` (the option
+/// it comes from, and its value); a value of plain characters is written as it is; any
+/// other is double-quoted with '"' and '\' escaped by a backslash, which sbatch reads back
+/// exactly (unquoted, a space ends the value and a '#' starts a comment).
+std::string sbatchValue(const std::string& value, const std::string& who) {
+  if (hasControlCharacter(value)) {
+    DS_THROW(kUsage, who,
+             " holds a control character (a line break, tab, ...), which an "
+             "#SBATCH line cannot carry; choose another value");
+  }
+  const bool plain = !value.empty() && std::all_of(value.begin(), value.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) ||
+           std::string_view("._-+,:/=@%").find(c) != std::string_view::npos;
+  });
+  if (plain) {
+    return value;
+  }
+  std::string quoted = "\"";
+  for (char c : value) {
+    if (c == '"' || c == '\\') {
+      quoted += '\\';
+    }
+    quoted += c;
+  }
+  return quoted + "\"";
+}
+
+/// The `--output` pattern of the task logs, `logDir/NAME_%A_%a.log`, as an #SBATCH value:
+/// every '%' of the folder doubled (Slurm's literal '%'). A backslash is refused: in a path
+/// Slurm turns its %A/%a replacement off (and the task fails to launch).
+std::string slurmLogPattern(const std::string& logDir, const std::string& jobName,
+                            const std::string& who) {
+  if (logDir.find('\\') != std::string::npos) {
+    DS_THROW(kUsage, who,
+             " holds a backslash, which Slurm's log file names cannot carry "
+             "(it turns off their %A/%a replacement); choose another folder");
+  }
+  std::string pattern;
+  for (char c : logDir) {
+    pattern += c;
+    if (c == '%') {
+      pattern += '%';
+    }
+  }
+  return sbatchValue(pattern + "/" + safeName(jobName) + "_%A_%a.log", who);
+}
+
+std::string slurmScript(const FarmJob& job, const std::string& logPattern,
                         const std::string& partition) {
   const std::string last = std::to_string(job.chunks - 1);
   std::ostringstream s;
   s << "#!/bin/bash\n"
     << "# Written by drivenshape " << kVersion << " (`drivenshape farm slurm`): " << job.frameCount
-    << " frames (" << job.frames << ") in " << job.chunks << " chunks of up to " << job.chunkSize
-    << ".\n"
+    << " frames (" << job.framesText << ") in " << job.chunks << " chunks of up to "
+    << job.chunkSize << ".\n"
     << "# Array index I is a chunk number, never a frame number: task I bakes frames\n"
     << "# [I*" << job.chunkSize << ", (I+1)*" << job.chunkSize
     << ") of the range. Every task passes --skip-existing, so a requeued or\n"
     << "# resubmitted task keeps its finished frames; resubmit failed chunks with\n"
     << "#   sbatch --array=I,J "
     << "<this file>\n"
-    << "#SBATCH --job-name=" << job.name << "\n"
+    << "#SBATCH --job-name=" << sbatchValue(job.name, culprit("--job-name", job.name)) << "\n"
     << "#SBATCH --array=0-" << last << "\n"
-    << "#SBATCH --output=" << logDir << "/" << safeName(job.name) << "_%A_%a.log\n"
+    << "#SBATCH --output=" << logPattern << "\n"
     << "#SBATCH --open-mode=append\n"
     << "#SBATCH --ntasks=1\n";
   if (!partition.empty()) {
-    s << "#SBATCH --partition=" << partition << "\n";
+    s << "#SBATCH --partition=" << sbatchValue(partition, culprit("--partition", partition))
+      << "\n";
   }
   if (!job.timeLimit.empty()) {
-    s << "#SBATCH --time=" << job.timeLimit << "\n";
+    s << "#SBATCH --time=" << sbatchValue(job.timeLimit, culprit("--time", job.timeLimit)) << "\n";
   }
   if (job.cpus > 0) {
     s << "#SBATCH --cpus-per-task=" << job.cpus << "\n";
@@ -444,17 +548,19 @@ int runFarmSlurm(const std::vector<std::string>& args) {
   const std::string logDir = absolute(
       parser.has("--log-dir") ? parser.get("--log-dir")
                               : (fs::path(job.outputPattern).parent_path() / "logs").string());
-  if (logDir.find_first_of(" \t\n%") != std::string::npos) {
-    DS_THROW(kUsage, "--log-dir '", logDir,
-             "' holds a space or '%', which #SBATCH lines cannot "
-             "carry; choose another folder");
-  }
+  const std::string logCulprit =
+      parser.has("--log-dir")
+          ? culprit("--log-dir", parser.get("--log-dir"))
+          : culprit("the log folder (--log-dir, default OUT folder/logs)", logDir);
+  // Every value is checked before anything is made or written.
+  const std::string script =
+      slurmScript(job, slurmLogPattern(logDir, job.name, logCulprit), parser.get("--partition"));
   const std::string jobFile = absolute(parser.get("-O"));
   checkOutputFolderWritable(jobFile);
   // Slurm opens the task logs before the script runs: the folder must exist at submission.
   makeFolder(logDir, "log");
   createOutputFolder(job);
-  writeFileAtomically(jobFile, slurmScript(job, logDir, parser.get("--partition")));
+  writeFileAtomically(jobFile, script);
   fs::permissions(jobFile, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
                   fs::perm_options::add);
   std::cout << "slurm job: " << jobFile << " (" << job.chunks << " array tasks 0-" << job.chunks - 1
@@ -470,6 +576,212 @@ int runFarmSlurm(const std::vector<std::string>& args) {
 }
 
 // ---- Open Job Description ------------------------------------------------------------------
+
+// Limits of the 2023-09 template schema (openjd-model), in characters (code points).
+constexpr std::size_t kOpenJdMaxName = 512;
+constexpr std::size_t kOpenJdMaxDescription = 2048;
+constexpr std::size_t kOpenJdMaxParameterValue = 1024;
+constexpr std::size_t kOpenJdMaxVariableValue = 2048;
+constexpr int kOpenJdMaxNotifySeconds = 600;
+
+/// Whether `text` is well-formed UTF-8 (no overlong forms, surrogates or values past U+10FFFF).
+bool isUtf8(const std::string& text) {
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    std::size_t length = 1;
+    std::uint32_t point = byte;
+    if (byte >= 0xF0 && byte <= 0xF4) {
+      length = 4;
+      point = byte & 0x07u;
+    } else if (byte >= 0xE0) {
+      length = byte <= 0xEF ? 3 : 0;
+      point = byte & 0x0Fu;
+    } else if (byte >= 0xC2) {
+      length = byte <= 0xDF ? 2 : 0;
+      point = byte & 0x1Fu;
+    } else if (byte >= 0x80) {
+      length = 0;  // a continuation byte first, or an overlong 0xC0/0xC1 lead
+    }
+    if (length == 0 || i + length > text.size()) {
+      return false;
+    }
+    for (std::size_t k = 1; k < length; ++k) {
+      const auto next = static_cast<unsigned char>(text[i + k]);
+      if ((next & 0xC0u) != 0x80u) {
+        return false;
+      }
+      point = (point << 6) | (next & 0x3Fu);
+    }
+    if ((length == 3 && (point < 0x800 || (point >= 0xD800 && point <= 0xDFFF))) ||
+        (length == 4 && (point < 0x10000 || point > 0x10FFFF))) {
+      return false;
+    }
+    i += length;
+  }
+  return true;
+}
+
+/// Characters of UTF-8 `text`, as Open Job Description counts lengths.
+std::size_t characterCount(const std::string& text) {
+  return static_cast<std::size_t>(std::count_if(text.begin(), text.end(), [](char c) {
+    return (static_cast<unsigned char>(c) & 0xC0u) != 0x80u;
+  }));
+}
+
+/// A value of the command line that lands in a format string of the template (the job name,
+/// an argument of the bake): Open Job Description reads `{{`...`}}` there as an expression and
+/// has no escape for the braces, and allows no control characters but `allowedControls`.
+/// Refused with Error(kUsage) naming `who`.
+void checkTemplateText(const std::string& who, const std::string& text,
+                       const std::string& allowedControls) {
+  if (!isUtf8(text)) {
+    DS_THROW(kUsage, who, " is not valid UTF-8, which an Open Job Description template holds");
+  }
+  if (text.find("{{") != std::string::npos || text.find("}}") != std::string::npos) {
+    DS_THROW(kUsage, who,
+             " holds '{{' or '}}', which Open Job Description reads as an expression (it has "
+             "no escape for them); remove them");
+  }
+  if (hasControlCharacter(text, allowedControls)) {
+    DS_THROW(kUsage, who,
+             " holds a control character, which Open Job Description does not "
+             "allow there");
+  }
+}
+
+/// A path that becomes a job parameter value: UTF-8 (the template and its values are UTF-8
+/// text, other bytes would change the path) of at most kOpenJdMaxParameterValue characters.
+void checkTemplatePath(const std::string& who, const std::string& path) {
+  if (!isUtf8(path)) {
+    DS_THROW(kUsage, who,
+             " is not valid UTF-8, which an Open Job Description template holds; "
+             "rename it");
+  }
+  if (characterCount(path) > kOpenJdMaxParameterValue) {
+    DS_THROW(kUsage, who, " is ", characterCount(path),
+             " characters long as an absolute path; "
+             "an Open Job Description job parameter holds at most ",
+             kOpenJdMaxParameterValue);
+  }
+}
+
+/// The template's own check before it is written: what openjd-model (`openjd check`) refuses
+/// in the fields this command writes. Every string UTF-8; the format strings (name, command,
+/// arguments, environment variables) with balanced `{{ }}` around only the expressions this
+/// command writes (the job's parameters, the step's task parameters, the session folder) and
+/// no control characters (arguments may break lines); names, descriptions and parameter
+/// defaults within their lengths; the notify period within 1..600 s. The checks of the options
+/// come first and name the option, so a failure here is a bug: Error(kInternal).
+void checkJobTemplate(const nlohmann::ordered_json& jobTemplate) {
+  using json = nlohmann::ordered_json;
+  const auto fail = [](const std::string& where, const std::string& why) {
+    DS_THROW(kInternal, "the Open Job Description template would fail `openjd check`: ", where, " ",
+             why, "; please report this with the command line");
+  };
+  std::function<void(const json&, const std::string&)> checkUtf8 = [&](const json& value,
+                                                                       const std::string& where) {
+    if (value.is_string() && !isUtf8(value.get_ref<const std::string&>())) {
+      fail(where, "is not valid UTF-8");
+    }
+    if (value.is_object()) {
+      for (const auto& item : value.items()) {
+        if (!isUtf8(item.key())) {
+          fail(where, "has a key that is not valid UTF-8");
+        }
+        checkUtf8(item.value(), where + "." + item.key());
+      }
+    } else if (value.is_array()) {
+      for (std::size_t i = 0; i < value.size(); ++i) {
+        checkUtf8(value[i], where + "[" + std::to_string(i) + "]");
+      }
+    }
+  };
+  checkUtf8(jobTemplate, "template");
+  const auto text = [&](const json& value, const std::string& where, std::size_t minLength,
+                        std::size_t maxLength, const char* allowedControls) {
+    if (!value.is_string()) {
+      fail(where, "is not a string");
+    }
+    const std::string& content = value.get_ref<const std::string&>();
+    const std::size_t length = characterCount(content);
+    if (length < minLength || length > maxLength) {
+      fail(where, "has " + std::to_string(length) + " characters, not " +
+                      std::to_string(minLength) + " to " + std::to_string(maxLength));
+    }
+    if (allowedControls != nullptr && hasControlCharacter(content, allowedControls)) {
+      fail(where, "holds a control character");
+    }
+    return content;
+  };
+  // OpenJD finds the next "{{" and the next "}}" and parses what lies between as an expression.
+  const auto formatString = [&](const json& value, const std::string& where,
+                                const std::set<std::string>& symbols, std::size_t minLength,
+                                std::size_t maxLength, const char* allowedControls) {
+    const std::string content = text(value, where, minLength, maxLength, allowedControls);
+    std::size_t at = 0;
+    for (;;) {
+      const std::size_t open = content.find("{{", at);
+      const std::size_t close = content.find("}}", at);
+      if (open == std::string::npos && close == std::string::npos) {
+        break;
+      }
+      if (open == std::string::npos || close < open) {
+        fail(where, "'" + content + "' has '}}' without '{{'");
+      }
+      std::string expression = content.substr(open + 2, close - open - 2);
+      expression.erase(0, expression.find_first_not_of(' '));
+      expression.erase(expression.find_last_not_of(' ') + 1);
+      if (symbols.count(expression) == 0) {
+        fail(where, "'" + content + "' refers to '" + expression + "', which is not defined");
+      }
+      at = close + 2;
+    }
+  };
+  const auto description = [&](const json& owner, const std::string& where) {
+    if (owner.contains("description")) {
+      text(owner.at("description"), where + ".description", 1, kOpenJdMaxDescription, "\r\n\t");
+    }
+  };
+  std::set<std::string> jobSymbols;
+  for (const json& parameter : jobTemplate.at("parameterDefinitions")) {
+    const std::string name = parameter.at("name").get<std::string>();
+    jobSymbols.insert("Param." + name);
+    description(parameter, "parameter " + name);
+    if (parameter.contains("default")) {
+      text(parameter.at("default"), "parameter " + name + ".default", 0, kOpenJdMaxParameterValue,
+           nullptr);
+    }
+  }
+  formatString(jobTemplate.at("name"), "the job name", jobSymbols, 1, kOpenJdMaxName, "");
+  description(jobTemplate, "the job");
+  for (const json& step : jobTemplate.at("steps")) {
+    const std::string where = "step " + step.at("name").get<std::string>();
+    description(step, where);
+    std::set<std::string> symbols = jobSymbols;
+    symbols.insert("Session.WorkingDirectory");
+    for (const json& parameter : step.at("parameterSpace").at("taskParameterDefinitions")) {
+      symbols.insert("Task.Param." + parameter.at("name").get<std::string>());
+    }
+    for (const json& environment : step.at("stepEnvironments")) {
+      description(environment, where + " environment");
+      for (const auto& variable : environment.at("variables").items()) {
+        formatString(variable.value(), where + " variable " + variable.key(), symbols, 0,
+                     kOpenJdMaxVariableValue, "");
+      }
+    }
+    const json& onRun = step.at("script").at("actions").at("onRun");
+    formatString(onRun.at("command"), where + " command", symbols, 1, SIZE_MAX, "");
+    for (std::size_t i = 0; i < onRun.at("args").size(); ++i) {
+      formatString(onRun.at("args")[i], where + " argument " + std::to_string(i + 1), symbols, 0,
+                   SIZE_MAX, "\r\n");
+    }
+    const int notify = onRun.at("cancelation").at("notifyPeriodInSeconds").get<int>();
+    if (notify < 1 || notify > kOpenJdMaxNotifySeconds) {
+      fail(where, "notifyPeriodInSeconds " + std::to_string(notify) + " is outside 1..600");
+    }
+  }
+}
 
 /// The template. PATH parameters (path-mapped by render managers) hold the data. The spec
 /// only allows relative defaults that stay inside the template's folder `templateDir` (they are
@@ -507,7 +819,7 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
   json step{{"name", "Bake"},
             {"description", "One task per chunk of " + std::to_string(job.chunkSize) +
                                 " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " +
-                                job.frames + ", keeping finished frames (--skip-existing)."},
+                                job.framesText + ", keeping finished frames (--skip-existing)."},
             {"parameterSpace",
              {{"taskParameterDefinitions",
                json::array({{{"name", "Chunk"},
@@ -546,7 +858,7 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
   return json{{"specificationVersion", "jobtemplate-2023-09"},
               {"name", job.name},
               {"description", "drivenshape " + std::string(kVersion) + " bake of " +
-                                  std::to_string(job.frameCount) + " frames (" + job.frames +
+                                  std::to_string(job.frameCount) + " frames (" + job.framesText +
                                   ") in " + std::to_string(job.chunks) + " chunks"},
               {"parameterDefinitions",
                json::array({{{"name", "DrivenshapeBinary"},
@@ -648,11 +960,30 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
                  "--chunk-size\n";
   }
   const long timeout = job.timeLimit.empty() ? 0 : parseTimeLimit(job.timeLimit);
+  const int cancelGrace = parser.getInt("--cancel-grace", 1);
+  if (cancelGrace > kOpenJdMaxNotifySeconds) {
+    DS_THROW(kUsage, "--cancel-grace ", cancelGrace, " is outside 1..", kOpenJdMaxNotifySeconds,
+             " seconds, the notify period Open Job Description allows");
+  }
+  // What lands in the template's format strings and job parameters, checked naming its option.
+  checkTemplateText(culprit("--job-name", job.name), job.name, "");
+  for (const std::string& word : job.extraArgs) {
+    checkTemplateText(culprit("--extra-args", parser.get("--extra-args")), word, "\r\n");
+  }
+  if (job.perChunkReport) {  // the report argument holds the output's name
+    checkTemplateText(
+        culprit("-o", parser.get("-o")) + " (its name is part of each task's --report argument)",
+        sequenceStem(job.outputPattern), "");
+  }
+  checkTemplatePath(culprit("--db", parser.get("--db")), job.database);
+  checkTemplatePath(culprit("--driver", parser.get("--driver")), job.driver);
+  checkTemplatePath(culprit("-o", parser.get("-o")), job.outputPattern);
+  checkTemplatePath(culprit("--binary", job.binary), job.binary);
   const std::string jobFile = absolute(parser.get("-O"));
   nlohmann::ordered_json values = nlohmann::ordered_json::object();
   const nlohmann::ordered_json jobTemplate =
-      openJobTemplate(job, fs::path(jobFile).parent_path().string(), timeout,
-                      parser.getInt("--cancel-grace", 1), values);
+      openJobTemplate(job, fs::path(jobFile).parent_path().string(), timeout, cancelGrace, values);
+  checkJobTemplate(jobTemplate);
   const std::string valuesFile = parametersPathFor(jobFile);
   std::string text;
   if (hasSuffix(jobFile, ".yaml") || hasSuffix(jobFile, ".yml")) {

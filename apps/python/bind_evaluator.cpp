@@ -64,8 +64,8 @@ std::shared_ptr<PointCacheReader> cacheArgument(py::handle object, int startFram
   return makeArrayCache(object, startFrame, py::none());
 }
 
-std::vector<int> optionalFrames(py::handle object) {
-  return object.is_none() ? std::vector<int>() : frameList(object);
+std::vector<int> optionalFrames(py::handle object, const std::string& what) {
+  return object.is_none() ? std::vector<int>() : frameList(object, what);
 }
 
 py::object parseJson(const std::string& text) {
@@ -481,7 +481,8 @@ void bindDatabase(py::module_& module) {
       [](py::handle driverMesh, py::handle drivenMesh, py::handle driverCache,
          py::handle drivenCache, int count, py::handle frames, py::handle addFrames,
          py::handle removeFrames, double duplicateTolerance, const std::string& model,
-         int modelParts, int startFrame, py::handle also, py::handle log) {
+         int modelParts, py::handle startFrameObject, py::handle also, py::handle log) {
+        const int startFrame = frameNumber(startFrameObject, "start_frame");
         std::optional<Mesh> driverStorage;
         std::optional<Mesh> drivenStorage;
         const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
@@ -492,9 +493,9 @@ void bindDatabase(py::module_& module) {
             cacheArgument(drivenCache, startFrame);
         DatabaseBuildOptions options;
         options.count = count;
-        options.frames = optionalFrames(frames);
-        options.addFrames = optionalFrames(addFrames);
-        options.removeFrames = optionalFrames(removeFrames);
+        options.frames = optionalFrames(frames, "frames");
+        options.addFrames = optionalFrames(addFrames, "add_frames");
+        options.removeFrames = optionalFrames(removeFrames, "remove_frames");
         options.duplicateTolerance = duplicateTolerance;
         if (model != "pose" && model != "none") {
           DS_THROW(kUsage, "model takes 'pose' or 'none' (got '", model, "')");
@@ -512,8 +513,9 @@ void bindDatabase(py::module_& module) {
             }
             alsoCaches.push_back(cacheArgument(clip[0], startFrame));
             alsoCaches.push_back(cacheArgument(clip[1], startFrame));
-            clips.push_back({alsoCaches[alsoCaches.size() - 2].get(), alsoCaches.back().get(),
-                             clip.size() == 3 ? optionalFrames(clip[2]) : std::vector<int>()});
+            clips.push_back(
+                {alsoCaches[alsoCaches.size() - 2].get(), alsoCaches.back().get(),
+                 clip.size() == 3 ? optionalFrames(clip[2], "also frames") : std::vector<int>()});
           }
         }
         std::ostringstream text;

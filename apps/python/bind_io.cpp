@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <utility>
@@ -96,6 +97,10 @@ class ArrayPointCache final : public PointCacheReader {
     const FrameBlockShape shape = frameBlockShape(*mArray, "cache positions");
     mVertexCount = shape.vertices;
     if (frames.is_none()) {
+      if (static_cast<long long>(startFrame) + shape.frames - 1 > std::numeric_limits<int>::max()) {
+        DS_THROW(kUsage, "start_frame ", startFrame, " with ", shape.frames,
+                 " frames runs past the last frame number, ", std::numeric_limits<int>::max());
+      }
       for (int f = 0; f < shape.frames; ++f) {
         mFrames.push_back(startFrame + f);
       }
@@ -360,18 +365,27 @@ void bindPointCaches(py::module_& module) {
       "Frames of vertex positions: a PC2 file, a point-cache EXR sequence "
       "(open_point_cache) or an in-memory array (PointCache.from_array).")
       .def_static(
-          "from_array", &makeArrayCache, py::arg("positions"), py::arg("start_frame") = 1,
-          py::arg("frames") = py::none(),
+          "from_array",
+          [](py::handle positions, py::handle startFrame, py::handle frames) {
+            return makeArrayCache(positions, frameNumber(startFrame, "start_frame"), frames);
+          },
+          py::arg("positions"), py::arg("start_frame") = 1, py::arg("frames") = py::none(),
           "A cache over positions (F, V, 3): frames start_frame, start_frame + 1, ... or the "
           "frame numbers given. C-contiguous float32 arrays are used in place (do not change "
           "them while the cache is in use); other arrays are converted once.")
       .def_property_readonly("vertex_count", &PointCacheReader::vertexCount)
       .def_property_readonly("frames", &PointCacheReader::frames, "frames it holds, ascending")
       .def_property_readonly("path", &PointCacheReader::path)
-      .def("has_frame", &PointCacheReader::hasFrame, py::arg("frame"))
+      .def(
+          "has_frame",
+          [](const PointCacheReader& cache, py::handle frame) {
+            return cache.hasFrame(frameNumber(frame, "frame"));
+          },
+          py::arg("frame"))
       .def(
           "read",
-          [](const PointCacheReader& cache, int frame) {
+          [](const PointCacheReader& cache, py::handle frameObject) {
+            const int frame = frameNumber(frameObject, "frame");
             std::vector<float> xyz(3 * static_cast<std::size_t>(cache.vertexCount()));
             {
               py::gil_scoped_release release;
@@ -422,13 +436,22 @@ void bindPointCaches(py::module_& module) {
 
   module.def(
       "write_point_cache_exr",
-      [](py::handle path, py::handle positions, py::handle normals, int frame, int width,
-         const std::string& compression, std::uint64_t topology, std::uint64_t settings, double fps,
-         std::map<std::string, std::string> attributes, bool sync, const std::string& zipEncoder) {
+      [](py::handle path, py::handle positions, py::handle normals, py::handle frame,
+         py::handle width, const std::string& compression, std::uint64_t topology,
+         std::uint64_t settings, double fps, std::map<std::string, std::string> attributes,
+         bool sync, const std::string& zipEncoder) {
         const std::string file = pathString(path);
+        ExrWriteOptions options;
+        // Before anything is allocated: the writer pads every row out to the full width.
+        options.width = static_cast<int>(wholeNumber(width, "width", 1, kMaxPointCacheExrWidth));
+        options.frame = frameNumber(frame, "frame");
         const FloatArray xyz(positions, "positions");
         if (xyz.ndim() != 2 || xyz.dim(1) != 3) {
           DS_THROW(kUsage, "positions must be shaped (vertices, 3); got ", xyz.describe());
+        }
+        if (xyz.dim(0) == 0) {
+          DS_THROW(kUsage, "positions hold no vertices (", xyz.describe(),
+                   "); a point-cache EXR holds at least one");
         }
         std::optional<FloatArray> normalArray;
         if (!normals.is_none()) {
@@ -439,11 +462,8 @@ void bindPointCaches(py::module_& module) {
                      normalArray->describe());
           }
         }
-        ExrWriteOptions options;
-        options.width = width;
         options.compression = parseExrCompression(compression);
         options.zipEncoder = parseZipEncoder(zipEncoder, "zip_encoder");
-        options.frame = frame;
         options.topologyHash = topology;
         options.settingsHash = settings;
         options.framesPerSecond = fps;
@@ -492,9 +512,16 @@ void bindPointCaches(py::module_& module) {
 
   module.def("parse_frame_range", &parseFrameRange, py::arg("text"),
              "'1001-1100', '1001-1100x2', '1001,1005,1010-1020' -> list of frames");
-  module.def("format_frame_range", &formatFrameRange, py::arg("frames"));
-  module.def("expand_frame_pattern", &expandFramePattern, py::arg("pattern"), py::arg("frame"),
-             "'out.####.exr', 12 -> 'out.0012.exr' (also %04d and $F4)");
+  module.def(
+      "format_frame_range", [](py::handle frames) { return formatFrameRange(frameList(frames)); },
+      py::arg("frames"));
+  module.def(
+      "expand_frame_pattern",
+      [](const std::string& pattern, py::handle frame) {
+        return expandFramePattern(pattern, frameNumber(frame, "frame"));
+      },
+      py::arg("pattern"), py::arg("frame"),
+      "'out.####.exr', 12 -> 'out.0012.exr' (also %04d and $F4)");
 }
 
 }  // namespace drivenshape::python

@@ -89,8 +89,19 @@ FrameBlockShape frameBlockShape(const FloatArray& array, const std::string& what
 /// int32 values of an integer array-like (copied once, through numpy).
 std::vector<int> intVector(py::handle object, const std::string& what);
 
-/// Frame numbers from an int or a sequence of ints.
-std::vector<int> frameList(py::handle object);
+/// `object` as a whole number within [min, max]: a Python int of any size, anything with
+/// __index__ (numpy integers) or a float with a whole value; bools, fractions and other types
+/// are refused. Error(kUsage) naming `what` and the value, with the range when it is outside.
+long long wholeNumber(py::handle object, const std::string& what, long long min, long long max);
+
+/// A frame number: a whole number within the library's frame numbers (a C++ int), checked
+/// before conversion (pybind11 and numpy would wrap 2**32 + 5 to 5). Error(kUsage) naming
+/// `what` and the value.
+int frameNumber(py::handle object, const std::string& what);
+
+/// Frame numbers from one frame or a sequence or array of them, each checked as frameNumber:
+/// the one helper every binding that takes frames uses.
+std::vector<int> frameList(py::handle object, const std::string& what = "frames");
 
 /// The short name of an error code, as `drivenshape.Error.kind` spells it ("input", ...).
 const char* errorKind(ErrorCode code);

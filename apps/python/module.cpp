@@ -2,8 +2,10 @@
 // other binding files share (binding.h). The pure-Python package `drivenshape` re-exports it.
 #include "binding.h"
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <sstream>
 
 #include <drivenshape/version.h>
@@ -166,11 +168,63 @@ std::vector<int> intVector(py::handle object, const std::string& what) {
   return values;
 }
 
-std::vector<int> frameList(py::handle object) {
-  if (py::isinstance<py::int_>(object)) {
-    return {object.cast<int>()};
+long long wholeNumber(py::handle object, const std::string& what, long long min, long long max) {
+  const std::string shown = py::repr(object);
+  const auto outside = [&]() {
+    DS_THROW(kUsage, what, " ", shown, " is outside ", min, " to ", max);
+  };
+  if (PyBool_Check(object.ptr())) {
+    DS_THROW(kUsage, what, " must be a whole number, not ", shown);
   }
-  return intVector(object, "frames");
+  if (PyFloat_Check(object.ptr())) {
+    const double value = PyFloat_AsDouble(object.ptr());
+    if (!std::isfinite(value) || value != std::floor(value)) {
+      DS_THROW(kUsage, what, " ", shown, " is not a whole number");
+    }
+    if (value < static_cast<double>(min) || value > static_cast<double>(max)) {
+      outside();
+    }
+    return static_cast<long long>(value);
+  }
+  PyObject* index = PyNumber_Index(object.ptr());  // Python ints, numpy integers
+  if (index == nullptr) {
+    PyErr_Clear();
+    DS_THROW(kUsage, what, " must be a whole number, not ",
+             std::string(py::str(object.get_type().attr("__name__"))), " ", shown);
+  }
+  int overflow = 0;
+  const long long value = PyLong_AsLongLongAndOverflow(index, &overflow);
+  Py_DECREF(index);
+  if (overflow != 0 || value < min || value > max) {
+    outside();
+  }
+  return value;
+}
+
+int frameNumber(py::handle object, const std::string& what) {
+  return static_cast<int>(
+      wholeNumber(object, what, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
+}
+
+std::vector<int> frameList(py::handle object, const std::string& what) {
+  if (PyLong_Check(object.ptr()) || PyFloat_Check(object.ptr())) {
+    return {frameNumber(object, what)};
+  }
+  // A sequence, an array or a numpy scalar: numpy's Python values (ints of any size, floats),
+  // each checked; numpy's own conversion to int32 would wrap or truncate silently.
+  py::list items;
+  try {
+    items =
+        py::module_::import("numpy").attr("asarray")(object).attr("reshape")(-1).attr("tolist")();
+  } catch (py::error_already_set& error) {
+    DS_THROW(kUsage, what, ": cannot read it as a list of frame numbers: ", error.what());
+  }
+  std::vector<int> frames;
+  frames.reserve(items.size());
+  for (py::handle item : items) {
+    frames.push_back(frameNumber(item, what + ": frame"));
+  }
+  return frames;
 }
 
 const char* errorKind(ErrorCode code) {

@@ -214,15 +214,17 @@ const char* zipEncoderName(ZipEncoder encoder) {
 
 void writePointCacheExr(const std::string& path, int vertexCount, const float* xyz,
                         const float* normals, const ExrWriteOptions& options) {
-  if (options.width <= 0) {
-    DS_THROW(kUsage, "EXR point-cache width ", options.width, " must be positive (", path, ")");
+  if (options.width <= 0 || options.width > kMaxPointCacheExrWidth) {
+    DS_THROW(kUsage, "EXR point-cache width ", options.width, " is outside 1..",
+             kMaxPointCacheExrWidth, " (", path, ")");
   }
   if (!(options.framesPerSecond > 0.0) || !std::isfinite(options.framesPerSecond)) {
     DS_THROW(kUsage, "frames per second ", options.framesPerSecond, " must be positive (", path,
              ")");
   }
   if (vertexCount <= 0 || xyz == nullptr) {
-    DS_THROW(kInternal, "writePointCacheExr '", path, "': no vertices to write");
+    DS_THROW(kUsage, "point-cache EXR '", path, "': ", vertexCount,
+             " vertices to write; a point cache holds at least one vertex");
   }
   checkStringAttributes(path, options);
   const std::size_t width = static_cast<std::size_t>(options.width);

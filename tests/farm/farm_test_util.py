@@ -15,6 +15,7 @@ exits 1. A missing tool is a failure, never a skip.
 """
 
 import argparse
+import json
 import os
 import shutil
 import subprocess
@@ -113,6 +114,29 @@ def compare_with_reference(farm, folder, frames=FRAMES, allow_missing=False):
     if not allow_missing:
         check(not missing, f"{folder}: frames {missing} are missing")
     return len(frames) - len(missing)
+
+
+def check_template_with_openjd_model(template_path, params_path=None):
+    """Validates a written job template with openjd-model from PyPI (what `openjd check` runs):
+    decoded as a jobtemplate-2023-09 document and, with the job parameter values written beside
+    it, instantiated as a job (what `openjd run` does first). CheckFailed says why not."""
+    from openjd.model import (DocumentType, create_job, decode_job_template,
+                              document_string_to_object, preprocess_job_parameters)
+    template_path = Path(template_path)
+    kind = DocumentType.YAML if template_path.suffix in (".yaml", ".yml") else DocumentType.JSON
+    try:
+        template = decode_job_template(template=document_string_to_object(
+            document=template_path.read_text(encoding="utf-8"), document_type=kind))
+        if params_path is not None:
+            values = preprocess_job_parameters(
+                job_template=template,
+                job_parameter_values=json.loads(Path(params_path).read_text(encoding="utf-8")),
+                job_template_dir=template_path.parent, current_working_dir=template_path.parent)
+            create_job(job_template=template, job_parameter_values=values)
+    except Exception as error:  # the model's DecodeValidationError, ValueError, ...
+        raise CheckFailed(f"openjd-model rejects {template_path}: {type(error).__name__}: "
+                          f"{error}\n{template_path.read_text(errors='replace')[:3000]}")
+    return template
 
 
 def wait_for_outputs(folder, count, process, timeout=120):

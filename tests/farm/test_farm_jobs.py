@@ -70,6 +70,70 @@ def usage_errors(farm):
     check(not (folder / "x.sbatch").exists(), "a script was written despite the errors")
 
 
+def output_pattern_checked_like_the_bake(farm):
+    """-o with a '#' in a folder: 2 frame tokens, which every task's bake refuses (exit 2). Both
+    farm commands refuse it first with the bake's own words, naming -o and the value."""
+    folder = farm.scratch("jobs-pattern")
+    common = ["--db", farm.db, "--driver", farm.driver, "--frames", "1-48", "--chunk-size", "16"]
+    bad = folder / "a#b" / "c.####.exr"
+    bake = farm.run(*farm.bake_args(folder / "a#b", frames="1"), expect=2)
+    check("2 frame tokens" in bake.stderr, f"the bake's message: {bake.stderr}")
+    for scheduler, job in [("slurm", folder / "x.sbatch"), ("openjd", folder / "x.json")]:
+        result = farm.run("farm", scheduler, *common, "-o", bad, "-O", job, expect=2)
+        for text in [f"-o '{bad}'", "2 frame tokens", "usage error"]:
+            check(text in result.stderr, f"farm {scheduler}: the message lacks {text!r}:\n"
+                                         f"{result.stderr}")
+        check(not job.exists(), f"farm {scheduler} wrote {job} despite exit 2")
+    # A relative -o is made absolute first: a '#' in the current folder counts too.
+    cwd = folder / "shot#1"
+    cwd.mkdir()
+    result = farm.run("farm", "slurm", *common, "-o", "out/c.####.exr", "-O", folder / "x.sbatch",
+                      cwd=cwd, expect=2)
+    check("-o 'out/c.####.exr'" in result.stderr and "2 frame tokens" in result.stderr,
+          result.stderr)
+    check(not (folder / "x.sbatch").exists() and not (cwd / "out").exists(),
+          "farm slurm made files despite exit 2")
+
+
+def sbatch_values_quoted_or_refused(farm):
+    """One rule for every value of an #SBATCH line: plain values as they are, others
+    double-quoted with '"' and '\\' escaped (real sbatch reads such a script back exactly in
+    test_farm_slurm), control characters refused naming the option (a line break would end the
+    line). The log folder is also a Slurm file name pattern: '%' doubled, a backslash refused
+    (Slurm then stops replacing %A/%a). A refused value makes no file or folder."""
+    folder = farm.scratch("jobs-values")
+    common = ["--db", farm.db, "--driver", farm.driver, "--frames", "1-48", "--chunk-size", "16",
+              "-o", folder / "out" / "c.####.exr"]
+    logs = folder / "lo gs%#1"
+    job = folder / "job.sbatch"
+    farm.run("farm", "slurm", *common, "--partition", "my part", "--job-name",
+             'sh 10 #"x\\ it\'s', "--log-dir", logs, "--time", "10", "-O", job)
+    text = job.read_text()
+    for line in ['#SBATCH --job-name="sh 10 #\\"x\\\\ it\'s"\n',
+                 f'#SBATCH --output="{folder}/lo gs%%#1/sh_10___x__it_s_%A_%a.log"\n',
+                 '#SBATCH --partition="my part"\n', "#SBATCH --time=10\n"]:
+        check(line in text, f"the script lacks {line!r}:\n{text}")
+    check(logs.is_dir(), f"the log folder {logs} was not made")
+    syntax = subprocess.run(["bash", "-n", str(job)], capture_output=True, text=True)
+    check(syntax.returncode == 0, f"bash -n rejects the script: {syntax.stderr}")
+
+    refused = [
+        (["--partition", "a\nb"], "--partition 'a\\x0ab'"),
+        (["--partition", "a\tb"], "--partition 'a\\x09b'"),
+        (["--job-name", "a\rb"], "--job-name 'a\\x0db'"),
+        (["--log-dir", folder / "a\nb"], f"--log-dir '{folder}/a\\x0ab'"),
+        (["--log-dir", folder / "a\\b"], f"--log-dir '{folder}/a\\b'"),
+    ]
+    for words, expected in refused:
+        job = folder / "refused.sbatch"
+        result = farm.run("farm", "slurm", *common, *words, "-O", job, expect=2)
+        check(expected in result.stderr and "usage error" in result.stderr,
+              f"farm slurm {words}: the message lacks {expected!r}:\n{result.stderr}")
+        check(not job.exists(), f"farm slurm {words} wrote a script despite exit 2")
+    check(sorted(p.name for p in folder.iterdir()) == ["job.sbatch", "lo gs%#1", "out"],
+          f"a refused value made folders: {sorted(p.name for p in folder.iterdir())}")
+
+
 def sigterm_reaches_the_bake_through_the_script(farm):
     folder = farm.scratch("jobs-term")
     out = folder / "out"
@@ -109,4 +173,5 @@ def sigterm_reaches_the_bake_through_the_script(farm):
 
 
 if __name__ == "__main__":
-    sys.exit(main([script_content, usage_errors, sigterm_reaches_the_bake_through_the_script]))
+    sys.exit(main([script_content, usage_errors, output_pattern_checked_like_the_bake,
+                   sbatch_values_quoted_or_refused, sigterm_reaches_the_bake_through_the_script]))

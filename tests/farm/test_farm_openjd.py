@@ -1,15 +1,23 @@
 """Open Job Description: the template written by `drivenshape farm openjd` (JSON and YAML)
-passes `openjd check`, and `openjd run` (openjd-cli from PyPI in the project venv) runs its Bake
-step, one task per chunk, into outputs bitwise identical to a local bake. Also runs a single
-chunk by --task-param, as a render manager retrying one task would."""
+passes `openjd check` and openjd-model's own validation, and `openjd run` (openjd-cli from PyPI
+in the project venv) runs its Bake step, one task per chunk, into outputs bitwise identical to a
+local bake. Also runs a single chunk by --task-param, as a render manager retrying one task would.
+
+Hostile values (issue 28): exit 0 always means a template openjd-model accepts. Values that
+would land in a format string with `{{`/`}}` (OpenJD has no escape for them), control characters,
+bytes that are not UTF-8, a cancel grace past OpenJD's 600 s and an output pattern every task's
+bake would refuse (`a#b/c.####.exr`: 2 frame tokens) exit 2 naming the option and its value, and
+write nothing."""
 
 import json
+import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-from farm_test_util import (FRAMES, check, compare_with_reference, exr_files, main, temp_files)
+from farm_test_util import (FRAMES, check, check_template_with_openjd_model, compare_with_reference,
+                            exr_files, main, temp_files)
 
 
 def openjd_tool():
@@ -46,12 +54,14 @@ def template_checks_and_runs(farm):
     params = folder / "shot.template.params.json"
     check(params.is_file(), f"{params} (job parameter values) was not written")
     openjd("check", job)
+    check_template_with_openjd_model(job, params)
 
     yaml_job = folder / "shot.template.yaml"
     farm.run("farm", "openjd", "--db", farm.db, "--driver", farm.driver, "--frames", "1-48",
              "-o", out / "c.####.exr", "--chunk-size", "17", "--extra-args", "--batch 8",
              "--time", "0:10:00", "-O", yaml_job)
     openjd("check", yaml_job)
+    check_template_with_openjd_model(yaml_job, params)
     import yaml  # openjd-cli depends on PyYAML
     check(yaml.safe_load(yaml_job.read_text()) == template,
           "the YAML template does not hold the same document as the JSON one")
@@ -75,5 +85,70 @@ def template_checks_and_runs(farm):
     compare_with_reference(farm, out)
 
 
+def hostile_values(farm):
+    folder = farm.scratch("openjd-values")
+    common = ["--db", farm.db, "--driver", farm.driver, "--frames", "1-48", "--chunk-size", "16"]
+
+    # Written, and valid: quotes, '#', single braces, a space; '{{' in a folder (a PATH value,
+    # never a format string); the longest cancel grace; a frame list longer than a description.
+    long_frames = ",".join(str(f) for f in range(1, 3000, 2))
+    accepted = [
+        ["-o", folder / "out" / "c.####.exr", "--job-name", 'shot 10 #"x" {a} }b{ it\'s'],
+        ["-o", folder / "out" / "c.####.exr", "--extra-args", "--batch 8 --note '{a}'"],
+        ["-o", folder / "out {{a}}" / "c.####.exr", "--cancel-grace", "600"],
+        ["-o", folder / "out" / "c{{x}}.####.exr", "--extra-args", "--report r.json"],
+        ["-o", folder / "out" / "c.####.exr", "--job-name", "caf\u00e9 \u2014 \u00fc"],
+    ]
+    for i, words in enumerate(accepted):
+        for suffix in (".json", ".yaml"):
+            job = folder / f"ok{i}{suffix}"
+            farm.run("farm", "openjd", *common, *words, "-O", job)
+            check_template_with_openjd_model(job, folder / f"ok{i}.params.json")
+        openjd("check", job)
+    job = folder / "long.json"
+    farm.run("farm", "openjd", "--db", farm.db, "--driver", farm.driver, "--frames", long_frames,
+             "--chunk-size", "16", "--no-check", "-o", folder / "out" / "c.####.exr", "-O", job)
+    check_template_with_openjd_model(job, folder / "long.params.json")
+
+    # Refused, naming the option and the value; nothing written.
+    refused = [
+        (["--job-name", "shot {{Param.Database}}"], ["--job-name 'shot {{Param.Database}}'",
+                                                     "{{"]),
+        (["--job-name", "a }} b"], ["--job-name 'a }} b'"]),
+        (["--extra-args", "--batch 8 --note {{x}}"], ["--extra-args '--batch 8 --note {{x}}'"]),
+        (["--extra-args", "--note 'a\tb'"], ["--extra-args '--note 'a\\x09b''",
+                                            "control character"]),
+        (["--job-name", "a\u0085b"], ["--job-name 'a\\xc2\\x85b'"]),
+        (["--cancel-grace", "601"], ["--cancel-grace 601", "1..600"]),
+    ]
+    out = ["-o", folder / "out" / "c.####.exr"]
+    cases = [(out + words, words_in) for words, words_in in refused]
+    cases.append((["-o", folder / "out" / "c{{x}}.####.exr"],
+                  [f"-o '{folder}/out/c{{{{x}}}}.####.exr'", "--report"]))
+    cases.append((["-o", folder / "a#b" / "c.####.exr"],
+                  [f"-o '{folder}/a#b/c.####.exr'", "2 frame tokens"]))
+    for words, expected in cases:
+        job = folder / "refused.json"
+        result = farm.run("farm", "openjd", *common, *words, "-O", job, expect=2)
+        for text in expected:
+            check(text in result.stderr, f"farm openjd {words}: the message lacks {text!r}:\n"
+                                         f"{result.stderr}")
+        check("usage error" in result.stderr, f"not a usage error: {result.stderr}")
+        check(not job.exists() and not (folder / "refused.params.json").exists(),
+              f"farm openjd {words} wrote a template despite exit 2")
+    # A file name that is not UTF-8 would reach the template as U+FFFD: another path.
+    job = folder / "refused.json"
+    result = subprocess.run([bytes(farm.cli), b"farm", b"openjd", *map(os.fsencode, common),
+                             b"-o", bytes(folder / "out") + b"/c\xff.####.exr", b"-O", bytes(job)],
+                            capture_output=True, env=farm.env, timeout=60)
+    stderr = result.stderr.decode(errors="replace")
+    check(result.returncode == 2 and "-o '" in stderr and "UTF-8" in stderr,
+          f"a path that is not UTF-8: exit {result.returncode}: {stderr}")
+    check(not job.exists(), "a template was written for a path that is not UTF-8")
+    # The bake refuses the same pattern with the same words: the farm command ran its check.
+    result = farm.run(*farm.bake_args(folder / "a#b", frames="1"), expect=2)
+    check("2 frame tokens" in result.stderr, result.stderr)
+
+
 if __name__ == "__main__":
-    sys.exit(main([template_checks_and_runs]))
+    sys.exit(main([hostile_values, template_checks_and_runs]))

@@ -5,6 +5,8 @@ systemd, auth/munge with a key made there). Then:
 * the array job written by `drivenshape farm slurm --submit` for the 48-frame shot in chunks of
   16 (3 tasks) completes, and its outputs equal a local bake bitwise, with a log per task;
 * a task given bad input (the driven cache as driver: another mesh) ends FAILED, ExitCode=3:0;
+* a job name and a log folder that #SBATCH lines must quote (space, '#', quotes, backslash,
+  '%') reach Slurm exactly: its JobName, and the task logs in that folder;
 * a task cancelled mid-bake (scancel: SIGTERM) ends CANCELLED with the bake's ExitCode=7:0 and
   no temporary file, and the resubmitted chunk (sbatch --array=0) resumes and completes.
 
@@ -120,6 +122,24 @@ def slurm_array_job(farm):
               f"the task log should say why:\n{log_text[-2000:]}")
         check(not exr_files(bad), f"outputs written from bad input: {exr_files(bad)}")
         print(f"job {job}: bad input -> FAILED, ExitCode=3:0", flush=True)
+
+        # Values the #SBATCH lines quote: sbatch reads them back exactly (issue 28).
+        odd = farm.scratch("slurm-values")
+        name = 'sh 10 #"x\\ it\'s %j'
+        job = cluster.submit("--db", farm.db, "--driver", farm.driver, "--frames", "1-2",
+                             "-o", odd / "c.####.exr", "--chunk-size", "1", "--job-name", name,
+                             "--log-dir", odd / "lo gs%#1", "-O", odd / "job.sbatch")
+        tasks = cluster.wait(job)
+        check(tasks == {i: ("COMPLETED", "0:0") for i in range(2)},
+              f"job {job}: expected tasks 0-1 COMPLETED, got {tasks}\n{cluster.logs()}")
+        names = re.findall(r"JobName=(.*)", cluster.tool("scontrol", "show", "job", job))
+        check(names == [name, name], f"Slurm's job names {names}, expected {name!r} twice")
+        logs = sorted(p.name for p in (odd / "lo gs%#1").iterdir())
+        check(logs == [f"sh_10___x__it_s__j_{job}_{i}.log" for i in range(2)],
+              f"task logs in 'lo gs%#1': {logs}")
+        compare_with_reference(farm, odd, frames=[1, 2])
+        print(f"job {job}: job name {name!r} and log folder 'lo gs%#1' reached Slurm intact",
+              flush=True)
 
         # Cancelled mid-bake, then the chunk resubmitted: it resumes.
         resume = farm.scratch("slurm-cancel")

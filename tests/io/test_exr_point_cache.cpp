@@ -18,6 +18,7 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <map>
 #include <random>
 
@@ -541,6 +542,21 @@ TEST(ExrPointCache, FailedWriteIsAnOutputErrorAndLeavesNothing) {
     writePointCacheExr(dir.file("w.exr"), 50, xyz.data(), nullptr, options);
   });
   EXPECT_EQ(badWidth.code(), ErrorCode::kUsage);
+  // Wider than kMaxPointCacheExrWidth: refused before the padded rows are allocated (2^31 - 1
+  // used to end in std::bad_alloc), naming the width and the range.
+  const Error hugeWidth = catchError([&] {
+    ExrWriteOptions options;
+    options.width = std::numeric_limits<int>::max();
+    writePointCacheExr(dir.file("w.exr"), 50, xyz.data(), nullptr, options);
+  });
+  EXPECT_EQ(hugeWidth.code(), ErrorCode::kUsage);
+  EXPECT_TRUE(contains(hugeWidth.what(), "2147483647 is outside 1..65536"));
+  // No vertices is the caller's mistake, not a bug of the writer.
+  const Error noVertices = catchError(
+      [&] { writePointCacheExr(dir.file("v.exr"), 0, xyz.data(), nullptr, ExrWriteOptions{}); });
+  EXPECT_EQ(noVertices.code(), ErrorCode::kUsage);
+  EXPECT_TRUE(contains(noVertices.what(), "0 vertices"));
+  EXPECT_EQ(listFolder(dir.path()), (std::vector<std::string>{"locked", "taken.exr"}));
 }
 
 /// `prefix` + frame + `suffix`, the frame zero padded to `width` digits after its sign

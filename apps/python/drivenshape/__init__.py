@@ -68,10 +68,14 @@ def evaluate_cache(evaluator, cache, frames, batch=64, temporal_warmup=8, with_s
     bake) and at least the pose model's history (Evaluator.history_frames), with a new batch at
     every gap in the frame numbers when there is history, so the cloth is bitwise the bake's. Returns (cloth (F, Vd, 3) float32, [FrameRecord])
     and, with with_seconds, the seconds per stage summed over the batches."""
-    frames = [int(f) for f in ([frames] if isinstance(frames, int) else frames)]
     if batch < 1 or temporal_warmup < 0:
-        raise ValueError("batch must be at least 1 and temporal_warmup at least 0")
-    evaluator.check_frames(frames)
+        error = Error(f"evaluate_cache: batch ({batch}) must be at least 1 and temporal_warmup "
+                      f"({temporal_warmup}) at least 0")
+        error.kind, error.code = "usage", 2
+        raise error
+    frames = [frames] if isinstance(frames, (int, _np.integer)) else list(frames)
+    evaluator.check_frames(frames)  # drivenshape.Error (usage) for a frame outside C++ ints
+    frames = [int(f) for f in frames]
     history = evaluator.history_frames
     warm_frames = max(temporal_warmup if evaluator.settings.max_weight_change > 0 else 0, history)
     cache_frames = cache.frames if warm_frames else []

@@ -131,8 +131,12 @@ enum class ZipEncoder {
 ZipEncoder parseZipEncoder(const std::string& text, const std::string& flag = "--zip-encoder");
 const char* zipEncoderName(ZipEncoder encoder);
 
+/// Widest point-cache EXR accepted, in pixels (vertices per row): writePointCacheExr refuses
+/// wider ones with Error(kUsage) before allocating (a row is padded out to the full width).
+inline constexpr int kMaxPointCacheExrWidth = 65536;
+
 struct ExrWriteOptions {
-  int width = 1024;
+  int width = 1024;  ///< 1..kMaxPointCacheExrWidth
   ExrCompression compression = ExrCompression::kZip;
   ZipEncoder zipEncoder = ZipEncoder::kLibdeflate;
   /// Threads that deflate the chunks of one file with kLibdeflate (ZIP: 16 rows of pixels per
