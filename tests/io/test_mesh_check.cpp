@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -162,6 +163,28 @@ TEST(MeshCheck, ZeroAreaIsRelativeToTheLongestEdge) {
       EXPECT_EQ(d.degenerateFaces, height < 1e-6f ? 1 : 0);
     }
   }
+}
+
+// Polygons of more than 16 corners are checked for repeats by sorting: a 20-gon and its reversed
+// twin make a closed, consistent (flat) surface; the same 20-gon listed twice in a row is
+// degenerate, and the message shows its first 8 corners.
+TEST(MeshCheck, LongPolygonsAreCheckedForRepeatedVertices) {
+  std::vector<Eigen::Vector3f> ring;
+  std::vector<int> polygon;
+  for (int i = 0; i < 20; ++i) {
+    const float angle = 6.2831853f * static_cast<float>(i) / 20.0f;
+    ring.emplace_back(std::cos(angle), std::sin(angle), 0.0f);
+    polygon.push_back(i);
+  }
+  const std::vector<int> reversed(polygon.rbegin(), polygon.rend());
+  expectCounts(countMeshDefects(meshOf(ring, {polygon, reversed})), 0, 0, 0, 0);
+  std::vector<int> twice(polygon.begin(), polygon.begin() + 10);
+  twice.insert(twice.end(), polygon.begin(), polygon.begin() + 10);
+  const MeshDefects d = countMeshDefects(meshOf(ring, {twice, polygon, reversed}));
+  expectCounts(d, 1, 0, 0, 0);
+  EXPECT_NE(d.describe().find("face 1, vertices 1 2 3 4 5 6 7 8 ... (20 corners)"),
+            std::string::npos)
+      << d.describe();
 }
 
 TEST(MeshCheck, MeshWithoutFacesIsNeitherTrustedNorBindable) {
