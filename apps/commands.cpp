@@ -433,6 +433,10 @@ int runBake(const std::vector<std::string>& args) {
               "batch; results depend on N and --batch, not on --threads",
               "8")
       .flag("--no-audit", "skip the per-frame penetration/popping audit (faster)")
+      .flag("--untrusted-driver",
+            "bake a database whose driver mesh is not closed, manifold and consistently "
+            "oriented (refused otherwise), without the audit and the penetration resolution; "
+            "a warning and the report say so")
       .flag("--sync",
             "fsync every output before its atomic rename (survives a power loss; costs a disk "
             "or NFS round trip per frame)")
@@ -568,6 +572,7 @@ int bakeParsed(const ArgParser& parser) {
   checkOutputFolderWritable(expandFramePattern(options.outputPattern, options.frames.front()));
 
   const Database db = loadDatabase(parser.get("--db"));
+  admitDriverMesh(db, parser.get("--db"), parser.has("--untrusted-driver"), options);
   // EXR driver caches carry a topology hash: it must be the database's driver mesh.
   const auto driver = openPointCache(parser.get("--driver"), topologyHash(db.driverMesh));
   if (options.threads > 0 && std::getenv("POCL_MAX_PTHREAD_COUNT") == nullptr) {

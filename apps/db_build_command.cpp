@@ -13,6 +13,7 @@
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+#include <drivenshape/mesh_check.h>
 #include "atomic_file.h"
 #include "json_text.h"
 
@@ -135,6 +136,9 @@ int runDbBuild(const std::vector<std::string>& args) {
       .option("--suggest-json", "PATH", "also write the suggestions as JSON")
       .option("-o", "DB", "database file to write (optional with --suggest)")
       .flag("--quiet", "do not list the picks")
+      .flag("--untrusted-driver",
+            "build from a driver mesh that is not closed, manifold and consistently oriented "
+            "(refused otherwise); its bakes need --untrusted-driver too")
       .epilog(
           "Exit codes: 0 success, 1 internal error, 2 usage, 3 input (a missing or "
           "malformed file, a cache that does not match the meshes), 4 output, 6 numerical.");
@@ -233,6 +237,12 @@ int runDbBuild(const std::vector<std::string>& args) {
   }
 
   const Mesh driverMesh = readObj(parser.get("--driver-mesh"));
+  const std::string untrusted =
+      checkDriverMesh(driverMesh, parser.get("--driver-mesh"), DriverMeshUse::kDatabase,
+                      parser.has("--untrusted-driver"));
+  if (!untrusted.empty()) {
+    std::cerr << "warning: " << untrusted << "\n";
+  }
   const Mesh drivenMesh = readObj(parser.get("--driven-mesh"));
   if (parser.has("--rig")) {
     readRigParts(parser.get("--rig"), driverMesh.vertexCount(), options.model.partOf,

@@ -268,6 +268,7 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
       {"driver_vertices", e.driverVertexCount},
       {"device", device},
       {"penetrations", e.penetrations},
+      {"untrusted_driver", !e.untrustedDriver.empty()},
       {"baseline", e.hasBaseline},
       {"summary", summary},
       {"coverage", coverage ? coverageJson(*coverage, reportPath) : nlohmann::json(nullptr)},
@@ -298,6 +299,9 @@ int runEval(const std::vector<std::string>& args) {
       .option("--db", "DB", "take both rest meshes from this database instead")
       .flag("--baseline", "add the binding baseline for the same frames (needs --driver)")
       .option("--bind", "MAP", "binding mask (JSON) for the baseline, as in bake --bind")
+      .flag("--untrusted-driver",
+            "evaluate with a driver mesh that is not closed, manifold and consistently "
+            "oriented (refused otherwise): no penetration figures")
       .option("--report", "PATH",
               "the bake's report (bake --report, pose model): its predicted errors and "
               "coverage verdict against the truth")
@@ -319,7 +323,8 @@ int runEval(const std::vector<std::string>& args) {
              "--db");
   }
   if (!haveDriver) {
-    for (const char* flag : {"--driver-mesh", "--driven-mesh", "--db", "--bind"}) {
+    for (const char* flag :
+         {"--driver-mesh", "--driven-mesh", "--db", "--bind", "--untrusted-driver"}) {
       if (parser.has(flag)) {
         DS_THROW(kUsage, flag,
                  " is only used with --driver (penetrations, baseline); pass "
@@ -376,6 +381,7 @@ int runEval(const std::vector<std::string>& args) {
   input.baseline = baseline;
   input.batch = parser.getInt("--batch", 1);
   input.threads = parser.getInt("--threads", 0);
+  input.untrustedDriver = parser.has("--untrusted-driver");
 
   std::unique_ptr<PointCacheReader> driver;
   std::optional<Database> db;
@@ -417,6 +423,9 @@ int runEval(const std::vector<std::string>& args) {
   }
 
   const ShotEvaluation result = evaluateShot(input, frames, *closest);
+  if (!result.untrustedDriver.empty()) {
+    std::cerr << "warning: " << result.untrustedDriver << "\n";
+  }
   std::optional<CoverageCheck> coverage;
   if (report) {
     coverage = checkCoverage(*report, result);

@@ -23,6 +23,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
+#include <drivenshape/mesh_check.h>
 #include <drivenshape/regions.h>
 #include <drivenshape/version.h>
 #include "atomic_file.h"
@@ -419,6 +420,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   settings["batch"] = options.chunkSize;
   settings["compression"] = exrCompressionName(options.compression);
   settings["exr_width"] = options.exrWidth;
+  settings["untrusted_driver"] = !options.untrustedDriver.empty();
   json seconds{{"read", result.times.read},
                {"setup", result.times.setup},
                {"write", result.times.write},
@@ -465,6 +467,16 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
 }
 
 }  // namespace
+
+std::string admitDriverMesh(const Database& db, const std::string& source, bool allowUntrusted,
+                            BakeOptions& options) {
+  options.untrustedDriver =
+      checkDriverMesh(db.driverMesh, source, DriverMeshUse::kBake, allowUntrusted);
+  const bool trusted = options.untrustedDriver.empty();
+  options.evaluator.audit = options.evaluator.audit && trusted;
+  options.evaluator.resolve = options.evaluator.resolve && trusted;
+  return options.untrustedDriver;
+}
 
 EvaluatorSettings evaluatorSettings(const Database& db, const BakeOptions& options) {
   EvaluatorSettings settings = options.evaluator;
@@ -514,6 +526,9 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
       DS_THROW(kInput, finding.message);
     }
     warn(finding.refuse ? "forced: " + finding.message : finding.message);
+  }
+  if (!options.untrustedDriver.empty()) {
+    warn(options.untrustedDriver);
   }
   result.device = evaluator.deviceName();
   result.settingsHash = bakeHash(evaluator, options);

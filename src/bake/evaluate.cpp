@@ -5,6 +5,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+#include <drivenshape/mesh_check.h>
 #include "parallel.h"
 
 namespace drivenshape {
@@ -58,7 +59,8 @@ struct Accumulator {
 struct ShotLayout {
   int vd = 0;                    // cloth vertices
   std::size_t drivenValues = 0;  // vd x 3
-  std::size_t driverValues = 0;  // driver vertices x 3 (0 without penetrations)
+  std::size_t driverValues = 0;  // driver vertices x 3 (0 without a driver)
+  bool driver = false;           // driver frames are read (penetrations or the baseline)
   bool penetrations = false;
 };
 
@@ -180,7 +182,7 @@ void readShotBatch(const ShotEvaluationInput& input, const std::vector<int>& fra
     const int frame = frames[begin + i];
     readFiniteFrame(*input.bake, frame, &batch.cloth[kShotBake][i * drivenValues], "bake");
     readFiniteFrame(*input.truth, frame, &batch.cloth[kShotTruth][i * drivenValues], "truth");
-    if (layout.penetrations) {
+    if (layout.driver) {
       readFiniteFrame(*input.driver, frame, &batch.driverBlock[i * driverValues], "driver");
     }
   }
@@ -349,12 +351,18 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
                             ClosestBackend& closest) {
   checkShotInput(input, frames);
   ShotLayout layout;
-  layout.penetrations = input.driver != nullptr;
+  layout.driver = input.driver != nullptr;
+  const std::string untrusted = layout.driver
+                                    ? checkDriverMesh(*input.driverMesh, input.driverMeshName,
+                                                      DriverMeshUse::kEval, input.untrustedDriver)
+                                    : std::string();
+  layout.penetrations = layout.driver && untrusted.empty();
   layout.vd = input.truth->vertexCount();
-  const int vp = layout.penetrations ? input.driverMesh->vertexCount() : 0;
+  const int vp = layout.driver ? input.driverMesh->vertexCount() : 0;
   layout.drivenValues = static_cast<std::size_t>(layout.vd) * 3;
   layout.driverValues = static_cast<std::size_t>(vp) * 3;
   ShotEvaluation result = emptyShotEvaluation(input, frames, layout, vp);
+  result.untrustedDriver = untrusted;
 
   const std::vector<SurfaceHit> restHits = bindRestCloth(input, layout.vd, closest);
   std::unique_ptr<InsideAudit> audit;

@@ -1,7 +1,8 @@
 // Database reader (src/bake/database.cpp): loadDatabase on the input as it is, then (when its
 // header parses) on the input with every block checksum recomputed, so that mutated block data
 // gets past the checksum test to the code that trusts it. A database that loads is checked
-// (meshes, shape blocks) and must survive saveDatabase and loadDatabase unchanged.
+// (meshes, shape blocks, the bake's driver mesh check) and must survive saveDatabase and
+// loadDatabase unchanged.
 
 #include <cstring>
 #include <optional>
@@ -12,6 +13,7 @@
 #include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/hash.h>
+#include <drivenshape/mesh_check.h>
 
 #include "fuzz_support.h"
 
@@ -80,6 +82,10 @@ void loadAndCheck(const std::string& path) {
   }
   ds::fuzz::checkMesh(db.driverMesh, "loadDatabase(driver mesh)");
   ds::fuzz::checkMesh(db.drivenMesh, "loadDatabase(driven mesh)");
+  // What `bake` does first with a database: check its driver mesh (an Error or a warning).
+  ds::fuzz::expectOnlyErrors("checkDriverMesh(database driver)", [&] {
+    ds::checkDriverMesh(db.driverMesh, path, ds::DriverMeshUse::kBake, true);
+  });
   const std::size_t k = static_cast<std::size_t>(db.shapeCount());
   ds::fuzz::require(k >= 1 && db.reasons.size() == k && db.pickDistances.size() == k &&
                         db.driverShapes.size() == k * 3 * db.driverVertexCount() &&

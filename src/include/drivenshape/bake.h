@@ -57,6 +57,11 @@ struct BakeOptions {
   /// Bake a driver that checkDriver (drivenshape/driver_check.h) refuses: another scale than
   /// the database's, or edges that do not correspond (`--force`). Its findings become warnings.
   bool force = false;
+  /// Why the database's driver mesh is baked untrusted: the warning of checkDriverMesh
+  /// (drivenshape/mesh_check.h) for a driver that is not a closed, consistently oriented
+  /// surface, set by admitDriverMesh with `--untrusted-driver`; empty for a driver that passes.
+  /// The bake lists it among its warnings and the report's settings say `untrusted_driver`.
+  std::string untrustedDriver;
 };
 
 /// Seconds spent per stage, summed over batches. Reading and writing run on I/O tasks beside
@@ -108,6 +113,15 @@ struct BakeObserver {
 /// frame: vertex counts, frames present, output folder writable. Throws drivenshape::Error.
 BakeResult bake(const Database& database, const PointCacheReader& driver, Device& device,
                 const BakeOptions& options, BakeObserver* observer = nullptr);
+
+/// Checks the database's driver mesh before a bake (checkDriverMesh; `source` names the
+/// database in messages). A mesh that passes changes nothing and returns "". One that does not
+/// throws Error(kInput), unless `allowUntrusted` (`--untrusted-driver`) and it has a face to
+/// bind to: then the bake runs without the inside audit and the penetration resolution, which
+/// assume a closed surface (options.evaluator.audit and .resolve are switched off), and
+/// options.untrustedDriver receives the warning, which is also returned.
+std::string admitDriverMesh(const Database& database, const std::string& source,
+                            bool allowUntrusted, BakeOptions& options);
 
 /// The evaluator settings of a bake: the options' values, with the binding mask, the regions
 /// and the layers loaded from the files they name (Error(kInput) naming the file).

@@ -80,6 +80,10 @@ struct ShotEvaluationInput {
   const BindingMask* mask = nullptr;  ///< baseline binding mask; null = any triangle
   int batch = 16;                     ///< frames per backend call
   int threads = 0;                    ///< host threads for the inside test; 0 = all cores
+  /// A driver mesh that checkDriverMesh refuses (open, non-manifold, inconsistently oriented:
+  /// the inside test cannot be trusted) is evaluated without the penetration figures instead of
+  /// refused (`eval --untrusted-driver`); the baseline is still measured.
+  bool untrustedDriver = false;
 };
 
 struct ShotEvaluation {
@@ -87,6 +91,9 @@ struct ShotEvaluation {
   int vertexCount = 0;        ///< cloth vertices
   int driverVertexCount = 0;  ///< 0 without a driver
   bool penetrations = false;  ///< whether `inside` and depths were measured
+  /// checkDriverMesh's warning when the driver mesh was evaluated untrusted (no penetration
+  /// figures); empty otherwise.
+  std::string untrustedDriver;
   bool hasBaseline = false;
   ClothMetrics bake;
   ClothMetrics truth;
@@ -98,7 +105,8 @@ struct ShotEvaluation {
 /// sequence inside it with the deepest one (exact closest triangle over every triangle, then
 /// InsideAudit's signed distance). `closest` is any ClosestBackend (host or OpenCL); its surface
 /// is set here. Throws Error(kUsage) for an empty frame list or a metric without the inputs it
-/// needs, and Error(kInput) for mismatched vertex counts, missing frames or non-finite positions.
+/// needs, and Error(kInput) for mismatched vertex counts, missing frames, non-finite positions
+/// or a driver mesh checkDriverMesh refuses (see `untrustedDriver`).
 ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
                             ClosestBackend& closest);
 
