@@ -261,10 +261,11 @@ TEST(CliRegression, LinksPlantedAtEveryOutputNameAreReplacedNotFollowed) {
   const std::string out = dir.file("shot");
   fs::create_directory(out);
   const std::vector<std::string> outputs = {
-      out + "/cloth.0001.exr",  out + "/cloth.0002.exr", out + "/cloth.report.json",
-      out + "/maps.0001.exr",   out + "/maps.0002.exr",  out + "/cloth.pc2",
-      out + "/first.obj",       out + "/eval.json",      out + "/again.dsdb",
-      out + "/posmap.0001.exr", out + "/job.sbatch"};
+      out + "/cloth.0001.exr",  out + "/cloth.0002.exr",  out + "/cloth.report.json",
+      out + "/maps.0001.exr",   out + "/maps.0002.exr",   out + "/cloth.pc2",
+      out + "/first.obj",       out + "/eval.json",       out + "/again.dsdb",
+      out + "/posmap.0001.exr", out + "/posmap.0001.png", out + "/job.sbatch",
+      out + "/job.yaml",        out + "/job.params.json"};
   for (const std::string& name : outputs) {
     plantLink(victim, name);
   }
@@ -285,10 +286,13 @@ TEST(CliRegression, LinksPlantedAtEveryOutputNameAreReplacedNotFollowed) {
                    out + "/again.dsdb"});
   ASSERT_EQ(r.code, 0) << r.err;
   r = runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache", pattern, "--frames",
-                   "1", "--res", "32", "-o", out + "/posmap.####.exr"});
+                   "1", "--res", "32", "--preview", "-o", out + "/posmap.####.exr"});
   ASSERT_EQ(r.code, 0) << r.err;
   r = runCli(dir, {"farm", "slurm", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
                    "1-2", "-o", pattern, "-O", out + "/job.sbatch", "--chunk-size", "1"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = runCli(dir, {"farm", "openjd", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
+                   "1-2", "-o", pattern, "-O", out + "/job.yaml", "--chunk-size", "1"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(slurp(victim.path), victim.content) << "a writer wrote through a planted link";
   for (const std::string& name : outputs) {
