@@ -246,14 +246,16 @@ void bindSettings(py::module_& module) {
   py::class_<EvaluatorSettings>(
       module, "EvaluatorSettings",
       "Everything that decides the cloth of a frame; the defaults are those of `drivenshape "
-      "bake`. Enums are strings: weight_mode qp|nearest|bind, align none|rigid|rigid-all, "
+      "bake`. Enums are strings: weight_mode auto|model|qp|nearest|bind (auto: the pose model "
+      "when the database has one, else qp), align none|rigid|rigid-all, "
       "blend world|local. binding_mask, regions and layers come from load_binding_mask, "
       "load_regions and load_layers (the loaders of the command line).")
       .def(py::init([](const std::string& weightMode, const std::string& align,
                        std::string alignGroup, const std::string& blend, bool correct,
                        std::optional<BindingMask> bindingMask, bool resolve, double skinOffset,
                        double exitFade, std::optional<RegionSet> regions, double maxWeightChange,
-                       bool audit, std::optional<LayerSettings> layers, int threads) {
+                       double coverageTolerance, bool audit, std::optional<LayerSettings> layers,
+                       int threads) {
              EvaluatorSettings settings;
              settings.weightMode = parseWeightMode(weightMode, "weight_mode");
              settings.align = parseAlignMode(align, "align");
@@ -266,6 +268,7 @@ void bindSettings(py::module_& module) {
              settings.exitFade = exitFade;
              settings.regions = std::move(regions);
              settings.maxWeightChange = maxWeightChange;
+             settings.coverageTolerance = coverageTolerance;
              settings.audit = audit;
              if (layers) {
                settings.layers = std::move(*layers);
@@ -280,6 +283,7 @@ void bindSettings(py::module_& module) {
            py::arg("binding_mask") = py::none(), py::arg("resolve") = defaults.resolve,
            py::arg("skin_offset") = defaults.skinOffset, py::arg("exit_fade") = defaults.exitFade,
            py::arg("regions") = py::none(), py::arg("max_weight_change") = defaults.maxWeightChange,
+           py::arg("coverage_tolerance") = defaults.coverageTolerance,
            py::arg("audit") = defaults.audit, py::arg("layers") = py::none(),
            py::arg("threads") = defaults.threads)
       .def_property(
@@ -330,7 +334,7 @@ void bindSettings(py::module_& module) {
              << ", resolve=" << (s.resolve ? "True" : "False") << ", skin_offset=" << s.skinOffset
              << ", exit_fade=" << s.exitFade << ", regions=" << (s.regions ? "<RegionSet>" : "None")
              << ", max_weight_change=" << s.maxWeightChange
-             << ", audit=" << (s.audit ? "True" : "False")
+             << ", coverage_tolerance=" << s.coverageTolerance << ", audit=" << (s.audit ? "True" : "False")
              << ", layers=" << (s.layers.empty() ? "None" : "<LayerSettings>")
              << ", threads=" << s.threads << ")";
         return text.str();

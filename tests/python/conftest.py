@@ -146,6 +146,16 @@ def cli_bakes(cli, data, cli_database, tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def pose_bakes(cli, data, tmp_path_factory):
+    """Bakes of a database built with `db build`'s defaults: the pose model (issue 27)."""
+    path = tmp_path_factory.mktemp("pose_db") / "sleeve_pose.dsdb"
+    run([cli, "db", "build", "--driver-mesh", data / "driver_rest.obj",
+         "--driven-mesh", data / "driven_rest.obj", "--driver", data / "train.driver.pc2",
+         "--driven", data / "train.driven.pc2", "--quiet", "-o", path])
+    return CliBakes(cli, data, path, tmp_path_factory.mktemp("pose_bakes"))
+
+
+@pytest.fixture(scope="session")
 def opencl_device():
     """The default OpenCL device; a machine without one fails here (never a skip)."""
     device = ds.open_device("auto")

@@ -95,6 +95,29 @@ def test_usd_bake_equals_the_pc2_bake(driver_usd, cli_bakes, data, tmp_path, ope
     assert len(st.GetIndices()) == len(corners)
 
 
+def test_usd_bake_with_the_defaults_equals_the_cli_bake_with_the_pose_model(
+        driver_usd, pose_bakes, tmp_path, opencl_device):
+    # Issue 27: the USD bake offered --weights qp|nearest|bind with qp as its default, so its
+    # cloth was 14-39 mm from the default (pose-model) bake of every other tool.
+    out = tmp_path / "cloth_pose.usdc"
+    usd_bake("--db", pose_bakes.database, "--usd", driver_usd, "--prim", "/Character/Arm",
+             "--out", out)
+    reference = pose_bakes.frames("auto", TEST_FRAMES, reader="openexr")
+    stage = Usd.Stage.Open(str(out))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Mesh"))
+    for index, frame in enumerate(TEST_FRAMES):
+        points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(points, reference[index], f"USD pose-model cloth at frame {frame}")
+    # The tool's defaults are the library's.
+    args = usd._parser().parse_args(["bake", "--db", "x", "--usd", "y", "--prim", "/p",
+                                     "--out", "z"])
+    defaults = ds.EvaluatorSettings()
+    for name in ("weight_mode", "align", "blend", "skin_offset", "exit_fade",
+                 "max_weight_change", "coverage_tolerance"):
+        flag = "weights" if name == "weight_mode" else name
+        assert getattr(args, flag) == getattr(defaults, name), name
+
+
 def test_usd_bake_through_the_api_on_the_host(driver_usd, cli_bakes, database, tmp_path,
                                               host_device):
     out = tmp_path / "cloth_host.usda"

@@ -392,6 +392,8 @@ def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto"
 
 
 def _parser():
+    import drivenshape as ds
+
     parser = argparse.ArgumentParser(
         prog="python -m drivenshape.usd",
         description="USD in and out for drivenshape.",
@@ -441,21 +443,32 @@ def _parser():
     add("--ignore-topology", action="store_true",
         help="accept a driver whose faces differ from the database's (the vertex count must "
              "still match)")
-    add("--weights", choices=("qp", "nearest", "bind"), default="qp", help="[default: qp]")
-    add("--align", choices=("none", "rigid", "rigid-all"), default="rigid",
-        help="[default: rigid]")
+    # Defaults are the library's (a default EvaluatorSettings), as `drivenshape bake`'s are.
+    defaults = ds.EvaluatorSettings()
+    add("--weights", choices=("auto", "model", "qp", "nearest", "bind"),
+        default=defaults.weight_mode,
+        help="auto: the pose model when the database has one, else the talk's QP blend "
+             f"[default: {defaults.weight_mode}]")
+    add("--coverage-tolerance", metavar="D", type=float, default=defaults.coverage_tolerance,
+        help="pose model: flag frames predicted worse than this (scene units; 0 = 2%% of the "
+             f"cloth's rest bounding-box diagonal) [default: {defaults.coverage_tolerance:g}]")
+    add("--align", choices=("none", "rigid", "rigid-all"), default=defaults.align,
+        help=f"[default: {defaults.align}]")
     add("--align-group", metavar="LIST", default="",
         help="driver vertices of the rigid fit [default: all]")
-    add("--blend", choices=("world", "local"), default="local", help="[default: local]")
+    add("--blend", choices=("world", "local"), default=defaults.blend,
+        help=f"[default: {defaults.blend}]")
     add("--no-correct", action="store_true", help="skip the collision correction")
     add("--bind", metavar="MAP", help="binding mask (JSON)")
-    add("--skin-offset", metavar="D", type=float, default=0.002, help="[default: 0.002]")
-    add("--exit-fade", metavar="K", type=float, default=0.15,
-        help="deep vertices with two nearly equal exits move part of the way [default: 0.15]")
+    add("--skin-offset", metavar="D", type=float, default=defaults.skin_offset,
+        help=f"[default: {defaults.skin_offset:g}]")
+    add("--exit-fade", metavar="K", type=float, default=defaults.exit_fade,
+        help="deep vertices with two nearly equal exits move part of the way "
+             f"[default: {defaults.exit_fade:g}]")
     add("--no-resolve", action="store_true", help="skip the penetration resolution")
     add("--regions", metavar="FILE.json", help="region-local weights")
-    add("--max-weight-change", metavar="TAU", type=float, default=0.0,
-        help="[default: 0 = off]")
+    add("--max-weight-change", metavar="TAU", type=float, default=defaults.max_weight_change,
+        help=f"[default: {defaults.max_weight_change:g} (0 = off)]")
     add("--temporal-warmup", metavar="N", type=int, default=8, help="[default: 8]")
     add("--no-audit", action="store_true", help="skip the per-frame audit")
     add("--threads", metavar="N", type=int, default=0,
@@ -499,7 +512,8 @@ def _settings(args, db):
         binding_mask=ds.load_binding_mask(args.bind, db) if args.bind else None,
         resolve=not args.no_resolve, skin_offset=args.skin_offset, exit_fade=args.exit_fade,
         regions=ds.load_regions(args.regions, db) if args.regions else None,
-        max_weight_change=args.max_weight_change, audit=not args.no_audit, layers=layers,
+        max_weight_change=args.max_weight_change, coverage_tolerance=args.coverage_tolerance,
+        audit=not args.no_audit, layers=layers,
         threads=args.threads)
 
 
