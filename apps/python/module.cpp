@@ -1,6 +1,7 @@
 // The `_drivenshape` extension: the module, its exception type, and the array plumbing the
 // other binding files share (binding.h). The pure-Python package `drivenshape` re-exports it.
 #include "binding.h"
+#include "text.h"
 
 #include <cmath>
 #include <cstdint>
@@ -286,7 +287,8 @@ PYBIND11_MODULE(_drivenshape, module) {
       }
     } catch (const ds::Error& error) {
       const auto type = dp::py::reinterpret_borrow<dp::py::object>(errorType->ptr());
-      dp::py::object instance = type(error.what());
+      // Escaped: a message may quote a bad input's raw bytes, which are not UTF-8.
+      dp::py::object instance = type(ds::printableText(error.what()));
       instance.attr("kind") = dp::errorKind(error.code());
       instance.attr("code") = static_cast<int>(error.code());
       PyErr_SetObject(errorType->ptr(), instance.ptr());

@@ -141,3 +141,15 @@ def test_absurd_width_is_refused_before_allocating(tmp_path):
     ds.write_point_cache_exr(path, positions, width=MAX_WIDTH, sync=False)
     again, info = ds.read_point_cache_exr(path)
     assert info["width"] == MAX_WIDTH and np.array_equal(again, positions)
+
+
+def test_raw_bytes_of_a_bad_input_are_escaped_in_the_message(cli_database, tmp_path):
+    # A message quoting a bad input's bytes (nlohmann's "last read: '\xf7'") must still become a
+    # drivenshape.Error (its text was passed to Python as UTF-8), with the byte escaped.
+    database = ds.load_database(cli_database)
+    mask = tmp_path / "mask.json"
+    mask.write_bytes(b'{"bindings": \xf7\x01}')
+    with pytest.raises(ds.Error) as error:
+        ds.load_binding_mask(mask, database)
+    assert error.value.kind == "input" and error.value.code == 3, error.value
+    assert "\\xf7" in str(error.value) and "\xf7" not in str(error.value), str(error.value)
