@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Packs the Blender add-on (apps/blender/drivenshape_blender) into a zip that Blender installs
 with Edit > Preferences > Add-ons > Install... (or bpy.ops.preferences.addon_install).
 

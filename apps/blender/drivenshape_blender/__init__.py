@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """DrivenShape for Blender: data-driven cloth (Kim & Vendrovsky, Rhythm and Hues, SIGGRAPH 2008)
 from a database of simulated examples, live in the viewport while animating and baked to PC2 /
 point-cache EXRs. Built on the drivenshape Python module (apps/python), which it finds through
