@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# Fails when a tracked source file lacks its SPDX license line: line 1, or line 2 after a `#!`
-# shebang, must read `// SPDX-License-Identifier: Apache-2.0` (C, C++, OpenCL) or
-# `# SPDX-License-Identifier: Apache-2.0` (Python, shell, CMake, YAML, TOML, other scripts with a
-# shebang). Data (tests/data, the fuzz seeds and regressions), Markdown, JSON, meshes, caches,
-# images and dot-files such as .clang-format are not sources and are not checked.
+# Fails when a source file (tracked, or new and not ignored by git) lacks its SPDX license line:
+# line 1, or line 2 after a `#!` shebang, must read `// SPDX-License-Identifier: Apache-2.0`
+# (C, C++, OpenCL) or `# SPDX-License-Identifier: Apache-2.0` (Python, shell, CMake, YAML, TOML,
+# other scripts with a shebang). Data (tests/data, the fuzz seeds and regressions), Markdown,
+# JSON, meshes, caches, images and dot-files such as .clang-format are not sources: not checked.
 #   scripts/check_spdx.sh          check (CTest: spdx_check)
 #   scripts/check_spdx.sh --fix    add the line where it is missing, then check
 set -euo pipefail
@@ -33,8 +33,9 @@ comment_of() {
   esac
 }
 
-mapfile -t files < <(git ls-files 2>/dev/null || find . -type f ! -path './.git/*' \
-  ! -path './build*' ! -path './.venv/*' ! -path './out/*' | sed 's|^\./||')
+mapfile -t files < <(git ls-files --cached --others --exclude-standard 2>/dev/null ||
+  find . -type f ! -path './.git/*' ! -path './build*' ! -path './.venv/*' ! -path './out/*' |
+  sed 's|^\./||')
 checked=0
 missing=()
 for file in "${files[@]}"; do
