@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // drivenshape_bench: bakes a synthetic shot of the DESIGN.md workloads through OpenCL and
 // through the host reference in one run, and reports per-stage times and frames per second.
 // A benchmark, not a test: it asserts nothing, it measures.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // drivenshape_bench_evaluate: the interactive case. Times Evaluator::evaluate() one frame per
 // call (batch 1, what a viewport or a scrubbing animator asks for) on an OpenCL device and on
 // the host reference in one run, with the defaults unless told otherwise, and counts the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // drivenshape_bench_exr: what each way of writing our EXRs costs (issue 18). Writes the same
 // frames with every codec OpenEXR 3.1 offers (and with drivenshape's libdeflate ZIP writer),
 // reads them back with OpenEXR and with oiiotool, and prints one table: bytes per frame, write

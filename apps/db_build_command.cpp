@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `drivenshape db build`: the database of a reference clip, the pose model over it and any
 // extra clips (--also), and the frames worth simulating next (--suggest).
 

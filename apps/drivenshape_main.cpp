@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // drivenshape: the command line. Picks the command, runs it, and turns every error into one
 // line on stderr and a documented exit code (see drivenshape::ErrorCode and docs/commands.md).
 

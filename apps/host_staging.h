@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // For the benchmarks' before/after transfer counts: a Device whose backends take every block of

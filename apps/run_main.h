@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The one `main` of every tool in apps/: runs the tool's body with its command-line arguments

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # `cmake --install build --prefix PREFIX` puts the library (static archives), the public headers,
 # the command line and a package configuration in PREFIX, so that a studio's project can
 # find_package(drivenshape) and link drivenshape::drivenshape (tests/package checks this from a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exact closest triangle by a walk of refitted bounding-volume hierarchies (contract:
 // ClosestBackend::closest in src/include/drivenshape/correction.h; host reference:
 // src/devices/host/host_closest.cpp; the scheme and its exactness argument:

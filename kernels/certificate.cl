@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The clearance certificate (contract: ClosestBackend::closestOrClearBlock in
 // src/include/drivenshape/correction.h; host reference: src/devices/host/host_certificate.cpp;
 // the scheme and why a cleared point is safe: src/correction/certificate.cpp). Requires

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exact closest triangle among candidates (contract: ClosestBackend::closest in
 // src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp).
 //

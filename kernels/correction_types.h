@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Types and constants of the correction stage (closest triangle, local-frame transfer), shared
 // by the host (C++, src/correction, src/devices) and the device (kernels/closest.cl,
 // kernels/transfer.cl, kernels/resolve.cl). The OpenCL programs get this text as their first

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Turns one OpenCL C source into a C++ header holding its bytes, so kernels travel inside the
 # binary and are never read from the working directory at run time.
 # Called as: cmake -DINPUT=x.cl -DOUTPUT=x_cl.h -DSYMBOL=kBlendSource -P embed_kernel.cmake

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Per-vertex mix of the DrivenShape result with another cache (contract: LayerBackend::mix in
 // src/include/drivenshape/layers.h; host reference: src/devices/host/host_layers.cpp):
 //

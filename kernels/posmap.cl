@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Position maps (contract: PositionMapBackend in src/include/drivenshape/position_map.h; host
 // reference: src/devices/host/host_position_maps.cpp). Two kernels per chunk of F frames:
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Penetration resolution (contract: ClosestBackend::resolve in
 // src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp with
 // src/correction/surface_features.cpp, whose pseudoNormal() this file repeats in OpenCL C).

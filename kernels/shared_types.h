@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Types and constants shared by the host (C++) and the device (OpenCL C). This header is
 // prepended to every program and included by the host code, so both sides see one layout.
 // Keep it valid in both languages: plain `int` fields only (32 bits on every host we build

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Local-frame transfer (contract: ClosestBackend::transfer in
 // src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp).
 //

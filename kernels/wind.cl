@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Procedural wind (contract: LayerBackend::wind in src/include/drivenshape/layers.h; host
 // reference: src/devices/host/host_layers.cpp). The noise and the clearance limit are the shared
 // functions of kernels/layer_types.h, so the arithmetic is the host's, operation for operation.

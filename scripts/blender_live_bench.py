@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Live-mode frame rate of the Blender add-on in a real Blender (a benchmark, not a test).
 
     blender -b --factory-startup --python scripts/blender_live_bench.py -- \

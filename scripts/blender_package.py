@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Packs the Blender add-on (apps/blender/drivenshape_blender) into a zip that Blender installs
 with Edit > Preferences > Add-ons > Install... (or bpy.ops.preferences.addon_install).
 
-    python3 scripts/blender_package.py [-o out/drivenshape_blender-0.1.0.zip]
+    python3 scripts/blender_package.py [-o out/drivenshape_blender-VERSION.zip]
 
 The zip holds the folder drivenshape_blender/ at its top level, sources only (no __pycache__),
 with fixed timestamps so that the same sources give the same bytes. Standard library only.

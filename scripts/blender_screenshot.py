@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Screenshot of the add-on at work: a real Blender window (on a virtual X server), the bundled
 sleeve scene in live mode, the DrivenShape tab open in the 3D view's sidebar.
 

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Closest-triangle exactness on every frame of the pants test clip (../shared/data, not shipped
 # with the repository): the library's OpenCL search vs an independent brute force, per vertex.
 # Needs a build (scripts/setup.sh; DRIVENSHAPE_BUILD names another build folder). Takes a few

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Fails when a C++ or OpenCL source differs from the checked-in .clang-format (clang-format 14).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Compiles the library, the command line and every benchmark for other x86-64 instruction-set
 # levels, with warnings as errors, so that a warning that only shows when the compiler targets
 # a newer CPU (e.g. GCC's AVX-512 code paths in Eigen) fails CI on whatever machine CI runs on.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The main job on the bundled sample shot (a slice of the sleeve scene in tests/data/sleeve):
 # builds a 30-shape database from the range-of-motion clip, bakes the test clip through OpenCL
 # into point-cache EXRs, compares the bake with the simulated truth, writes a QC page (HTML and

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Finding the project's Python module from the scripts in scripts/: PYTHONPATH first, else this
 checkout's build folder (build/python, where scripts/setup.sh builds it)."""
 

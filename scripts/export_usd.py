@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Export a drivenshape result to USD: one UsdGeomMesh with time-sampled points and extents.
 
 The mesh's faces, UVs (primvars:st, face-varying) and groups (UsdGeomSubsets) come from the

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Lists the longest functions (lines from signature to closing brace) in C++ sources.
 
   scripts/function_sizes.py [--top N] [--rev COMMIT] [PATHS...]   (default: src)

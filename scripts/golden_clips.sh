@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # One-off bitwise check of a refactored bake on the two public clips (../shared/data/{pants,
 # sleeve}): for each clip, a 30-shape database from the `train` clip, then `test_public` baked
 # (all its frames) in three modes (default; talk: --align none --blend world --no-resolve;

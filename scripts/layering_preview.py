@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Preview of a layered bake: the garment at one frame from three sides, coloured by a layer
 weight map, and optionally by how far the layers moved it from a plain bake.
 

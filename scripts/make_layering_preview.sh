@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The layering picture of docs/commands.md (issue 8): the pants of the reference data with the waistband
 # mixed with the skin-only result and light wind on the lower legs.
 #

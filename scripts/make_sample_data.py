@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Regenerates the bundled sample shot in tests/data/sleeve from ../shared/data/sleeve.
 
 The sample is small on purpose (a few MB): every 5th frame of the range-of-motion `train` clip

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Measures bake accuracy on the reference data beside the checkout (../shared/data): builds a
 # 30-shape database from each scene's `train` clip, bakes `test_public` in every mode (the
 # talk's method, the binding baseline, and the fidelity options of issue 4) and compares each

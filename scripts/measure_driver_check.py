@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """The figures behind bake's driver sanity check (docs/method.md, "The driver's sanity check").
 
 For each reference scene (../shared/data/{pants,sleeve}) it builds a 30-shape database from

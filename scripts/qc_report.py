@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """QC report of a bake: one HTML page with PNG plots that a supervisor opens in a browser.
 
   .venv/bin/python scripts/qc_report.py --report out/cloth.report.json \

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Installs what is missing (Debian 12 packages, the Python venv for scripts and Python tests),
 # then configures and builds drivenshape (Release, -march=x86-64, warnings as errors) in ./build.
 # clang and libclang-rt-14-dev are for the fuzz targets (libFuzzer, ASan, UBSan) of the tests;

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # A throwaway single-node Slurm cluster on 127.0.0.1, for tests and for trying `drivenshape farm
 # slurm` on one machine. Everything (munge key and socket, slurm.conf, state, spool, logs, pid
 # files) lives in one folder; no systemd, nothing in /etc or /var is touched.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Installs what is missing, builds (for x86-64, and checks x86-64-v4 compiles), and runs the
 # whole test suite (CTest: unit, command-line, farm, Python and fuzz tests). CI runs this.
 set -euo pipefail

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Databases, devices, evaluator settings (binding masks, regions, layers) and the Evaluator.
 #include "binding.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Meshes (OBJ), point caches (PC2, point-cache EXR, in-memory arrays) and frame ranges.
 #include "binding.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Shared by the translation units of the `_drivenshape` Python extension: how C++ memory is

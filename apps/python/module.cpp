@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The `_drivenshape` extension: the module, its exception type, and the array plumbing the
 // other binding files share (binding.h). The pure-Python package `drivenshape` re-exports it.
 #include "binding.h"

@@ -1,4 +1,5 @@
 #!/bin/bash
+# SPDX-License-Identifier: Apache-2.0
 # Generate the validation clips listed in clips.txt with the Blender cloth
 # generator (tools/blender of the shared data; Blender 3.4 headless).
 #   scripts/validation/generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """The validation table (issue 17): every clip x every mode against the simulated truth.
 
 For each character: one database from its public `train` clip (the reference a TD has:

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Does `db build --suggest` pick better reference frames than the farthest-point rule?
 
 Issue 17: `--suggest N` must lower the true error on the shots it was given, measured against

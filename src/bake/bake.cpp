@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The bake: the shot loop around one Evaluator. Frames are read a batch ahead on an I/O task,
 // evaluated a batch at a time, and written on another I/O task while the next batch runs
 // (double buffering); a resume keeps complete outputs; a stop request ends the bake between

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The bake report's coverage verdict against a truth (drivenshape/coverage_check.h): reading
 // the predictions from the report, matching them to eval's measured errors, and the statistics.
 

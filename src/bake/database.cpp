@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Database file: one self-describing, versioned binary file.
 //
 //   offset 0   8 bytes   magic "DSHAPEDB"

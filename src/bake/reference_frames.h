@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Frames of the caches the pose model reads beyond the picks (db build's reference clips,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `db build --suggest` (drivenshape/database.h, suggestReferenceFrames): the features of a
 // candidate clip and of the shots, read as a bake reads them, handed to suggestFrames.
 

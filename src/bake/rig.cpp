@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A rig's parts for the pose model (drivenshape/pose_model.h): each driver vertex goes to the
 // bone of its largest skin weight; a part's parent is the nearest ancestor bone that is a part.
 

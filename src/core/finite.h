@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The one loop behind every check that names the frame and vertex of a NaN or infinite

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Force-included into every translation unit of the project by GCC older than 13 on x86 (see
 // the top-level CMakeLists.txt). GCC 12.2, Debian 12's compiler, warns -Wmaybe-uninitialized
 // inside its own AVX-512 intrinsics (GCC bug 105593: `__m512 __Y = __Y;` in

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // JSON in and out for the readers and writers of the library and its apps (nlohmann::json is
 // private to drivenshape: no public header includes it). Every parse and every dump goes
 // through here so that no file content and no path, whatever its bytes, can escape as a JSON

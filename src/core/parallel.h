@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // A minimal parallel loop for independent items (frames, files): the host stages, the

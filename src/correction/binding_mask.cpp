@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Binding masks: the tables and the JSON file format documented in drivenshape/correction.h.
 
 #include <algorithm>

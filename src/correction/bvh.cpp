@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exact closest triangle on the device: BVH refit per frame, FLANN warm start, pruned walk.
 //
 // Scheme. Once per setSurface (the driver topology and the mask are fixed for a bake):

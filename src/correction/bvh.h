@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The "far" side of the OpenCL closest-triangle search: bounding-volume hierarchies over the

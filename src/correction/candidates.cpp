@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Candidate triangles for the exact closest-triangle search.
 //
 // Scheme (per frame and per mask class; the pose changes every frame, so the tree does too):

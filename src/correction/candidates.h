@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The host half of the closest-triangle stage shared by both backends: the driver topology and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The clearance certificate: exact closest points, searched only where they can matter.
 //
 // The penetration resolution and the inside audit need, per cloth point p of a frame, only two

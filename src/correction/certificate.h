@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The clearance certificate of ClosestBackend::closestOrClearBlock: kernels/certificate.cl and

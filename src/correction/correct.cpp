@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The correction of a chunk as one call: closest triangles on the blended driver, then the
 // local-frame transfer of the blended cloth onto the shot's driver; and the host-side encoding
 // of local coordinates that ClosestBackend::rebuild inverts.

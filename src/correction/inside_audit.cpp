@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Inside/outside audit with angle-weighted pseudo-normals (Baerentzen & Aanaes 2005): for a
 // closed, consistently oriented mesh, the sign of (p - q) . N at the closest point q is the
 // side of p when N is the pseudo-normal of the feature (face, edge, vertex) that holds q. The

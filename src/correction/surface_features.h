@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Angle-weighted pseudo-normals (Baerentzen & Aanaes 2005) of a triangle mesh, shared by the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Point-triangle distance and the local frame of a triangle in double: the host half of

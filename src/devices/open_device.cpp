@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Listing the OpenCL devices and opening the one an application names (the command line's
 // --device SPEC). The choice is always the caller's; "auto" is a rule the caller asks for.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Argument checks shared by the two StageBackend implementations, so the host reference and
 // the OpenCL path refuse the same inputs with the same messages.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The scalars of one wind launch, made the same way for both backends. Private to src/layers.
 
 #pragma once

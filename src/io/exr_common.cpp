@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "exr_common.h"
 
 #include <OpenEXR/ImfChannelList.h>

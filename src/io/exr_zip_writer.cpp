@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "exr_zip_writer.h"
 
 #include <OpenEXR/ImfChannelList.h>

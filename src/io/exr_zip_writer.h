@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Standard ZIP and ZIPS scan-line EXR files whose chunks are deflated by libdeflate (or zlib)
 // on several threads: the file layout of Imf::OutputFile, header bytes included, with only the
 // deflate streams different. Private to the libraries in src/; not installed. Measurements and

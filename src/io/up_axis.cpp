@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <drivenshape/up_axis.h>
 
 #include <drivenshape/error.h>

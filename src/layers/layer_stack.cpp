@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The layers of one bake: settings validated, weight maps and the mix cache loaded once, then
 // mix and wind applied to every chunk after the correction.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Weight maps (one number in [0, 1] per driven vertex): JSON arrays, one-channel point-cache
 // EXRs, OBJ face groups, and the edge-ring falloff that softens them.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scale and correspondence checks of a shot's driver against a database (driver_check.h).
 
 #include <drivenshape/driver_check.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Evaluator: configures the registered stages once, then runs them in order on every block
 // of frames, timing each by its name.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which frames to simulate next (drivenshape/pose_model.h, suggestFrames): greedy reduction of
 // the pose model's Gaussian-process variance over the shot frames.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The state the stages of one evaluator share, and the helpers several stages use.
 
 #include <algorithm>

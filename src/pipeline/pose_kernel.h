@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The pose model's kernel, shared by its fit (pose_model.cpp) and the frame suggestion

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pose model (drivenshape/pose_model.h): rigid parts of the driver, pose features, the
 // kernel ridge regression of the local-frame offsets and its error predictor.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The evaluator's pipeline (DESIGN.md §3): each step of a frame is one Stage, in one file under

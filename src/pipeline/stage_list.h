@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pipeline's stages in the order they run on every batch of frames. Each line names a
 // factory `make<Name>Stage(Model&)` defined in src/pipeline/stages/ (which returns null when
 // the settings leave the stage out). Adding a stage: one new file there and one line here.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PositionMapWriter and writePositionMapSequence: tables once, then chunks of frames through
 // a backend into EXR files (and PNG previews).
 

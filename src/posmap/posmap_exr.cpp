@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Position-map EXR files (layout and attributes: position_map.h).
 
 #include <drivenshape/position_map.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PNG previews of position maps: 8-bit RGB, P scaled from the frame's bounds to colours.
 // A minimal PNG encoder (IHDR, one IDAT of zlib-compressed unfiltered rows, IEND).
 

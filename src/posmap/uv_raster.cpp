@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // UV rasterisation for position maps (the "far" side): texel -> triangle + barycentrics,
 // built once per mesh and map size. See position_map.h for the conventions.
 

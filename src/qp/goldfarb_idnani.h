@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The dual active-set solver behind solveGoldfarbIdnani, taking views so that callers that
 // solve many problems with the same matrices (SimplexLeastSquares, one problem per frame) do

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Helpers shared by the bake suites: the bundled sample shot (a slice of the sleeve scene), its

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // End-to-end bakes on the bundled sample shot (a slice of the sleeve scene): OpenCL against
 // the host reference, the QP against the nearest-shape baseline, determinism, reports.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The fidelity stages of the bake (issue 4) on the bundled sample shot (a slice of the sleeve
 // scene): rigid alignment, world-space invariance, penetration resolution, local-frame
 // blending, region-local weights and the temporal bound, each against an independent

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Issue 17, part 4 ("other deformables"): driven meshes that live under the driver's skin (a
 // muscle) or partly under it. The evaluator learns each driven vertex's side of the skin from
 // the database's pairs; the resolution keeps every vertex on its side and the audit counts the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Database construction (greedy farthest-point pick, manual picks, duplicates) and the file
 // format (round trip, corruption, versions).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which frames to simulate next (issue 17, `db build --suggest`): the greedy variance reduction
 // with rank-one updates against a brute force that refits the posterior by direct inversion,
 // on the sample's pose model and its test clip.

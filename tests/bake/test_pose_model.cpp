@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pose model (issue 17): rigid parts found from motion, features that are joint rotations,
 // the learned correction against the simulated truth, history that chunks cannot change, the
 // database round trip and the rig reader.

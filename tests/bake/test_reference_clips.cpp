@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Several reference clips for the pose model (issue 17, `db build --also`): a clip split in two
 // fits the model of the whole, velocity and history never read another clip, clips of another
 // mesh are refused by name, and a second clip lowers the error on its motion.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Machine ceilings for the roofline note in docs/performance.md (issue 5): the measured peak of a
 // dense float GEMM (compute roof) and of streaming copy and triad loops (memory roof), on one
 // thread and on every thread at once. Not a test: run it by hand.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Shared data of the Blender add-on tests (CTest fixture blender_data), made with the command
 # line, independently of the add-on:
 #   WORK/sleeve.dsdb                  db build from the bundled sleeve's training clip

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Shared by the add-on tests, which run inside Blender:
 
     blender -b --factory-startup --python-exit-code 1 --python test_blender_X.py -- \

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Runs one add-on test script in a background Blender; used by add_test as
 #   cmake -DBLENDER=blender -DSCRIPT=test.py [-DARGS=arg|arg|...] -P run_blender.cmake
 # ARGS are separated by '|' (a ';' would split the -D argument). A missing Blender FAILS the

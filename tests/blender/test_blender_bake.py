@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The Bake operator in a real (background) Blender against the command line's bake.
 
 Bakes the test clip (frames 1-48) through bpy.ops.drivenshape.bake with PC2 and EXR output,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The Build Database operator in a real (background) Blender against `drivenshape db build`.
 
 The driver and cloth objects play the training clip through Mesh Cache modifiers; the operator

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Error paths of the add-on in a real (background) Blender: every failure is a report naming
 the object, file or frame at fault, nothing is left half done, and Blender carries on.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The import settings of docs/conventions.md, checked in a real (background) Blender 3.4.
 
 `drivenshape export` writes the bundled sleeve's cloth (its test clip renumbered to start at

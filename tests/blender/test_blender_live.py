@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Live mode in a real (background) Blender against the command line's bake of the same frames.
 
 The driver object is driven by the test clip's PC2 through a Mesh Cache modifier; live mode,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Helpers of the command-line tests (test_cli, test_eval): run the real `drivenshape` binary
 // as a separate process with its output captured, and find the bundled sample.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The command line as users run it: a real process, real files, exit codes and messages.
 // Every bad input must give a one-line error naming the file (or flag) and a documented exit
 // code, and must leave no partial output behind.

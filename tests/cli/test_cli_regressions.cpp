@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Regressions found by trying the command line as a hostile user would (and by fuzzing): each
 // test re-creates one reported input and pins the documented exit code and a message that
 // names the file, frame or flag at fault. None of these may crash or exit 1 (internal error).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `drivenshape db build` with more reference clips (--also) and frame suggestions (--suggest),
 // run as users run it: the real binary, the sample's caches, exit codes and one-line errors.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The scale and correspondence checks of a shot's driver (drivenshape/driver_check.h) through
 // the real command line: a driver in centimetres against a database in metres and a driver whose
 // vertices do not correspond are refused with the cause named; --force bakes them with warnings;

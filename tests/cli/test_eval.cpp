@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // drivenshape eval: the library (evaluateShot, on the host and the OpenCL closest-triangle
 // search) and the command on a closed cube that travels and turns, where every figure is known
 // analytically, and the command on the bundled sleeve (the binding baseline against a real

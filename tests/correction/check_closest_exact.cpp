@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // check_closest_exact: the closest-triangle exactness check on real data that cannot ship with
 // the tests (e.g. ../shared/data/pants/test_public). For every frame, every driven vertex is
 // queried against the driver pose of the same frame through the library (OpenCL on the first

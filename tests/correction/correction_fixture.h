@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The correction tests' fixture: one host and one OpenCL backend per test binary (the OpenCL
 // program is built once), and the exactness check against the brute-force oracle.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Helpers of the correction tests: an independent brute-force closest-triangle search, mesh
 // builders, random scenes and masks, and point-set arithmetic.

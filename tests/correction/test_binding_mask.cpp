@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Binding masks: the file format, its errors, and masked closest-triangle search on crossed
 // "legs" (each trouser leg bound to its own leg).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The clearance certificate (ClosestBackend::closestOrClearBlock): against the full exact
 // search, the resolution and the inside count must come out bitwise the same, on both backends,
 // on the bundled sleeve and on scenes made to break a careless certificate: two tubes that pass

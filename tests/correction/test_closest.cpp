@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Closest triangle: both backends against an independent brute-force search (exactness), ties,
 // degenerate triangles, masks and NaN input.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Inside/outside audit with pseudo-normals, on a closed cube where the answer is known.
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Local-frame encoding and rebuild (the halves of the transfer, for bindings made once):
 // round trip, rigid motion, agreement with transfer (degenerate frames included), OpenCL vs
 // host, bad input.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Penetration resolution on a closed cube, where the distance to the surface and the side are
 // known in closed form: which points move, where they go (at the offset, outside; under the
 // skin for points that live inside), that the others keep their bits, the per-frame counts and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Local-frame transfer: identity, rigid motion, OpenCL vs host, degenerate frames, bad input.
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """CTest fixture of the farm tests: a small database of the sleeve sample and the reference
 bake (one uninterrupted bake of all 48 test frames, default settings) that every farm test
 compares its outputs with, byte for byte."""

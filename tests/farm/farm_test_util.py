@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Shared helpers of the farm tests (tests/farm): paths, running the CLI, comparing outputs.
 
 Every test script takes the same arguments (see CMakeLists.txt):

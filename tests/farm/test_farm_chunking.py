@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Chunking determinism: a bake in 3 uneven chunks (17 + 17 + 14 frames of 48) run out of order
 (2, 0, 1), with other thread counts and launch batches than the reference, is bitwise identical
 to one bake of all frames."""

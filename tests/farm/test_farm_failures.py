@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Failures a farm meets, each with a clear message, its documented exit code, and nothing
 half-written (no temporary file, every EXR under a final name complete):
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`drivenshape farm slurm` without a cluster: what the sbatch script holds (array of chunk
 indices, a log per task, absolute paths, this executable, --skip-existing, TERM trapped, PoCL
 cache), the usage errors (Slurm's MaxArraySize, options the farm command owns), and the script

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Open Job Description: the template written by `drivenshape farm openjd` (JSON and YAML)
 passes `openjd check` and openjd-model's own validation, and `openjd run` (openjd-cli from PyPI
 in the project venv) runs its Bake step, one task per chunk, into outputs bitwise identical to a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Kill and resume. A bake of all 48 frames (--batch 1, so it stops promptly) is stopped with
 SIGTERM (exit 7, finished frames kept, no temporary file left) and, separately, killed with
 SIGKILL (no clean-up possible: a temporary file may remain); each time a rerun with

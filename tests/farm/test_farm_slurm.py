@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Real Slurm. scripts/slurm_local_cluster.sh installs slurm-wlm and munge when missing and
 starts munged, slurmctld and slurmd on 127.0.0.1 with everything in a temporary folder (no
 systemd, auth/munge with a key made there). Then:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Configures and builds the fuzz targets (tests/fuzz/project) with clang; the CTest fuzz_build:
 #   cmake -DCXX=clang++ -DSOURCE=tests/fuzz/project -DBINARY=folder -DGENERATOR=name
 #         [-DMAKE_PROGRAM=path] -DJOBS=n -P build_fuzzers.cmake

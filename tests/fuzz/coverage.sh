@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Line coverage of the reader sources reached by the fuzz targets (not a test: a measurement).
 # Builds the fuzz project with clang's source-based coverage in BUILD (default build-fuzz-
 # coverage), fuzzes each target for SECONDS from a copy of its seeds, replays the corpus it grew

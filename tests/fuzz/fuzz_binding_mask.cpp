@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Binding-mask JSON (src/correction/binding_mask.cpp) against the fixed driver and driven
 // meshes of fuzz_support.h; a mask that parses must match the BindingMask contract.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Database reader (src/bake/database.cpp): loadDatabase on the input as it is, then (when its
 // header parses) on the input with every block checksum recomputed, so that mutated block data
 // gets past the checksum test to the code that trusts it. A database that loads is checked

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Frame ranges and frame patterns (src/io/frames.cpp): parseFrameRange, its round trip through
 // formatFrameRange, and the pattern helpers on the same text; checkDistinctPaths on the text as
 // two output names (split at its first newline), and printableText (src/core/text.h), which

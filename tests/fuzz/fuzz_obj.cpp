@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // OBJ reader (src/io/obj.cpp): readObj, the fan triangulation and the topology hash of what it
 // returns, then the mesh written into a database and read back (group names and faces reach the
 // database's JSON header, as in `drivenshape db build`).

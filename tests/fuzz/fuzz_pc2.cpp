@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PC2 reader (src/io/pc2.cpp): openPc2 (header checks, size against the header, the frames the
 // samples fall on), then every frame it claims, read one by one and as a block (readFrames):
 // each read succeeds or refuses a non-finite position.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Point-cache EXR reader (src/io/exr_point_cache.cpp, src/io/exr_common.cpp): the header alone,
 // the positions, the checks a resumed bake (--skip-existing) trusts (isCompleteExr,
 // reuseProblem), and the file read as a one-frame sequence through openPointCache

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Position-map EXR reader (src/posmap/posmap_exr.cpp): the header reader behind
 // `drivenshape info` (with the channel naming it tells from the channels: R G B or the legacy
 // P.X P.Y P.Z), the kind test, and the completeness check.

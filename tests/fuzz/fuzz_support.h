@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What every fuzz target shares: the input written to a file (the readers take paths), the
 // policy for exceptions, fixed meshes for the JSON inputs, and checks of the Mesh invariants.
 //

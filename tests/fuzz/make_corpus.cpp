@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Writes the binary part of the fuzz seed corpus and the regression files that have to be
 // computed (a database whose corrupted block carries a valid checksum, an EXR with a corrupted
 // attribute size) with the project's own writers. Run by make_corpus.sh:

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Regenerates the binary seeds (PC2, EXR, .dsdb) and the computed regression files with the
 # project's own writers (make_corpus.cpp); the text seeds and regressions are kept by hand.
 # Builds the fuzz project first (clang, as for CTest) in BUILD (default: build-fuzz).

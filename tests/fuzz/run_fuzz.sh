@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Runs one fuzz target as its CTest does (tests/fuzz/CMakeLists.txt):
 #   1. every file of regressions/NAME/ once, each in its own process (so every one that still
 #      crashes is listed),

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """CTest golden_sample: bakes the sleeve sample with the built `drivenshape` in every golden
 configuration (tests/golden/golden_bakes.py) on the host path and the OpenCL CPU device, and
 compares with the recorded goldens (tests/data/golden/f302ac6.json), exactly:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Golden bakes of the bundled sleeve sample, shared by record_goldens.py and check_goldens.py.
 
 One table (CONFIGS x DEVICES) says what is baked; one function (bake_all) builds the database

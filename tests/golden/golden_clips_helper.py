@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """The Python half of scripts/golden_clips.sh (hashing, caching, comparing one bake).
 
   golden_clips_helper.py record CACHE.json --binary B --binary-sha S --clip C --mode M

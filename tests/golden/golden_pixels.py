@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Hashes of EXR files that do not depend on drivenshape's own EXR reader.
 
 For each file:

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Records the golden bakes of the sleeve sample (tests/golden/golden_bakes.py) with a given
 `drivenshape` binary into one JSON file, which check_goldens.py (CTest golden_sample) compares
 later bakes with, exactly.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Small helpers shared by the src/io tests: catching a drivenshape::Error, raw file access.
 

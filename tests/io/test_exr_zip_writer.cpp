@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for src/io/exr_zip_writer.cpp, the libdeflate ZIP writer behind the default
 // point-cache and position-map files: its container is OpenEXR's byte for byte (with zlib at
 // OpenEXR's level it writes the very file Imf::OutputFile writes), and its libdeflate files

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for src/io/up_axis.cpp: the Z-up <-> Y-up rotation the exporters use is exact, bit for
 // bit, on every kind of float (signed zeros, denormals, infinities, NaN payloads), and the flag
 // parser names the flag it was given.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Benchmark (not a test): the wind and mix layers, OpenCL vs the host reference in one run, on
 // a synthetic garment grid. Warm-up, then the minimum and median of repeated chunks, the queue
 // finished inside the timed region (each call reads its results back).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Synthetic meshes and data for the layer tests (no files from /work/shared).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for apps/export_command.cpp (`drivenshape export`): PC2 guides read back identically
 // with the header fields Blender's importer checks (start frame and sample rate exactly), the
 // first-frame OBJ keeps the rest mesh's faces and UVs, EXR inputs, --up-axis Y rotates every

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """scripts/export_usd.py end to end: files the tool writes (point-cache EXRs through the library,
 PC2 + OBJ through `drivenshape export`) go through the script, and usd-core (pxr) reads back the
 same points at a given time, the extents, the faces and the UVs. The expected positions come

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // apps/layer_args.cpp: the layer flags a command gets with addLayerFlags, their defaults (as
 // documented in --help) and the values they refuse.
 

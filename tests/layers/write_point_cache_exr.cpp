@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Test helper for test_export_usd: writes frames of a PC2 as a point-cache EXR sequence through
 // the library (writePointCacheExr), so the USD script is checked on files the tool writes.
 //   write_point_cache_exr CACHE.pc2 MESH.obj FIRST LAST OUT.####.exr [FPS]

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The installable package, end to end: install the build into a temporary prefix, build the
 # consumer project (tests/package/consumer, copied out of the tree) with find_package against
 # that prefix only, bake the sample's first frames with the installed CLI, and let the consumer

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // DeviceArray on a real OpenCL device (PoCL in CI) and on the host device: which copy is
 // current after each access, and exactly which accesses copy (counted by the device).
 

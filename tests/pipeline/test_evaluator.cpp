@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Evaluator against the command line's bake of the bundled sample: the same frames,
 // bitwise, whatever the batch size or thread count; its temporal state; its device use.
 

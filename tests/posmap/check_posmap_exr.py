@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Reads a position map written by drivenshape back with the OpenEXR Python bindings.
 
 Checks, on the bundled sleeve (channels R G B, A, N.R N.G N.B; check_posmap_readers.py checks

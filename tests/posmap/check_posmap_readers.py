@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Position maps as compositing tools read them (issue 16): real `oiiotool` (OpenImageIO) and
 the OpenEXR Python bindings, on maps of the bundled sleeve written by the library.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Writes one position map with the library and dumps the exact arrays it wrote, for the Python
 // check (check_posmap_exr.py) that reads the EXR back with the OpenEXR bindings.
 //

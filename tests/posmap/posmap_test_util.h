@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Independent references for the position-map tests: UV triangles, point-in-triangle search
 // and barycentric interpolation in double, written without the library's rasteriser (no

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for apps/posmap_command.cpp (`drivenshape posmap`): end to end on the bundled sleeve,
 // OpenCL against the host path, and the flags it must refuse.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for src/posmap/posmap_exr.cpp and posmap_preview.cpp: the EXR layout read back with
 // plain OpenEXR, the same files through the real readers (exrheader, oiiotool), PNG previews.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for the position-map gather: the host reference (src/devices/host/host_position_maps.cpp)
 // against independent double computations, and the OpenCL kernels (kernels/posmap.cl,
 // src/posmap/posmap_cl.cpp) against the host reference.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Shared fixtures of the Python module's tests: the command line (the independent reference),
 the bundled sleeve sample, readers that do not use the module (PC2 and OBJ parsed here, EXR read
 by the OpenEXR PyPI package), and the command line's database and bakes, made once per run.

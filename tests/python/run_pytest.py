@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Runs pytest with the arguments given (CTest calls it through tests/support/run_python.cmake)."""
 
 import sys

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The module's database and frames against the command line's, bitwise.
 
 `drivenshape db build` and build_database() (from files and from in-memory arrays) must pick

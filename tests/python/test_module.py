@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The Python module on its own: meshes, point caches (PC2, EXR, arrays), devices, settings,
 errors, what is copied and what is not, and the GIL. References are parsed here or read by the
 OpenEXR PyPI package, never produced by the module itself."""

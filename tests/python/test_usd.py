@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """USD in and out (drivenshape.usd): the sample's test driver PC2 written as a UsdGeomMesh, baked
 through `python -m drivenshape.usd bake`, and read back with usd-core: the cloth's points must
 be bitwise the command line's bake of the PC2 (its EXRs read by the OpenEXR PyPI package).

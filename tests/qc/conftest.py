@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Options of the QC report test (CTest passes them, tests/qc/CMakeLists.txt)."""
 
 

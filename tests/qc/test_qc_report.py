@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """scripts/qc_report.py on a real bake of the bundled sleeve, rendered in headless Chromium.
 
 The command line builds the sample database, bakes 24 frames (host path: no OpenCL kernel build

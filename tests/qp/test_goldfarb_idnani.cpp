@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for solveGoldfarbIdnani: small problems whose answer can be checked by hand, and random
 // strictly convex QPs compared with an independent reference that enumerates active sets.
 

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Blend weights of SimplexLeastSquares against quadprog (PyPI), for database sizes the C++
 enumeration test cannot reach: k in {16, 30, 64} shapes, up to 3,000 rows, 300+ problems,
 including rank-deficient databases (k > n, low rank, duplicate shapes) and shapes 1000 units

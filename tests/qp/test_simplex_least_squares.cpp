@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for SimplexLeastSquares (blend weights: min |A w - b|^2, sum w = 1, 0 <= w <= 1):
 // more than 1,000 problems of every shape the bake meets, each compared with an independent
 // reference that enumerates which weights are free, at 0 or at 1.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Per-frame stages: the host reference against Eigen in double, and the OpenCL kernels against
 // the host reference (kernels/project.cl, kernels/blend.cl, src/devices/cl/cl_stages.cpp,
 // src/devices/host/host_stages.cpp).

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Runs a Python test script with the project's interpreter; used by add_test as
 #   cmake -DPYTHON=interpreter -DSCRIPT=script.py [-DARGS=arg|arg|...] [-DWORK=folder]
 #         -P run_python.cmake

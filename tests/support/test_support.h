@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Shared by every test binary: tolerances (stated once per quantity), random seeds, temporary
 // folders, the check of a thrown drivenshape::Error and the OpenCL fixture.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """DrivenShape for Blender: data-driven cloth (Kim & Vendrovsky, Rhythm and Hues, SIGGRAPH 2008)
 from a database of simulated examples, live in the viewport while animating and baked to PC2 /
 point-cache EXRs. Built on the drivenshape Python module (apps/python), which it finds through
@@ -6,6 +7,8 @@ the add-on preference or DRIVENSHAPE_PYTHONPATH (module.py). See docs/blender.md
 bl_info = {
     "name": "DrivenShape",
     "author": "drivenshape developers",
+    # Blender needs a literal tuple: it must spell project(drivenshape VERSION ...) of the top
+    # CMakeLists.txt, which the CTest version_check (tests/version) enforces.
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
     "location": "3D Viewport > Sidebar > DrivenShape",

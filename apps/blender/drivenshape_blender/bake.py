@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Baking a frame range (PC2, optional point-cache EXRs, a Mesh Cache modifier to show it) and
 building a database from the scene: the work behind the operators, without the UI, so that a
 modal operator can run it a few frames at a time and a script can run it all at once."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """What live mode, bakes and database builds share: the database, device and Evaluator (kept
 between frames, rebuilt only when what they depend on changes), reading and writing mesh
 positions through numpy without a Python loop over vertices, and the messages the UI shows.

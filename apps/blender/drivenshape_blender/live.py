@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Live mode: the cloth follows the driver on every frame change and while scrubbing.
 
 On frame_change_post (and on depsgraph_update_post when the driver's geometry changed without a

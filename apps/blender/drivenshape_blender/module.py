@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Finds and imports the drivenshape Python module (built from apps/python).
 
 The add-on does not bundle the compiled module: it is built for one Python version and one

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Operators: live mode on and off, building a database, baking (modal with progress and Esc
 from the UI, all at once from scripts), the Mesh Cache modifier, retrying the module import.
 Every failure is reported with self.report({'ERROR'}, ...) naming the file, frame or object."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The add-on's settings: one DrivenShapeSettings per scene (scene.drivenshape) and the
 add-on preference that says where the drivenshape module is."""
 

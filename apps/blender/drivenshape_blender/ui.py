@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The DrivenShape tab of the 3D view's sidebar (N panel)."""
 
 import bpy

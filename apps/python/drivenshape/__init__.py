@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """drivenshape: data-driven cloth (DrivenShape, Kim & Vendrovsky 2008) evaluated in memory.
 
 The C++ library behind the `drivenshape` command line, for Python and Blender: read meshes and

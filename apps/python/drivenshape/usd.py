@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """USD in and out for drivenshape (usd-core's `pxr`).
 
 Read a driver animation from the time-sampled points of a UsdGeomMesh, evaluate it, and write

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The OpenCL backends of every stage (private to the library: applications reach them through

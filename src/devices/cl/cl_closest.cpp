@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The OpenCL backend of the correction stage: the host candidate search (shared with the host
 // backend), then kernels/closest.cl for the exact choice and kernels/transfer.cl for the
 // local-frame transfer and rebuild, kernels/resolve.cl for the penetration resolution. One

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One OpenCL device as a Device: its backends share the device's program cache (each program
 // compiled once) and its transfer counters.
 

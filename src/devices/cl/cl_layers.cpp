@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The OpenCL implementation of LayerBackend (kernels/mix.cl, kernels/wind.cl). Tables go to the
 // device once (upload); each mix()/wind() call uploads the chunk, runs one launch over all its
 // frames and reads the chunk back. Chunk buffers are kept and only grow.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The OpenCL implementation of the position-map gather (kernels/posmap.cl). Tables go to the
 // device once (upload); each evaluate() is one upload of the chunk's frames, one launch per
 // kernel over all its frames, one read back. Output buffers are zero-filled once when they are

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The OpenCL implementation of the per-frame stages (kernels/project.cl, kernels/blend.cl).
 // Tables go to the device once (upload); each project()/blend() call is one upload of the
 // chunk, one launch per output over all its frames, one read back. Chunk buffers are kept and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The host reference of kernels/certificate.cl (the clearance certificate of

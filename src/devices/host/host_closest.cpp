@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The host reference of the correction stage: the same candidate lists as the OpenCL backend,
 // then plain C++ in double for the exact choice (kernels/closest.cl) and the local-frame
 // transfer and rebuild (kernels/transfer.cl), and the penetration resolution

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The host reference path as a Device: every backend in plain C++.
 
 #include <drivenshape/device.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The host reference of the layer kernels (kernels/mix.cl, kernels/wind.cl): the same shared
 // functions of kernels/layer_types.h, one vertex at a time. Also the per-frame wind offsets and
 // the continuity bound, which both backends share.

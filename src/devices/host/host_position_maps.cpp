@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The host reference of the position-map gather (contract: PositionMapBackend in
 // position_map.h; the OpenCL twin is kernels/posmap.cl). Plain loops in float, in the same
 // order of operations as the kernels, so the two agree to a few ulps.

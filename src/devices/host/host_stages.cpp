@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The host reference of the per-frame stages: plain loops, every sum in double, one rounding to
 // float at the end. It is the oracle the OpenCL kernels are tested against, so it favours
 // obviousness over speed.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Rigid alignment of shot driver frames to the database's reference frame (issue 4, step 1):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Collision correction (DESIGN.md §1 "Collision / correction", §3 steps 5-6): for every point d

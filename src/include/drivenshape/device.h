@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Where the per-frame stages run. A Device creates the backend of every stage on one compute

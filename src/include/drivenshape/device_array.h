@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Arrays that the backends of one Device hand to each other. A DeviceArray has a host copy and,

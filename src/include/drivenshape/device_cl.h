@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // A Device on an OpenCL context the application made itself (a DCC that already runs OpenCL,

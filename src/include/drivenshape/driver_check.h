@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Does a shot's driver belong to a database? A driver in other units (centimetres against a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The method in memory: an Evaluator is built once from a database, its settings and a device,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Layering (DESIGN.md §1 "Layering", §3 step 7): per-vertex weight maps, a per-vertex mix of the

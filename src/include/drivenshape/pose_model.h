@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // The pose model (issue 17): the rest binding plus a learned correction of the local-frame

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 
 // Region-local weights (issue 4, step 4): the garment is split into regions (left leg, right

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rigid alignment (AlignMode::kRigid, kRigidAll): each driver frame is fitted to the database's
 // rest driver, and so is every database shape (once, here), so that the weights and the blend
 // compare poses, not places. The correction (or the inverse motion) takes the cloth back.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The per-frame audit of the final cloth: vertices on the wrong side of the shot's driver's
 // skin (Model::sides: inside for cloth; recounted only when the resolution moved something or
 // layers changed the cloth), binding switches and the largest jump against the previous

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Audit of the world blend before any correction: how many cloth vertices the blend alone puts
 // on the wrong side of the (aligned) shot driver's skin (inside, for cloth; Model::sides), the
 // figure the correction exists to fix.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Onto the shot's driver (DESIGN.md §3 steps 5-6). Local blending rebuilds the blended offsets
 // on the shot's driver; world blending binds the blended cloth D~ to the blended driver P~
 // (exact closest triangles, mask respected) and carries it to the shot's driver in each

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Layers after the correction and resolution (DESIGN.md §3 step 7): the mix with another cache,
 // then wind limited by each vertex's clearance from the shot's driver (exact closest points,
 // every triangle).

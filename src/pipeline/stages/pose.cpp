@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pose model's weights (drivenshape/pose_model.h): per frame, the pose features of the
 // shot's driver (joint rotations of its rigid parts, their velocity and history), the basis
 // weights of the learned correction, and the coverage figures (how new the pose is, the

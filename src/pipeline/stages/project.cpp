@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Projections p = M^T (b - m) per frame and weight problem, and the norms the QP needs: one
 // backend launch for the whole-driver QP, the host for region rows (DESIGN.md §3 step 2).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Penetration resolution on the shot's driver (every triangle): every driven vertex stays on
 // its side of the skin (Model::sides), at least the skin offset from it. Cloth inside the body
 // or closer than the offset moves out to the offset along the pseudo-normal at its closest

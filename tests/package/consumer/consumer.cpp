@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Evaluates a shot in memory through the installed library and compares every frame, bitwise,
 // with the command line's bake of the same frames.
 //
