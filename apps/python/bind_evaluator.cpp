@@ -335,7 +335,8 @@ void bindSettings(py::module_& module) {
              << ", resolve=" << (s.resolve ? "True" : "False") << ", skin_offset=" << s.skinOffset
              << ", exit_fade=" << s.exitFade << ", regions=" << (s.regions ? "<RegionSet>" : "None")
              << ", max_weight_change=" << s.maxWeightChange
-             << ", coverage_tolerance=" << s.coverageTolerance << ", audit=" << (s.audit ? "True" : "False")
+             << ", coverage_tolerance=" << s.coverageTolerance
+             << ", audit=" << (s.audit ? "True" : "False")
              << ", layers=" << (s.layers.empty() ? "None" : "<LayerSettings>")
              << ", threads=" << s.threads << ")";
         return text.str();

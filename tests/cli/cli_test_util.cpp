@@ -75,6 +75,16 @@ std::string buildDb(const TempDir& dir) {
   return db;
 }
 
+std::string buildPoseDb(const TempDir& dir, const std::string& name) {
+  const std::string db = dir.file(name);
+  const CliRun r =
+      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
+                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
+                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
+  EXPECT_EQ(r.code, 0) << r.err;
+  return db;
+}
+
 std::vector<std::string> filesIn(const std::string& dir) {
   std::vector<std::string> names;
   for (const auto& entry : std::filesystem::recursive_directory_iterator(dir)) {

@@ -37,6 +37,8 @@ std::string sample(const std::string& name);
 
 /// Builds a small database of the sample (5 shapes) in `dir` with the CLI; returns its path.
 std::string buildDb(const TempDir& dir);
+/// The same with `db build`'s defaults otherwise (the pose model), as `name` in `dir`.
+std::string buildPoseDb(const TempDir& dir, const std::string& name = "pose.dsdb");
 
 /// Files in `dir` (recursively) other than the harness's own; leftover temporary files
 /// (`.name.tmp-*`) are listed too, since one is a failure.

@@ -365,12 +365,7 @@ TEST(CliRegression, ThreadCountsPastTheMachineAreClampedAndSaidSo) {
 // unknown group, `2146` (past the last vertex) and `0-3` all exited 0 and changed nothing.
 TEST(CliRegression, AlignGroupIsCheckedWhicheverWeightsRun) {
   TempDir dir;
-  const std::string db = dir.file("pose.dsdb");
-  CliRun r =
-      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
-  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string db = testing::buildPoseDb(dir);
   const std::string out = dir.file("a.####.exr");
   for (const std::string group : {"nosuchgroup", "2146"}) {
     std::vector<std::string> args = bakeArgs(db, "1", out);
@@ -379,7 +374,7 @@ TEST(CliRegression, AlignGroupIsCheckedWhicheverWeightsRun) {
   }
   std::vector<std::string> args = bakeArgs(db, "1", out);
   args.insert(args.end(), {"--align-group", "0-3"});
-  r = runCli(dir, args);
+  CliRun r = runCli(dir, args);
   expectError(r, 2, "align group '0-3'");
   EXPECT_NE(r.err.find("weights model"), std::string::npos) << r.err;
   args.insert(args.end(), {"--weights", "qp"});

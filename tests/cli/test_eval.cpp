@@ -469,12 +469,8 @@ TEST(EvalCommand, CubeTableAndJsonMatchTheAnalyticTruth) {
 
 TEST(EvalCommand, SleeveBaselineEqualsTheBindBakeAndTruthAgainstItself) {
   TempDir dir;
-  const std::string db = dir.file("sleeve.dsdb");
-  CliRun r =
-      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
-  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string db = testing::buildPoseDb(dir);
+  CliRun r;
   const std::string frames = "1-13x4";
   fs::create_directories(dir.file("bind"));
   r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", frames,
@@ -587,17 +583,6 @@ TEST(EvalCommand, ClearErrors) {
 }
 
 // ---- eval --report: the bake's coverage verdict against the truth ----
-
-/// A pose-model database of the sleeve (the default `db build`) in `dir`.
-std::string buildPoseDb(const TempDir& dir) {
-  const std::string db = dir.file("pose.dsdb");
-  const CliRun r =
-      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
-  EXPECT_EQ(r.code, 0) << r.err;
-  return db;
-}
 
 /// Bakes the sleeve's test driver into dir/<name>/ with a report; returns the report's path.
 std::string bakeWithReport(const TempDir& dir, const std::string& db, const std::string& name,
