@@ -2,7 +2,6 @@
 #include "reference_frames.h"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 #include <set>
 
@@ -69,13 +68,10 @@ std::vector<float> readFiniteFrames(const PointCacheReader& cache, const std::ve
       DS_THROW(kInput, role, " cache '", cache.path(), "' has no frame ", frame);
     }
   }
-  std::vector<float> values = readFrames(cache, frames);
   const std::size_t perFrame = static_cast<std::size_t>(cache.vertexCount()) * 3;
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    if (!std::isfinite(values[i])) {
-      DS_THROW(kInput, role, " cache '", cache.path(), "' frame ", frames[i / perFrame], " vertex ",
-               (i % perFrame) / 3, " is not a finite number; fix the cache");
-    }
+  std::vector<float> values(frames.size() * perFrame);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    readFiniteFrame(cache, frames[i], values.data() + i * perFrame, std::string(role) + " cache");
   }
   return values;
 }

@@ -175,14 +175,11 @@ void PointCacheReader::checkFinite(const std::string& source, int frame, const f
 
 void readFiniteFrame(const PointCacheReader& cache, int frame, float* xyz,
                      const std::string& role) {
-  try {
-    cache.readFrame(frame, xyz);  // the readers refuse non-finite positions themselves
-  } catch (const Error& error) {
-    if (error.code() != ErrorCode::kInput) {
-      throw;
-    }
-    throw Error(ErrorCode::kInput, role + ": " + error.what());
-  }
+  cache.readFrame(frame, xyz);
+  // The readers refuse non-finite positions themselves, except one opened with
+  // allowNonFinite: this contract holds whatever reader it is given.
+  requireFiniteFrame(role + " '" + cache.path() + "'", frame, xyz,
+                     3 * static_cast<std::size_t>(cache.vertexCount()));
 }
 
 }  // namespace drivenshape

@@ -51,8 +51,8 @@ std::unique_ptr<PointCacheReader> openPointCache(const std::string& spec,
 std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<int>& frames);
 
 /// Reads one frame (as PointCacheReader::readFrame) and refuses a NaN or infinite position
-/// with Error(kInput) naming `role` ("driver cache", "truth"), the file, the frame and the
-/// vertex.
+/// with Error(kInput) naming the file, the frame and the vertex (and `role`, "driver cache",
+/// "truth", for a reader opened with allowNonFinite, whose readFrame lets them through).
 void readFiniteFrame(const PointCacheReader& cache, int frame, float* xyz, const std::string& role);
 
 // ---------------------------------------------------------------------------------------
