@@ -204,4 +204,16 @@ std::string absolute(const std::string& path) {
   return ec ? path : full.lexically_normal().string();
 }
 
+std::vector<NamedPath> givenPaths(const ArgParser& parser,
+                                  std::initializer_list<const char*> options, bool sequences) {
+  std::vector<NamedPath> paths;
+  for (const char* option : options) {
+    if (parser.has(option)) {
+      const std::string value = parser.get(option);
+      paths.push_back({option, value, sequences && hasFramePattern(value)});
+    }
+  }
+  return paths;
+}
+
 }  // namespace drivenshape::cli

@@ -1,9 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
+#include <initializer_list>
 #include <map>
 #include <string>
 #include <vector>
+
+#include <drivenshape/frames.h>
 
 namespace drivenshape::cli {
 
@@ -63,5 +66,12 @@ class ArgParser {
 
 /// `path` made absolute and normalised, for messages and summaries (unchanged if that fails).
 std::string absolute(const std::string& path);
+
+/// The files `options` name on the command line (those given), for checkDistinctPaths. With
+/// `sequences`, a value with a frame token is a sequence (a cache pattern), else every value is
+/// one file.
+std::vector<NamedPath> givenPaths(const ArgParser& parser,
+                                  std::initializer_list<const char*> options,
+                                  bool sequences = false);
 
 }  // namespace drivenshape::cli

@@ -479,14 +479,9 @@ void checkBakePaths(const ArgParser& parser, const BakeOptions& options,
   if (!posmapPattern.empty()) {
     outputs.push_back({"--posmap-out", posmapPattern, true});
   }
-  const std::string driver = parser.get("--driver");
-  std::vector<NamedPath> inputs = {{"--db", parser.get("--db"), false},
-                                   {"--driver", driver, hasFramePattern(driver)}};
-  for (const char* option : {"--bind", "--regions"}) {
-    if (parser.has(option)) {
-      inputs.push_back({option, parser.get(option), false});
-    }
-  }
+  std::vector<NamedPath> inputs = givenPaths(parser, {"--db", "--bind", "--regions"});
+  const std::vector<NamedPath> driver = givenPaths(parser, {"--driver"}, true);
+  inputs.insert(inputs.end(), driver.begin(), driver.end());
   checkDistinctPaths(outputs, options.frames, inputs);
 }
 

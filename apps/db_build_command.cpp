@@ -210,22 +210,9 @@ int runDbBuild(const std::vector<std::string>& args) {
   if (!jsonPath.empty()) {
     checkOutputFolderWritable(jsonPath);
   }
-  {
-    std::vector<NamedPath> outputs;
-    if (!output.empty()) {
-      outputs.push_back({"-o", output, false});
-    }
-    if (!jsonPath.empty()) {
-      outputs.push_back({"--suggest-json", jsonPath, false});
-    }
-    std::vector<NamedPath> inputs;
-    for (const char* option : {"--driver-mesh", "--driven-mesh", "--driver", "--driven", "--rig"}) {
-      if (parser.has(option)) {
-        inputs.push_back({option, parser.get(option), false});
-      }
-    }
-    checkDistinctPaths(outputs, {}, inputs);
-  }
+  checkDistinctPaths(
+      givenPaths(parser, {"-o", "--suggest-json"}), {},
+      givenPaths(parser, {"--driver-mesh", "--driven-mesh", "--driver", "--driven", "--rig"}));
   // Parse every cache word before reading anything (usage errors first).
   std::vector<std::pair<std::string, CacheSpec>> alsoSpecs;
   for (const std::vector<std::string>& words : parser.all("--also")) {

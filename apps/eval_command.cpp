@@ -353,19 +353,12 @@ int runEval(const std::vector<std::string>& args) {
   }
   if (parser.has("--json")) {
     checkOutputFolderWritable(parser.get("--json"));
-    std::vector<NamedPath> inputs;
-    for (const char* option : {"--truth", "--bake", "--driver"}) {
-      if (parser.has(option)) {
-        inputs.push_back({option, parser.get(option), hasFramePattern(parser.get(option))});
-      }
-    }
-    for (const char* option : {"--driver-mesh", "--driven-mesh", "--db", "--bind", "--report"}) {
-      if (parser.has(option)) {
-        inputs.push_back({option, parser.get(option), false});
-      }
-    }
-    checkDistinctPaths({{"--json", parser.get("--json"), false}},
-                       parseFrameRange(parser.get("--frames")), inputs);
+    std::vector<NamedPath> inputs = givenPaths(parser, {"--truth", "--bake", "--driver"}, true);
+    const std::vector<NamedPath> files =
+        givenPaths(parser, {"--driver-mesh", "--driven-mesh", "--db", "--bind", "--report"});
+    inputs.insert(inputs.end(), files.begin(), files.end());
+    checkDistinctPaths(givenPaths(parser, {"--json"}), parseFrameRange(parser.get("--frames")),
+                       inputs);
   }
 
   // Read before the evaluation, so a bad report fails at once.

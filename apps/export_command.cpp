@@ -100,18 +100,10 @@ int runExport(const std::vector<std::string>& args) {
     checkOutputFolderWritable(parser.get("--obj"));
   }
   {
-    std::vector<NamedPath> outputs;
-    for (const char* option : {"--pc2", "--obj"}) {
-      if (parser.has(option)) {
-        outputs.push_back({option, parser.get(option), false});
-      }
-    }
-    const std::string cache = parser.get("--cache");
-    std::vector<NamedPath> inputs = {{"--cache", cache, hasFramePattern(cache)}};
-    if (parser.has("--mesh")) {
-      inputs.push_back({"--mesh", parser.get("--mesh"), false});
-    }
-    checkDistinctPaths(outputs, frames, inputs);
+    std::vector<NamedPath> inputs = givenPaths(parser, {"--cache"}, true);
+    const std::vector<NamedPath> mesh = givenPaths(parser, {"--mesh"});
+    inputs.insert(inputs.end(), mesh.begin(), mesh.end());
+    checkDistinctPaths(givenPaths(parser, {"--pc2", "--obj"}), frames, inputs);
   }
 
   std::optional<Mesh> mesh;
