@@ -22,6 +22,7 @@
 #include "atomic_file.h"
 
 #include "json_text.h"
+#include "text.h"
 
 #include "cli_args.h"
 
@@ -584,44 +585,6 @@ constexpr std::size_t kOpenJdMaxDescription = 2048;
 constexpr std::size_t kOpenJdMaxParameterValue = 1024;
 constexpr std::size_t kOpenJdMaxVariableValue = 2048;
 constexpr int kOpenJdMaxNotifySeconds = 600;
-
-/// Whether `text` is well-formed UTF-8 (no overlong forms, surrogates or values past U+10FFFF).
-bool isUtf8(const std::string& text) {
-  std::size_t i = 0;
-  while (i < text.size()) {
-    const auto byte = static_cast<unsigned char>(text[i]);
-    std::size_t length = 1;
-    std::uint32_t point = byte;
-    if (byte >= 0xF0 && byte <= 0xF4) {
-      length = 4;
-      point = byte & 0x07u;
-    } else if (byte >= 0xE0) {
-      length = byte <= 0xEF ? 3 : 0;
-      point = byte & 0x0Fu;
-    } else if (byte >= 0xC2) {
-      length = byte <= 0xDF ? 2 : 0;
-      point = byte & 0x1Fu;
-    } else if (byte >= 0x80) {
-      length = 0;  // a continuation byte first, or an overlong 0xC0/0xC1 lead
-    }
-    if (length == 0 || i + length > text.size()) {
-      return false;
-    }
-    for (std::size_t k = 1; k < length; ++k) {
-      const auto next = static_cast<unsigned char>(text[i + k]);
-      if ((next & 0xC0u) != 0x80u) {
-        return false;
-      }
-      point = (point << 6) | (next & 0x3Fu);
-    }
-    if ((length == 3 && (point < 0x800 || (point >= 0xD800 && point <= 0xDFFF))) ||
-        (length == 4 && (point < 0x10000 || point > 0x10FFFF))) {
-      return false;
-    }
-    i += length;
-  }
-  return true;
-}
 
 /// Characters of UTF-8 `text`, as Open Job Description counts lengths.
 std::size_t characterCount(const std::string& text) {

@@ -58,6 +58,17 @@ void appendEscaped(std::string& out, const std::string& text, std::size_t begin,
 
 }  // namespace
 
+bool isUtf8(const std::string& text) {
+  for (std::size_t i = 0; i < text.size();) {
+    const std::size_t length = static_cast<unsigned char>(text[i]) < 0x80 ? 1 : utf8Length(text, i);
+    if (length == 0) {
+      return false;
+    }
+    i += length;
+  }
+  return true;
+}
+
 std::string printableText(const std::string& text, std::size_t maxBytes) {
   std::string out;
   if (text.size() <= maxBytes) {

@@ -26,4 +26,8 @@ namespace drivenshape {
 /// a text longer than `maxBytes` keeps its start and end around "...(N bytes)...".
 std::string printableText(const std::string& text, std::size_t maxBytes = 4000);
 
+/// Whether `text` is well-formed UTF-8 (no overlong forms, surrogates or code points past
+/// U+10FFFF).
+bool isUtf8(const std::string& text);
+
 }  // namespace drivenshape

@@ -135,6 +135,11 @@ TEST(PrintableText, EscapesBadBytesKeepsUtf8AndShortens) {
   EXPECT_EQ(printableText(std::string("a\0b\x1b", 4)), "a\\x00b\\x1b");
   EXPECT_EQ(printableText("\xe2\x82"), "\\xe2\\x82");           // a cut sequence
   EXPECT_EQ(printableText("\xed\xa0\x80"), "\\xed\\xa0\\x80");  // a surrogate
+  EXPECT_TRUE(isUtf8("caf\xc3\xa9 \xf0\x9f\x98\x80"));
+  for (const char* bad :
+       {"\xf7", "\xc0\xaf", "\xe0\x80\xaf", "\xed\xa0\x80", "\xf4\x90\x80\x80", "\xe2\x82"}) {
+    EXPECT_FALSE(isUtf8(bad)) << printableText(bad);
+  }
   const std::string shortened = printableText(std::string(5000, 'p'), 100);
   EXPECT_EQ(shortened, std::string(50, 'p') + "...(5000 bytes)..." + std::string(50, 'p'));
 }
