@@ -5,9 +5,12 @@
 #include <cerrno>
 #include <cstdlib>
 #include <filesystem>
+#include <iostream>
 #include <sstream>
 
 #include <drivenshape/error.h>
+
+#include "atomic_file.h"
 
 namespace drivenshape::cli {
 
@@ -214,6 +217,16 @@ std::vector<NamedPath> givenPaths(const ArgParser& parser,
     }
   }
   return paths;
+}
+
+void createOutputFoldersFor(const std::vector<std::string>& paths, bool quiet) {
+  for (const std::string& path : paths) {
+    for (const std::string& folder : createOutputFolders(path)) {
+      if (!quiet) {
+        std::cerr << "created folder " << absolute(folder) << "\n";
+      }
+    }
+  }
 }
 
 }  // namespace drivenshape::cli

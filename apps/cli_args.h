@@ -74,4 +74,8 @@ std::vector<NamedPath> givenPaths(const ArgParser& parser,
                                   std::initializer_list<const char*> options,
                                   bool sequences = false);
 
+/// Creates the missing folders of the output files `paths` (createOutputFolders), as Houdini's
+/// ROPs do, and names each one it created on stderr unless `quiet`.
+void createOutputFoldersFor(const std::vector<std::string>& paths, bool quiet);
+
 }  // namespace drivenshape::cli

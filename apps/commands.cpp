@@ -485,6 +485,19 @@ void checkBakePaths(const ArgParser& parser, const BakeOptions& options,
   checkDistinctPaths(outputs, options.frames, inputs);
 }
 
+/// Creates the missing folders of the bake's outputs (frames, report, position maps).
+void createBakeFolders(const BakeOptions& options, const std::string& posmapPattern, bool quiet) {
+  std::vector<std::string> paths = {
+      expandFramePattern(options.outputPattern, options.frames.front())};
+  if (!options.reportPath.empty()) {
+    paths.push_back(options.reportPath);
+  }
+  if (!posmapPattern.empty()) {
+    paths.push_back(expandFramePattern(posmapPattern, options.frames.front()));
+  }
+  createOutputFoldersFor(paths, quiet);
+}
+
 int bakeParsed(const ArgParser& parser) {
   BakeOptions options;
   options.frames = parseFrameRange(parser.get("--frames"));
@@ -565,7 +578,8 @@ int bakeParsed(const ArgParser& parser) {
     }
   }
   checkBakePaths(parser, options, posmapPattern);
-  checkOutputFolderWritable(expandFramePattern(options.outputPattern, options.frames.front()));
+  // Missing output folders are created once the inputs have loaded (createBakeFolders).
+  missingOutputFolders(expandFramePattern(options.outputPattern, options.frames.front()));
 
   const Database db = loadDatabase(parser.get("--db"));
   admitDriverMesh(db, parser.get("--db"), parser.has("--untrusted-driver"), options);
@@ -578,6 +592,7 @@ int bakeParsed(const ArgParser& parser) {
   const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
   const std::string device = target->description();
   const bool quiet = parser.has("--quiet");
+  createBakeFolders(options, posmapPattern, quiet);
   if (!quiet) {
     std::cerr << "baking " << options.frames.size() << " frames ("
               << formatFrameRange(options.frames) << ") on " << device << "\n";
@@ -594,7 +609,6 @@ int bakeParsed(const ArgParser& parser) {
     maps.zipEncoder = options.zipEncoder;
     maps.framesPerSecond = options.framesPerSecond;
     maps.threads = options.threads;
-    checkOutputFolderWritable(expandFramePattern(posmapPattern, options.frames.front()));
     observer.setPositionMaps(
         std::make_unique<PositionMapWriter>(db.drivenMesh, maps, target->makePositionMaps(),
                                             "the database's driven mesh", &std::cerr),

@@ -74,7 +74,7 @@ int runPosmap(const std::vector<std::string>& args) {
   if (!hasFramePattern(output)) {
     DS_THROW(kUsage, "-o '", output, "' has no frame token; use e.g. maps/cloth.####.exr");
   }
-  checkOutputFolderWritable(expandFramePattern(output, frames.front()));
+  missingOutputFolders(expandFramePattern(output, frames.front()));  // created once inputs load
   const std::string cachePath = parser.get("--cache");
   checkDistinctPaths({{"-o", output, true}}, frames,
                      {{"--cache", cachePath, hasFramePattern(cachePath)},
@@ -85,6 +85,7 @@ int runPosmap(const std::vector<std::string>& args) {
   // EXR caches carry a topology hash: it must be this mesh's.
   const auto cache = openPointCache(parser.get("--cache"), topologyHash(mesh));
   const bool quiet = parser.has("--quiet");
+  createOutputFoldersFor({expandFramePattern(output, frames.front())}, quiet);
   std::string device;
   const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
   device = target->description();

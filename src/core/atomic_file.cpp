@@ -147,6 +147,40 @@ void checkOutputFolderWritable(const std::string& path) {
   checkNameLength(path, folder);
 }
 
+std::vector<std::string> missingOutputFolders(const std::string& path) {
+  std::vector<std::string> missing;
+  std::filesystem::path folder = folderOf(path);
+  struct stat status {};
+  while (::stat(folder.c_str(), &status) != 0 && errno == ENOENT && folder.has_relative_path()) {
+    missing.insert(missing.begin(), folder.string());
+    folder = folder.has_parent_path() ? folder.parent_path() : std::filesystem::path(".");
+  }
+  if (missing.empty()) {
+    checkOutputFolderWritable(path);
+    return missing;
+  }
+  // The nearest folder that exists must take the new ones (checked with a file name in it).
+  checkOutputFolderWritable((folder / "x").string());
+  if (path.size() >= PATH_MAX) {
+    checkOutputFolderWritable(path);  // throws: the path is past PATH_MAX
+  }
+  return missing;
+}
+
+std::vector<std::string> createOutputFolders(const std::string& path) {
+  std::vector<std::string> created;
+  for (const std::string& folder : missingOutputFolders(path)) {
+    if (::mkdir(folder.c_str(), 0777) == 0) {
+      created.push_back(folder);
+    } else if (errno != EEXIST) {
+      DS_THROW(kOutput, "cannot create output folder '", shown(folder), "' (for ", shown(path),
+               "): ", std::strerror(errno));
+    }
+  }
+  checkOutputFolderWritable(path);
+  return created;
+}
+
 AtomicFile::AtomicFile(std::string finalPath) : mFinalPath(std::move(finalPath)) {
   checkOutputFolderWritable(mFinalPath);
   const std::string folder = folderOf(mFinalPath);

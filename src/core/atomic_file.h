@@ -81,4 +81,16 @@ void requireRegularFile(const std::string& path, const std::string& what);
 /// limits). Call before long work so a bad -o fails in the first second.
 void checkOutputFolderWritable(const std::string& path);
 
+/// The folders above the output `path` that do not exist yet, outermost first (empty when its
+/// folder exists). Throws Error(kOutput) as checkOutputFolderWritable does, and naming the
+/// nearest folder that exists when that one is not a writable folder, so a command can refuse
+/// a bad -o before long work without creating anything.
+std::vector<std::string> missingOutputFolders(const std::string& path);
+
+/// Creates the folders missingOutputFolders(path) names, outermost first, like `mkdir -p`
+/// (another process creating one at the same moment, e.g. a farm task beside this one, is
+/// fine), and returns the ones this call created. Throws Error(kOutput) naming the folder that
+/// could not be created.
+std::vector<std::string> createOutputFolders(const std::string& path);
+
 }  // namespace drivenshape

@@ -271,14 +271,38 @@ TEST(Cli, DriverOfAnotherCharacterIsAnInputError) {
   EXPECT_TRUE(filesIn(dir.file("out")).empty());
 }
 
+TEST(Cli, BakeAndPosmapCreateMissingOutputFoldersAndSaySo) {
+  TempDir dir;
+  const std::string db = buildDb(dir);
+  CliRun r =
+      runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-2",
+                   "-o", dir.file("shot/v001/x.####.exr"), "--report", dir.file("reports/x.json"),
+                   "--posmap", "16", "--posmap-out", dir.file("maps/m.####.exr")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* folder : {"shot", "shot/v001", "reports", "maps"}) {
+    EXPECT_NE(r.err.find("created folder " + dir.file(folder) + "\n"), std::string::npos)
+        << folder << " in: " << r.err;
+  }
+  EXPECT_EQ(filesIn(dir.file("shot/v001")).size(), 2u);
+  EXPECT_TRUE(fs::is_regular_file(dir.file("reports/x.json")));
+  EXPECT_EQ(filesIn(dir.file("maps")).size(), 2u);
+  r = runCli(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache",
+                   dir.file("shot/v001/x.####.exr"), "--frames", "1-2", "--res", "16", "-o",
+                   dir.file("posmaps/p.####.exr")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("created folder " + dir.file("posmaps")), std::string::npos) << r.err;
+  EXPECT_EQ(filesIn(dir.file("posmaps")).size(), 2u);
+}
+
 TEST(Cli, UnwritableOutputFolderIsAnOutputError) {
   TempDir dir;
   const std::string db = buildDb(dir);
-  // A folder that does not exist.
+  // A file where the output folder should be: nothing is created or written.
+  std::ofstream(dir.file("plain")) << "x";
   CliRun r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames",
-                          "1-3", "-o", dir.file("missing/x.####.exr")});
-  expectError(r, 4, "missing");
-  EXPECT_FALSE(fs::exists(dir.file("missing")));
+                          "1-3", "-o", dir.file("plain/sub/x.####.exr")});
+  expectError(r, 4, "plain/sub");
+  EXPECT_EQ(fs::file_size(dir.file("plain")), 1u);
   // A read-only folder (only meaningful when not root: root writes anywhere).
   fs::create_directories(dir.file("ro"));
   fs::permissions(dir.file("ro"), fs::perms::owner_read | fs::perms::owner_exec);

@@ -10,6 +10,8 @@
 #include <fstream>
 #include <set>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
@@ -89,6 +91,53 @@ TEST(RequireRegularFile, FifosFoldersAndMissingFilesAreRefused) {
   testing::expectThrows([&] { readWholeFile(dir.path(), "OBJ"); }, ErrorCode::kInput, "folder");
   testing::expectThrows([&] { readWholeFile(dir.file("none"), "OBJ"); }, ErrorCode::kInput,
                         "cannot read OBJ");
+}
+
+TEST(OutputFolders, MissingOnesAreNamedThenCreatedOnceAndAFileInTheWayIsRefused) {
+  TempDir dir;
+  const std::string output = dir.file("a/b/c/cloth.0001.exr");
+  const std::vector<std::string> expected = {dir.file("a"), dir.file("a/b"), dir.file("a/b/c")};
+  EXPECT_EQ(missingOutputFolders(output), expected);
+  EXPECT_FALSE(fs::exists(dir.file("a"))) << "naming the missing folders creates nothing";
+  fs::create_directories(dir.file("a"));
+  EXPECT_EQ(createOutputFolders(output),
+            std::vector<std::string>(expected.begin() + 1, expected.end()));
+  EXPECT_TRUE(fs::is_directory(dir.file("a/b/c")));
+  EXPECT_TRUE(createOutputFolders(output).empty()) << "folders that exist are not created again";
+  EXPECT_TRUE(missingOutputFolders(output).empty());
+  // A file where a folder should be: refused, naming it, before and when creating.
+  std::ofstream(dir.file("file")) << "x";
+  testing::expectThrows([&] { missingOutputFolders(dir.file("file/d/x.exr")); }, ErrorCode::kOutput,
+                        "file/d");
+  testing::expectThrows([&] { createOutputFolders(dir.file("file/d/x.exr")); }, ErrorCode::kOutput,
+                        "file/d");
+  testing::expectThrows([&] { createOutputFolders(dir.file("file/x.exr")); }, ErrorCode::kOutput,
+                        "is not a folder");
+  // Relative paths (the current folder is the nearest that exists).
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir.path());
+  EXPECT_EQ(createOutputFolders("rel/x.exr"), std::vector<std::string>{"rel"});
+  fs::current_path(previous);
+  EXPECT_TRUE(fs::is_directory(dir.file("rel")));
+}
+
+TEST(OutputFolders, TasksCreatingTheSameFoldersAtOnceAllSucceed) {
+  TempDir dir;
+  const std::string output = dir.file("shot/v001/cloth.0001.exr");
+  std::vector<std::thread> tasks;
+  std::vector<std::size_t> created(8, 0);
+  for (std::size_t i = 0; i < created.size(); ++i) {
+    tasks.emplace_back([&, i] { created[i] = createOutputFolders(output).size(); });
+  }
+  for (std::thread& task : tasks) {
+    task.join();
+  }
+  std::size_t total = 0;
+  for (std::size_t count : created) {
+    total += count;
+  }
+  EXPECT_EQ(total, 2u) << "each folder is created by exactly one task";
+  EXPECT_TRUE(fs::is_directory(dir.file("shot/v001")));
 }
 
 TEST(CheckDistinctPaths, OutputsNamingOneFileOrAnInputAreRefused) {
