@@ -5,6 +5,7 @@ be bitwise the command line's bake of the PC2 (its EXRs read by the OpenEXR PyPI
 Written stages are checked by usd-core's validators (UsdValidation, the successor of
 UsdUtils.ComplianceChecker, which usd-core 26 no longer ships)."""
 
+import json
 import os
 import subprocess
 import sys
@@ -264,3 +265,102 @@ def test_world_space_applies_the_prims_transform(database, data, tmp_path):
                          positions[:2, :, 2] + 3.0], axis=-1)
     # Tolerance: the matrix's cos(90 degrees) is 6e-17, not 0; float32 rounding after it.
     assert np.abs(world.positions - expected).max() < 1e-6
+
+
+def uv_sphere(rings=48, segments=96, radius=0.3):
+    """A closed UV sphere: quads between rings, triangle fans at the poles, faces wound
+    counter-clockwise seen from outside. Returns (points (V, 3), counts, indices)."""
+    points = [(0.0, 0.0, radius)]
+    for ring in range(1, rings):
+        polar = np.pi * ring / rings
+        for segment in range(segments):
+            azimuth = 2 * np.pi * segment / segments
+            points.append((radius * np.sin(polar) * np.cos(azimuth),
+                           radius * np.sin(polar) * np.sin(azimuth), radius * np.cos(polar)))
+    points.append((0.0, 0.0, -radius))
+    south = len(points) - 1
+
+    def at(ring, segment):  # ring 1..rings-1
+        return 1 + (ring - 1) * segments + segment % segments
+
+    counts, indices = [], []
+    for segment in range(segments):
+        counts.append(3)
+        indices += [0, at(1, segment), at(1, segment + 1)]
+        counts.append(3)
+        indices += [south, at(rings - 1, segment + 1), at(rings - 1, segment)]
+    for ring in range(1, rings - 1):
+        for segment in range(segments):
+            counts.append(4)
+            indices += [at(ring, segment), at(ring + 1, segment), at(ring + 1, segment + 1),
+                        at(ring, segment + 1)]
+    return np.asarray(points, dtype=np.float32), np.asarray(counts), np.asarray(indices)
+
+
+# The largest angle between a vertex normal of the 48 x 96 sphere and its exact radial normal:
+# the discretisation alone (the fan normals of a quad at a vertex lean by about half a ring).
+SPHERE_NORMAL_DEGREES = 2.0
+# Velocities against the point differences they come from: float32 rounding of both.
+VELOCITY_RELATIVE = 1e-5
+
+
+def test_written_normals_are_the_surface_normals_and_velocities_the_point_differences(
+        tmp_path):
+    points, counts, indices = uv_sphere()
+    mesh = {"counts": counts, "indices": indices, "uvs": None, "groups": {}}
+    frames = [10, 11, 12, 14]  # a gap: the velocity spans the time between samples
+    shifts = np.asarray([[0, 0, 0], [0.01, 0, 0], [0.03, 0.01, 0], [0.05, 0.05, 0.02]],
+                        dtype=np.float32)
+    positions = np.stack([points + shift for shift in shifts])
+    out = tmp_path / "sphere.usda"
+    usd.write_mesh_usd(out, mesh, frames, positions, prim_path="/Ball/Mesh", fps=24.0)
+    stage = Usd.Stage.Open(str(out))
+    geom = UsdGeom.Mesh(stage.GetPrimAtPath("/Ball/Mesh"))
+    assert geom.GetNormalsInterpolation() == UsdGeom.Tokens.vertex
+    for index, frame in enumerate(frames):
+        normals = np.asarray(geom.GetNormalsAttr().Get(frame), dtype=np.float64)
+        radial = positions[index] - shifts[index]
+        radial = radial / np.linalg.norm(radial, axis=1, keepdims=True)
+        cosine = np.clip(np.sum(normals * radial, axis=1), -1, 1)
+        worst = np.degrees(np.arccos(cosine)).max()
+        assert worst < SPHERE_NORMAL_DEGREES, f"frame {frame}: a normal {worst:.2f} deg off"
+    seconds = np.asarray(frames, dtype=np.float64) / 24.0
+    for index, frame in enumerate(frames):
+        before, after = max(index - 1, 0), min(index + 1, len(frames) - 1)
+        expected = (positions[after].astype(np.float64) - positions[before]) / (
+            seconds[after] - seconds[before])
+        velocities = np.asarray(geom.GetVelocitiesAttr().Get(frame), dtype=np.float64)
+        scale = np.abs(expected).max()
+        assert np.abs(velocities - expected).max() <= VELOCITY_RELATIVE * scale, frame
+    assert Usd.ModelAPI(stage.GetPrimAtPath("/Ball")).GetKind() == "component"
+    assert validation_errors(out) == []
+
+
+def test_usd_bake_records_its_provenance(driver_usd, pose_bakes, tmp_path, opencl_device):
+    out = tmp_path / "cloth.usdc"
+    usd_bake("--db", pose_bakes.database, "--usd", driver_usd, "--prim", "/Character/Arm",
+             "--out", out)
+    report = json.loads(
+        (pose_bakes.folder("auto") / "sleeve.report.json").read_text(encoding="utf-8"))
+    stage = Usd.Stage.Open(str(out))
+    mesh = stage.GetPrimAtPath("/Garment/Mesh")
+    provenance = mesh.GetCustomDataByKey("drivenshape")
+    assert provenance["tool_version"] == ds.__version__
+    # The database the CLI bake read; the default evaluator's hash (the EXR bake's own hash
+    # also covers its file options), which another setting changes.
+    assert provenance["database_content_hash"] == report["database"]["content_hash"]
+    defaults = ds.Evaluator(ds.load_database(pose_bakes.database), ds.EvaluatorSettings(),
+                            ds.open_device("host"))
+    assert provenance["evaluator_settings_hash"] == format(defaults.settings_hash, "016x")
+    other = tmp_path / "cloth_fade.usdc"
+    usd_bake("--db", pose_bakes.database, "--usd", driver_usd, "--prim", "/Character/Arm",
+             "--out", other, "--exit-fade", "0.05")
+    other_stage = Usd.Stage.Open(str(other))
+    changed = other_stage.GetPrimAtPath("/Garment/Mesh").GetCustomDataByKey("drivenshape")
+    assert changed["evaluator_settings_hash"] != provenance["evaluator_settings_hash"]
+    assert provenance["database"] == os.path.abspath(pose_bakes.database)
+    assert provenance["driver"] == f"{os.path.abspath(driver_usd)}:/Character/Arm"
+    geom = UsdGeom.Mesh(mesh)
+    assert geom.GetNormalsAttr().GetTimeSamples() == [float(f) for f in TEST_FRAMES]
+    assert geom.GetVelocitiesAttr().GetTimeSamples() == [float(f) for f in TEST_FRAMES]
+    assert validation_errors(out) == []

@@ -251,15 +251,62 @@ def _check_output(path):
     return extension, folder
 
 
+def vertex_normals(positions, counts, indices):
+    """Unit vertex normals (F, V, 3) float32 of points (F, V, 3) on polygons (`counts` vertices
+    each, `indices` flattened): the area-weighted sum of the normals of the fan triangles
+    around each vertex, right-handed (counter-clockwise faces point at the viewer). A vertex no
+    face uses, or whose faces have no area, gets (0, 0, 0)."""
+    positions = np.asarray(positions, dtype=np.float64)
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    fans = [np.stack([indices[starts[counts > k + 1]], indices[starts[counts > k + 1] + k],
+                      indices[starts[counts > k + 1] + k + 1]], axis=1)
+            for k in range(1, int(counts.max(initial=0)) - 1)]
+    triangles = np.concatenate(fans) if fans else np.zeros((0, 3), dtype=np.int64)
+    vertex_count = positions.shape[1]
+    normals = np.zeros(positions.shape, dtype=np.float64)
+    for frame, xyz in enumerate(positions):
+        a, b, c = (xyz[triangles[:, corner]] for corner in range(3))
+        face = np.cross(b - a, c - a)  # twice the area, along the face normal
+        for axis in range(3):
+            normals[frame, :, axis] = sum(
+                np.bincount(triangles[:, corner], weights=face[:, axis], minlength=vertex_count)
+                for corner in range(3))
+    length = np.linalg.norm(normals, axis=2, keepdims=True)
+    return np.divide(normals, length, out=np.zeros_like(normals),
+                     where=length > 0).astype(np.float32)
+
+
+def point_velocities(positions, frames, fps):
+    """Velocities (F, V, 3) float32 in stage units per second of points (F, V, 3) at time codes
+    `frames` (timeCodesPerSecond `fps`): central differences between the neighbouring samples,
+    one-sided at the first and last; zero for a single sample. What renderers use for motion
+    blur (UsdGeomPointBased.velocities)."""
+    positions = np.asarray(positions, dtype=np.float64)
+    seconds = np.asarray(frames, dtype=np.float64) / float(fps)
+    if len(positions) < 2:
+        return np.zeros(positions.shape, dtype=np.float32)
+    after = np.minimum(np.arange(len(positions)) + 1, len(positions) - 1)
+    before = np.maximum(np.arange(len(positions)) - 1, 0)
+    step = (seconds[after] - seconds[before])[:, np.newaxis, np.newaxis]
+    return ((positions[after] - positions[before]) / step).astype(np.float32)
+
+
 def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", fps=24.0,
                    up_axis=DEFAULT_UP_AXIS, meters_per_unit=DEFAULT_METERS_PER_UNIT,
-                   points_up_axis=None):
+                   points_up_axis=None, normals=True, velocities=True, provenance=None):
     """Writes a UsdGeomMesh at `prim_path` (its parent an Xform, the root the default prim)
     with points (F, V, 3) at time codes `frames` and their extent per sample, faces, UVs
     (primvars:st, face-varying) and face groups (UsdGeomSubsets, when there are several) of
     `mesh` (a drivenshape.Mesh, or a dict with counts, indices, uvs, groups), the stage's
     upAxis, metersPerUnit, time codes per second and frame range. The file (.usd, .usda,
     .usdc) appears atomically. Points are written as float32 exactly.
+
+    With `normals`, per-sample vertex normals (vertex_normals); with `velocities`, per-sample
+    velocities in units per second (point_velocities) for motion blur. The root prim is a
+    `component` model. `provenance`, a dict of strings (tool version, hashes, source files),
+    goes into the mesh prim's customData under "drivenshape".
 
     up_axis is the stage's upAxis ('Y' or 'Z'); points_up_axis the axis `positions` are in.
     When they differ the points are rotated about X to up_axis (convert_up_axis: Z -> Y is
@@ -320,12 +367,17 @@ def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", 
         geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(counts))
         geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(indices))
         geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+        Usd.ModelAPI(stage.GetPrimAtPath("/" + names[0])).SetKind("component")
         points = geom.CreatePointsAttr()
         extent = geom.CreateExtentAttr()
         for frame, xyz in zip(frames, positions):
             points.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(xyz)), frame)
             bounds = np.stack([xyz.min(axis=0), xyz.max(axis=0)])
             extent.Set(Vt.Vec3fArray.FromNumpy(bounds), frame)
+        _write_motion(geom, Vt, frames, positions, counts, indices, fps, normals, velocities)
+        if provenance:
+            geom.GetPrim().SetCustomDataByKey(
+                "drivenshape", {str(k): str(v) for k, v in provenance.items()})
         if uvs is not None:
             values, uv_indices = uvs
             primvar = UsdGeom.PrimvarsAPI(geom).CreatePrimvar(
@@ -351,11 +403,24 @@ def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", 
             os.remove(temp)
 
 
+def _write_motion(geom, Vt, frames, positions, counts, indices, fps, normals, velocities):
+    """The per-sample normals and velocities write_mesh_usd adds to `geom`."""
+    if normals:
+        attribute = geom.CreateNormalsAttr()
+        geom.SetNormalsInterpolation("vertex")
+        for frame, values in zip(frames, vertex_normals(positions, counts, indices)):
+            attribute.Set(Vt.Vec3fArray.FromNumpy(values), frame)
+    if velocities:
+        attribute = geom.CreateVelocitiesAttr()
+        for frame, values in zip(frames, point_velocities(positions, frames, fps)):
+            attribute.Set(Vt.Vec3fArray.FromNumpy(values), frame)
+
+
 # ---- The bake command ----------------------------------------------------------------------
 
 def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto",
          settings=None, out_prim="/Garment/Mesh", up_axis=None, meters_per_unit=None, fps=None,
-         space="local", check_topology=True, batch=64, temporal_warmup=8):
+         space="local", check_topology=True, batch=64, temporal_warmup=8, database_path=None):
     """The shot from a USD driver to a USD cloth: reads the driver prim's points (`shot` is a
     MeshAnimation, or a USD path with `prim_path`), checks them against the database's driver
     mesh, evaluates them as `drivenshape bake` does (evaluate_cache: batches of `batch` frames,
@@ -364,7 +429,13 @@ def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto"
     and its time codes per second where it authors none). The cloth comes out in the driver's
     axis (the input stage's upAxis, Z where it authors none); an up_axis other than that rotates
     the cloth's points to it, exactly (write_mesh_usd's points_up_axis). Returns a dict summary
-    (frames, device, note, seconds per stage, records)."""
+    (frames, device, note, seconds per stage, records).
+
+    The cloth prim's customData["drivenshape"] records where it came from: tool_version,
+    database_content_hash, evaluator_settings_hash (Evaluator.settings_hash: the model and its
+    settings; an EXR bake's settings_hash also covers its file options), the database file
+    (`database`, or `database_path` when `database` is a loaded Database), the driver file and
+    prim, and the device."""
     import drivenshape as ds
 
     _check_output(out_path)  # before the evaluation, not after it
@@ -384,12 +455,23 @@ def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto"
                                                 batch=batch, temporal_warmup=temporal_warmup,
                                                 with_seconds=True)
     driver_axis = shot.up_axis or DEFAULT_UP_AXIS
+    provenance = {"tool_version": ds.__version__,
+                  "database_content_hash": format(db.content_hash, "016x"),
+                  "evaluator_settings_hash": format(evaluator.settings_hash, "016x"),
+                  "database": _source_name(database_path or database),
+                  "driver": f"{_source_name(shot.path)}:{shot.prim_path}",
+                  "device": evaluator.device_name}
     write_mesh_usd(out_path, db.driven_mesh, shot.frames, cloth, prim_path=out_prim,
                    fps=fps or shot.time_codes_per_second, up_axis=up_axis or driver_axis,
                    meters_per_unit=meters_per_unit or shot.meters_per_unit or
-                   DEFAULT_METERS_PER_UNIT, points_up_axis=driver_axis)
+                   DEFAULT_METERS_PER_UNIT, points_up_axis=driver_axis, provenance=provenance)
     return {"frames": shot.frames, "device": evaluator.device_name, "seconds": seconds,
             "records": records, "note": target.note}
+
+
+def _source_name(source):
+    """An absolute file name for the provenance, or "(in memory)" for an object."""
+    return os.path.abspath(source) if isinstance(source, (str, os.PathLike)) else "(in memory)"
 
 
 def _parser():
@@ -538,7 +620,7 @@ def main(argv=None):
                       out_prim=args.out_prim, up_axis=args.up_axis,
                       meters_per_unit=args.meters_per_unit, fps=args.fps,
                       check_topology=not args.ignore_topology, batch=args.batch,
-                      temporal_warmup=args.temporal_warmup)
+                      temporal_warmup=args.temporal_warmup, database_path=args.db)
         if result["note"] and not args.quiet:
             print(f"warning: {result['note']}", file=sys.stderr)
         if not args.quiet:
