@@ -18,8 +18,10 @@ times what an animator's frame change costs: scene.frame_set() (Blender evaluate
 then the add-on's frame_change_post handler reads it, evaluates one frame and writes the cloth)
 plus the depsgraph update that re-evaluates the cloth; the handler's own split (read driver /
 evaluate / write cloth) comes from the live session. One untimed pass warms up, then --passes
-timed passes; medians and 90th percentiles are printed. Viewport drawing is not included (no
-window in background mode).
+timed passes; medians and 90th percentiles are printed. Then frames that start a batch: jumps to
+the clip's frames in a shuffled order and the clip played backwards, each frame with its warm-up
+frames read by setting the scene to them. Viewport drawing is not included (no window in
+background mode).
 """
 
 import argparse
@@ -89,6 +91,39 @@ def percentiles(values):
     return float(np.median(values)), float(np.percentile(values, 90))
 
 
+def time_frame_changes(scene, order):
+    """Seconds of each frame change to the frames of `order`, the cloth re-evaluated after."""
+    times = []
+    for frame in order:
+        began = time.perf_counter()
+        scene.frame_set(int(frame))
+        bpy.context.evaluated_depsgraph_get()
+        times.append(time.perf_counter() - began)
+    return times
+
+
+def time_jumps(scene, frames, live):
+    """What frames that start a batch cost (a jump, playing backwards): every frame evaluates
+    its warm-up frames first, read by setting the scene to each (the history of the pose model,
+    the temporal bound's warm-up). Frames in a shuffled order (seeded), then the clip backwards;
+    per kind the median and p90 of the frame change and of the handler's read (the current frame
+    and the warm-up frames) and evaluate parts."""
+    out = {}
+    order = np.random.default_rng(27).permutation(frames)
+    for kind, frames_in_order in (("jumps", order), ("backwards", frames[::-1])):
+        time_frame_changes(scene, frames_in_order)  # warm-up
+        live.SESSION.timings = collections.deque(maxlen=len(frames))
+        read_before = live.SESSION.warmup_frames_read
+        totals = time_frame_changes(scene, frames_in_order)
+        handler = np.array(live.SESSION.timings)
+        out[kind] = {"frame_ms": percentiles(totals),
+                     "read_ms": percentiles(handler[:, 0]),
+                     "evaluate_ms": percentiles(handler[:, 1]),
+                     "warmup_frames_read": (live.SESSION.warmup_frames_read - read_before)
+                     / len(frames)}
+    return out
+
+
 def main():
     args = parse_args()
     drivenshape_blender.register()
@@ -141,6 +176,8 @@ def main():
     split = {part: percentiles(handler[:, i])
              for i, part in enumerate(("read_driver", "evaluate", "write_cloth", "handler"))}
     blender_rest = percentiles(np.array(totals) - handler[:, 3])
+    history = engine.CACHE.evaluator.history_frames
+    jumps = time_jumps(scene, frames, live)
     bpy.ops.drivenshape.live_stop()
 
     database_object = engine.CACHE.database
@@ -161,6 +198,8 @@ def main():
         "fps_median": 1000.0 / frame_median,
         "handler_ms": split,
         "blender_ms": blender_rest,
+        "history_frames": history,
+        "batch_starts": jumps,
     }
     print(f"\nlive mode, {name}: {result['driver_vertices']} driver / "
           f"{result['cloth_vertices']} cloth vertices, {result['shapes']} shapes, "
@@ -177,10 +216,21 @@ def main():
     for label, (median, p90) in rows:
         print(f"{label:<40}{median:>8.2f}{p90:>8.2f}")
     print(f"=> {result['fps_median']:.1f} frames/s (median frame)")
+    print_jumps(jumps, history)
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
         with open(args.json, "w", encoding="utf-8") as file:
             json.dump(result, file, indent=1)
+
+
+def print_jumps(jumps, history):
+    print(f"frames that start a batch ({history} history frames), ms    median     p90")
+    for kind, label in (("jumps", "jumps, shuffled order"), ("backwards", "playing backwards")):
+        row = jumps[kind]
+        print(f"{label} ({row['warmup_frames_read']:.1f} warm-up frames read per frame)")
+        for part, name in (("frame_ms", "frame change, all"),
+                           ("read_ms", "  read driver + warm-up"), ("evaluate_ms", "  evaluate")):
+            print(f"{name:<40}{row[part][0]:>8.2f}{row[part][1]:>8.2f}")
 
 
 main()

@@ -717,4 +717,13 @@ void bindEvaluator(py::module_& module) {
           "seconds per stage of the last evaluate call");
 }
 
+// The shot planner's binding (bind_shot_plan.cpp) plans for an Evaluator's settings.
+const Evaluator& evaluatorOf(py::handle object) {
+  if (!py::isinstance<EvaluatorHandle>(object)) {
+    DS_THROW(kUsage, "evaluator must be a drivenshape.Evaluator, not ",
+             std::string(py::str(object.get_type().attr("__name__"))));
+  }
+  return object.cast<const EvaluatorHandle&>().evaluator;
+}
+
 }  // namespace drivenshape::python

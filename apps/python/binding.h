@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
+#include <drivenshape/evaluator.h>
 #include <drivenshape/point_cache.h>
 
 namespace drivenshape::python {
@@ -120,5 +121,9 @@ void bindMeshes(py::module_& module);
 void bindPointCaches(py::module_& module);
 void bindDatabase(py::module_& module);
 void bindEvaluator(py::module_& module);
+void bindShotPlan(py::module_& module);
+
+/// The Evaluator of a drivenshape.Evaluator; Error(kUsage) for any other object.
+const Evaluator& evaluatorOf(py::handle object);
 
 }  // namespace drivenshape::python

@@ -300,4 +300,7 @@ PYBIND11_MODULE(_drivenshape, module) {
   dp::bindPointCaches(module);
   dp::bindDatabase(module);
   dp::bindEvaluator(module);
+
+  // The shot planner (bind_shot_plan.cpp): plan_shot, BatchPlan, PlaybackPlanner.
+  dp::bindShotPlan(module);
 }

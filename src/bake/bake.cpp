@@ -26,6 +26,7 @@
 #include <drivenshape/hash.h>
 #include <drivenshape/mesh_check.h>
 #include <drivenshape/regions.h>
+#include <drivenshape/shot_plan.h>
 #include <drivenshape/version.h>
 #include "atomic_file.h"
 #include "parallel.h"
@@ -82,18 +83,6 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeOpti
   }
 }
 
-/// Frames per launch batch: options.chunkSize, lowered (never below 1) so that one batch's
-/// frame blocks stay within kBatchMemoryBudget. The temporal bound restarts at every batch, so
-/// with it on the batch is exactly options.chunkSize (results depend on it).
-int batchFrames(const BakeOptions& options, std::size_t bytesPerFrame) {
-  if (options.evaluator.maxWeightChange > 0) {
-    return options.chunkSize;
-  }
-  const std::size_t fit =
-      std::max<std::size_t>(1, kBatchMemoryBudget / std::max<std::size_t>(1, bytesPerFrame));
-  return static_cast<int>(std::min<std::size_t>(options.chunkSize, fit));
-}
-
 /// The evaluator's hash plus what the bake adds: the EXR layout and, with the temporal bound,
 /// where batches start.
 std::uint64_t bakeHash(const Evaluator& evaluator, const BakeOptions& options) {
@@ -142,8 +131,8 @@ std::vector<int> planFrames(BakeResult& result, const BakeOptions& options, int 
   return todo;
 }
 
-/// The driver frames of one launch batch: the temporal warm-up frames (solved, not written),
-/// then the batch's own frames.
+/// The driver frames of one launch batch: the warm-up frames (solved, not written), then the
+/// batch's own frames.
 struct BatchInput {
   std::vector<int> solveFrames;
   int warm = 0;
@@ -151,69 +140,28 @@ struct BatchInput {
   double seconds = 0;         ///< time spent reading them
 };
 
-/// Reads batch after batch of the frames to bake, the next one on an I/O task while the
-/// current one is evaluated.
+/// Reads the driver frames of the planned batches (planShot), the next batch on an I/O task
+/// while the current one is evaluated.
 class DriverReader {
  public:
-  /// `history`: earlier frames the evaluator reads before each frame (Evaluator::historyFrames).
-  DriverReader(const PointCacheReader& driver, std::vector<int> frames, const BakeOptions& options,
-               int history, int batch, int threads)
-      : mDriver(driver),
-        mFrames(std::move(frames)),
-        mWarmup(
-            std::max(options.evaluator.maxWeightChange > 0 ? options.temporalWarmup : 0, history)),
-        mBatch(batch),
-        mThreads(threads) {
-    if (mWarmup > 0) {
-      mCacheFrames = driver.frames();
-    }
-  }
+  DriverReader(const PointCacheReader& driver, const std::vector<BatchPlan>& plan, int threads)
+      : mDriver(driver), mPlan(plan), mThreads(threads) {}
 
-  /// Where each batch starts in the frames to bake: every `batch` frames and, when frames read
-  /// earlier ones (history), at every gap in the frame numbers too, so that a frame's history is
-  /// in its own batch or its warm-up (a resume or a stepped bake then equals the whole bake).
-  std::vector<std::size_t> batchStarts(int history) const {
-    std::vector<std::size_t> starts;
-    for (std::size_t i = 0; i < mFrames.size(); ++i) {
-      const bool gap = history > 0 && i > 0 && mFrames[i] != mFrames[i - 1] + 1;
-      if (starts.empty() || gap || i - starts.back() >= mBatch) {
-        starts.push_back(i);
-      }
-    }
-    return starts;
-  }
-
-  /// The batch of `count` frames starting at frames[begin] (read ahead when it was asked for),
-  /// and the read-ahead of the next one (`nextBegin`, `nextCount`; none when nextCount is 0).
-  BatchInput take(std::size_t begin, std::size_t count, std::size_t nextBegin,
-                  std::size_t nextCount) {
-    BatchInput input = mNext.valid() ? mNext.get() : read(begin, count);
-    if (nextCount > 0) {
-      mNext = std::async(std::launch::async,
-                         [this, nextBegin, nextCount] { return read(nextBegin, nextCount); });
+  /// Batch `b` of the plan (read ahead when it was asked for), and the read-ahead of the next.
+  BatchInput take(std::size_t b) {
+    BatchInput input = mNext.valid() ? mNext.get() : read(b);
+    if (b + 1 < mPlan.size()) {
+      mNext = std::async(std::launch::async, [this, b] { return read(b + 1); });
     }
     return input;
   }
 
  private:
-  BatchInput read(std::size_t begin, std::size_t frames) const {
+  BatchInput read(std::size_t b) const {
     const auto start = Clock::now();
     BatchInput in;
-    const int count = static_cast<int>(frames);
-    if (mWarmup > 0) {
-      // Warm-up frames come from what the cache holds just before the batch (a warm-up longer
-      // than the cache costs nothing more).
-      const int first = mFrames[begin];
-      const long long from = static_cast<long long>(first) - mWarmup;
-      const auto warmBegin = std::lower_bound(
-          mCacheFrames.begin(), mCacheFrames.end(), from,
-          [](int frame, long long value) { return static_cast<long long>(frame) < value; });
-      in.solveFrames.assign(warmBegin,
-                            std::lower_bound(mCacheFrames.begin(), mCacheFrames.end(), first));
-    }
-    in.warm = static_cast<int>(in.solveFrames.size());
-    in.solveFrames.insert(in.solveFrames.end(), mFrames.begin() + begin,
-                          mFrames.begin() + begin + count);
+    in.solveFrames = mPlan[b].solveFrames();
+    in.warm = static_cast<int>(mPlan[b].warmup.size());
     const std::size_t values = static_cast<std::size_t>(mDriver.vertexCount()) * 3;
     in.driver.resize(in.solveFrames.size() * values);
     parallelFor(static_cast<int>(in.solveFrames.size()), mThreads, [&](int i) {
@@ -224,11 +172,8 @@ class DriverReader {
   }
 
   const PointCacheReader& mDriver;
-  const std::vector<int> mFrames;
-  const int mWarmup;
-  const std::size_t mBatch;
+  const std::vector<BatchPlan>& mPlan;
   const int mThreads;
-  std::vector<int> mCacheFrames;
   std::future<BatchInput> mNext;
 };
 
@@ -547,20 +492,20 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   if (!evaluator.settings().layers.empty()) {
     exr.stringAttributes.emplace_back("dsLayers", evaluator.describeLayers());
   }
-  const int chunk = batchFrames(options, evaluator.bytesPerFrame());
   std::vector<int> todoFrames;
   for (int index : todo) {
     todoFrames.push_back(result.frames[index].frame);
   }
-  DriverReader reader(driver, todoFrames, options, evaluator.historyFrames(), chunk, threads);
+  const std::vector<BatchPlan> plan =
+      planShot(todoFrames, driver.frames(),
+               shotPlanSettings(evaluator, options.chunkSize, options.temporalWarmup));
+  DriverReader reader(driver, plan, threads);
   BatchWriter writer(result, todo, exr, vd, threads, observer);
   std::vector<FrameRecord> records;
   result.times.setup = secondsSince(bakeStart);
 
-  std::vector<std::size_t> starts = reader.batchStarts(evaluator.historyFrames());
-  starts.push_back(todo.size());
-  for (std::size_t b = 0; b + 1 < starts.size(); ++b) {
-    const std::size_t begin = starts[b];
+  for (std::size_t b = 0; b < plan.size(); ++b) {
+    const std::size_t begin = plan[b].first;
     if (observer != nullptr && observer->stopRequested()) {
       writer.finish();
       DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
@@ -568,11 +513,9 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
                "outputs kept (--skip-existing)");
     }
     const auto batchStart = Clock::now();
-    const int count = static_cast<int>(starts[b + 1] - begin);
+    const int count = static_cast<int>(plan[b].frames.size());
     auto start = Clock::now();
-    const bool more = b + 2 < starts.size();
-    const BatchInput input = reader.take(begin, static_cast<std::size_t>(count), starts[b + 1],
-                                         more ? starts[b + 2] - starts[b + 1] : 0);
+    const BatchInput input = reader.take(b);
     result.times.readWait += secondsSince(start);
     result.times.read += input.seconds;
 

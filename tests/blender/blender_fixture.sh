@@ -5,7 +5,11 @@
 #   WORK/sleeve.dsdb                  db build from the bundled sleeve's training clip
 #   WORK/cli/default/sleeve.####.exr  bake of the test clip, frames 1-48, default settings
 #   WORK/cli/bound/sleeve.####.exr    the same with a temporal bound, one batch from frame 1
-#   WORK/cli/bound_jump/...           the same bound, one batch from frame 30 (a timeline jump)
+#   WORK/cli/bound_jump/...           the same bound from frame 30 (a timeline jump), with the
+#                                     bake's default temporal warm-up before it
+#   WORK/sleeve_pose.dsdb             db build with its defaults: the pose model, which reads
+#                                     history frames before every frame
+#   WORK/cli/pose/sleeve.####.exr     bake of the test clip with it, frames 1-48, defaults
 #   WORK/drivenshape_blender.zip      the add-on, packed by scripts/blender_package.py
 # Usage: blender_fixture.sh CLI SOURCE_DIR WORK
 set -euo pipefail
@@ -15,19 +19,25 @@ work=$3
 data=$source_dir/tests/data/sleeve
 
 rm -rf "$work"
-mkdir -p "$work/cli/default" "$work/cli/bound" "$work/cli/bound_jump"
+mkdir -p "$work/cli/default" "$work/cli/bound" "$work/cli/bound_jump" "$work/cli/pose"
 
 "$cli" db build --driver-mesh "$data/driver_rest.obj" --driven-mesh "$data/driven_rest.obj" \
   --driver "$data/train.driver.pc2" --driven "$data/train.driven.pc2" --count 30 --model none --quiet \
   -o "$work/sleeve.dsdb"
 "$cli" bake --db "$work/sleeve.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
   -o "$work/cli/default/sleeve.####.exr"
-# The temporal bound holds between consecutive frames; the bake starts each batch afresh
-# (no warm-up frames here), as live mode does after a jump.
-bound=(--max-weight-change 0.02 --temporal-warmup 0 --batch 64)
+# The temporal bound holds between consecutive frames; the bake starts each batch afresh after
+# its warm-up frames (none before frame 1), as live mode does after a jump.
+bound=(--max-weight-change 0.02 --batch 64)
 "$cli" bake --db "$work/sleeve.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
   "${bound[@]}" -o "$work/cli/bound/sleeve.####.exr"
 "$cli" bake --db "$work/sleeve.dsdb" --driver "$data/test.driver.pc2" --frames 30-40 --quiet \
   "${bound[@]}" -o "$work/cli/bound_jump/sleeve.####.exr"
+
+"$cli" db build --driver-mesh "$data/driver_rest.obj" --driven-mesh "$data/driven_rest.obj" \
+  --driver "$data/train.driver.pc2" --driven "$data/train.driven.pc2" --quiet \
+  -o "$work/sleeve_pose.dsdb"
+"$cli" bake --db "$work/sleeve_pose.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
+  -o "$work/cli/pose/sleeve.####.exr"
 
 python3 "$source_dir/scripts/blender_package.py" -o "$work/drivenshape_blender.zip"

@@ -131,3 +131,81 @@ def test_evaluate_cache_equals_a_temporal_bake(cli_bakes, python_database, data,
     plain, _ = ds.evaluate_cache(ds.Evaluator(db, ds.EvaluatorSettings(), host_device), cache,
                                  frames)
     assert not np.array_equal(plain, cloth)  # the settings did change the result
+
+
+# ---- The shot planner with the pose model (issue 27): history frames before every frame ----
+
+ODD_FRAME_LISTS = {
+    "one frame": [30],
+    "reversed": list(range(48, 0, -1)),
+    "gaps": [1, 2, 3, 10, 11, 12, 30, 40, 41, 47],
+    "shuffled, repeats": [17, 5, 5, 33, 18, 48, 1, 2, 17],
+}
+
+
+@pytest.mark.parametrize("name", ODD_FRAME_LISTS)
+def test_evaluate_cache_of_odd_frame_lists_equals_the_pose_bake(name, pose_bakes, data,
+                                                                opencl_device):
+    frames = ODD_FRAME_LISTS[name]
+    reference = pose_bakes.frames("auto", TEST_FRAMES, reader="openexr")
+    evaluator = ds.Evaluator(ds.load_database(pose_bakes.database), ds.EvaluatorSettings(),
+                             opencl_device)
+    assert evaluator.history_frames > 0, "a db build default database runs the pose model"
+    cache = ds.open_point_cache(data / "test.driver.pc2")
+    for batch in (64, 5):
+        cloth, records = ds.evaluate_cache(evaluator, cache, frames, batch=batch)
+        assert [r.frame for r in records] == frames
+        assert_bitwise(cloth, reference[[f - 1 for f in frames]],
+                       f"evaluate_cache of {name} frames {frames}, batch {batch}")
+
+
+def test_a_part_of_the_pose_bake_is_the_whole_bake(pose_bakes, opencl_device, data):
+    # The CLI itself: frames 30-48 read their history from the cache before frame 30. And the
+    # history matters: frame 30 evaluated alone (no earlier frames) is another cloth.
+    whole = pose_bakes.frames("auto", range(30, 49), reader="openexr")
+    part = pose_bakes.frames("auto", range(30, 49), frame_text="30-48", reader="openexr")
+    assert_bitwise(part, whole, "bake --frames 30-48 against the whole bake's frames 30-48")
+    evaluator = ds.Evaluator(ds.load_database(pose_bakes.database), ds.EvaluatorSettings(),
+                             opencl_device)
+    alone, _ = evaluator.evaluate([30], parse_pc2(data / "test.driver.pc2")[0][29])
+    assert np.abs(alone[0] - whole[0]).max() > 1e-4, "frame 30 does not depend on its history"
+
+
+def test_plan_shot_and_the_playback_planner(python_database, host_device, pose_bakes):
+    pose = ds.Evaluator(ds.load_database(pose_bakes.database), ds.EvaluatorSettings(),
+                        host_device)
+    history = pose.history_frames
+    plan = ds.plan_shot(pose, [40, 41, 42, 10, 9], range(1, 49), batch=2)
+    assert [(b.first, b.frames, b.restart) for b in plan] == [
+        (0, [40, 41], True), (2, [42], True), (3, [10], True), (4, [9], True)]
+    assert plan[0].warmup == list(range(40 - history, 40))
+    assert plan[2].warmup == list(range(1, 10)), "the warm-up holds only frames the source has"
+    assert plan[3].warmup == list(range(1, 9))
+    assert plan[1].solve_frames == plan[1].warmup + [42]
+    assert plan[0].warmup == ds.plan_shot(pose, [40], list(range(48, 0, -1)))[0].warmup
+    assert repr(plan[0]).startswith("BatchPlan(") and "frames=[40, 41]" in repr(plan[0])
+
+    qp = ds.Evaluator(python_database, ds.EvaluatorSettings(), host_device)
+    assert all(not b.warmup for b in ds.plan_shot(qp, [5, 9, 3], range(1, 49)))
+    bound = ds.Evaluator(python_database, ds.EvaluatorSettings(max_weight_change=0.05),
+                         host_device)
+    assert ds.plan_shot(bound, [20], range(1, 49), temporal_warmup=3)[0].warmup == [17, 18, 19]
+
+    planner = ds.PlaybackPlanner(pose)
+    assert planner.warmup_frames == history
+    steps = [planner.next(f, range(1, 49)) for f in (30, 31, 32, 10, 10)]
+    assert [(s.restart, len(s.warmup)) for s in steps] == [
+        (True, history), (False, 0), (False, 0), (True, min(history, 9)),
+        (True, min(history, 9))]
+    planner.reset()
+    assert planner.next(11, range(1, 49)).restart
+
+    for call, words in [(lambda: ds.plan_shot(pose, [1], [1], batch=0), ["batch", "got 0"]),
+                        (lambda: ds.plan_shot(pose, [1], [1], temporal_warmup=-1),
+                         ["warm-up", "got -1"]),
+                        (lambda: ds.plan_shot("evaluator", [1], [1]), ["Evaluator", "str"]),
+                        (lambda: planner.next(2**40, [1]), ["frame", str(2**40)])]:
+        with pytest.raises(ds.Error) as error:
+            call()
+        assert error.value.kind == "usage" and all(w in str(error.value) for w in words), (
+            str(error.value))

@@ -11,9 +11,10 @@ import numpy as np
 from . import engine, live, module
 from .engine import UserError
 
-# Frames read and evaluated per step: one evaluate_into() call, and how often the modal bake
-# looks at the keyboard and moves the progress bar.
-BATCH = 8
+# Driver frames read per step(): how often the modal bake looks at the keyboard and moves the
+# progress bar. The batches themselves are the library's plan (drivenshape.plan_shot), the
+# command line bake's: a step evaluates a batch once its frames are read.
+READ_STEP = 8
 
 
 def scene_objects(scene):
@@ -42,8 +43,10 @@ def prepare_folder(path, what):
 
 
 class Bake:
-    """Evaluates the scene's frame range into memory, BATCH frames per step(), then finish()
-    writes the PC2 and sets up the Mesh Cache modifier. EXRs are written as frames finish."""
+    """Evaluates the scene's frame range into memory in the batches of the library's shot plan
+    (history and temporal warm-up frames as `drivenshape bake` reads them from a cache of the
+    scene's frame range), READ_STEP driver frames per step(); then finish() writes the PC2 and
+    sets up the Mesh Cache modifier. EXRs are written as batches finish."""
 
     def __init__(self, context):
         self.scene = scene = context.scene
@@ -71,43 +74,55 @@ class Bake:
                 f"vertices; the database's driven mesh has {database.driven_vertex_count}")
         self.database = database
         self.topology_hash = database.driven_mesh.topology_hash
-        count = len(self.frames)
-        self.cloth_frames = np.empty((count, database.driven_vertex_count, 3), dtype=np.float32)
-        self.driver_batch = np.empty((BATCH, database.driver_vertex_count, 3), dtype=np.float32)
-        self.cloth_batch = np.empty((BATCH, database.driven_vertex_count, 3), dtype=np.float32)
-        self.cloth_matrices = [None] * count  # cloth object to world, per frame (WORLD space)
+        self.plan = [(b.first, b.frames, b.solve_frames, len(b.warmup))
+                     for b in engine.plan_shot(self.evaluator, scene, self.frames)]
+        longest = max(len(solve) for _first, _frames, solve, _warm in self.plan)
+        self.cloth_frames = np.empty((len(self.frames), database.driven_vertex_count, 3),
+                                     dtype=np.float32)
+        self.driver_batch = np.empty((longest, database.driver_vertex_count, 3), dtype=np.float32)
+        self.cloth_matrices = [None] * len(self.frames)  # cloth to world, per frame (WORLD)
+        self.batch = 0  # the batch of the plan being read
+        self.read = 0  # its driver frames read so far
         self.done = 0
         self.exr_written = 0
         self.frame_before = scene.frame_current
-        self.evaluator.reset_temporal_bound()
 
     @property
     def total(self):
         return len(self.frames)
 
     def step(self, context):
-        """Evaluates the next BATCH frames; returns whether every frame is done. `context` is
-        the caller's (a modal operator's context is only valid during its call)."""
-        frames = self.frames[self.done:self.done + BATCH]
-        count = len(frames)
-        for i, frame in enumerate(frames):
-            self.scene.frame_set(frame)
+        """Reads the next READ_STEP driver frames of the plan, evaluates a batch once all of its
+        frames are read; returns whether every frame is done. `context` is the caller's (a modal
+        operator's context is only valid during its call)."""
+        first, _frames, solve, warm = self.plan[self.batch]
+        end = min(len(solve), self.read + READ_STEP)
+        for i in range(self.read, end):
+            self.scene.frame_set(solve[i])
             depsgraph = context.evaluated_depsgraph_get()
             engine.read_evaluated(self.driver, depsgraph, self.driver_batch[i], world=self.world)
-            if self.world:
-                self.cloth_matrices[self.done + i] = self.cloth.matrix_world.inverted()
+            if self.world and i >= warm:
+                self.cloth_matrices[first + i - warm] = self.cloth.matrix_world.inverted()
+        self.read = end
+        if end == len(solve):
+            self.evaluate_batch()
+            self.batch += 1
+            self.read = 0
+        return self.batch >= len(self.plan)
+
+    def evaluate_batch(self):
+        first, frames, solve, warm = self.plan[self.batch]
+        out = self.cloth_frames[first:first + len(frames)]
+        self.evaluator.reset_temporal_bound()
         try:
-            self.evaluator.evaluate_into(frames, self.driver_batch[:count],
-                                         self.cloth_batch[:count])
+            self.evaluator.evaluate_into(solve, self.driver_batch[:len(solve)], out, warmup=warm)
         except Exception as error:
             raise UserError(f"Bake of frames {frames[0]}-{frames[-1]}: "
                             f"{engine.describe_error(error)}") from None
-        self.cloth_frames[self.done:self.done + count] = self.cloth_batch[:count]
         if self.exr_pattern:
             for i, frame in enumerate(frames):
-                self.write_exr(frame, self.cloth_batch[i])
-        self.done += count
-        return self.done >= self.total
+                self.write_exr(frame, out[i])
+        self.done += len(frames)
 
     def write_exr(self, frame, positions):
         ds = module.get()

@@ -145,6 +145,25 @@ class EvaluatorCache:
 CACHE = EvaluatorCache()
 
 
+def driver_frames(scene, frames):
+    """The frames the driver can be read at, from which the shot planner takes history and
+    warm-up frames: the scene's frame range (what a PC2 export of the shot holds, which is what
+    `drivenshape bake` reads), extended to take in `frames`."""
+    return range(min(scene.frame_start, min(frames)), max(scene.frame_end, max(frames)) + 1)
+
+
+def plan_shot(evaluator, scene, frames):
+    """The library's batches for evaluating `frames` of the scene as `drivenshape bake` does
+    (its default batch and temporal warm-up): [drivenshape.BatchPlan]."""
+    return module.get().plan_shot(evaluator, frames, driver_frames(scene, frames))
+
+
+def playback_planner(evaluator):
+    """The library's plan of live playback with the bake's defaults: which frames continue the
+    evaluator and which start a batch with warm-up frames (drivenshape.PlaybackPlanner)."""
+    return module.get().PlaybackPlanner(evaluator)
+
+
 def is_identity(matrix):
     return all(abs(matrix[i][j] - (1.0 if i == j else 0.0)) == 0.0
                for i in range(4) for j in range(4))

@@ -3,10 +3,19 @@
 
 On frame_change_post (and on depsgraph_update_post when the driver's geometry changed without a
 frame change, e.g. an animator posing a rig), the driver's evaluated vertices are copied into a
-preallocated numpy array (foreach_get), one frame is evaluated with the cached Evaluator
-(evaluate_into, no allocation) and the result goes into the cloth object's own mesh
-(foreach_set on co, then mesh.update()). The temporal bound is reset whenever the frame is not
-the one after the last evaluated frame (a jump, scrubbing backwards, the same frame again).
+preallocated numpy array (foreach_get), the frame is evaluated with the cached Evaluator
+(evaluate_into) and the result goes into the cloth object's own mesh (foreach_set on co, then
+mesh.update()).
+
+Every frame is the frame of `drivenshape bake` (bitwise, in object space), whatever the way to
+it: the library's PlaybackPlanner says whether a frame continues the evaluator's state (the
+frame after the last one: nothing else is read) or starts a batch (a jump, scrubbing, playing
+backwards, the same frame again), which first evaluates its warm-up frames, the earlier frames
+the pose model's history and the temporal bound read, within the scene's frame range. On a frame
+change those are read by setting the scene to each of them (scene.frame_set) and back; where no
+frame change is under way (starting with the frames read before, a setting changed, the driver
+edited on its frame) they come from the frames read last, never from a frame change that would
+re-apply the animation over an unkeyed pose.
 
 The session keeps only names and numpy arrays between frames, never bpy objects, which undo and
 file loads invalidate: the driver and cloth are looked up in scene.drivenshape every frame.
@@ -37,13 +46,18 @@ class LiveSession:
         self.cloth_name = None
         self.rest = None  # the cloth mesh's positions when live mode took it over
         self.hidden = []  # modifiers whose viewport display live mode turned off
+        self.planner = None  # drivenshape.PlaybackPlanner of the current Evaluator
         self.driver_in = np.empty((1, 0, 3), dtype=np.float32)
         self.driver_seen = np.empty((1, 0, 3), dtype=np.float32)
+        self.block = np.empty((1, 0, 3), dtype=np.float32)  # warm-up frames, then the frame
         self.cloth_out = np.empty((1, 0, 3), dtype=np.float32)
+        self.recent = {}  # frame -> driver positions read last, the warm-up's own frames
+        self.recent_key = None  # (driver name, world space) of those positions
         self.cloth_written = None
         self.last_frame = None
         self.busy = False
         self.frames = 0
+        self.warmup_frames_read = 0  # driver frames read by scene.frame_set for warm-ups
         # Seconds per frame: (read driver, evaluate, write cloth, whole handler).
         self.timings = collections.deque(maxlen=240)
         self.last_record = None
@@ -89,35 +103,55 @@ class LiveSession:
 
     # -- one frame -------------------------------------------------------------------------------
 
-    def update(self, scene, depsgraph, force=True):
+    def prepare(self, evaluator, database):
+        """Buffers and the playback plan for a new Evaluator."""
+        self.planner = engine.playback_planner(evaluator)
+        driver_count = database.driver_vertex_count
+        self.recent = {f: p for f, p in self.recent.items() if len(p) == driver_count}
+        self.driver_in = np.empty((1, driver_count, 3), dtype=np.float32)
+        self.driver_seen = np.full_like(self.driver_in, np.nan)
+        self.block = np.empty((self.planner.warmup_frames + 1, driver_count, 3), dtype=np.float32)
+        self.cloth_out = np.empty((1, database.driven_vertex_count, 3), dtype=np.float32)
+        self.last_frame = None
+
+    def update(self, scene, depsgraph, force=True, frame_change=False):
         """Evaluates the scene's current frame and writes the cloth. Without `force`, does
         nothing when neither the frame nor the driver's positions changed since the last call
         (a depsgraph update caused by something else, such as our own write to the cloth).
-        Returns whether it evaluated."""
+        `frame_change`: called for a frame change, so warm-up frames may be read by setting the
+        scene's frame. Returns whether it evaluated."""
         start = time.perf_counter()
         settings = scene.drivenshape
         driver, cloth = self.objects(scene)
         evaluator, rebuilt = engine.CACHE.evaluator_for(settings)
         database = engine.CACHE.database
-        if rebuilt or self.driver_in.shape[1] != database.driver_vertex_count:
-            self.driver_in = np.empty((1, database.driver_vertex_count, 3), dtype=np.float32)
-            self.driver_seen = np.full_like(self.driver_in, np.nan)
-            self.cloth_out = np.empty((1, database.driven_vertex_count, 3), dtype=np.float32)
-            self.last_frame = None
+        if rebuilt or self.planner is None \
+                or self.driver_in.shape[1] != database.driver_vertex_count:
+            self.prepare(evaluator, database)
             force = True
         self.take_cloth(cloth, database)
         world = settings.space == "WORLD"
+        if self.recent_key != (driver.name, world):
+            self.recent.clear()  # positions of another driver, or in the other space
+            self.recent_key = (driver.name, world)
 
         engine.read_evaluated(driver, depsgraph, self.driver_in[0], world=world)
         frame = scene.frame_current
         if not force and frame == self.last_frame \
                 and np.array_equal(self.driver_in, self.driver_seen):
             return False
-        read = time.perf_counter()
-
-        if self.last_frame is None or frame != self.last_frame + 1:
-            evaluator.reset_temporal_bound()
-        records = evaluator.evaluate_into([frame], self.driver_in, self.cloth_out)
+        step = self.planner.next(frame, engine.driver_frames(scene, [frame]))
+        try:
+            solve, driver_block = self.warm_up(step, scene, driver, depsgraph, world,
+                                               frame_change)
+            read = time.perf_counter()
+            if step.restart:
+                evaluator.reset_temporal_bound()
+            records = evaluator.evaluate_into(solve, driver_block, self.cloth_out,
+                                              warmup=len(solve) - 1)
+        except BaseException:
+            self.planner.reset()  # the evaluator's state is not the plan's
+            raise
         evaluated = time.perf_counter()
 
         result = self.cloth_out[0]
@@ -128,11 +162,53 @@ class LiveSession:
         done = time.perf_counter()
 
         np.copyto(self.driver_seen, self.driver_in)
+        self.remember(frame, self.driver_in[0])
         self.last_frame = frame
         self.frames += 1
         self.timings.append((read - start, evaluated - read, done - evaluated, done - start))
         self.last_record = records[0] if records else None
         return True
+
+    def warm_up(self, step, scene, driver, depsgraph, world, frame_change):
+        """(frames, driver positions) to evaluate for `step`: its warm-up frames, then the
+        current frame (self.driver_in). On a frame change the warm-up frames are read at their
+        frames (the scene is set to each and back); otherwise they come from the frames read
+        last, and those not there are left out (the evaluator stands the earliest frame it has
+        in for the missing history)."""
+        if not step.warmup:
+            return step.frames, self.driver_in
+        frames = []
+        if frame_change:
+            frame, subframe = scene.frame_current, scene.frame_subframe
+            try:
+                for i, warm in enumerate(step.warmup):
+                    scene.frame_set(warm)
+                    engine.read_evaluated(driver, depsgraph, self.block[i], world=world)
+                    self.remember(warm, self.block[i])
+            finally:
+                scene.frame_set(frame, subframe=subframe)
+            frames = list(step.warmup)
+            self.warmup_frames_read += len(frames)
+        else:
+            for warm in step.warmup:
+                if warm in self.recent:
+                    self.block[len(frames)] = self.recent[warm]
+                    frames.append(warm)
+        self.block[len(frames)] = self.driver_in[0]
+        return frames + step.frames, self.block[:len(frames) + 1]
+
+    def remember(self, frame, positions):
+        """Keeps the driver at `frame` for a later warm-up, and only the frames one could use."""
+        count = self.planner.warmup_frames
+        if count == 0:
+            return
+        kept = self.recent.pop(frame, None)
+        if kept is None or kept.shape != positions.shape:
+            kept = np.empty_like(positions)
+        np.copyto(kept, positions)
+        self.recent[frame] = kept
+        for old in [f for f in self.recent if not frame - count <= f <= frame]:
+            del self.recent[old]
 
     def stats(self):
         """Median milliseconds per frame over the recent frames: read, evaluate, write, total."""
@@ -157,7 +233,8 @@ def start(context):
     session = LiveSession(scene.name)
     session.busy = True
     try:
-        session.update(scene, context.evaluated_depsgraph_get(), force=True)
+        # Starting is a frame change of its own: the warm-up frames are read at their frames.
+        session.update(scene, context.evaluated_depsgraph_get(), force=True, frame_change=True)
     except Exception:
         session.give_back_cloth(restore=True)
         raise
@@ -202,13 +279,14 @@ def redraw_panels():
                 area.tag_redraw()
 
 
-def _run(scene, depsgraph, force):
+def _run(scene, depsgraph, force, frame_change=False):
     session = SESSION
     if session is None or session.busy or session.scene_name != scene.name:
         return
     session.busy = True
     try:
-        if session.update(scene, depsgraph, force=force) and session.frames % 12 == 0:
+        if session.update(scene, depsgraph, force=force, frame_change=frame_change) \
+                and session.frames % 12 == 0:
             redraw_panels()
     except UserError as error:
         fail(scene, str(error))
@@ -230,7 +308,7 @@ def settings_changed(context):
 
 @persistent
 def on_frame_change(scene, depsgraph):
-    _run(scene, depsgraph, force=True)
+    _run(scene, depsgraph, force=True, frame_change=True)
 
 
 @persistent

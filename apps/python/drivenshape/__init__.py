@@ -32,8 +32,10 @@ from ._drivenshape import (  # noqa: F401
     FrameRecord,
     LayerSettings,
     Mesh,
+    PlaybackPlanner,
     PointCache,
     RegionSet,
+    BatchPlan,
     __version__,
     build_database,
     convert_up_axis,
@@ -49,6 +51,7 @@ from ._drivenshape import (  # noqa: F401
     parse_binding_mask,
     parse_frame_range,
     parse_regions,
+    plan_shot,
     read_obj,
     read_pc2,
     read_point_cache_exr,
@@ -63,53 +66,41 @@ import numpy as _np
 
 
 def evaluate_cache(evaluator, cache, frames, batch=64, temporal_warmup=8, with_seconds=False):
-    """Evaluates `frames` of a PointCache the way `drivenshape bake` does, without files:
-    batches of `batch` frames, each starting the temporal bound afresh after up to
-    `temporal_warmup` of the cache's frames before it (only with max_weight_change > 0, as the
-    bake) and at least the pose model's history (Evaluator.history_frames), with a new batch at
-    every gap in the frame numbers when there is history, so the cloth is bitwise the bake's. Returns (cloth (F, Vd, 3) float32, [FrameRecord])
-    and, with with_seconds, the seconds per stage summed over the batches."""
-    if batch < 1 or temporal_warmup < 0:
-        error = Error(f"evaluate_cache: batch ({batch}) must be at least 1 and temporal_warmup "
-                      f"({temporal_warmup}) at least 0")
-        error.kind, error.code = "usage", 2
-        raise error
+    """Evaluates `frames` (any order) of a PointCache the way `drivenshape bake` does, without
+    files, in the batches plan_shot gives: each starts the evaluator's temporal state afresh
+    after its warm-up frames from the cache (the pose model's history, and `temporal_warmup`
+    frames with max_weight_change > 0), so every frame is bitwise the bake's. Returns
+    (cloth (F, Vd, 3) float32, [FrameRecord]) and, with with_seconds, the seconds per stage
+    summed over the batches."""
     frames = [frames] if isinstance(frames, (int, _np.integer)) else list(frames)
     evaluator.check_frames(frames)  # drivenshape.Error (usage) for a frame outside C++ ints
-    frames = [int(f) for f in frames]
-    history = evaluator.history_frames
-    warm_frames = max(temporal_warmup if evaluator.settings.max_weight_change > 0 else 0, history)
-    cache_frames = cache.frames if warm_frames else []
+    plan = plan_shot(evaluator, frames, cache.frames, batch=batch,
+                     temporal_warmup=temporal_warmup)
     cloth = _np.empty((len(frames), evaluator.driven_vertex_count, 3), dtype=_np.float32)
     records, seconds = [], {}
-    starts = [i for i in range(len(frames))
-              if i == 0 or (history > 0 and frames[i] != frames[i - 1] + 1)]
-    batches = []
-    for s, e in zip(starts, starts[1:] + [len(frames)]):
-        batches += [(b, min(e, b + batch)) for b in range(s, e, batch)]
-    for begin, end in batches:
-        chunk = frames[begin:end]
-        warm = [f for f in cache_frames if chunk[0] - warm_frames <= f < chunk[0]]
+    for step in plan:
+        solve = step.solve_frames
         evaluator.reset_temporal_bound()
-        driver = cache.read_frames(warm + chunk)
-        records += evaluator.evaluate_into(warm + chunk, driver, cloth[begin:begin + len(chunk)],
-                                           warmup=len(warm))
+        records += evaluator.evaluate_into(solve, cache.read_frames(solve),
+                                           cloth[step.first:step.first + len(step.frames)],
+                                           warmup=len(step.warmup))
         for stage, value in evaluator.last_stage_seconds.items():
             seconds[stage] = seconds.get(stage, 0.0) + value
     return (cloth, records, seconds) if with_seconds else (cloth, records)
 
 
 for _type in (BindingMask, Database, Device, Error, Evaluator, EvaluatorSettings, FrameRecord,
-              LayerSettings, Mesh, PointCache, RegionSet):
+              LayerSettings, Mesh, PlaybackPlanner, PointCache, RegionSet, BatchPlan):
     _type.__module__ = __name__
 del _type
 
 __all__ = [
     "BindingMask", "Database", "Device", "Error", "Evaluator", "EvaluatorSettings", "FrameRecord",
-    "LayerSettings", "Mesh", "PointCache", "RegionSet", "__version__", "build_database",
-    "convert_up_axis", "evaluate_cache", "expand_frame_pattern", "format_frame_range",
-    "list_devices", "load_binding_mask", "load_database", "load_layers", "load_regions",
-    "open_device", "open_point_cache", "parse_binding_mask", "parse_frame_range", "parse_regions",
-    "read_obj", "read_pc2", "read_point_cache_exr", "read_point_cache_exr_info", "save_database",
-    "write_obj", "write_pc2", "write_point_cache_exr",
+    "LayerSettings", "Mesh", "PlaybackPlanner", "PointCache", "RegionSet", "BatchPlan",
+    "__version__", "build_database", "convert_up_axis", "evaluate_cache", "expand_frame_pattern",
+    "format_frame_range", "list_devices", "load_binding_mask", "load_database", "load_layers",
+    "load_regions", "open_device", "open_point_cache", "parse_binding_mask", "parse_frame_range",
+    "parse_regions", "plan_shot", "read_obj", "read_pc2", "read_point_cache_exr",
+    "read_point_cache_exr_info", "save_database", "write_obj", "write_pc2",
+    "write_point_cache_exr",
 ]

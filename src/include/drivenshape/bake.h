@@ -13,6 +13,7 @@
 #include <drivenshape/evaluator.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/point_cache.h>
+#include <drivenshape/shot_plan.h>
 #include <drivenshape/stages.h>
 
 namespace drivenshape {
@@ -23,7 +24,8 @@ struct BakeOptions {
   std::string reportPath;     ///< per-bake JSON report; empty = none
   /// Frames per kernel launch (`--batch`); lowered for large meshes so that a batch's buffers
   /// stay within kBatchMemoryBudget, except with the temporal bound (which depends on it).
-  int chunkSize = 64;
+  /// The batches are planShot's (drivenshape/shot_plan.h).
+  int chunkSize = kDefaultBatchFrames;
   int threads = 0;            ///< host threads (QP, EXR); 0 = all cores
   bool skipExisting = false;  ///< keep complete outputs of this database and settings
   int exrWidth = 1024;
@@ -46,7 +48,7 @@ struct BakeOptions {
   /// written. The output therefore depends on chunkSize and temporalWarmup, never on the thread
   /// count, and a farm chunk whose size is a multiple of chunkSize reproduces the single bake
   /// exactly.
-  int temporalWarmup = 8;
+  int temporalWarmup = kDefaultTemporalWarmup;
   /// Layers after the correction and resolution (DESIGN.md section 3 step 7): a mix with
   /// another cache of the cloth, procedural wind, from files. Off by default. Recorded in the
   /// settings hash, the report and the EXR header (`dsLayers`).
@@ -79,10 +81,6 @@ struct StageTimes {
     return found == stages.end() ? 0.0 : found->second;
   }
 };
-
-/// Memory that one launch batch's frame blocks may take; larger meshes get smaller batches
-/// (see BakeOptions::chunkSize).
-inline constexpr std::size_t kBatchMemoryBudget = std::size_t(768) << 20;
 
 struct BakeResult {
   std::vector<FrameRecord> frames;
