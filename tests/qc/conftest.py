@@ -21,7 +21,6 @@ def pytest_addoption(parser):
     parser.addoption("--cli", required=True, help="the built `drivenshape` command line")
     parser.addoption("--data", required=True, help="tests/data/sleeve")
     parser.addoption("--schema", help="docs/schemas/bake_report.schema.json")
-    parser.addoption("--script", help="scripts/qc_report.py")
 
 
 def run(command, expect=0, **kwargs):
