@@ -1172,6 +1172,12 @@ def parse_args(argv):
 def main(argv=None):
     args = parse_args(argv)
     try:
+        try:
+            import matplotlib  # noqa: F401  (the plots; checked before any work)
+        except ImportError:
+            raise QcError(EXIT_USAGE, "the QC page draws with matplotlib, which this Python "
+                                      f"({sys.executable}) lacks: run it with the project's "
+                                      "venv (scripts/setup.sh) or pip install matplotlib")
         report = merge_reports(args.report)
         evaluation = load_eval(args.eval) if args.eval else None
         errors = None
