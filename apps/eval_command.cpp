@@ -182,6 +182,17 @@ nlohmann::json summaryJson(const ClothMetrics& c, bool penetrations, bool withEr
   return j;
 }
 
+/// A length in scene units and, after it, in mm for a scene in metres (the sample's, Blender's
+/// default): "0.0124514 (12.5 mm)"; "-" when unknown.
+std::string withMm(const std::optional<double>& value) {
+  if (!value) {
+    return "-";
+  }
+  std::ostringstream text;
+  text << cell(*value) << " (" << std::fixed << std::setprecision(1) << *value * 1000.0 << " mm)";
+  return text.str();
+}
+
 /// The coverage lines after the summary: the report's verdict against the truth.
 void printCoverage(const CoverageCheck& c, const std::string& reportPath, std::ostream& out) {
   auto optional = [](const std::optional<double>& value, int digits = 6) {
@@ -192,15 +203,27 @@ void printCoverage(const CoverageCheck& c, const std::string& reportPath, std::o
     out << " (" << c.missing << " not in the report, " << c.unpredicted << " without a prediction)";
   }
   out << "; Spearman of predicted vs true mean error " << optional(c.spearman, 4) << "\n";
-  out << "  tolerance " << c.tolerance << ": " << c.enough << " enough (covered "
-      << cell(c.coveredFraction, true, 4) << "), true mean " << optional(c.enoughTrueError) << " ("
-      << c.missed << " over); " << c.flagged << " flagged, true mean "
-      << optional(c.flaggedTrueError) << "\n";
+  out << "  tolerance " << withMm(c.tolerance) << ": " << c.enough << " enough (covered "
+      << cell(c.coveredFraction, true, 4) << "), true mean " << withMm(c.enoughTrueError) << " ("
+      << c.missed << " over); " << c.flagged << " flagged, true mean " << withMm(c.flaggedTrueError)
+      << "\n";
+  if (!c.frames.empty()) {
+    double sum = 0.0;
+    const CoverageFrame* worst = &c.frames.front();
+    for (const CoverageFrame& f : c.frames) {
+      sum += f.predictedError;
+      worst = f.predictedError > worst->predictedError ? &f : worst;
+    }
+    out << "  predicted mean vertex error: mean "
+        << withMm(sum / static_cast<double>(c.frames.size())) << ", max "
+        << withMm(worst->predictedError) << " at frame " << worst->frame << "\n";
+  }
   out << "  verdict "
       << (!c.verdictHolds   ? "not tested: no frame is predicted enough"
           : *c.verdictHolds ? "holds: the enough frames' true mean error is within the tolerance"
                             : "fails: the enough frames' true mean error is over the tolerance")
       << "\n";
+  out << "  (mm: scene units x 1000, for a scene in metres)\n";
 }
 
 template <typename T>

@@ -22,11 +22,12 @@ ds=build/apps/drivenshape
   -o $out/bake/sleeve.####.exr 2>$out/bake.log
 "$ds" eval --truth $data/test.driven.pc2 --bake "$out/bake/sleeve.####.exr" --frames 1-48 \
   --driver $data/test.driver.pc2 --db $out/sleeve.dsdb --baseline \
-  --json $out/eval.json
-# The QC page (plots of the weights, residual, penetrations, popping, the error per frame and a
-# per-vertex error heat map; scripts/qc_report.py), for a supervisor's browser. The sample is in
-# metres: lengths are shown in mm.
-.venv/bin/python scripts/qc_report.py --report $out/bake/sleeve.report.json \
+  --report $out/bake/sleeve.report.json --json $out/eval.json
+# The QC page (which model made the bake, the pose model's predicted error and verdict, the
+# penetrations, popping, the error per frame and a per-vertex error heat map; the Python
+# module's drivenshape.qc), for a supervisor's browser. The sample is in metres: lengths are
+# shown in mm.
+PYTHONPATH=build/python .venv/bin/python -m drivenshape.qc --report $out/bake/sleeve.report.json \
   --eval $out/eval.json --mesh $data/driven_rest.obj --units m -o $out/qc >/dev/null
 echo "log:      $PWD/$out/bake.log"
 echo "accuracy: $PWD/$out/eval.json"

@@ -14,7 +14,9 @@ the row shows that map instead (or a second row when both are given). With --com
 (the same shot baked without layers) the last row shows |layered - plain| per vertex in scene
 units: where the mix and the wind changed the result. Caches are PC2 files or point-cache EXR
 sequences (####, %04d, $F4); weight maps are .json arrays, one-channel .exr maps or
-group:NAME[,NAME]. Needs numpy, matplotlib and OpenEXR (scripts/requirements.txt).
+group:NAME[,NAME]. The mesh and the caches are read with the drivenshape Python module's
+readers (PYTHONPATH, else this checkout's build/python). Needs numpy, matplotlib and OpenEXR
+(scripts/requirements.txt).
 """
 
 import argparse
@@ -25,22 +27,38 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from export_usd import (EXIT_INPUT, EXIT_OUTPUT, EXIT_USAGE, ExportError,  # noqa: E402
-                        expand_pattern, read_exr_frame, read_obj, read_pc2)
+from drivenshape_import import import_drivenshape  # noqa: E402
+
+EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 2, 3, 4
 
 VIEWS = (("front", -90.0), ("side", 0.0), ("back", 90.0))
 ELEVATION = 10.0
 
 
-def read_positions(spec, frame, vertex_count):
-    if spec.lower().endswith(".pc2"):
-        frames, xyz = read_pc2(spec)
-        for index, value in enumerate(frames):
-            if abs(value - frame) < 1e-3:
-                return xyz[index]
-        raise ExportError(EXIT_INPUT, f"'{spec}' has no frame {frame}")
-    positions, _ = read_exr_frame(expand_pattern(spec, frame), vertex_count)
-    return positions
+class PreviewError(Exception):
+    def __init__(self, code, message):
+        super().__init__(message)
+        self.code = code
+
+
+def read_mesh(ds, path):
+    """The OBJ (drivenshape.read_obj) as positions, face sizes, face vertices and groups."""
+    mesh = ds.read_obj(path)
+    groups = {}
+    for face, group in enumerate(mesh.face_groups.tolist()):
+        groups.setdefault(mesh.group_names[group], []).append(face)
+    return {"positions": np.asarray(mesh.positions, dtype=np.float32),
+            "counts": np.diff(mesh.face_start).astype(np.int64),
+            "indices": np.asarray(mesh.face_vertices, dtype=np.int64), "groups": groups}
+
+
+def read_positions(ds, spec, frame, vertex_count):
+    """One frame of a PC2 or a point-cache EXR sequence (drivenshape.open_point_cache)."""
+    cache = ds.open_point_cache(spec)
+    if cache.vertex_count != vertex_count:
+        raise PreviewError(EXIT_INPUT, f"'{spec}' holds {cache.vertex_count} points but the "
+                                       f"mesh has {vertex_count}; pass the driven mesh of the bake")
+    return cache.read_frames([frame])[0]
 
 
 def read_weight_map(spec, mesh):
@@ -50,7 +68,7 @@ def read_weight_map(spec, mesh):
         starts = np.concatenate([[0], np.cumsum(mesh["counts"])])
         for name in spec[len("group:"):].split(","):
             if name not in mesh["groups"]:
-                raise ExportError(EXIT_INPUT, f"no group '{name}'; the mesh has "
+                raise PreviewError(EXIT_INPUT, f"no group '{name}'; the mesh has "
                                               f"{', '.join(mesh['groups'])}")
             for face in mesh["groups"][name]:
                 weights[mesh["indices"][starts[face]:starts[face + 1]]] = 1.0
@@ -65,9 +83,9 @@ def read_weight_map(spec, mesh):
         name = "W" if "W" in channels else [n for n in channels if n != "A"][0]
         values = channels[name].pixels.reshape(-1)[:count].astype(np.float32)
     else:
-        raise ExportError(EXIT_USAGE, f"weight map '{spec}': use .json, .exr or group:NAME")
+        raise PreviewError(EXIT_USAGE, f"weight map '{spec}': use .json, .exr or group:NAME")
     if values.shape != (count,) or not np.all((values >= 0) & (values <= 1)):
-        raise ExportError(EXIT_INPUT, f"weight map '{spec}' needs {count} values in [0, 1]")
+        raise PreviewError(EXIT_INPUT, f"weight map '{spec}' needs {count} values in [0, 1]")
     return values
 
 
@@ -163,7 +181,7 @@ def render(path, positions, tris, rows, up_axis, title):
     figure.suptitle(title, fontsize=12)
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
-        raise ExportError(EXIT_OUTPUT, f"-o '{path}': folder '{folder}' does not exist")
+        raise PreviewError(EXIT_OUTPUT, f"-o '{path}': folder '{folder}' does not exist")
     temp = os.path.join(folder, "." + os.path.basename(path) + f".tmp-{os.getpid()}.png")
     try:
         figure.savefig(temp)
@@ -192,10 +210,15 @@ def main(argv=None):
     parser.add_argument("-o", "--output", required=True, help="OUT.png")
     args = parser.parse_args(argv)
     try:
-        mesh = read_obj(args.mesh)
+        ds = import_drivenshape()
+    except ImportError as error:
+        print(f"layering_preview: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        mesh = read_mesh(ds, args.mesh)
         count = len(mesh["positions"])
         spec = args.exr or args.pc2
-        positions = read_positions(spec, args.frame, count)
+        positions = read_positions(ds, spec, args.frame, count)
         rows = []
         if args.mix_weight:
             weights = smooth(read_weight_map(args.mix_weight, mesh), mesh, args.mix_falloff)
@@ -204,16 +227,16 @@ def main(argv=None):
             weights = smooth(read_weight_map(args.wind_weight, mesh), mesh, args.wind_falloff)
             rows.append(("wind weight", weights, "viridis", 0.0, 1.0))
         if args.compare:
-            plain = read_positions(args.compare, args.frame, count)
+            plain = read_positions(ds, args.compare, args.frame, count)
             moved = np.linalg.norm(positions.astype(np.float64) - plain, axis=1)
             rows.append(("|layered - plain|", moved, "plasma", 0.0, max(float(moved.max()), 1e-12)))
         if not rows:
-            raise ExportError(EXIT_USAGE, "give --mix-weight, --wind-weight and/or --compare")
+            raise PreviewError(EXIT_USAGE, "give --mix-weight, --wind-weight and/or --compare")
         title = args.title or f"{os.path.basename(spec)} frame {args.frame}"
         render(args.output, positions, triangles(mesh), rows, args.up_axis, title)
         print(f"wrote {args.output}")
         return 0
-    except ExportError as error:
+    except (PreviewError, ds.Error) as error:
         print(f"layering_preview: {error}", file=sys.stderr)
         return error.code
 

@@ -4,8 +4,8 @@
 # then configures and builds drivenshape (Release, -march=x86-64, warnings as errors) in ./build.
 # clang and libclang-rt-14-dev are for the fuzz targets (libFuzzer, ASan, UBSan) of the tests;
 # pybind11-dev and python3-dev build the Python module, which Debian's Blender (its add-on tests)
-# imports with python3-numpy. chromium renders the QC page (scripts/qc_report.py) headless in its
-# test.
+# imports with python3-numpy. chromium renders the QC page (python -m drivenshape.qc) headless in
+# its test.
 # Safe to run again: it installs nothing that is already there and rebuilds incrementally.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -9,6 +9,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iomanip>
 #include <map>
@@ -646,6 +648,26 @@ TEST(EvalCommand, ReportCoverageAgainstTheTruth) {
     predictions[f["frame"].get<int>()] = {f["predicted_error"].get<double>(),
                                           f["coverage"]["flagged"].get<bool>()};
   }
+  // The tolerance and the largest prediction are also printed in mm (the sample is in metres).
+  int worstFrame = predictions.begin()->first;
+  for (const auto& [frame, prediction] : predictions) {
+    worstFrame = prediction.first > predictions[worstFrame].first ? frame : worstFrame;
+  }
+  char toleranceMm[64], worstText[96];
+  std::snprintf(toleranceMm, sizeof toleranceMm, " (%.1f mm): ", tolerance * 1000.0);
+  std::snprintf(worstText, sizeof worstText, ", max %.6g (%.1f mm) at frame %d\n",
+                predictions[worstFrame].first, predictions[worstFrame].first * 1000.0, worstFrame);
+  const std::size_t toleranceLine = r.out.find("\n  tolerance ");
+  ASSERT_NE(toleranceLine, std::string::npos) << r.out;
+  EXPECT_LT(r.out.find(toleranceMm, toleranceLine), r.out.find('\n', toleranceLine + 1))
+      << "expected '" << toleranceMm << "' on the tolerance line of\n"
+      << r.out;
+  const std::size_t predictedLine = r.out.find("\n  predicted mean vertex error: mean ");
+  ASSERT_NE(predictedLine, std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(worstText, predictedLine),
+            r.out.find('\n', predictedLine + 1) - std::strlen(worstText) + 1)
+      << "expected '" << worstText << "' ending the predicted line of\n"
+      << r.out;
   const nlohmann::json j = readJson(dir.file("eval.json"));
   ASSERT_TRUE(j["coverage"].is_object()) << j.dump();
   const nlohmann::json& c = j["coverage"];

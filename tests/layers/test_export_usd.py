@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: Apache-2.0
-"""scripts/export_usd.py end to end: files the tool writes (point-cache EXRs through the library,
-PC2 + OBJ through `drivenshape export`) go through the script, and usd-core (pxr) reads back the
-same points at a given time, the extents, the faces and the UVs. The expected positions come
-from the bundled PC2, decoded here byte by byte. With --up-axis Y (both tools) the stage says Y
-up and its points are the Z-up points rotated, (x, y, z) -> (x, z, -y), bit for bit: the same
-bits as `drivenshape export --up-axis Y` writes, and every written stage passes usd-core's
-validators. Any mismatch exits non-zero."""
+"""`python -m drivenshape.usd export` end to end: files the tool writes (point-cache EXRs through
+the library, PC2 + OBJ through `drivenshape export`) go through the command, and usd-core (pxr)
+reads back the same points at a given time, the extents, the faces and the UVs. The expected
+positions come from the bundled PC2, decoded here byte by byte. With --up-axis Y (both tools)
+the stage says Y up and its points are the Z-up points rotated, (x, y, z) -> (x, z, -y), bit for
+bit: the same bits as `drivenshape export --up-axis Y` writes, and every written stage passes
+usd-core's validators. scripts/layering_preview.py (which reads through the module too) renders
+both kinds of output. Any mismatch exits non-zero."""
 
 import argparse
 import os
@@ -118,11 +119,12 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--cli", required=True)
     parser.add_argument("--writer", required=True)
-    parser.add_argument("--script", required=True)
+    parser.add_argument("--preview", required=True, help="scripts/layering_preview.py")
     parser.add_argument("--data", required=True)
     parser.add_argument("--work", required=True)
     args = parser.parse_args()
     python = sys.executable
+    export = [python, "-m", "drivenshape.usd", "export"]
     rest = os.path.join(args.data, "sleeve", "driven_rest.obj")
     cache = os.path.join(args.data, "sleeve", "test.driven.pc2")
     truth = pc2_frames(cache)
@@ -132,7 +134,7 @@ def main():
     os.makedirs(os.path.dirname(exr), exist_ok=True)
     run([args.writer, cache, rest, "3", "7", exr, "25"])
     usdc = os.path.join(args.work, "from_exr.usdc")
-    run([python, args.script, "--mesh", rest, "--exr", exr, "--frames", "3-7", "-o", usdc])
+    run([*export, "--mesh", rest, "--exr", exr, "--frames", "3-7", "-o", usdc])
     check_stage(usdc, rest, {f: truth[f] for f in range(3, 8)}, 25.0)
 
     # 2. `drivenshape export` guides (PC2 every other frame + first-frame OBJ), then USD.
@@ -141,10 +143,10 @@ def main():
     run([args.cli, "export", "--cache", cache, "--frames", "10-20x2", "--pc2", pc2, "--obj",
          first, "--mesh", rest, "--quiet"])
     usda = os.path.join(args.work, "from_pc2.usda")
-    run([python, args.script, "--mesh", first, "--pc2", pc2, "--fps", "24", "-o", usda])
+    run([*export, "--mesh", first, "--pc2", pc2, "--fps", "24", "-o", usda])
     check_stage(usda, rest, {f: truth[f] for f in range(10, 21, 2)}, 24.0)
 
-    # 2b. Y up: `drivenshape export --up-axis Y` rotates the PC2 and the OBJ; export_usd.py
+    # 2b. Y up: `drivenshape export --up-axis Y` rotates the PC2 and the OBJ; drivenshape.usd
     #     --up-axis Y rotates the Z-up EXRs and PC2 it reads. All of them hold the truth's points
     #     rotated, (x, y, z) -> (x, z, -y), bit for bit, and the stages say upAxis = "Y".
     pc2_y = os.path.join(args.work, "guides_y.pc2")
@@ -161,32 +163,33 @@ def main():
     if not same_bits(obj_points, rotated[10]):
         fail("`drivenshape export --up-axis Y` OBJ is not the rotated first frame bit for bit")
     usd_y = os.path.join(args.work, "from_exr_y.usda")
-    run([python, args.script, "--mesh", rest, "--exr", exr, "--frames", "3-7", "--up-axis", "Y",
+    run([*export, "--mesh", rest, "--exr", exr, "--frames", "3-7", "--up-axis", "Y",
          "-o", usd_y])
     check_stage(usd_y, rest, {f: z_up_to_y_up(truth[f]) for f in range(3, 8)}, 25.0, "Y")
     usd_y = os.path.join(args.work, "from_pc2_y.usdc")
-    run([python, args.script, "--mesh", first, "--pc2", pc2, "--fps", "24", "--up-axis", "Y",
+    run([*export, "--mesh", first, "--pc2", pc2, "--fps", "24", "--up-axis", "Y",
          "-o", usd_y])
     check_stage(usd_y, rest, exported, 24.0, "Y")  # the CLI's Y-up PC2, bit for bit
     result = run([args.cli, "export", "--cache", cache, "--frames", "10-20", "--pc2",
                   os.path.join(args.work, "never.pc2"), "--up-axis", "X"], expect=2)
     if "--up-axis 'X'" not in result.stderr:
         fail(f"a bad --up-axis is not named in the error: {result.stderr}")
-    result = run([python, args.script, "--mesh", rest, "--pc2", pc2, "--up-axis", "X", "-o",
+    result = run([*export, "--mesh", rest, "--pc2", pc2, "--up-axis", "X", "-o",
                   os.path.join(args.work, "never.usda")], expect=2)
     if "--up-axis" not in result.stderr:
-        fail(f"export_usd.py's bad --up-axis error does not name the flag: {result.stderr}")
+        fail(f"drivenshape.usd export's bad --up-axis error does not name the flag: "
+             f"{result.stderr}")
 
     # 3. Bad input: a mesh with another vertex count is an input error (exit 3), no file left.
     bad = os.path.join(args.work, "bad.usda")
-    result = run([python, args.script, "--mesh", os.path.join(args.data, "sleeve",
+    result = run([*export, "--mesh", os.path.join(args.data, "sleeve",
                                                               "driver_rest.obj"),
                   "--pc2", pc2, "-o", bad], expect=3)
     if "points but" not in result.stderr or os.path.exists(bad):
         fail(f"wrong-mesh error unclear or a file was left: {result.stderr}")
     # 4. scripts/layering_preview.py renders both kinds of output to a PNG (a smoke test: the
     #    file is a PNG of the expected size; the picture itself is for people).
-    preview = os.path.join(os.path.dirname(args.script), "layering_preview.py")
+    preview = args.preview
     for source in (["--exr", exr, "--frame", "5"], ["--pc2", pc2, "--frame", "14"]):
         png = os.path.join(args.work, "preview.png")
         run([python, preview, "--mesh", rest, *source, "--mix-weight", "group:sleeve",

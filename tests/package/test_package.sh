@@ -42,6 +42,7 @@ mkdir "$work/bake"
 packages="$work/prefix/lib/python3/dist-packages"
 if [[ -f "$build/python/drivenshape/__init__.py" ]]; then
   test -f "$packages/drivenshape/usd.py"
+  test -f "$packages/drivenshape/qc.py"
   (cd "$work" && PYTHONPATH="$packages" /usr/bin/python3 - "$work" "$data" <<'PY'
 import sys
 import drivenshape as ds

@@ -27,6 +27,31 @@ def _wrapped(layout, text, icon="NONE", alert=False, width=48):
         column.label(text=line, icon=icon if first else "BLANK1")
 
 
+def length_text(value, unit_settings):
+    """A length in Blender units as the scene shows lengths: mm for a metric or imperial scene
+    (Blender units x the unit scale are metres), Blender units when the scene has no unit."""
+    if unit_settings.system == "NONE":
+        return f"{value:.4g} BU"
+    return f"{value * unit_settings.scale_length * 1000.0:.1f} mm"
+
+
+def coverage_lines(record, settings, unit_settings):
+    """The pose model's verdict on the live frame: [(text, icon, alert)], empty when the model that
+    evaluated it predicts nothing (the QP, the nearest shape, the rest binding). `settings` is
+    the Evaluator's describe_settings() (its coverage_tolerance, what the bake's report states)."""
+    if record is None or record.predicted_error < 0:
+        return []
+    predicted = length_text(record.predicted_error, unit_settings)
+    tolerance = settings.get("coverage_tolerance")
+    limit = "the tolerance" if tolerance is None else length_text(tolerance, unit_settings)
+    lines = [(f"Predicted error {predicted} (pose model)", "INFO", False)]
+    if record.flagged == 1:
+        lines.append((f"Over {limit}: simulate this pose", "ERROR", True))
+    else:
+        lines.append((f"Within {limit}: DrivenShape is enough", "CHECKMARK", False))
+    return lines
+
+
 class DRIVENSHAPE_PT_main(_Panel, bpy.types.Panel):
     bl_label = "DrivenShape"
 
@@ -55,8 +80,17 @@ class DRIVENSHAPE_PT_main(_Panel, bpy.types.Panel):
                 box.label(text=f"read {read:.2f} · evaluate {evaluate:.1f} · write {write:.2f}")
             record = live.SESSION.last_record
             if record is not None and record.inside_after >= 0:  # measured with Audit on
-                jump = f" · largest jump {record.max_jump:.4f}" if record.max_jump >= 0 else ""
+                units = context.scene.unit_settings
+                jump = (f" · largest jump {length_text(record.max_jump, units)}"
+                        if record.max_jump >= 0 else "")
                 box.label(text=f"inside the body: {record.inside_after}{jump}")
+            evaluator = engine.CACHE.evaluator
+            if record is not None and evaluator is not None:
+                for text, icon, alert in coverage_lines(record, evaluator.describe_settings(),
+                                                        context.scene.unit_settings):
+                    row = box.row()
+                    row.alert = alert
+                    row.label(text=text, icon=icon)
             device = engine.CACHE.device
             if device is not None and device.note:  # "auto" found no OpenCL device
                 _wrapped(box, device.note, icon="INFO")

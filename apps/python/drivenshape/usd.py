@@ -22,6 +22,11 @@ or from a shell (python -m drivenshape.usd bake --help):
     python -m drivenshape.usd bake --db sleeve.dsdb --usd shot.usda --prim /Character/Arm \\
         --out cloth.usdc
 
+and a result already on disk (EXRs of `drivenshape bake`, a PC2) with `export`:
+
+    python -m drivenshape.usd export --mesh driven_rest.obj --exr out/pants.####.exr \\
+        --frames 1001-1100 [--up-axis Y] -o pants.usdc
+
 Points are read and written as float32 exactly (no unit conversion, no interpolation): the
 driver, the database and the cloth share one scene unit. An output up axis other than the
 points' own rotates them about X (Z up -> Y up: (x, y, z) -> (x, z, -y)), which is exact too
@@ -416,6 +421,50 @@ def _write_motion(geom, Vt, frames, positions, counts, indices, fps, normals, ve
             attribute.Set(Vt.Vec3fArray.FromNumpy(values), frame)
 
 
+# ---- The export command --------------------------------------------------------------------
+
+def export(mesh, out_path, *, exr=None, frames=None, pc2=None, fps=None,
+           prim_path="/Garment/Mesh", up_axis=DEFAULT_UP_AXIS):
+    """A drivenshape result on disk to USD: the faces, UVs and groups of `mesh` (the driven rest
+    OBJ's path, or a drivenshape.Mesh) with the points of a point-cache EXR sequence `exr`
+    (a pattern: ####, %04d, $F4; `frames` a range text or a list) or of a PC2 file `pc2` (every
+    whole-frame sample), read with the module's readers. Time codes are frame numbers at `fps`
+    (default: the first EXR's framesPerSecond, else 24). The points are drivenshape's, Z up; a
+    Y-up stage gets them rotated, (x, y, z) -> (x, z, -y), exactly. Returns a summary dict
+    (frames, vertices, fps)."""
+    import drivenshape as ds
+
+    if (exr is None) == (pc2 is None):
+        raise _error("usage", "give one of exr (a point-cache EXR pattern) and pc2")
+    if up_axis not in ("Y", "Z"):
+        raise _error("usage", f"up axis '{up_axis}' is not Y or Z")
+    _check_output(out_path)
+    _check_prim_path(prim_path)
+    if not isinstance(mesh, Mesh):
+        mesh = ds.read_obj(mesh)
+    if pc2 is not None:
+        cache = ds.open_point_cache(pc2)
+        frames = cache.frames
+    else:
+        if frames is None:
+            raise _error("usage", "an EXR sequence needs its frames (a range such as 1001-1100)")
+        frames = ds.parse_frame_range(frames) if isinstance(frames, str) else list(frames)
+        cache = ds.open_point_cache(exr)
+        if fps is None and frames:
+            fps = ds.read_point_cache_exr_info(ds.expand_frame_pattern(exr, frames[0])).get(
+                "frames_per_second")
+    if not frames:
+        raise _error("input", f"no frames to export from '{pc2 or exr}'")
+    if cache.vertex_count != mesh.vertex_count:
+        raise _error("input", f"'{pc2 or exr}' holds {cache.vertex_count} points but the mesh "
+                              f"has {mesh.vertex_count} vertices; pass the driven mesh of the "
+                              "bake")
+    fps = fps or 24.0
+    write_mesh_usd(out_path, mesh, frames, cache.read_frames(frames), prim_path=prim_path,
+                   fps=fps, up_axis=up_axis, meters_per_unit=1.0, points_up_axis="Z")
+    return {"frames": list(frames), "vertices": mesh.vertex_count, "fps": fps}
+
+
 # ---- The bake command ----------------------------------------------------------------------
 
 def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto",
@@ -571,7 +620,42 @@ def _parser():
     add("--wind-weight", metavar="MAP", help="where the wind blows [default: everywhere]")
     add("--wind-falloff", metavar="RINGS", type=int, default=0, help="[default: 0]")
     add("--quiet", action="store_true", help="print nothing but errors")
+
+    export_parser = commands.add_parser(
+        "export", help="write a drivenshape result (EXR sequence or PC2) as a UsdGeomMesh",
+        description="Writes a UsdGeomMesh with time-sampled points and extents: the faces, UVs "
+                    "(primvars:st) and groups (UsdGeomSubsets) of the driven rest OBJ, the "
+                    "points of a point-cache EXR sequence written by `drivenshape bake` or of a "
+                    "PC2 file (e.g. `drivenshape export --pc2`). Time codes are frame numbers; "
+                    "metersPerUnit is 1.",
+        epilog="Exit codes: 0 ok, 2 usage, 3 input, 4 output.")
+    add = export_parser.add_argument
+    add("--mesh", required=True, help="driven rest OBJ (faces, UVs, groups)")
+    source = export_parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--exr", metavar="PATTERN",
+                        help="point-cache EXR sequence, e.g. out/pants.####.exr (needs --frames)")
+    source.add_argument("--pc2", metavar="FILE", help="PC2 point cache (every whole-frame "
+                                                      "sample)")
+    add("--frames", metavar="RANGE", help="frames of the EXR sequence: 1001-1100, 1001-1100x2")
+    add("--fps", type=float,
+        help="time codes per second (default: the EXR's framesPerSecond, else 24)")
+    add("--prim", default="/Garment/Mesh", help="mesh prim path [default: /Garment/Mesh]")
+    add("--up-axis", choices=("Y", "Z"), default="Z",
+        help="stage upAxis: Z (default) keeps the points as they are, the axis of drivenshape's "
+             "caches; Y rotates them to Y up, (x, y, z) -> (x, z, -y), exactly")
+    add("-o", "--output", required=True, help="OUT.usd, .usda or .usdc")
     return parser
+
+
+def _export_main(args):
+    if args.exr and not args.frames:
+        raise _error("usage", "--exr needs --frames RANGE")
+    done = export(args.mesh, args.output, exr=args.exr, frames=args.frames, pc2=args.pc2,
+                  fps=args.fps, prim_path=args.prim, up_axis=args.up_axis)
+    frames = done["frames"]
+    print(f"wrote {args.output}: {args.prim}, {done['vertices']} points, {len(frames)} time "
+          f"samples ({frames[0]:g}-{frames[-1]:g}) at {done['fps']:g} fps, {args.up_axis} up")
+    return EXIT_OK
 
 
 def _settings(args, db):
@@ -607,6 +691,8 @@ def main(argv=None):
 
     args = _parser().parse_args(argv)
     try:
+        if args.command == "export":
+            return _export_main(args)
         if args.batch < 1 or args.temporal_warmup < 0:
             raise _error("usage", "--batch must be at least 1 and --temporal-warmup at least 0")
         frames = ds.parse_frame_range(args.frames) if args.frames else None

@@ -1,25 +1,30 @@
-#!/usr/bin/env python3
 # SPDX-License-Identifier: Apache-2.0
-"""QC report of a bake: one HTML page with PNG plots that a supervisor opens in a browser.
+"""QC page of a bake: one HTML page with PNG plots that a supervisor opens in a browser.
 
-  .venv/bin/python scripts/qc_report.py --report out/cloth.report.json \
-      [--eval eval.json] [--mesh driven_rest.obj [--truth sim.pc2] [--bake out/cloth.####.exr]] \
-      [--units m] [--title "sh010 cloth"] -o qc/sh010
+    python -m drivenshape.qc --report out/cloth.report.json \\
+        [--eval eval.json] [--mesh driven_rest.obj [--truth sim.pc2] [--bake out/cloth.####.exr]] \\
+        [--units m|cm|mm|scene] [--title "sh010 cloth"] -o qc/sh010
 
-From the bake report (`drivenshape bake`, one or more --report: farm chunks are merged): the
-weights over time (stacked), the relative residual, the audit counts (inside the driver before
-and after the correction and after the resolution, vertices resolved) and the largest
-frame-to-frame jump per frame. From `drivenshape eval --json` (--eval): the error to the truth
-per frame. With --mesh (the driven rest OBJ) and a truth: the mean error per vertex over the
-frames as a heat map on the mesh, seen from two sides. Truth and bake caches default to the
-paths the eval JSON and the report name. Frames a coverage check flagged (a `coverage` entry in
-a frame record) are listed and marked on the plots.
+The page reads every model a bake can run (the report's `settings.weights`) and says plainly
+which one made the bake:
+
+* the pose model (`model`, the default): its predicted mean vertex error per frame against the
+  coverage tolerance, the frames over it (to simulate) and the shot's verdict;
+* the QP blend (`qp`) and the nearest database shape (`nearest`): the weights over time and the
+  relative residual;
+* the rest binding (`bind`): neither (it solves nothing).
+
+Whatever the model: the audit counts (cloth inside the driver after the correction and after
+the resolution, vertices resolved) and the largest frame-to-frame jump per frame; with
+`drivenshape eval --json` (--eval) the error to the truth per frame; with --mesh (the driven rest
+OBJ) and a truth, the mean error per vertex over the frames as a heat map on the mesh. Caches
+and meshes are read with the module's readers (open_point_cache, read_obj). Lengths are shown in
+mm (--units names the scene's unit, metres by default; --units scene shows them as stored).
 
 The page (DIR/index.html, images DIR/*.png, relative links, no JavaScript) is written into a
-temporary folder beside DIR and renamed into place, so DIR never holds a half-written report.
-An existing DIR is replaced only if it holds an earlier QC report. Needs numpy and matplotlib
-(scripts/requirements.txt) and, for the heat map, the drivenshape Python module (PYTHONPATH,
-else this checkout's build/python). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
+temporary folder beside DIR and renamed into place, so DIR never holds a half-written page. An
+existing DIR is replaced only if it holds an earlier QC page. Needs numpy and matplotlib
+(scripts/requirements.txt). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
 """
 
 import argparse
@@ -33,23 +38,75 @@ import tempfile
 
 import numpy as np
 
-from drivenshape_import import import_drivenshape
+from . import Error, format_frame_range, open_point_cache, read_obj
 
 EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 2, 3, 4
-GENERATOR = "drivenshape qc_report"
+GENERATOR = "drivenshape qc"
 WORST_FRAMES = 5
 FRAMES_PER_READ = 32
 # Relative tolerance of the per-frame mean error computed here against the eval JSON's (both
 # are means of float32 distances; a larger gap means the caches are not the ones eval compared).
 EVAL_MATCH_TOLERANCE = 1e-3
-UNITS = {"scene": (1.0, "scene units"), "m": (1000.0, "mm"), "cm": (10.0, "mm"),
-         "mm": (1.0, "mm")}
+
+# What each value of the report's settings.weights means, for the page's first lines.
+MODELS = {
+    "model": ("the pose model",
+              "the rest binding plus the pose model's learned correction (the default, "
+              "<code>--weights auto</code> on a database with a pose model)"),
+    "qp": ("the QP blend",
+           "the 2008 DrivenShape blend: per frame, weights of the database shapes from a "
+           "quadratic programme (<code>--weights qp</code>)"),
+    "nearest": ("the nearest database shape",
+                "a baseline: per frame, the one database shape closest to the pose "
+                "(<code>--weights nearest</code>)"),
+    "bind": ("the rest binding",
+             "a baseline: the rest cloth bound to the rest driver and carried along, like "
+             "Point Deform; nothing is solved (<code>--weights bind</code>)"),
+}
+SOLVING_MODELS = ("qp", "nearest")  # the models with weights and a residual per frame
 
 
 class QcError(Exception):
     def __init__(self, code, message):
         super().__init__(message)
         self.code = code
+
+
+class Units:
+    """Lengths as the page shows them: mm with one decimal (the truth's own spread is several
+    mm), or scene units with 4 significant digits (--units scene)."""
+
+    SCALES = {"m": 1000.0, "cm": 10.0, "mm": 1.0}
+
+    def __init__(self, name):
+        self.scale = self.SCALES.get(name, 1.0)
+        self.unit = "mm" if name in self.SCALES else "scene units"
+
+    def value(self, length):
+        return None if length is None else length * self.scale
+
+    def text(self, length):
+        if length is None:
+            return "-"
+        if self.unit == "mm":
+            return f"{length * self.scale:.1f}"
+        return f"{length:.4g}"
+
+    def with_unit(self, length):
+        return f"{self.text(length)} {self.unit}"
+
+
+def ratio_text(value):
+    """A relative figure (residual, weight ratio): 3 significant digits."""
+    return "-" if value is None else f"{value:.3g}"
+
+
+def count_text(value):
+    return "-" if value is None else str(int(value))
+
+
+def percent_text(fraction):
+    return f"{100.0 * fraction:.0f}%"
 
 
 # ---- inputs ----------------------------------------------------------------------------------
@@ -78,39 +135,45 @@ def is_number(value):
 
 
 def load_report(path):
+    """A bake report (docs/schemas/bake_report.schema.json), checked for what the page reads."""
     report = load_json(path, "bake report")
     require(isinstance(report, dict) and isinstance(report.get("frames"), list), path,
             "not a drivenshape bake report (no 'frames' list)")
     for key in ("database", "settings"):
         require(isinstance(report.get(key), dict), path, f"no '{key}' object; is this a "
                 "report written by `drivenshape bake`?")
+    model = report["settings"].get("weights")
+    require(model in MODELS, path, f"settings.weights is {json.dumps(model)}; expected one of "
+            f"{', '.join(MODELS)} (a report of `drivenshape bake`)")
     for index, record in enumerate(report["frames"]):
         require(isinstance(record, dict) and isinstance(record.get("frame"), int), path,
                 f"frame record {index} has no integer 'frame'")
         if record.get("skipped"):
             continue
-        for key in ("weights", "relative_residual"):
-            require(key in record, path, f"frame {record['frame']} has no '{key}'")
-        check_weights(record, report["database"].get("shape_count"), path)
+        if model in SOLVING_MODELS:
+            require("weights" in record and is_number(record.get("relative_residual_direct")),
+                    path, f"frame {record['frame']} of a --weights {model} bake has no "
+                    "'weights' or no number 'relative_residual_direct'")
+            check_weights(record, report["database"].get("shape_count"), path)
+        if model == "model":
+            require(is_number(record.get("predicted_error"))
+                    and isinstance(record.get("coverage"), dict)
+                    and isinstance(record["coverage"].get("flagged"), bool), path,
+                    f"frame {record['frame']} of a pose-model bake has no number "
+                    "'predicted_error' or no coverage.flagged")
+    if model == "model" and any(not r.get("skipped") for r in report["frames"]):
+        require(is_number(report["settings"].get("coverage_tolerance")), path,
+                "a pose-model bake without a number settings.coverage_tolerance")
     return report
 
 
-def residual_key(report):
-    """The report's relative residual: the direct figure (||A w - b|| / ||b|| from the shapes)
-    where the bake wrote it, else the QP objective's (reports of earlier versions)."""
-    baked = [r for r in report["frames"] if not r.get("skipped")]
-    if baked and all("relative_residual_direct" in r for r in baked):
-        return "relative_residual_direct"
-    return "relative_residual"
-
-
 def check_weights(record, shape_count, path):
-    """A frame's weights: k numbers, one list of k per region, or none (--weights bind)."""
+    """A frame's weights: k numbers, or one list of k per region."""
     weights = record["weights"]
     rows = weights if weights and isinstance(weights[0], list) else [weights]
     for row in rows:
         require(isinstance(row, list) and all(is_number(w) for w in row)
-                and len(row) in (0, shape_count), path,
+                and len(row) == shape_count, path,
                 f"frame {record['frame']}: the weights are not {shape_count} numbers (the "
                 "database's shape_count) per region")
 
@@ -157,21 +220,57 @@ def load_eval(path):
     return data
 
 
-def drivenshape_module():
-    """The project's Python module (scripts/drivenshape_import.py)."""
-    try:
-        return import_drivenshape()
-    except ImportError as error:
-        raise QcError(EXIT_USAGE, str(error))
+class Coverage:
+    """The pose model's prediction per baked frame and the shot's verdict, from the frames
+    (so merged farm chunks get one verdict over all of them)."""
+
+    def __init__(self, report):
+        self.tolerance = report["settings"].get("coverage_tolerance")
+        self.predicted = {}  # frame -> predicted mean vertex error (scene units)
+        self.flagged = []
+        for record in report["frames"]:
+            if record.get("skipped") or not is_number(record.get("predicted_error")):
+                continue
+            self.predicted[record["frame"]] = float(record["predicted_error"])
+            if record["coverage"]["flagged"]:
+                self.flagged.append(record["frame"])
+
+    def __bool__(self):
+        return bool(self.predicted)
+
+    @property
+    def covered_fraction(self):
+        return 1.0 - len(self.flagged) / len(self.predicted)
+
+    @property
+    def enough(self):
+        return not self.flagged
+
+    def against_truth(self, error_frames):
+        """(true mean error of the frames judged enough, [enough frames whose true mean error
+        is over the tolerance]) from the eval's per-frame errors; None without them."""
+        enough = [f for f in sorted(self.predicted) if f not in self.flagged and f in error_frames]
+        if not enough:
+            return None
+        true_error = mean_of([error_frames[f][0] for f in enough])
+        return true_error, [f for f in enough if error_frames[f][0] > self.tolerance]
+
+    def verdict(self, units):
+        tolerance = units.with_unit(self.tolerance)
+        if self.enough:
+            return (f"DrivenShape is enough: all {len(self.predicted)} frames are predicted "
+                    f"within the {tolerance} tolerance")
+        return (f"simulate {format_frame_range(self.flagged)}: {len(self.flagged)} of "
+                f"{len(self.predicted)} frames are predicted over the {tolerance} tolerance")
 
 
-def open_cache(ds, candidates, what, option):
+def open_cache(candidates, what, option):
     """The first candidate path that opens as a point cache; an input error naming them all."""
     errors = []
     for path in dict.fromkeys(candidates):
         try:
-            return ds.open_point_cache(path), path
-        except ds.Error as error:
+            return open_point_cache(path), path
+        except Error as error:
             errors.append(f"'{path}': {error}")
     raise QcError(EXIT_INPUT, f"cannot open the {what} ({'; '.join(errors)}); give it with "
                               f"{option}")
@@ -186,8 +285,9 @@ def beside(path, json_path):
     return candidates
 
 
-def vertex_errors(ds, args, report, evaluation, frames):
-    """Per-vertex mean error over `frames` and the per-frame mean/max/argmax, from the caches."""
+def vertex_errors(args, report, evaluation, frames):
+    """Per-vertex mean error over `frames` and the per-frame mean/max/argmax, from the caches
+    (read with the module's point-cache readers)."""
     if args.truth:
         truth_candidates = [args.truth]
     elif evaluation and evaluation.get("truth"):
@@ -202,11 +302,11 @@ def vertex_errors(ds, args, report, evaluation, frames):
             bake_candidates += beside(evaluation["bake"], args.eval)
         if report.get("output"):
             bake_candidates += beside(report["output"], args.report[0])
-    truth, truth_path = open_cache(ds, truth_candidates, "truth cache", "--truth")
-    bake, bake_path = open_cache(ds, bake_candidates, "baked cache", "--bake")
+    truth, truth_path = open_cache(truth_candidates, "truth cache", "--truth")
+    bake, bake_path = open_cache(bake_candidates, "baked cache", "--bake")
     try:
-        mesh = ds.read_obj(args.mesh)
-    except ds.Error as error:
+        mesh = read_obj(args.mesh)
+    except Error as error:
         raise QcError(EXIT_INPUT, str(error))
     for cache, path in ((truth, truth_path), (bake, bake_path)):
         if cache.vertex_count != mesh.vertex_count:
@@ -219,7 +319,7 @@ def vertex_errors(ds, args, report, evaluation, frames):
         try:
             a = bake.read_frames(chunk).astype(np.float64)
             b = truth.read_frames(chunk).astype(np.float64)
-        except ds.Error as error:
+        except Error as error:
             raise QcError(EXIT_INPUT, str(error))
         distance = np.linalg.norm(a - b, axis=2)
         total += distance.sum(axis=0)
@@ -252,6 +352,7 @@ MARGINS = {"left": 0.07, "right": 0.79}
 SHAPE_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
                  "tab:pink", "tab:olive", "tab:cyan", "#393b79")
 OTHERS_COLOUR = "0.82"
+FLAG_COLOUR = "tab:red"
 MIN_SHOWN_WEIGHT = 0.01  # shapes whose weight never reaches it are summed into "others"
 
 
@@ -269,7 +370,7 @@ class Plots:
         self.folder = folder
         self.frame_range = (min(frames), max(frames)) if frames else (0, 1)
         self.flagged = flagged
-        self.scale, self.unit = units
+        self.units = units
 
     def figure(self, height, rows=1):
         fig, axes = self.plt.subplots(rows, 1, figsize=(FIGURE_WIDTH, height), sharex=True,
@@ -279,9 +380,10 @@ class Plots:
         return fig, list(axes[:, 0])
 
     def dress(self, axes, ylabel, title):
-        """The common dressing of a plot over frames; flagged frames are shaded."""
+        """The common dressing of a plot over frames; frames over the coverage tolerance are
+        shaded."""
         for frame in self.flagged:
-            axes.axvspan(frame - 0.5, frame + 0.5, color="tab:red", alpha=0.15, lw=0)
+            axes.axvspan(frame - 0.5, frame + 0.5, color=FLAG_COLOUR, alpha=0.12, lw=0)
         axes.set_xlim(self.frame_range[0] - 0.5, self.frame_range[1] + 0.5)
         axes.set_ylabel(ylabel)
         axes.set_title(title, loc="left")
@@ -294,7 +396,36 @@ class Plots:
         self.plt.close(fig)
         return name
 
-    def weights(self, report):
+    def coverage(self, coverage, error_frames):
+        """The pose model's predicted error per frame, the tolerance as a line, the frames over
+        it circled in red, and the true mean error when an eval gives it."""
+        if not coverage:
+            return None
+        units = self.units
+        frames = np.array(sorted(coverage.predicted))
+        predicted = np.array([coverage.predicted[f] for f in frames]) * units.scale
+        tolerance = coverage.tolerance * units.scale
+        fig, (axes,) = self.figure(3.4)
+        axes.plot(frames, predicted, ".-", color="tab:blue", label="predicted mean error")
+        top = max(float(predicted.max()), tolerance)
+        if error_frames:
+            t_frames = np.array(sorted(error_frames))
+            true_mean = np.array([error_frames[f][0] for f in t_frames]) * units.scale
+            axes.plot(t_frames, true_mean, "--", color="0.35", label="true mean error (eval)")
+            top = max(top, float(true_mean.max()))
+        axes.axhline(tolerance, color=FLAG_COLOUR, ls="--", lw=1.3,
+                     label=f"tolerance {units.with_unit(coverage.tolerance)}")
+        if coverage.flagged:
+            over = np.array([coverage.predicted[f] for f in coverage.flagged]) * units.scale
+            axes.plot(coverage.flagged, over, "o", ms=8, mfc="none", mec=FLAG_COLOUR, mew=1.5,
+                      label=f"over: simulate ({len(coverage.flagged)})")
+        axes.set_ylim(0, top * 1.15)
+        self.dress(axes, f"mean vertex error ({units.unit})",
+                   "Pose model: predicted mean vertex error per frame against the coverage "
+                   "tolerance")
+        return self.save(fig, axes, "coverage.png")
+
+    def weights(self, report, model):
         blocks = weight_blocks(report)
         if not blocks:
             return None
@@ -305,6 +436,8 @@ class Plots:
         ranked = [s for s in np.argsort(-peak, kind="stable") if peak[s] >= MIN_SHOWN_WEIGHT]
         colour = {s: c for s, c in zip(sorted(ranked[:len(SHAPE_COLOURS)]), SHAPE_COLOURS)}
         fig, axes_list = self.figure(3.4 * len(blocks), rows=len(blocks))
+        what = ("QP weights of the database shapes" if model == "qp"
+                else "The nearest database shape")
         for (title, frames, weights), axes in zip(blocks, axes_list):
             k = weights.shape[1]
             shown = [s for s in colour if weights[:, s].max() >= MIN_SHOWN_WEIGHT]
@@ -323,19 +456,27 @@ class Plots:
             layers = [np.append(layer, layer[-1]) for layer in layers]
             axes.stackplot(edges, *layers, labels=labels, colors=colours, step="post")
             axes.set_ylim(0, max(1.0, float(weights.sum(axis=1).max())))
-            self.dress(axes, "weight", f"Weights per frame, stacked"
+            self.dress(axes, "weight", f"{what} per frame, stacked"
                        f"{' in ' + title if title else ''} ({k} shapes"
                        + (f"; {len(shown)} shown, the others summed)" if rest else ")"))
         return self.save(fig, axes_list[-1], "weights.png")
 
-    def residual(self, report):
-        frames, values = records_series(report, residual_key(report))
-        if len(frames) == 0 or not solves(report):
+    def residual(self, report, model):
+        frames, values = records_series(report, "relative_residual_direct")
+        if len(frames) == 0:
             return None
         fig, (axes,) = self.figure(3.0)
-        axes.semilogy(frames, np.maximum(values, 1e-16), ".-", color="tab:blue")
-        self.dress(axes, "relative residual", "Relative residual ||A w - b|| / ||b||: how far "
-                   "the blend of database poses is from the shot's pose")
+        positive = values[values > 0]
+        # A frame equal to a database shape has residual 0: drawn at the plot's floor.
+        floor = float(positive.min()) / 10.0 if len(positive) else 1e-6
+        axes.semilogy(frames, np.maximum(values, floor), ".-", color="tab:blue")
+        if model == "qp":
+            title = ("QP: relative residual ||A w - b|| / ||b||, how far the blend of database "
+                     "poses is from the shot's pose")
+        else:
+            title = ("Nearest shape: relative distance ||a - b|| / ||b|| from the shot's pose "
+                     "to the closest database pose")
+        self.dress(axes, "relative residual", title)
         return self.save(fig, axes, "residual.png")
 
     def audit(self, report):
@@ -355,6 +496,8 @@ class Plots:
             self.plt.close(fig)
             return None
         axes.set_ylim(bottom=0)
+        if axes.get_ylim()[1] < 1.0:  # all zero: a readable axis rather than 0 to 0.06
+            axes.set_ylim(0, 1)
         self.dress(axes, "vertices", "Cloth vertices inside the driver, and vertices resolved")
         return self.save(fig, axes, "audit.png")
 
@@ -362,54 +505,46 @@ class Plots:
         frames, values = records_series(report, "max_jump")
         if len(frames) == 0:
             return None
+        units = self.units
         fig, (axes,) = self.figure(3.0)
-        axes.plot(frames, values * self.scale, ".-", color="tab:purple", label="bake")
+        axes.plot(frames, values * units.scale, ".-", color="tab:purple", label="bake")
         if evaluation:
             truth = [(r["frame"], r["truth"]["jump"]) for r in evaluation["frames"]
                      if isinstance(r.get("truth"), dict) and is_number(r["truth"].get("jump"))]
             if truth:
                 t_frames, t_values = zip(*truth)
-                axes.plot(t_frames, np.array(t_values) * self.scale, "--", color="0.4",
+                axes.plot(t_frames, np.array(t_values) * units.scale, "--", color="0.4",
                           label="truth")
         axes.set_ylim(bottom=0)
-        self.dress(axes, f"max jump ({self.unit})",
+        self.dress(axes, f"max jump ({units.unit})",
                    "Largest vertex move from the previous frame (popping shows as spikes)")
         return self.save(fig, axes, "jump.png")
 
     def error(self, error_frames, baseline):
         if not error_frames:
             return None
+        scale, unit = self.units.scale, self.units.unit
         frames = np.array(sorted(error_frames))
-        mean = np.array([error_frames[f][0] for f in frames]) * self.scale
-        top = np.array([error_frames[f][1] for f in frames]) * self.scale
+        mean = np.array([error_frames[f][0] for f in frames]) * scale
+        top = np.array([error_frames[f][1] for f in frames]) * scale
         fig, (axes,) = self.figure(3.2)
         axes.fill_between(frames, mean, top, color="tab:red", alpha=0.1)
         axes.plot(frames, top, ".-", color="tab:red", label="bake: max over vertices")
         axes.plot(frames, mean, ".-", color="tab:blue", label="bake: mean over vertices")
         if baseline:
             b_frames = sorted(baseline)
-            axes.plot(b_frames, np.array([baseline[f] for f in b_frames]) * self.scale, "--",
+            axes.plot(b_frames, np.array([baseline[f] for f in b_frames]) * scale, "--",
                       color="0.45", label="binding baseline: mean")
         axes.set_ylim(bottom=0)
-        self.dress(axes, f"error ({self.unit})", "Distance to the truth per frame")
+        self.dress(axes, f"error ({unit})", "Distance to the truth per frame")
         return self.save(fig, axes, "error.png")
-
-    def coverage(self, coverage):
-        scored = [(f, c[1]) for f, c in sorted(coverage.items()) if c[1] is not None]
-        if not scored:
-            return None
-        frames, scores = zip(*scored)
-        fig, (axes,) = self.figure(2.8)
-        axes.plot(frames, scores, ".-", color="tab:brown")
-        self.dress(axes, "score", "Coverage score per frame (flagged frames shaded)")
-        return self.save(fig, axes, "coverage.png")
 
     def heat_map(self, errors, up_axis):
         from matplotlib.colors import Normalize
         mesh = errors["mesh"]
         positions = np.asarray(mesh.positions, dtype=np.float64)
         triangles = np.asarray(mesh.triangles)
-        values = errors["mean"] * self.scale
+        values = errors["mean"] * self.units.scale
         norm = Normalize(vmin=0.0, vmax=max(float(values.max()), 1e-12))
         views = view_axes(positions, up_axis)
         right, up = views[0][1], views[0][2]
@@ -439,7 +574,7 @@ class Plots:
         fig.suptitle(f"Mean distance to the truth per vertex over {len(errors['frames'])} "
                      "frames, on the rest mesh", x=0.02, ha="left")
         bar_axes = fig.add_axes((0.89, 0.1, 0.016, 0.75))
-        fig.colorbar(image, cax=bar_axes).set_label(f"mean error ({self.unit})")
+        fig.colorbar(image, cax=bar_axes).set_label(f"mean error ({self.units.unit})")
         fig.savefig(os.path.join(self.folder, "heatmap.png"), dpi=100)
         self.plt.close(fig)
         return "heatmap.png"
@@ -462,11 +597,6 @@ def weight_blocks(report):
             blocks.append((f"region '{name}'", frames, weights))
         return blocks
     return [("", frames, np.array([r["weights"] for r in records], dtype=float))]
-
-
-def solves(report):
-    """False for `--weights bind` bakes: no weights, no solve, residuals of 0."""
-    return report["settings"].get("weights") != "bind"
 
 
 def records_series(report, key):
@@ -498,21 +628,6 @@ def view_axes(positions, up_axis):
             (f"seen from +{name}", -right, unit[up], -unit[depth])]
 
 
-def coverage_flag(value):
-    """A frame's coverage entry: (flagged, score or None, detail text)."""
-    if isinstance(value, bool):
-        return value, None, ""
-    if is_number(value):
-        return False, float(value), ""
-    if isinstance(value, dict):
-        flagged = bool(value.get("flagged", value.get("flag", False)))
-        score = next((float(value[k]) for k in ("score", "distance", "value")
-                      if is_number(value.get(k))), None)
-        detail = ", ".join(f"{k}: {v}" for k, v in value.items() if k not in ("flagged", "flag"))
-        return flagged, score, detail
-    return False, None, str(value)
-
-
 # ---- page ------------------------------------------------------------------------------------
 
 CSS = """
@@ -524,21 +639,19 @@ table { border-collapse: collapse; margin: 8px 0; }
 th, td { border: 1px solid #ddd; padding: 3px 9px; text-align: left; font-size: 14px; }
 th { background: #f2f2f2; }
 #header th { white-space: nowrap; vertical-align: top; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
 td.weights { white-space: nowrap; }
 .sub { color: #666; font-size: 13px; }
 .flag { color: #b00; font-weight: bold; }
+.model { font-size: 16px; margin: 10px 0 4px; }
+.verdict { font-size: 17px; font-weight: bold; padding: 8px 12px; margin: 8px 0;
+           border-left: 6px solid; }
+#truth { font-size: 15px; font-weight: normal; }
+.verdict.ok { border-color: #2a7; background: #eef8f1; }
+.verdict.simulate { border-color: #c33; background: #fbeeee; }
 img { max-width: 100%; border: 1px solid #eee; display: block; margin: 6px 0 16px; }
 code { background: #f4f4f4; padding: 0 3px; }
 """
-
-
-def fmt(value, scale=1.0):
-    if value is None:
-        return "-"
-    if isinstance(value, int) and scale == 1.0:
-        return str(value)
-    return f"{value * scale:.6g}"
 
 
 def frame_link(frame):
@@ -572,9 +685,14 @@ def worst(pairs):
     return best
 
 
-def summary_rows(report, evaluation, errors, error_frames, units):
-    scale, unit = units
+def mean_of(values):
+    return sum(values) / len(values)
+
+
+def summary_rows(report, model, coverage, evaluation, errors, error_frames, units):
+    unit = units.unit
     summary = Summary()
+    summary.add("model", "made by", MODELS[model][0], f"<code>--weights {model}</code>")
     baked = [r for r in report["frames"] if not r.get("skipped")]
     summary.add("frames_baked", "frames baked", str(len(baked)))
     skipped = len(report["frames"]) - len(baked)
@@ -585,25 +703,55 @@ def summary_rows(report, evaluation, errors, error_frames, units):
                     f"{baked[0]['frame']} - {baked[-1]['frame']}")
     total = report.get("seconds", {}).get("total")
     if is_number(total) and total > 0:
-        summary.add("seconds", "bake seconds", fmt(total), f"{len(baked) / total:.3g} frames/s")
+        summary.add("seconds", "bake seconds", f"{total:.3g}",
+                    f"{len(baked) / total:.3g} frames/s")
 
     def series(key):
         return [(r["frame"], r[key]) for r in baked if is_number(r.get(key))]
 
-    residual = series(residual_key(report)) if solves(report) else []
-    if residual:
-        summary.add("residual_mean", "relative residual, mean",
-                    fmt(sum(v for _, v in residual) / len(residual)))
-        value, frame = worst(residual)
-        summary.add("residual_max", "relative residual, max", fmt(value), frame_link(frame))
+    if coverage:
+        summary.add("verdict", "coverage verdict",
+                    "DrivenShape is enough" if coverage.enough
+                    else f"simulate {format_frame_range(coverage.flagged)}")
+        summary.add("coverage_tolerance", f"coverage tolerance ({unit})",
+                    units.text(coverage.tolerance), "predicted mean vertex error allowed")
+        summary.add("frames_over", "frames over the tolerance (to simulate)",
+                    str(len(coverage.flagged)), f"of {len(coverage.predicted)} predicted; "
+                    f"{percent_text(coverage.covered_fraction)} covered")
+        predicted = list(coverage.predicted.items())
+        summary.add("predicted_mean", f"predicted mean vertex error, mean ({unit})",
+                    units.text(mean_of([v for _, v in predicted])))
+        value, frame = worst(predicted)
+        summary.add("predicted_max", f"predicted mean vertex error, max ({unit})",
+                    units.text(value), frame_link(frame))
+        checked = coverage.against_truth(error_frames)
+        if checked:
+            true_error, missed = checked
+            holds = true_error <= coverage.tolerance
+            summary.add("enough_true_error",
+                        f"true mean error of the frames within the tolerance ({unit})",
+                        units.text(true_error),
+                        "within the tolerance: the verdict holds" if holds else
+                        '<span class="flag">over the tolerance: the verdict does not hold'
+                        "</span>")
+            summary.add("missed", "frames within the tolerance whose true mean error is over it",
+                        str(len(missed)), format_frame_range(missed) if missed else "-")
+    if model in SOLVING_MODELS:
+        residual = series("relative_residual_direct")
+        if residual:
+            summary.add("residual_mean", "relative residual, mean",
+                        ratio_text(mean_of([v for _, v in residual])))
+            value, frame = worst(residual)
+            summary.add("residual_max", "relative residual, max", ratio_text(value),
+                        frame_link(frame))
     for key, label in (("inside_corrected", "inside the driver after the correction"),
                        ("inside_after", "inside the driver after the resolution")):
         values = series(key)
         if values:
             summary.add(f"{key}_mean", f"{label}, mean per frame",
-                        fmt(sum(v for _, v in values) / len(values)))
+                        f"{mean_of([v for _, v in values]):.3g}")
             value, frame = worst(values)
-            summary.add(f"{key}_max", f"{label}, max", fmt(value),
+            summary.add(f"{key}_max", f"{label}, max", count_text(value),
                         frame_link(frame) if value else "-")
     resolved = series("resolved")
     if resolved:
@@ -612,53 +760,58 @@ def summary_rows(report, evaluation, errors, error_frames, units):
     jumps = series("max_jump")
     if jumps:
         value, frame = worst(jumps)
-        summary.add("max_jump", f"largest frame-to-frame jump ({unit})", fmt(value, scale),
+        summary.add("max_jump", f"largest frame-to-frame jump ({unit})", units.text(value),
                     frame_link(frame))
     if evaluation:
         bake = evaluation.get("summary", {}).get("bake", {})
         summary.add("error_mean", f"error to the truth, mean ({unit})",
-                    fmt(evaluation["mean"], scale))
+                    units.text(evaluation["mean"]))
         summary.add("error_rms", f"error to the truth, RMS ({unit})",
-                    fmt(evaluation["rms"], scale))
+                    units.text(evaluation["rms"]))
         summary.add("error_max", f"error to the truth, max ({unit})",
-                    fmt(evaluation["max"], scale), frame_link(evaluation["max_frame"]))
+                    units.text(evaluation["max"]), frame_link(evaluation["max_frame"]))
         baseline = evaluation.get("summary", {}).get("baseline")
         if isinstance(baseline, dict) and is_number(baseline.get("mean")):
             summary.add("baseline_error_mean", f"binding baseline error, mean ({unit})",
-                        fmt(baseline["mean"], scale))
+                        units.text(baseline["mean"]))
         truth = evaluation.get("summary", {}).get("truth", {})
         if is_number(bake.get("max_jump")) and is_number(truth.get("max_jump")) \
                 and truth["max_jump"] > 0:
             summary.add("jump_ratio", "largest jump / the truth's",
-                        f"{bake['max_jump'] / truth['max_jump']:.4g}")
+                        ratio_text(bake["max_jump"] / truth["max_jump"]))
         if is_number(bake.get("mean_inside")):
             summary.add("eval_inside_mean", "inside the driver per frame (eval)",
-                        fmt(bake["mean_inside"]))
+                        f"{bake['mean_inside']:.3g}")
     elif error_frames:
         means = [v[0] for v in error_frames.values()]
         value, frame = worst((f, v[1]) for f, v in error_frames.items())
         summary.add("error_mean", f"error to the truth, mean ({unit})",
-                    fmt(sum(means) / len(means), scale))
-        summary.add("error_max", f"error to the truth, max ({unit})", fmt(value, scale),
+                    units.text(mean_of(means)))
+        summary.add("error_max", f"error to the truth, max ({unit})", units.text(value),
                     frame_link(frame))
     if errors:
         vertex = int(np.argmax(errors["mean"]))
         summary.add("worst_vertex", "vertex with the largest mean error", str(vertex))
         summary.add("worst_vertex_error", f"its mean error ({unit})",
-                    fmt(float(errors["mean"][vertex]), scale))
+                    units.text(float(errors["mean"][vertex])))
     return summary
 
 
-def worst_frames(report, error_frames):
-    """The frames to look at first: by max error when known, else by relative residual."""
+def worst_frames(report, model, coverage, error_frames):
+    """The frames to look at first: by max error when known, else by the model's own measure
+    (predicted error, residual), else by the largest jump."""
+    def ranked(pairs):
+        return [f for f, _ in sorted(pairs, key=lambda p: (-p[1], p[0]))[:WORST_FRAMES]]
+
     if error_frames:
-        ranked = sorted(error_frames, key=lambda f: (-error_frames[f][1], f))
-        return "max error to the truth", ranked[:WORST_FRAMES]
-    key = residual_key(report)
-    residual = [(r["frame"], r[key]) for r in report["frames"]
-                if not r.get("skipped") and is_number(r.get(key)) and solves(report)]
-    ranked = sorted(residual, key=lambda p: (-p[1], p[0]))
-    return "relative residual", [f for f, _ in ranked[:WORST_FRAMES]]
+        return "max error to the truth", ranked((f, v[1]) for f, v in error_frames.items())
+    if coverage:
+        return "predicted error", ranked(coverage.predicted.items())
+    if model in SOLVING_MODELS:
+        frames, values = records_series(report, "relative_residual_direct")
+        return "relative residual", ranked(zip(frames.tolist(), values.tolist()))
+    frames, values = records_series(report, "max_jump")
+    return "largest jump", ranked(zip(frames.tolist(), values.tolist()))
 
 
 def top_weights(record, db_frames):
@@ -675,55 +828,97 @@ def top_weights(record, db_frames):
     return ", ".join(parts)
 
 
-def frame_table(report, error_frames, coverage, units):
-    """One row per frame of the report (id frame-N, the target of the links above)."""
-    scale, unit = units
+def frame_table(report, model, coverage, error_frames, units):
+    """One row per frame of the report (id frame-N, the target of the links above); each
+    column's <th> has a data-key naming what it holds."""
+    unit = units.unit
     db_frames = report["database"].get("frames") or []
-    header = ["frame", "largest weights (db frame: weight)", "rel. residual",
-              "inside corrected", "inside after", "resolved", f"max jump ({unit})"]
-    if error_frames:
-        header += [f"mean error ({unit})", f"max error ({unit})"]
+    baked = [r for r in report["frames"] if not r.get("skipped")]
+    columns = []  # (key, header, cell(record) -> (class, html))
+    if model in SOLVING_MODELS:
+        columns.append(("weights", "largest weights (db frame: weight)",
+                        lambda r: ("weights", html.escape(top_weights(r, db_frames)))))
+        columns.append(("residual", "rel. residual",
+                        lambda r: ("num", ratio_text(r.get("relative_residual_direct")))))
     if coverage:
-        header.append("coverage")
-    lines = ['<table id="frames"><tr>' + "".join(f"<th>{html.escape(h)}</th>" for h in header)
-             + "</tr>"]
+        columns.append(("predicted", f"predicted error ({unit})",
+                        lambda r: ("num", units.text(coverage.predicted.get(r["frame"])))))
+        columns.append(("over", "over the tolerance",
+                        lambda r: ("text", '<span class="flag">over: simulate</span>'
+                                   if r["frame"] in coverage.flagged else "within")))
+    for key, header in (("inside_before", "inside blended"),
+                        ("inside_corrected", "inside corrected"),
+                        ("inside_after", "inside after"), ("resolved", "resolved")):
+        if any(key in r for r in baked):
+            columns.append((key, header, lambda r, k=key: ("num", count_text(r.get(k)))))
+    columns.append(("max_jump", f"max jump ({unit})",
+                    lambda r: ("num", units.text(r.get("max_jump")))))
+    if error_frames:
+        columns.append(("error_mean", f"mean error ({unit})",
+                        lambda r: ("num", units.text(error_frames.get(r["frame"], (None,))[0]))))
+        columns.append(("error_max", f"max error ({unit})",
+                        lambda r: ("num", units.text(error_frames.get(r["frame"],
+                                                                      (None, None))[1]))))
+    lines = ['<table id="frames"><tr><th data-key="frame">frame</th>'
+             + "".join(f'<th data-key="{key}">{html.escape(header)}</th>'
+                       for key, header, _ in columns) + "</tr>"]
     for record in report["frames"]:
         frame = record["frame"]
         if record.get("skipped"):
-            cells = [("text", "kept from an earlier run")] + [("num", "")] * (len(header) - 2)
+            cells = [("text", "kept from an earlier run")] + [("num", "")] * (len(columns) - 1)
         else:
-            cells = [("weights", html.escape(top_weights(record, db_frames)))]
-            cells += [("num", fmt(record.get(key))) for key in
-                      (residual_key(report), "inside_corrected", "inside_after", "resolved")]
-            cells.append(("num", fmt(record.get("max_jump"), scale)))
-            if error_frames:
-                known = error_frames.get(frame)
-                cells += [("num", fmt(known[0], scale) if known else "-"),
-                          ("num", fmt(known[1], scale) if known else "-")]
-            if coverage:
-                flag = coverage.get(frame)
-                text = ""
-                if flag is not None:
-                    text = ('<span class="flag">flagged</span> ' if flag[0] else "") + \
-                        html.escape(flag[2] or ("" if flag[1] is None else fmt(flag[1])))
-                cells.append(("text", text))
+            cells = [cell(record) for _, _, cell in columns]
         row = "".join(f'<td class="{kind}">{text}</td>' for kind, text in cells)
         lines.append(f'<tr id="frame-{frame}"><td>{frame}</td>{row}</tr>')
     lines.append("</table>")
     return "\n".join(lines)
 
 
-def settings_text(settings):
-    keys = ("weights", "align", "blend", "correct", "resolve", "skin_offset", "audit",
-            "max_weight_change", "batch", "compression")
-    parts = [f"{k}={json.dumps(settings[k])}" for k in keys if k in settings]
+def on_off(value):
+    return "on" if value else "off"
+
+
+def settings_text(settings, units):
+    """The settings a supervisor asks about, lengths in the page's unit."""
+    parts = [f"weights {settings.get('weights')}"]
+    if "align" in settings:
+        parts.append(f"align {settings['align']}")
+    if "blend" in settings:
+        parts.append(f"blend {settings['blend']}")
+    if "correct" in settings:
+        parts.append(f"correction {on_off(settings['correct'])}")
+    if "resolve" in settings:
+        resolve = f"resolution {on_off(settings['resolve'])}"
+        if settings["resolve"] and is_number(settings.get("skin_offset")):
+            resolve += f" (skin offset {units.with_unit(settings['skin_offset'])}"
+            if is_number(settings.get("exit_fade")):
+                resolve += f", exit fade {settings['exit_fade']:g}"
+            resolve += ")"
+        parts.append(resolve)
+    if "audit" in settings:
+        parts.append(f"audit {on_off(settings['audit'])}")
+    if is_number(settings.get("coverage_tolerance")):
+        parts.append(f"coverage tolerance {units.with_unit(settings['coverage_tolerance'])}")
+    if settings.get("max_weight_change"):
+        parts.append(f"max weight change {settings['max_weight_change']:g}")
     if settings.get("regions"):
         parts.append(f"{len(settings['regions'])} regions ({settings.get('regions_file', '')})")
     if settings.get("binding_mask"):
         parts.append(f"binding mask {settings['binding_mask']}")
     if settings.get("layers"):
-        parts.append("layers " + json.dumps(settings["layers"], sort_keys=True))
-    return ", ".join(parts)
+        parts.append("layers " + ", ".join(sorted(settings["layers"])))
+    if "batch" in settings:
+        parts.append(f"batch {settings['batch']}")
+    if "compression" in settings:
+        parts.append(f"{settings['compression']} compression")
+    return "; ".join(parts)
+
+
+def pose_model_text(pose, units):
+    return (f"{pose.get('parts')} rigid parts, {pose.get('reference_frames')} reference frames, "
+            f"rank {pose.get('rank')}; cross-validated mean vertex error over the reference "
+            f"clip {units.with_unit(pose.get('cross_validation_error'))} (the rest binding "
+            f"alone: {units.with_unit(pose.get('binding_error'))})")
 
 
 def shot_name(report):
@@ -734,25 +929,51 @@ def shot_name(report):
     return os.path.splitext(name)[0] or "bake"
 
 
-def header_html(args, report, evaluation, title):
+def header_html(args, report, evaluation, title, model, coverage, error_frames, units):
     db = report["database"]
+    settings = report["settings"]
     rows = [("shot", f"{report.get('output', '-')} (driver {report.get('driver_cache', '-')})"),
             ("database", f"{db.get('shape_count', '-')} shapes, content hash "
                          f"{db.get('content_hash', '-')}; database frames "
-                         f"{', '.join(str(f) for f in db.get('frames', []))}"),
-            ("settings", settings_text(report["settings"])),
-            ("settings hash", str(report.get("settings_hash", "-"))),
-            ("device", str(report.get("device", "-"))),
-            ("tool", f"{report.get('tool', '-')} {report.get('tool_version', '')}"),
-            ("bake report", ", ".join(args.report))]
+                         f"{', '.join(str(f) for f in db.get('frames', []))}")]
+    if isinstance(settings.get("pose_model"), dict):
+        rows.append(("pose model", pose_model_text(settings["pose_model"], units)))
+    rows += [("settings", settings_text(settings, units)),
+             ("settings hash", str(report.get("settings_hash", "-"))),
+             ("device", str(report.get("device", "-"))),
+             ("tool", f"{report.get('tool', '-')} {report.get('tool_version', '')}"),
+             ("bake report", ", ".join(args.report))]
     if evaluation:
         rows.append(("eval", f"{args.eval}: truth {evaluation.get('truth')}, "
                              f"{evaluation.get('vertices')} vertices, closest triangles on "
                              f"{evaluation.get('device')}"))
+    rows.append(("lengths", "mm" if units.unit == "mm" else
+                 "scene units, as stored (give --units m, cm or mm for mm)"))
     rows.append(("written", datetime.datetime.now().isoformat(timespec="seconds")))
     body = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
                      for k, v in rows)
-    return f"<h1>{html.escape(title)}</h1>\n<table id=\"header\">\n{body}\n</table>"
+    name, what = MODELS[model]
+    parts = [f"<h1>{html.escape(title)}</h1>",
+             f'<p class="model" id="model">Made by <b>{html.escape(name)}</b>: {what}.</p>']
+    if coverage:
+        kind = "ok" if coverage.enough else "simulate"
+        parts.append(f'<p class="verdict {kind}" id="verdict">Verdict (predicted): '
+                     f"{html.escape(coverage.verdict(units))}.</p>")
+        checked = coverage.against_truth(error_frames)
+        if checked:
+            true_error, missed = checked
+            holds = true_error <= coverage.tolerance
+            text = (f"Against the truth ({args.eval or 'the caches'}): the frames judged "
+                    f"enough have a true mean error of {units.with_unit(true_error)}, "
+                    + ("within" if holds else "over") + " the tolerance: the verdict "
+                    + ("holds" if holds else "does not hold"))
+            if missed:
+                text += (f"; {len(missed)} of them are over it on their own "
+                         f"({format_frame_range(missed)})")
+            parts.append(f'<p class="verdict {"ok" if holds else "simulate"}" id="truth">'
+                         f"{html.escape(text)}.</p>")
+    parts.append(f'<table id="header">\n{body}\n</table>')
+    return "\n".join(parts)
 
 
 def figure(name, alt, missing):
@@ -761,13 +982,9 @@ def figure(name, alt, missing):
     return f'<img src="{html.escape(name)}" alt="{html.escape(alt)}">'
 
 
-def build_page(args, report, evaluation, errors, folder):
-    units = UNITS[args.units]
-    coverage = {r["frame"]: coverage_flag(r["coverage"]) for r in report["frames"]
-                if "coverage" in r}
-    flagged = sorted(f for f, c in coverage.items() if c[0])
-    error_frames = {}
-    baseline = {}
+def error_frames_of(evaluation, errors):
+    """{frame: (mean, max)} to the truth, and {frame: baseline mean}."""
+    error_frames, baseline = {}, {}
     if evaluation:
         for record in evaluation["frames"]:
             error_frames[record["frame"]] = (record["mean"], record["max"])
@@ -776,26 +993,69 @@ def build_page(args, report, evaluation, errors, folder):
                 baseline[record["frame"]] = record["baseline"]["mean"]
     elif errors:
         error_frames = {f: v[:2] for f, v in errors["per_frame"].items()}
-    plots = Plots(folder, [r["frame"] for r in report["frames"]] + list(error_frames), flagged,
-                  units)
-    title = args.title or f"QC: {shot_name(report)}"
-    summary = summary_rows(report, evaluation, errors, error_frames, units)
-    ranking, worst_list = worst_frames(report, error_frames)
+    return error_frames, baseline
 
-    parts = [header_html(args, report, evaluation, title), "<h2>Summary</h2>", summary.html()]
+
+def coverage_section(parts, plots, model, coverage, error_frames, units):
+    parts.append('<h2 id="coverage">Coverage</h2>')
+    if model != "model":
+        parts.append(f'<p class="sub">No coverage verdict: {html.escape(MODELS[model][0])} '
+                     "predicts no error (only the pose model does).</p>")
+        return
+    if not coverage:
+        parts.append('<p class="sub">No frame was baked in this run, so none was predicted.</p>')
+        return
+    tolerance = units.with_unit(coverage.tolerance)
+    text = ("The pose model predicts each frame's mean vertex error from how far its pose is "
+            "from the reference clip. ")
+    if coverage.flagged:
+        text += (f"Frames predicted over the {tolerance} tolerance (the red dashed line; "
+                 f"{len(coverage.flagged)} of {len(coverage.predicted)}, circled, and shaded red "
+                 "on every plot) should be simulated: "
+                 + ", ".join(frame_link(f) for f in coverage.flagged) + ".")
+    else:
+        text += (f"No frame is predicted over the {tolerance} tolerance (the red dashed line), "
+                 "so none needs a simulation.")
+    if error_frames:
+        text += " The grey dashed line is the true mean error the eval measured."
+    parts.append(f"<p>{text}</p>")
+    parts.append(figure(plots.coverage(coverage, error_frames),
+                        "predicted error per frame against the tolerance", ""))
+
+
+def solve_sections(parts, plots, report, model):
+    """Weights and residual: only where the model solves for them."""
+    parts.append("<h2>Weights</h2>")
+    if model not in SOLVING_MODELS:
+        parts.append(f'<p class="sub">No weights: {html.escape(MODELS[model][0])} blends no '
+                     "database shapes.</p>")
+    else:
+        parts.append(figure(plots.weights(report, model), "weights over time",
+                            "No frame was baked in this run."))
+        parts.append("<h2>Residual</h2>")
+        parts.append(figure(plots.residual(report, model), "relative residual",
+                            "No frame was baked in this run."))
+
+
+def build_page(args, report, evaluation, errors, folder):
+    units = Units(args.units)
+    model = report["settings"]["weights"]
+    coverage = Coverage(report) if model == "model" else None
+    coverage = coverage if coverage else None
+    error_frames, baseline = error_frames_of(evaluation, errors)
+    plots = Plots(folder, [r["frame"] for r in report["frames"]] + list(error_frames),
+                  coverage.flagged if coverage else [], units)
+    title = args.title or f"QC: {shot_name(report)}"
+    summary = summary_rows(report, model, coverage, evaluation, errors, error_frames, units)
+    ranking, worst_list = worst_frames(report, model, coverage, error_frames)
+
+    parts = [header_html(args, report, evaluation, title, model, coverage, error_frames,
+                         units),
+             "<h2>Summary</h2>", summary.html()]
     if worst_list:
         parts.append(f'<p id="worst">Worst frames by {html.escape(ranking)}: '
                      + ", ".join(frame_link(f) for f in worst_list) + "</p>")
-
-    parts.append('<h2 id="coverage">Coverage</h2>')
-    if not coverage:
-        parts.append('<p class="sub">No coverage check in this report.</p>')
-    else:
-        listed = ", ".join(frame_link(f) for f in flagged) or "none"
-        parts.append(f"<p>Frames the coverage check flagged ({len(flagged)} of "
-                     f"{len(coverage)} checked): {listed}</p>")
-        parts.append(figure(plots.coverage(coverage), "coverage score",
-                            "The coverage entries hold no score to plot."))
+    coverage_section(parts, plots, model, coverage, error_frames, units)
     if args.eval or errors:
         parts.append("<h2>Error to the truth</h2>")
         source = (f"from {args.eval}" if evaluation
@@ -815,12 +1075,7 @@ def build_page(args, report, evaluation, errors, folder):
     else:
         parts.append('<p class="sub">No heat map: give --mesh (the driven rest OBJ) with a '
                      "truth (--eval or --truth).</p>")
-    parts.append("<h2>Weights</h2>")
-    parts.append(figure(plots.weights(report), "weights over time",
-                        "No weights in this report (--weights bind: no solve)."))
-    parts.append("<h2>Residual</h2>")
-    parts.append(figure(plots.residual(report), "relative residual",
-                        "No residuals in this report (--weights bind: no solve)."))
+    solve_sections(parts, plots, report, model)
     parts.append("<h2>Penetrations</h2>")
     parts.append(figure(plots.audit(report), "inside counts",
                         "No audit figures in this report (baked with --no-audit)."))
@@ -828,7 +1083,7 @@ def build_page(args, report, evaluation, errors, folder):
     parts.append(figure(plots.jump(report, evaluation),
                         "max jump per frame", "No frame-to-frame jumps in this report."))
     parts.append("<h2>Frames</h2>")
-    parts.append(frame_table(report, error_frames, coverage, units))
+    parts.append(frame_table(report, model, coverage, error_frames, units))
     page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
             f'<meta name="generator" content="{GENERATOR}">\n'
             f"<title>{html.escape(title)}</title>\n<style>{CSS}</style></head>\n<body>\n"
@@ -842,9 +1097,11 @@ def build_page(args, report, evaluation, errors, folder):
 def is_qc_report(folder):
     try:
         with open(os.path.join(folder, "index.html"), encoding="utf-8") as stream:
-            return f'content="{GENERATOR}"' in stream.read(4096)
+            head = stream.read(4096)
     except OSError:
         return False
+    # Pages of scripts/qc_report.py (earlier versions) are QC pages too.
+    return f'content="{GENERATOR}"' in head or 'content="drivenshape qc_report"' in head
 
 
 def write_report(args, report, evaluation, errors):
@@ -880,10 +1137,11 @@ def write_report(args, report, evaluation, errors):
 
 def parse_args(argv):
     parser = argparse.ArgumentParser(
-        prog="qc_report.py",
+        prog="python -m drivenshape.qc",
         description="Write a QC page (DIR/index.html and PNG plots) for a drivenshape bake: "
-                    "weights, residual, penetrations, popping, and with --eval/--mesh the error "
-                    "to the truth per frame and per vertex.",
+                    "which model made it, the pose model's coverage verdict or the QP's weights "
+                    "and residual, penetrations, popping, and with --eval/--mesh the error to "
+                    "the truth per frame and per vertex.",
         epilog="Exit codes: 0 ok, 2 usage, 3 input (a file missing or malformed), 4 output.")
     parser.add_argument("--report", required=True, action="append", metavar="REPORT.json",
                         help="the bake report (repeat for the chunk reports of a farm bake)")
@@ -897,9 +1155,9 @@ def parse_args(argv):
     parser.add_argument("--bake", metavar="CACHE",
                         help="baked cache for the heat map (default: the eval JSON's bake, else "
                              "the report's output pattern, as given or beside the JSON)")
-    parser.add_argument("--units", choices=sorted(UNITS), default="scene",
-                        help="the caches' unit: m, cm or mm shows lengths in mm (default: scene "
-                             "units, as stored)")
+    parser.add_argument("--units", choices=("m", "cm", "mm", "scene"), default="m",
+                        help="the scene's unit: m (default), cm or mm show lengths in mm; scene "
+                             "shows them as stored")
     parser.add_argument("--up-axis", choices=("Y", "Z"), default="Z",
                         help="up axis of the heat map views (Z, drivenshape's data)")
     parser.add_argument("--title", help="page title (default: QC: <shot name>)")
@@ -914,6 +1172,12 @@ def parse_args(argv):
 def main(argv=None):
     args = parse_args(argv)
     try:
+        try:
+            import matplotlib  # noqa: F401  (the plots; checked before any work)
+        except ImportError:
+            raise QcError(EXIT_USAGE, "the QC page draws with matplotlib, which this Python "
+                                      f"({sys.executable}) lacks: run it with the project's "
+                                      "venv (scripts/setup.sh) or pip install matplotlib")
         report = merge_reports(args.report)
         evaluation = load_eval(args.eval) if args.eval else None
         errors = None
@@ -926,12 +1190,12 @@ def main(argv=None):
                 frames = [r["frame"] for r in report["frames"] if not r.get("skipped")]
             if not frames:
                 raise QcError(EXIT_INPUT, "no frames to compare with the truth")
-            errors = vertex_errors(drivenshape_module(), args, report, evaluation, frames)
+            errors = vertex_errors(args, report, evaluation, frames)
             if evaluation:
                 check_against_eval(errors, evaluation, args.eval)
         index = write_report(args, report, evaluation, errors)
     except QcError as error:
-        print(f"qc_report: {error}", file=sys.stderr)
+        print(f"qc: {error}", file=sys.stderr)
         return error.code
     print(f"qc: {index}")
     return 0

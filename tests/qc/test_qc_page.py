@@ -1,0 +1,490 @@
+# SPDX-License-Identifier: Apache-2.0
+"""`python -m drivenshape.qc` (the QC page of a bake) on real bakes of the bundled sleeve,
+rendered in headless Chromium.
+
+The command line builds the sample database with db build's defaults (the pose model), bakes 24
+frames with each model (the default pose model, --weights qp, nearest and bind; host path) and
+evaluates the default bake against the simulated truth with its report; the module writes the
+pages. The page must say which model made the bake and show what that model has: the pose
+model's predicted error against the tolerance and its verdict, the QP's weights and residual, or
+neither for the rest binding. Every figure printed is compared with the report and eval JSON,
+read here (to the digits printed, in mm: the sample is in metres), the worst vertex with
+per-vertex errors computed here from the truth PC2 (parsed byte by byte) and the baked EXRs
+(OpenEXR PyPI package). Chromium must render the page (a screenshot that is not blank and shows
+the plots' colours) and load every image (a copy of the page with a small script that records
+each <img>'s decoded size, read back with --dump-dom). A missing Chromium fails the test
+(scripts/setup.sh installs the Debian package `chromium`)."""
+
+import html.parser
+import json
+import os
+import re
+import shutil
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import FRAME_COUNT, LOW_TOLERANCE, run
+
+MM_PER_M = 1000.0
+WINDOW = (1400, 3000)
+# A rendered page: its luminance varies, and the plots' colours cover part of it (text alone is
+# black on white). Measured on the sample: standard deviation 50, 11% colourful pixels.
+MIN_LUMINANCE_STD = 20.0
+MIN_COLOURFUL_FRACTION = 0.03
+# The most significant digits a non-integer figure may be printed with ("sensible digits").
+MAX_SIGNIFICANT_DIGITS = 4
+MODEL_NAMES = {"model": "the pose model", "qp": "the QP blend",
+               "nearest": "the nearest database shape", "bind": "the rest binding"}
+PAGE_IMAGES = {
+    "model": {"coverage.png", "error.png", "heatmap.png", "audit.png", "jump.png"},
+    "qp": {"weights.png", "residual.png", "audit.png", "jump.png"},
+    "nearest": {"weights.png", "residual.png", "audit.png", "jump.png"},
+    "bind": {"audit.png", "jump.png"},
+}
+
+
+def qc(*args, expect=0):
+    return run([sys.executable, "-m", "drivenshape.qc", *args], expect=expect)
+
+
+def chromium():
+    path = shutil.which("chromium")
+    assert path, "headless Chromium is missing: install the Debian package chromium " \
+                 "(scripts/setup.sh does)"
+    return path
+
+
+def chromium_run(root, *args):
+    """Headless Chromium with its profile in the test's folder (never the user's)."""
+    return run([chromium(), "--headless", "--no-sandbox", "--disable-gpu",
+                f"--user-data-dir={root / 'chromium-profile'}", *args])
+
+
+# ---- independent readers ---------------------------------------------------------------------
+
+def parse_pc2(path):
+    raw = Path(path).read_bytes()
+    assert raw[:12] == b"POINTCACHE2\0", f"{path}: no PC2 magic"
+    points = int(np.frombuffer(raw[16:20], "<i4")[0])
+    start = float(np.frombuffer(raw[20:24], "<f4")[0])
+    samples = int(np.frombuffer(raw[28:32], "<i4")[0])
+    xyz = np.frombuffer(raw, "<f4", offset=32).reshape(samples, points, 3)
+    return xyz, int(round(start))
+
+
+def read_exr(path):
+    import OpenEXR
+
+    with OpenEXR.File(str(path), separate_channels=True) as image:
+        count = int(image.header()["dsVertexCount"])
+        channels = image.channels()
+        return np.stack([np.asarray(channels[c].pixels, np.float32).reshape(-1)[:count]
+                         for c in ("P.X", "P.Y", "P.Z")], axis=1)
+
+
+class PageParser(html.parser.HTMLParser):
+    """The page's <img> sources, its summary table as {data-key: text}, the worst frames' links,
+    the text of the paragraphs with an id, and the per-frame table as {frame: {column key:
+    text}} (columns named by their <th data-key>)."""
+
+    def __init__(self):
+        super().__init__()
+        self.images, self.summary, self.worst, self.paragraphs = [], {}, [], {}
+        self.columns, self.frames, self.classes = [], {}, {}
+        self._key = self._row = self._paragraph = None
+        self._cells = None
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "img":
+            self.images.append(attrs.get("src"))
+        elif tag == "th" and "data-key" in attrs:
+            self.columns.append(attrs["data-key"])
+        elif tag == "td" and "data-key" in attrs:
+            self._key = attrs["data-key"]
+            self.summary[self._key] = ""
+        elif tag == "tr" and (attrs.get("id") or "").startswith("frame-"):
+            self._row = int(attrs["id"][len("frame-"):])
+            self._cells = []
+        elif tag == "td" and self._row is not None:
+            self._cells.append("")
+        elif tag == "p" and attrs.get("id"):
+            self._paragraph = attrs["id"]
+            self.paragraphs[self._paragraph] = ""
+            self.classes[self._paragraph] = (attrs.get("class") or "").split()
+        elif tag == "a" and self._paragraph == "worst":
+            self.worst.append(attrs["href"])
+
+    def handle_endtag(self, tag):
+        if tag == "td":
+            self._key = None
+        elif tag == "tr" and self._row is not None:
+            self.frames[self._row] = dict(zip(self.columns, self._cells))
+            self._row = None
+        elif tag == "p":
+            self._paragraph = None
+
+    def handle_data(self, data):
+        if self._key:
+            self.summary[self._key] += data
+        elif self._row is not None and self._cells:
+            self._cells[-1] += data
+        if self._paragraph:
+            self.paragraphs[self._paragraph] += data
+
+
+def parse_page(path):
+    parser = PageParser()
+    parser.feed(Path(path).read_text(encoding="utf-8"))
+    return parser
+
+
+def png_size(path):
+    raw = Path(path).read_bytes()
+    assert raw[:8] == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG"
+    assert raw[12:16] == b"IHDR", f"{path}: no IHDR chunk first"
+    return struct.unpack(">II", raw[16:24])
+
+
+def printed_tolerance(text):
+    """Half a unit in the last digit printed: how far a correctly rounded figure may be."""
+    mantissa, _, exponent = text.partition("e")
+    decimals = len(mantissa.partition(".")[2])
+    return 0.5 * 10.0 ** (-decimals) * 10.0 ** int(exponent or 0) * (1 + 1e-9)
+
+
+def assert_printed(text, expected, what):
+    value = float(text)
+    assert abs(value - expected) <= printed_tolerance(text), (
+        f"{what}: page {text}, expected {expected} (to the digits printed, "
+        f"±{printed_tolerance(text):.3g})")
+
+
+def significant_digits(text):
+    mantissa = text.partition("e")[0].lstrip("-").replace(".", "").lstrip("0")
+    return len(mantissa)
+
+
+# ---- the pages -------------------------------------------------------------------------------
+
+@pytest.fixture(scope="session")
+def pose(shot, data):
+    """The default bake (the pose model), its eval, and its page with the heat map."""
+    report = shot.bake("default")
+    evaluation = shot.evaluate("default")
+    out = shot.root / "qc_default"
+    result = qc("--report", report, "--eval", evaluation, "--mesh", data / "driven_rest.obj",
+                "-o", out)
+    assert result.stdout.strip() == f"qc: {out / 'index.html'}", result.stdout
+    return {"page": out / "index.html", "report": json.loads(report.read_text()),
+            "eval": json.loads(evaluation.read_text()), "folder": report.parent}
+
+
+def page_of(shot, name, *options):
+    report = shot.bake(name, *options)
+    out = shot.root / f"qc_{name}"
+    qc("--report", report, "-o", out)
+    return out / "index.html", json.loads(report.read_text())
+
+
+# ---- rendering -------------------------------------------------------------------------------
+
+def test_page_renders_in_chromium(pose, shot):
+    from PIL import Image
+
+    shot_png = shot.root / "screenshot.png"
+    chromium_run(shot.root, f"--screenshot={shot_png}", f"--window-size={WINDOW[0]},{WINDOW[1]}",
+                 pose["page"].as_uri())
+    image = np.asarray(Image.open(shot_png).convert("RGB"), dtype=np.float64)
+    assert image.shape[:2] == (WINDOW[1], WINDOW[0]), f"screenshot is {image.shape}"
+    luminance = image @ np.array([0.299, 0.587, 0.114])
+    colourful = (image.max(axis=2) - image.min(axis=2)) > 60
+    print(f"screenshot: luminance std {luminance.std():.1f} (threshold {MIN_LUMINANCE_STD}), "
+          f"colourful pixels {colourful.mean():.3f} (threshold {MIN_COLOURFUL_FRACTION})")
+    assert luminance.std() > MIN_LUMINANCE_STD, "the screenshot is (nearly) one colour"
+    assert colourful.mean() > MIN_COLOURFUL_FRACTION, "the screenshot shows no plots"
+
+
+LOAD_CHECK = """<script>
+window.addEventListener("load", function () {
+  var found = [];
+  for (var i = 0; i < document.images.length; ++i) {
+    var image = document.images[i];
+    found.push({src: image.getAttribute("src"), complete: image.complete,
+                width: image.naturalWidth, height: image.naturalHeight});
+  }
+  var out = document.createElement("pre");
+  out.id = "image-check";
+  out.textContent = JSON.stringify(found);
+  document.body.appendChild(out);
+});
+</script>
+"""
+
+
+def test_every_image_loads(pose, shot):
+    page = pose["page"]
+    parsed = parse_page(page)
+    assert set(parsed.images) == PAGE_IMAGES["model"], f"images on the page: {parsed.images}"
+    # Chromium: a copy of the page with a script that records every image after the load
+    # event (a broken image has naturalWidth 0); the report itself has no script.
+    copy = shot.root / "qc_checked"
+    shutil.copytree(page.parent, copy)
+    text = (copy / "index.html").read_text(encoding="utf-8")
+    assert "<script" not in text, "the page should need no JavaScript"
+    (copy / "index.html").write_text(text.replace("</body>", LOAD_CHECK + "</body>"),
+                                     encoding="utf-8")
+    dom = chromium_run(shot.root, "--dump-dom", "--virtual-time-budget=10000",
+                       (copy / "index.html").as_uri()).stdout
+    start = dom.find('<pre id="image-check">')
+    assert start >= 0, "Chromium did not run the load check"
+    body = dom[start + len('<pre id="image-check">'):dom.index("</pre>", start)]
+    loaded = json.loads(html.unescape(body))
+    assert [entry["src"] for entry in loaded] == parsed.images
+    for entry in loaded:
+        assert entry["complete"] and entry["width"] > 0 and entry["height"] > 0, \
+            f"Chromium did not load {entry}"
+    # The files themselves: relative links to PNGs beside the page, with their declared size.
+    for src in parsed.images:
+        assert not os.path.isabs(src) and "/" not in src, f"not a relative link beside it: {src}"
+        width, height = png_size(page.parent / src)
+        entry = next(e for e in loaded if e["src"] == src)
+        assert (entry["width"], entry["height"]) == (width, height), src
+
+
+# ---- every model -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name,options,model", [
+    ("qp", ("--weights", "qp"), "qp"), ("nearest", ("--weights", "nearest"), "nearest"),
+    ("bind", ("--weights", "bind"), "bind")])
+def test_page_shows_what_the_model_has(shot, name, options, model):
+    page, report = page_of(shot, name, *options)
+    assert report["settings"]["weights"] == model
+    parsed = parse_page(page)
+    assert f"Made by {MODEL_NAMES[model]}:" in parsed.paragraphs["model"]
+    assert parsed.summary["model"] == MODEL_NAMES[model]
+    assert set(parsed.images) == PAGE_IMAGES[model], parsed.images
+    assert "verdict" not in parsed.paragraphs, "a verdict on a bake the pose model did not make"
+    assert "predicted" not in parsed.columns
+    baked = [r for r in report["frames"] if not r["skipped"]]
+    if model in ("qp", "nearest"):
+        # The direct residual, as printed (3 significant digits).
+        residuals = [r["relative_residual_direct"] for r in baked]
+        assert_printed(parsed.summary["residual_mean"], sum(residuals) / len(residuals),
+                       "residual_mean")
+        assert_printed(parsed.summary["residual_max"], max(residuals), "residual_max")
+        for record in baked:
+            cells = parsed.frames[record["frame"]]
+            assert_printed(cells["residual"], record["relative_residual_direct"], "residual")
+            # The largest weight first, with its database frame.
+            weights = record["weights"]
+            best = max(range(len(weights)), key=lambda s: weights[s])
+            label, value = cells["weights"].split(",")[0].split(":")
+            assert int(label) == report["database"]["frames"][best]
+            assert_printed(value.strip(), weights[best], "largest weight")
+    else:
+        assert "residual_mean" not in parsed.summary and "weights" not in parsed.columns
+        assert "No weights: the rest binding blends no database shapes." in \
+            page.read_text(encoding="utf-8")
+
+
+def test_pose_model_page(pose):
+    page, report, evaluation = pose["page"], pose["report"], pose["eval"]
+    assert report["settings"]["weights"] == "model", "db build's default is the pose model"
+    parsed = parse_page(page)
+    summary = parsed.summary
+    assert "Made by the pose model:" in parsed.paragraphs["model"]
+    assert "residual_mean" not in summary and "weights.png" not in parsed.images
+    # The verdict, in mm, as the report states it.
+    coverage = report["coverage"]
+    tolerance_mm = coverage["tolerance"] * MM_PER_M
+    assert coverage["verdict"] == "DrivenShape is enough", "the sample's default flags frames"
+    verdict = parsed.paragraphs["verdict"]
+    assert verdict.startswith("Verdict (predicted): DrivenShape is enough") and "ok" in \
+        parsed.classes["verdict"], verdict
+    printed = re.search(r"([0-9.]+) mm tolerance", verdict).group(1)
+    assert_printed(printed, tolerance_mm, "tolerance in the verdict")
+    assert_printed(summary["coverage_tolerance"], tolerance_mm, "coverage_tolerance")
+    assert summary["verdict"] == coverage["verdict"]
+    assert int(summary["frames_over"]) == 0
+    predicted = [r["predicted_error"] * MM_PER_M for r in report["frames"]]
+    assert_printed(summary["predicted_mean"], sum(predicted) / len(predicted), "predicted_mean")
+    assert_printed(summary["predicted_max"], max(predicted), "predicted_max")
+    # Against the truth: eval --report measured the same (C++).
+    checked = evaluation["coverage"]
+    assert_printed(summary["enough_true_error"], checked["enough_true_error"] * MM_PER_M,
+                   "enough_true_error")
+    assert int(summary["missed"]) == checked["missed"]
+    # The same check under the verdict, worded for a supervisor.
+    truth = parsed.paragraphs["truth"]
+    holds = checked["verdict_holds"]
+    assert f"true mean error of {checked['enough_true_error'] * MM_PER_M:.1f} mm, " \
+           f"{'within' if holds else 'over'} the tolerance: the verdict " \
+           f"{'holds' if holds else 'does not hold'}" in truth, truth
+    assert (f"{checked['missed']} of them are over it" in truth) == (checked["missed"] > 0)
+    assert ("ok" if holds else "simulate") in parsed.classes["truth"]
+    for record in report["frames"]:
+        cells = parsed.frames[record["frame"]]
+        assert_printed(cells["predicted"], record["predicted_error"] * MM_PER_M, "predicted")
+        assert cells["over"] == "within"
+
+
+def test_flagged_frames(shot):
+    page, report = page_of(shot, "flagged", "--coverage-tolerance", LOW_TOLERANCE)
+    coverage = report["coverage"]
+    flagged = [r["frame"] for r in report["frames"] if r["coverage"]["flagged"]]
+    assert 0 < len(flagged) < FRAME_COUNT, f"the low tolerance flagged {flagged}"
+    parsed = parse_page(page)
+    verdict = parsed.paragraphs["verdict"]
+    assert verdict.startswith(f"Verdict (predicted): {coverage['verdict']}:"), verdict
+    assert "simulate" in parsed.classes["verdict"]
+    assert f"{len(flagged)} of {FRAME_COUNT} frames are predicted over the " \
+           f"{float(LOW_TOLERANCE) * MM_PER_M:.1f} mm tolerance" in verdict
+    assert int(parsed.summary["frames_over"]) == len(flagged)
+    over = [f for f, cells in parsed.frames.items() if cells["over"] == "over: simulate"]
+    assert over == flagged
+    assert "coverage.png" in parsed.images
+
+
+def test_farm_chunks_give_one_verdict(shot):
+    """Two chunk reports (the halves of the flagged bake) give the whole bake's verdict."""
+    _, report = page_of(shot, "flagged", "--coverage-tolerance", LOW_TOLERANCE)
+    halves = []
+    for index, part in enumerate((report["frames"][:12], report["frames"][12:])):
+        path = shot.root / f"chunk{index}.report.json"
+        path.write_text(json.dumps(dict(report, frames=part)))
+        halves += ["--report", path]
+    out = shot.root / "qc_chunks"
+    qc(*halves, "-o", out)
+    parsed = parse_page(out / "index.html")
+    assert int(parsed.summary["frames_baked"]) == FRAME_COUNT
+    assert parsed.summary["verdict"] == report["coverage"]["verdict"]
+
+
+def test_lengths_in_mm_and_sensible_digits(pose):
+    page, report, evaluation = pose["page"], pose["report"], pose["eval"]
+    summary = parse_page(page).summary
+    assert_printed(summary["max_jump"],
+                   max(r["max_jump"] for r in report["frames"] if "max_jump" in r) * MM_PER_M,
+                   "max_jump")
+    for key in ("mean", "rms", "max"):
+        assert_printed(summary[f"error_{key}"], evaluation[key] * MM_PER_M, f"error_{key}")
+    assert_printed(summary["baseline_error_mean"],
+                   evaluation["summary"]["baseline"]["mean"] * MM_PER_M, "baseline_error_mean")
+    # The skin offset and the pose model's errors in the header, in mm too.
+    text = page.read_text(encoding="utf-8")
+    assert f"skin offset {report['settings']['skin_offset'] * MM_PER_M:.1f} mm" in text
+    cells = list(summary.values())
+    for row in parse_page(page).frames.values():
+        cells += row.values()
+    for cell in cells:
+        for number in re.findall(r"-?\d+\.\d+(?:e-?\d+)?", cell):
+            assert significant_digits(number) <= MAX_SIGNIFICANT_DIGITS, \
+                f"{number} in '{cell}' has more than {MAX_SIGNIFICANT_DIGITS} significant digits"
+
+
+def test_scene_units_are_said(shot, pose):
+    out = shot.root / "qc_scene_units"
+    qc("--report", shot.bake("default"), "--units", "scene", "-o", out)
+    summary = parse_page(out / "index.html").summary
+    assert_printed(summary["coverage_tolerance"], pose["report"]["coverage"]["tolerance"],
+                   "coverage_tolerance in scene units")
+    assert "(scene units)" in (out / "index.html").read_text(encoding="utf-8")
+
+
+def test_worst_frames_and_vertex(pose, data):
+    parsed = parse_page(pose["page"])
+    evaluation = pose["eval"]
+    # The worst frames by max error, ranked here from the eval's frames.
+    ranked = sorted(evaluation["frames"], key=lambda r: (-r["max"], r["frame"]))
+    assert parsed.worst == [f"#frame-{r['frame']}" for r in ranked[:5]]
+    # The worst vertex, from per-vertex errors computed here without the module.
+    truth, start = parse_pc2(data / "test.driven.pc2")
+    frames = [r["frame"] for r in evaluation["frames"]]
+    baked_xyz = np.stack([read_exr(pose["folder"] / f"sleeve.{f:04d}.exr")
+                          for f in frames]).astype(np.float64)
+    distance = np.linalg.norm(baked_xyz - truth[[f - start for f in frames]], axis=2)
+    assert distance.mean(axis=1) == pytest.approx([r["mean"] for r in evaluation["frames"]],
+                                                  rel=1e-5), "the test's reader disagrees"
+    per_vertex = distance.mean(axis=0)
+    assert int(parsed.summary["worst_vertex"]) == int(per_vertex.argmax())
+    assert_printed(parsed.summary["worst_vertex_error"], per_vertex.max() * MM_PER_M,
+                   "worst_vertex_error")
+    for record in evaluation["frames"]:
+        cells = parsed.frames[record["frame"]]
+        assert_printed(cells["error_mean"], record["mean"] * MM_PER_M, "error_mean")
+        assert_printed(cells["error_max"], record["max"] * MM_PER_M, "error_max")
+        assert int(cells["inside_after"]) == next(
+            r["inside_after"] for r in pose["report"]["frames"] if r["frame"] == record["frame"])
+
+
+# ---- errors ----------------------------------------------------------------------------------
+
+def test_help_and_usage():
+    assert "--report" in qc("--help").stdout
+    assert "--report" in qc(expect=2).stderr
+    result = qc("--report", "r.json", "--truth", "t.pc2", "-o", "x", expect=2)
+    assert "--mesh" in result.stderr
+
+
+def test_missing_report_is_an_input_error(tmp_path):
+    missing = tmp_path / "nowhere" / "shot.report.json"
+    out = tmp_path / "qc"
+    result = qc("--report", missing, "-o", out, expect=3)
+    assert str(missing) in result.stderr and "does not exist" in result.stderr, result.stderr
+    assert not out.exists()
+
+
+def test_failures_leave_no_report(shot, pose, data, tmp_path):
+    report = shot.bake("default")
+    evaluation = shot.evaluate("default")
+    out = tmp_path / "qc"
+    bad = tmp_path / "eval.json"
+    bad.write_text("{ not json")
+    result = qc("--report", report, "--eval", bad, "-o", out, expect=3)
+    assert str(bad) in result.stderr
+    # Another truth than the one eval compared with (same vertex count): refused.
+    result = qc("--report", report, "--eval", evaluation, "--mesh", data / "driven_rest.obj",
+                "--truth", data / "train.driven.pc2", "-o", out, expect=3)
+    assert "train.driven.pc2" in result.stderr
+    # A report of an unknown model.
+    strange = tmp_path / "strange.report.json"
+    strange.write_text(json.dumps(dict(pose["report"], settings=dict(
+        pose["report"]["settings"], weights="magic"))))
+    result = qc("--report", strange, "-o", out, expect=3)
+    assert "settings.weights" in result.stderr and "magic" in result.stderr
+    strange.unlink()
+    assert list(tmp_path.iterdir()) == [bad], "a failed run left files behind"
+    # A folder that is not a QC report is never replaced.
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    result = qc("--report", report, "-o", out, expect=4)
+    assert "not a QC report" in result.stderr
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+def test_rewrite_replaces_an_earlier_report(shot, tmp_path):
+    report = shot.bake("default")
+    out = tmp_path / "qc"
+    qc("--report", report, "-o", out)
+    (out / "stale.png").write_bytes(b"old")
+    qc("--report", report, "--title", "second", "-o", out)
+    assert not (out / "stale.png").exists()
+    assert "<title>second</title>" in (out / "index.html").read_text(encoding="utf-8")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["qc"], "temporary folders left"
+
+
+def test_runs_as_a_module_of_the_package():
+    """The page is part of the installed package (python -m drivenshape.qc), not a script."""
+    import drivenshape.qc
+
+    assert Path(drivenshape.qc.__file__).parent == Path(
+        __import__("drivenshape").__file__).parent
+    result = subprocess.run([sys.executable, "-m", "drivenshape.qc", "--help"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and "python -m drivenshape.qc" in result.stdout
