@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
+# `pip install .` end to end (pyproject.toml, scikit-build-core): a fresh venv gets the test
+# dependencies (scripts/requirements.txt) and the package built from the source tree; the
+# console scripts answer --help, the module imports from the venv (not from the build tree) and
+# says the project's version, and the Python tests run against the installed package.
+#   test_wheel.sh BUILD_DIR SOURCE_DIR CLI
+# The wheel's CMake build stays in BUILD_DIR/wheel-build, so a second run is incremental.
+set -euo pipefail
+build=$1
+source=$2
+cli=$3
+work="$build/wheel-test"
+rm -rf "$work"
+mkdir -p "$work"
+python3 -m venv "$work/venv"
+python="$work/venv/bin/python"
+"$python" -m pip install -q --upgrade pip > /dev/null
+"$python" -m pip install -q -r "$source/scripts/requirements.txt"
+"$python" -m pip install -q --config-settings=build-dir="$build/wheel-build" "$source"
+
+cd "$work"
+unset PYTHONPATH
+version=$(sed -n 's/^project(drivenshape VERSION \([0-9.]*\).*/\1/p' "$source/CMakeLists.txt")
+"$python" - "$work/venv" "$version" <<'PY'
+import os, sys
+import drivenshape
+venv, version = sys.argv[1:]
+where = os.path.realpath(drivenshape.__file__)
+assert where.startswith(os.path.realpath(venv)), f"drivenshape imported from {where}, not the venv"
+assert drivenshape.__version__ == version, (drivenshape.__version__, version)
+print(f"drivenshape {drivenshape.__version__} from {where}")
+PY
+"$work/venv/bin/drivenshape-usd" --help > /dev/null
+"$work/venv/bin/drivenshape-qc" --help > /dev/null
+"$python" -m pytest -q -p no:cacheprovider "$source/tests/python" --basetemp="$work/pytest" \
+  --cli="$cli" --data="$source/tests/data/sleeve"
+echo "the installed wheel passed"
