@@ -29,6 +29,14 @@ ds=build/apps/drivenshape
 # shown in mm.
 PYTHONPATH=build/python .venv/bin/python -m drivenshape.qc --report $out/bake/sleeve.report.json \
   --eval $out/eval.json --mesh $data/driven_rest.obj --units m -o $out/qc >/dev/null
+# The same shot through USD, as a USD pipeline would take it: the driver written as a time-sampled
+# UsdGeomMesh (the sample's USD driver, to try `drivenshape.usd bake` on), baked into USD cloth
+# with normals, velocities and provenance.
+PYTHONPATH=build/python .venv/bin/python -m drivenshape.usd export --mesh $data/driver_rest.obj \
+  --pc2 $data/test.driver.pc2 --prim /Character/Arm -o $out/test.driver.usda >/dev/null
+PYTHONPATH=build/python .venv/bin/python -m drivenshape.usd bake --db $out/sleeve.dsdb \
+  --usd $out/test.driver.usda --prim /Character/Arm --out $out/sleeve.usdc --quiet >/dev/null
+echo "usd:      $PWD/$out/sleeve.usdc (from the USD driver $PWD/$out/test.driver.usda)"
 echo "log:      $PWD/$out/bake.log"
 echo "accuracy: $PWD/$out/eval.json"
 echo "qc:       $PWD/$out/qc/index.html"
