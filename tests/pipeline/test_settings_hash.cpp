@@ -11,6 +11,7 @@
 // The library version (0.1.0) is part of the hash: a version bump changes every value here, on
 // purpose (record them again, and say so in CHANGELOG.md).
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -28,6 +29,7 @@
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/regions.h>
+#include <drivenshape/settings_table.h>
 
 #include "test_support.h"
 
@@ -139,6 +141,58 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTableWithThePoseModel) {
   std::printf("  pose model defaults   %s %s\n", hash.c_str(), output.c_str());
   EXPECT_EQ(hash, "295dc96bec57c31e");
   EXPECT_EQ(output, "f55a50a5393e1e72");
+}
+
+/// A value of `setting` other than its default that the sample's settings can run.
+SettingValue otherValue(const Setting& setting) {
+  const SettingValue value = defaultSettingValue(setting);
+  switch (setting.type) {
+    case SettingType::kBool:
+      return !std::get<bool>(value);
+    case SettingType::kInt:
+      return std::get<int>(value) + 1;
+    case SettingType::kNumber: {
+      const double number = std::get<double>(value);
+      return std::isinf(setting.maximum) ? 2 * number + 0.001 : (number + setting.maximum) / 2;
+    }
+    case SettingType::kChoice:
+      // The sample's database has no pose model: "nearest", not "model" (nor "qp", which is
+      // what "auto" resolves to there).
+      return std::string(setting.key) == "weight_mode"                 ? std::string("nearest")
+             : setting.choices.front() == std::get<std::string>(value) ? setting.choices.back()
+                                                                       : setting.choices.front();
+    default:
+      return std::string("0-500");  // the align group, the one kText setting
+  }
+}
+
+// The table's `hashed` is what the hash does: changing a hashed setting changes the bake's
+// hash, changing any other leaves it. (kObject settings: see the pinned values above.)
+TEST(SettingsHash, EveryHashedSettingOfTheTableChangesItAndNoOtherDoes) {
+  const Database db = buildSample(false);
+  std::unique_ptr<Device> host = makeHostDevice();
+  const auto hashOf = [&](const BakeOptions& o) {
+    const Evaluator evaluator(db, o.evaluator, *host);
+    return evaluator.settingsHash(OutputHashFields{o.exrWidth, o.temporalWarmup, o.chunkSize});
+  };
+  int checked = 0;
+  for (const Setting& setting : settingsTable()) {
+    if (setting.type == SettingType::kObject) {
+      continue;
+    }
+    BakeOptions base;
+    // The warm-up and the batch decide which frame bounds which only with the temporal bound.
+    const std::string key = setting.key;
+    if (key == "temporal_warmup" || key == "batch") {
+      base.evaluator.maxWeightChange = 0.1;
+    }
+    BakeOptions changed = base;
+    setSetting(setting, changed, otherValue(setting));
+    EXPECT_EQ(hashOf(changed) != hashOf(base), setting.hashed)
+        << key << " = " << formatSettingValue(otherValue(setting));
+    ++checked;
+  }
+  EXPECT_GE(checked, 15);
 }
 
 }  // namespace
