@@ -54,6 +54,7 @@ from ._drivenshape import (  # noqa: F401
     read_point_cache_exr,
     read_point_cache_exr_info,
     save_database,
+    settings_table,
     write_obj,
     write_pc2,
     write_point_cache_exr,
@@ -111,5 +112,5 @@ __all__ = [
     "list_devices", "load_binding_mask", "load_database", "load_layers", "load_regions",
     "open_device", "open_point_cache", "parse_binding_mask", "parse_frame_range", "parse_regions",
     "read_obj", "read_pc2", "read_point_cache_exr", "read_point_cache_exr_info", "save_database",
-    "write_obj", "write_pc2", "write_point_cache_exr",
+    "settings_table", "write_obj", "write_pc2", "write_point_cache_exr",
 ]
