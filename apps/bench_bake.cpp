@@ -177,11 +177,10 @@ void declareOptions(ds::cli::ArgParser& parser) {
       .option("--device", "SPEC", "OpenCL device (as for bake)", "auto")
       .option("--json", "PATH", "also write the figures as JSON")
       .option("--keep", "DIR", "bake into DIR and keep the files (default: a temp folder)")
-      .settings({"weight_mode", "correct", "align", "blend", "resolve", "exit_fade", "batch",
-                 "audit", "threads", "compression", "zip_encoder"})
+      .settings()
       .repeated("--also", "KEY=VALUE", 1,
                 "bake on OpenCL a second time with this setting changed (a key of the settings "
-                "table: exit_fade=0, weight_mode=qp) in the same run")
+                "table, as the bake's options above spell it: weight_mode=qp) in the same run")
       .flag("--sync", "fsync every output before its rename")
       .flag("--host-staging",
             "also bake through OpenCL with every block of frames staged through host memory "
@@ -258,7 +257,7 @@ ds::BakeResult bakeOpenCl(const ds::cli::ArgParser& parser, Bench& bench) {
   for (const std::vector<std::string>& also : parser.all("--also")) {
     const std::size_t equals = also.front().find('=');
     if (equals == std::string::npos) {
-      DS_THROW(kUsage, "--also takes KEY=VALUE (e.g. exit_fade=0), not '", also.front(), "'");
+      DS_THROW(kUsage, "--also takes KEY=VALUE (e.g. weight_mode=qp), not '", also.front(), "'");
     }
     const ds::Setting& setting = ds::findSetting(also.front().substr(0, equals));
     const std::string text = also.front().substr(equals + 1);

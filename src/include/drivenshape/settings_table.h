@@ -12,7 +12,7 @@
 //     std::cout << setting.key << " = " << formatSettingValue(defaultSettingValue(setting));
 //   }
 //   drivenshape::EvaluatorSettings settings;
-//   setSetting(findSetting("exit_fade"), settings, 0.3);  // checked: Error(kUsage) if < 0
+//   setSetting(findSetting("skin_offset"), settings, 0.003);  // checked: Error(kUsage) if < 0
 
 #include <string>
 #include <variant>
