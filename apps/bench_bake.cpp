@@ -23,6 +23,7 @@
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/point_cache.h>
+#include <drivenshape/settings_table.h>
 
 #include "json_text.h"
 
@@ -170,34 +171,17 @@ bool sameFiles(const fs::path& a, const fs::path& b, int frames, const std::stri
   return true;
 }
 
-int runBench(const std::vector<std::string>& args) {
-  ds::cli::ArgParser parser("drivenshape_bench [options]",
-                            "Bakes a synthetic workload through OpenCL and the host reference in "
-                            "one run; prints per-stage seconds and frames/s.");
+void declareOptions(ds::cli::ArgParser& parser) {
   parser.option("--workload", "W", "W1 (5k/5k vertices, 30 shapes, 1000 frames) or W2", "W1")
       .option("--frames", "N", "override the workload's frame count")
       .option("--device", "SPEC", "OpenCL device (as for bake)", "auto")
-      .option("--batch", "N", "frames per launch", "64")
-      .option("--threads", "N", "host threads (0 = all)", "0")
-      .option("--compression", "C", "EXR compression", "zip")
-      .option("--zip-encoder", "E", "libdeflate or openexr (as for bake)", "libdeflate")
       .option("--json", "PATH", "also write the figures as JSON")
       .option("--keep", "DIR", "bake into DIR and keep the files (default: a temp folder)")
-      .flag("--no-correct", "blend only (no collision correction)")
-      .flag("--no-audit", "skip the per-frame audit")
-      .flag("--no-resolve", "skip the penetration resolution")
-      .option("--exit-fade", "K", "the resolution's exit fade (as for bake)", "0.15")
-      .option("--also-exit-fade", "K",
-              "bake on OpenCL a second time with this exit fade (e.g. 0, before the fade) in the "
-              "same run")
+      .settings()
+      .repeated("--also", "KEY=VALUE", 1,
+                "bake on OpenCL a second time with this setting changed (a key of the settings "
+                "table, as the bake's options above spell it: weight_mode=qp) in the same run")
       .flag("--sync", "fsync every output before its rename")
-      .option("--blend", "MODE", "world (the talk: correction searches P~) or local", "local")
-      .option("--weights", "MODE",
-              "auto (the pose model; the database fits one), model, qp, nearest or bind", "auto")
-      .option("--also-weights", "MODE",
-              "bake on OpenCL a second time with these weights (e.g. qp, the 0.1 default) in the "
-              "same run")
-      .option("--align", "MODE", "none, rigid or rigid-all", "rigid")
       .flag("--host-staging",
             "also bake through OpenCL with every block of frames staged through host memory "
             "(each kernel call uploads its inputs and reads its outputs back: the transfers "
@@ -206,24 +190,11 @@ int runBench(const std::vector<std::string>& args) {
       .flag("--full-search",
             "also bake each path with the clearance certificate off (every closest point "
             "searched), first, and check that both bakes wrote the same files byte for byte");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
-  Workload w = workload(parser.get("--workload"));
-  if (parser.has("--frames")) {
-    w.frames = parser.getInt("--frames", 1);
-  }
-  const fs::path root =
-      parser.has("--keep")
-          ? fs::path(parser.get("--keep"))
-          : fs::temp_directory_path() / ("drivenshape-bench-" + std::to_string(::getpid()));
-  fs::create_directories(root / "host");
-  fs::create_directories(root / "cl");
-  fs::create_directories(root / "cl-host-staging");
-  fs::create_directories(root / "cl-full-search");
-  fs::create_directories(root / "host-full-search");
+}
 
+/// Writes the reference clip and the shot of `w` (a bending tube in a looser one) under
+/// `root` (ref.*.pc2, shot.driver.pc2) and builds the database of the reference clip.
+ds::Database makeWorkload(const Workload& w, const fs::path& root) {
   const ds::Mesh driver = tube(w.driverRings, w.driverSegments, 0.1f);
   const ds::Mesh driven = tube(w.drivenRings, w.drivenSegments, 0.12f);
   std::mt19937 rng(1234);
@@ -253,125 +224,171 @@ int runBench(const std::vector<std::string>& args) {
   const auto refDrivenCache = ds::openPointCache((root / "ref.driven.pc2").string());
   ds::DatabaseBuildOptions dbOptions;
   dbOptions.count = w.shapes;
-  const ds::Database db =
-      ds::buildDatabase(driver, driven, *refDriverCache, *refDrivenCache, dbOptions);
-  const auto shotCache = ds::openPointCache((root / "shot.driver.pc2").string());
+  return ds::buildDatabase(driver, driven, *refDriverCache, *refDrivenCache, dbOptions);
+}
 
+/// What every bake of the run shares: the database, the shot, the device, the options and the
+/// JSON report the bakes add to.
+struct Bench {
+  const ds::Database& db;
+  const ds::PointCacheReader& shot;
+  ds::Device& device;
   ds::BakeOptions options;
-  for (int f = 1; f <= w.frames; ++f) {
-    options.frames.push_back(f);
+  fs::path root;
+  int frames = 0;
+  nlohmann::json report;
+};
+
+/// The OpenCL bake, then one per --also KEY=VALUE, into the report.
+ds::BakeResult bakeOpenCl(const ds::cli::ArgParser& parser, Bench& bench) {
+  bench.options.outputPattern = (bench.root / "cl" / "shot.####.exr").string();
+  resetPeakRss();
+  const ds::TransferCounts before = bench.device.transfers();
+  const ds::BakeResult cl = ds::bake(bench.db, bench.shot, bench.device, bench.options);
+  const ds::TransferCounts after = bench.device.transfers();
+  const double clRss = peakRssMiB();
+  const std::string name = bench.device.description();
+  printRow("OpenCL: " + name.substr(0, 20), cl, clRss);
+  nlohmann::json& json = bench.report["opencl"] = timesJson(cl, clRss);
+  json["device"] = name;
+  json["programs_built"] = bench.device.programsBuilt();
+  json["transfers"] =
+      transfersPerBatch("OpenCL", before, after, bench.frames, bench.options.chunkSize);
+  for (const std::vector<std::string>& also : parser.all("--also")) {
+    const std::size_t equals = also.front().find('=');
+    if (equals == std::string::npos) {
+      DS_THROW(kUsage, "--also takes KEY=VALUE (e.g. weight_mode=qp), not '", also.front(), "'");
+    }
+    const ds::Setting& setting = ds::findSetting(also.front().substr(0, equals));
+    const std::string text = also.front().substr(equals + 1);
+    ds::BakeOptions other = bench.options;
+    ds::setSetting(setting, other, ds::parseSettingValue(setting, text));
+    other.outputPattern = (bench.root / "cl" / "other.####.exr").string();
+    const ds::BakeResult again = ds::bake(bench.db, bench.shot, bench.device, other);
+    printRow("same, " + also.front(), again, peakRssMiB());
+    bench.report["opencl_" + std::string(setting.key) + "_" + text] =
+        timesJson(again, peakRssMiB());
   }
-  options.chunkSize = parser.getInt("--batch", 1);
-  options.threads = parser.getInt("--threads", 0);
-  options.compression = ds::parseExrCompression(parser.get("--compression"));
-  options.zipEncoder = ds::parseZipEncoder(parser.get("--zip-encoder"));
-  options.evaluator.correct = !parser.has("--no-correct");
-  options.evaluator.audit = !parser.has("--no-audit");
-  options.evaluator.resolve = !parser.has("--no-resolve");
-  options.evaluator.exitFade = parser.getDouble("--exit-fade", 0.0);
-  options.syncOutputs = parser.has("--sync");
-  options.evaluator.blend = ds::parseBlendMode(parser.get("--blend"), "--blend");
-  options.evaluator.align = ds::parseAlignMode(parser.get("--align"), "--align");
-  options.evaluator.weightMode = ds::parseWeightMode(parser.get("--weights"), "--weights");
+  return cl;
+}
 
-  const std::unique_ptr<ds::Device> clDevice =
-      ds::cli::openCliDevice(parser.get("--device"), std::cerr);
-  const std::string clName = clDevice->description();
-  std::printf(
-      "workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
-      "compression %s (%s), correction %s, audit %s\n",
-      w.name.c_str(), driver.vertexCount(), driven.vertexCount(), db.shapeCount(), w.frames,
-      options.chunkSize, parser.get("--compression").c_str(),
-      ds::zipEncoderName(options.zipEncoder), options.evaluator.correct ? "on" : "off",
-      options.evaluator.audit ? "on" : "off");
-  printHeader();
+/// The OpenCL device with every block staged through host memory, into the report.
+void bakeHostStaged(Bench& bench) {
+  ds::cli::HostStagingDevice staging(bench.device);
+  ds::BakeOptions options = bench.options;
+  options.outputPattern = (bench.root / "cl-host-staging" / "shot.####.exr").string();
+  const ds::TransferCounts start = bench.device.transfers();
+  const ds::BakeResult again = ds::bake(bench.db, bench.shot, staging, options);
+  printRow("same, staged on host", again, peakRssMiB());
+  bench.report["opencl_host_staging"] = timesJson(again, peakRssMiB());
+  bench.report["opencl_host_staging"]["transfers"] = transfersPerBatch(
+      "same, staged on host", start, bench.device.transfers(), bench.frames, options.chunkSize);
+}
 
-  nlohmann::json report{{"workload", w.name},
-                        {"driver_vertices", driver.vertexCount()},
-                        {"driven_vertices", driven.vertexCount()},
-                        {"shapes", db.shapeCount()},
-                        {"frames", w.frames},
-                        {"batch", options.chunkSize},
-                        {"correct", options.evaluator.correct},
-                        {"audit", options.evaluator.audit}};
-  // Warm-up: builds the kernels (PoCL compiles on first use) outside the timed bakes.
+/// The host reference bake (and its full search), into the report; prints the speed-ups.
+void bakeHost(Bench& bench, const ds::BakeResult& cl, bool fullSearch) {
+  const std::unique_ptr<ds::Device> host = ds::makeHostDevice();
+  ds::BakeOptions options = bench.options;
+  if (fullSearch) {
+    bench.report["host_full_search"] = bakeFullSearch(
+        bench.db, bench.shot, *host, options, bench.root / "host-full-search", "host, full search");
+  }
+  options.outputPattern = (bench.root / "host" / "shot.####.exr").string();
+  resetPeakRss();
+  const ds::BakeResult hr = ds::bake(bench.db, bench.shot, *host, options);
+  const double hostRss = peakRssMiB();
+  printRow("host reference", hr, hostRss);
+  bench.report["host"] = timesJson(hr, hostRss);
+  if (fullSearch) {
+    bench.report["host"]["same_files_as_full_search"] =
+        sameFiles(bench.root / "host", bench.root / "host-full-search", bench.frames, "host");
+  }
+  std::printf("OpenCL / host speed-up: whole bake %.2fx, project %.2fx, blend %.2fx\n",
+              hr.times.total / cl.times.total,
+              hr.times.stage("project") / cl.times.stage("project"),
+              hr.times.stage("blend") / cl.times.stage("blend"));
+}
+
+/// Every bake of the run, in order: warm-up, [full search], OpenCL, [--also], [host staging],
+/// [host reference].
+void runBakes(const ds::cli::ArgParser& parser, Bench& bench) {
   {
-    ds::BakeOptions warm = options;
+    // Warm-up: builds the kernels (PoCL compiles on first use) outside the timed bakes.
+    ds::BakeOptions warm = bench.options;
     warm.frames = {1};
-    warm.outputPattern = (root / "cl" / "warm.####.exr").string();
-    ds::bake(db, *shotCache, *clDevice, warm);
+    warm.outputPattern = (bench.root / "cl" / "warm.####.exr").string();
+    ds::bake(bench.db, bench.shot, bench.device, warm);
   }
   const bool fullSearch = parser.has("--full-search");
   if (fullSearch) {
-    report["opencl_full_search"] = bakeFullSearch(db, *shotCache, *clDevice, options,
-                                                  root / "cl-full-search", "OpenCL, full search");
+    bench.report["opencl_full_search"] =
+        bakeFullSearch(bench.db, bench.shot, bench.device, bench.options,
+                       bench.root / "cl-full-search", "OpenCL, full search");
   }
-  options.outputPattern = (root / "cl" / "shot.####.exr").string();
-  resetPeakRss();
-  const ds::TransferCounts before = clDevice->transfers();
-  const ds::BakeResult cl = ds::bake(db, *shotCache, *clDevice, options);
-  const ds::TransferCounts after = clDevice->transfers();
-  const double clRss = peakRssMiB();
-  printRow("OpenCL: " + clName.substr(0, 20), cl, clRss);
-  report["opencl"] = timesJson(cl, clRss);
-  report["opencl"]["device"] = clName;
-  report["opencl"]["programs_built"] = clDevice->programsBuilt();
-  report["opencl"]["transfers"] =
-      transfersPerBatch("OpenCL", before, after, w.frames, options.chunkSize);
-  if (parser.has("--also-weights")) {
-    ds::BakeOptions other = options;
-    other.evaluator.weightMode =
-        ds::parseWeightMode(parser.get("--also-weights"), "--also-weights");
-    other.outputPattern = (root / "cl" / "other.####.exr").string();
-    const ds::BakeResult again = ds::bake(db, *shotCache, *clDevice, other);
-    printRow("same, weights " + parser.get("--also-weights"), again, peakRssMiB());
-    report["opencl_" + parser.get("--also-weights")] = timesJson(again, peakRssMiB());
-  }
-  if (parser.has("--also-exit-fade")) {
-    ds::BakeOptions other = options;
-    other.evaluator.exitFade = parser.getDouble("--also-exit-fade", 0.0);
-    other.outputPattern = (root / "cl" / "fade.####.exr").string();
-    const ds::BakeResult again = ds::bake(db, *shotCache, *clDevice, other);
-    printRow("same, exit fade " + parser.get("--also-exit-fade"), again, peakRssMiB());
-    report["opencl_exit_fade_" + parser.get("--also-exit-fade")] = timesJson(again, peakRssMiB());
-  }
+  const ds::BakeResult cl = bakeOpenCl(parser, bench);
   if (fullSearch) {
-    report["opencl"]["same_files_as_full_search"] =
-        sameFiles(root / "cl", root / "cl-full-search", w.frames, "OpenCL");
+    bench.report["opencl"]["same_files_as_full_search"] =
+        sameFiles(bench.root / "cl", bench.root / "cl-full-search", bench.frames, "OpenCL");
   }
-  if (parser.has("--host-staging") && clDevice->isOpenCl()) {
-    ds::cli::HostStagingDevice staging(*clDevice);
-    options.outputPattern = (root / "cl-host-staging" / "shot.####.exr").string();
-    const ds::TransferCounts start = clDevice->transfers();
-    const ds::BakeResult again = ds::bake(db, *shotCache, staging, options);
-    printRow("same, staged on host", again, peakRssMiB());
-    report["opencl_host_staging"] = timesJson(again, peakRssMiB());
-    report["opencl_host_staging"]["transfers"] = transfersPerBatch(
-        "same, staged on host", start, clDevice->transfers(), w.frames, options.chunkSize);
+  if (parser.has("--host-staging") && bench.device.isOpenCl()) {
+    bakeHostStaged(bench);
   }
   if (!parser.has("--no-host")) {
-    const std::unique_ptr<ds::Device> host = ds::makeHostDevice();
-    if (fullSearch) {
-      report["host_full_search"] = bakeFullSearch(db, *shotCache, *host, options,
-                                                  root / "host-full-search", "host, full search");
-    }
-    options.outputPattern = (root / "host" / "shot.####.exr").string();
-    resetPeakRss();
-    const ds::BakeResult hr = ds::bake(db, *shotCache, *host, options);
-    const double hostRss = peakRssMiB();
-    printRow("host reference", hr, hostRss);
-    report["host"] = timesJson(hr, hostRss);
-    if (fullSearch) {
-      report["host"]["same_files_as_full_search"] =
-          sameFiles(root / "host", root / "host-full-search", w.frames, "host");
-    }
-    std::printf("OpenCL / host speed-up: whole bake %.2fx, project %.2fx, blend %.2fx\n",
-                hr.times.total / cl.times.total,
-                hr.times.stage("project") / cl.times.stage("project"),
-                hr.times.stage("blend") / cl.times.stage("blend"));
+    bakeHost(bench, cl, fullSearch);
   }
+}
+
+int runBench(const std::vector<std::string>& args) {
+  ds::cli::ArgParser parser("drivenshape_bench [options]",
+                            "Bakes a synthetic workload through OpenCL and the host reference in "
+                            "one run; prints per-stage seconds and frames/s.");
+  declareOptions(parser);
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  Workload w = workload(parser.get("--workload"));
+  if (parser.has("--frames")) {
+    w.frames = parser.getInt("--frames", 1);
+  }
+  const fs::path root =
+      parser.has("--keep")
+          ? fs::path(parser.get("--keep"))
+          : fs::temp_directory_path() / ("drivenshape-bench-" + std::to_string(::getpid()));
+  for (const char* folder :
+       {"host", "cl", "cl-host-staging", "cl-full-search", "host-full-search"}) {
+    fs::create_directories(root / folder);
+  }
+  const ds::Database db = makeWorkload(w, root);
+  const auto shotCache = ds::openPointCache((root / "shot.driver.pc2").string());
+  const std::unique_ptr<ds::Device> clDevice =
+      ds::cli::openCliDevice(parser.get("--device"), std::cerr);
+  Bench bench{db, *shotCache, *clDevice, ds::BakeOptions(), root, w.frames, nlohmann::json()};
+  ds::BakeOptions& options = bench.options;
+  for (int f = 1; f <= w.frames; ++f) {
+    options.frames.push_back(f);
+  }
+  ds::cli::readSettings(parser, options);
+  options.syncOutputs = parser.has("--sync");
+  std::printf(
+      "workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
+      "compression %s (%s), correction %s, audit %s\n",
+      w.name.c_str(), db.driverVertexCount(), db.drivenVertexCount(), db.shapeCount(), w.frames,
+      options.chunkSize, ds::exrCompressionName(options.compression),
+      ds::zipEncoderName(options.zipEncoder), options.evaluator.correct ? "on" : "off",
+      options.evaluator.audit ? "on" : "off");
+  printHeader();
+  bench.report = {{"workload", w.name},
+                  {"driver_vertices", db.driverVertexCount()},
+                  {"driven_vertices", db.drivenVertexCount()},
+                  {"shapes", db.shapeCount()},
+                  {"frames", w.frames},
+                  {"batch", options.chunkSize},
+                  {"correct", options.evaluator.correct},
+                  {"audit", options.evaluator.audit}};
+  runBakes(parser, bench);
   if (parser.has("--json")) {
-    std::ofstream(parser.get("--json")) << drivenshape::jsonText(report, 1) << "\n";
+    std::ofstream(parser.get("--json")) << drivenshape::jsonText(bench.report, 1) << "\n";
   }
   if (!parser.has("--keep")) {
     fs::remove_all(root);

@@ -126,10 +126,8 @@ int run(const std::vector<std::string>& args) {
       .option("--device", "SPEC", "OpenCL device (auto, cpu, gpu, index, name)", "auto")
       .option("--batch", "N", "frames per evaluate() call", "1")
       .option("--repeat", "N", "timed passes over the frames", "3")
-      .option("--threads", "N", "host threads (0 = all cores)", "0")
       .option("--json", "PATH", "also write the figures as JSON")
-      .flag("--no-audit", "skip the per-frame audit (a viewport needs none)")
-      .flag("--no-resolve", "skip the penetration resolution")
+      .settings({"audit", "resolve", "threads"})
       .flag("--no-host", "skip the host reference");
   if (!parser.parse(args)) {
     std::cout << parser.help();
@@ -142,9 +140,7 @@ int run(const std::vector<std::string>& args) {
   const std::vector<float> driver = ds::readFrames(*cache, frames);
   const int batch = parser.getInt("--batch", 1);
   ds::EvaluatorSettings settings;
-  settings.audit = !parser.has("--no-audit");
-  settings.resolve = !parser.has("--no-resolve");
-  settings.threads = parser.getInt("--threads", 0);
+  ds::cli::readSettings(parser, settings);
   const int repeat = parser.getInt("--repeat", 1);
   std::printf(
       "evaluate(): %zu frames, batch %d, %d passes; driver %d, cloth %d vertices, %d "

@@ -41,6 +41,53 @@ ArgParser& ArgParser::flag(const std::string& name, const std::string& help) {
   return *this;
 }
 
+namespace {
+
+/// --help text of a setting: its help, unit and what 0 means (a flag says what it turns off).
+std::string settingHelp(const Setting& setting) {
+  std::string help = setting.help;
+  if (setting.type == SettingType::kBool) {
+    const bool on = std::get<bool>(defaultSettingValue(setting));
+    return (on ? "turns off " : "turns on ") + help;
+  }
+  if (*setting.unit != '\0') {
+    help += std::string(" (") + setting.unit + ")";
+  }
+  if (*setting.zero != '\0') {
+    help += std::string(" (0 = ") + setting.zero + ")";
+  }
+  return help;
+}
+
+}  // namespace
+
+ArgParser& ArgParser::settings(std::initializer_list<const char*> keys) {
+  std::vector<const Setting*> chosen;
+  for (const char* key : keys) {
+    chosen.push_back(&findSetting(key));
+  }
+  if (keys.size() == 0) {
+    for (const Setting& setting : settingsTable()) {
+      if (setting.flag != nullptr) {
+        chosen.push_back(&setting);
+      }
+    }
+  }
+  for (const Setting* setting : chosen) {
+    if (setting->flag == nullptr) {
+      DS_THROW(kInternal, "the setting ", setting->key, " has no command-line flag");
+    }
+    mSettings.push_back(setting);
+    if (setting->type == SettingType::kBool) {
+      flag(setting->flag, settingHelp(*setting));
+    } else {
+      option(setting->flag, setting->valueName, settingHelp(*setting),
+             formatSettingValue(defaultSettingValue(*setting)));
+    }
+  }
+  return *this;
+}
+
 ArgParser& ArgParser::epilog(const std::string& text) {
   mEpilog = text;
   return *this;
@@ -227,6 +274,44 @@ void createOutputFoldersFor(const std::vector<std::string>& paths, bool quiet) {
       }
     }
   }
+}
+
+namespace {
+
+/// Sets every settings option given through `set`; returns the keys of those given.
+template <typename Set>
+std::vector<std::string> readGiven(const ArgParser& parser, Set&& set) {
+  std::vector<std::string> given;
+  for (const Setting* setting : parser.declaredSettings()) {
+    if (!parser.has(setting->flag)) {
+      continue;
+    }
+    // A flag sets the other value than the default (--no-resolve).
+    const SettingValue value = setting->type == SettingType::kBool
+                                   ? SettingValue(!std::get<bool>(defaultSettingValue(*setting)))
+                                   : parseSettingValue(*setting, parser.get(setting->flag));
+    set(*setting, value);
+    given.emplace_back(setting->key);
+  }
+  return given;
+}
+
+}  // namespace
+
+void readSettings(const ArgParser& parser, BakeOptions& options) {
+  const std::vector<std::string> given =
+      readGiven(parser, [&](const Setting& setting, const SettingValue& value) {
+        setSetting(setting, options, value);
+      });
+  refuseUnusedSettings(unusedSettings({options.evaluator, &options}, given));
+}
+
+void readSettings(const ArgParser& parser, EvaluatorSettings& settings) {
+  const std::vector<std::string> given =
+      readGiven(parser, [&](const Setting& setting, const SettingValue& value) {
+        setSetting(setting, settings, value);
+      });
+  refuseUnusedSettings(unusedSettings({settings}, given));
 }
 
 }  // namespace drivenshape::cli

@@ -6,7 +6,9 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/bake.h>
 #include <drivenshape/frames.h>
+#include <drivenshape/settings_table.h>
 
 namespace drivenshape::cli {
 
@@ -26,6 +28,10 @@ class ArgParser {
                       const std::string& help);
   /// A boolean flag: `--name`.
   ArgParser& flag(const std::string& name, const std::string& help);
+  /// Options for settings of the settings table (drivenshape/settings_table.h): `keys`, or
+  /// every setting the command line takes (in table order) when `keys` is empty. Their flags,
+  /// value names, help and defaults come from the table; readSettings() reads them.
+  ArgParser& settings(std::initializer_list<const char*> keys = {});
   /// Extra text printed after the options in --help.
   ArgParser& epilog(const std::string& text);
   /// Accept `count` positional arguments described by `names` (e.g. "FILE").
@@ -42,6 +48,8 @@ class ArgParser {
   /// Every use of a repeated option, in the order given: its words each time.
   std::vector<std::vector<std::string>> all(const std::string& name) const;
   const std::vector<std::string>& positionals() const { return mPositionals; }
+  /// The settings declared with settings(), in order.
+  const std::vector<const Setting*>& declaredSettings() const { return mSettings; }
 
  private:
   struct Spec {
@@ -62,7 +70,16 @@ class ArgParser {
   std::map<std::string, std::string> mValues;
   std::map<std::string, std::vector<std::vector<std::string>>> mRepeated;
   std::vector<std::string> mPositionals;
+  std::vector<const Setting*> mSettings;
 };
+
+/// Sets each settings option given on the command line through the settings table, which
+/// checks the value, and refuses a given setting that the others leave unused (--blend local
+/// with --no-correct): Error(kUsage) naming the flag. Unused values that are only warned about
+/// are left to the library, which warns when it runs.
+void readSettings(const ArgParser& parser, BakeOptions& options);
+/// The same for commands that take evaluator settings only.
+void readSettings(const ArgParser& parser, EvaluatorSettings& settings);
 
 /// `path` made absolute and normalised, for messages and summaries (unchanged if that fails).
 std::string absolute(const std::string& path);

@@ -356,28 +356,10 @@ int runBake(const std::vector<std::string>& args) {
       .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
       .option("--report", "PATH", "per-bake JSON report", "OUT folder/<name>.report.json")
       .option("--device", "SPEC", "auto, host, cpu, gpu, an index or a name substring", "auto")
-      .option("--threads", "N", "host threads for weights and EXR writing (0 = all cores)", "0")
-      .option("--batch", "N", "frames per kernel launch (bounds device memory)", "64")
+      .settings()
       .option("--chunk-size", "N", "farm chunk: bake only chunk --chunk-index of N frames")
       .option("--chunk-index", "I|env",
               "which chunk (0-based) of --frames; env reads SLURM_ARRAY_TASK_ID")
-      .option("--compression", "C", "zip, none, zips or piz (all lossless)", "zip")
-      .option("--zip-encoder", "E",
-              "who deflates zip and zips files (standard files either way): libdeflate, or "
-              "openexr (OpenEXR's zlib writer, 2-4x the CPU: the bytes of earlier builds)",
-              "libdeflate")
-      .option("--exr-width", "W", "pixels per EXR row (vertex v is pixel v mod W, v div W)", "1024")
-      .option("--fps", "X", "frames per second written to the EXR headers", "24")
-      .option("--weights", "MODE",
-              "auto (model when the database has a pose model, else qp), model (the rest "
-              "binding plus the pose model's learned correction), qp (the 2008 DrivenShape "
-              "blend); baselines: nearest (closest database shape), bind (rest cloth bound to "
-              "the rest driver and carried along, like Point Deform)",
-              "auto")
-      .option("--coverage-tolerance", "D",
-              "pose model: frames whose predicted mean vertex error exceeds D scene units are "
-              "flagged for simulation (0 = 2% of the cloth's rest bounding-box diagonal)",
-              "0")
       .option("--posmap", "W[xH]", "also write UV-space position maps of the baked cloth")
       .option("--posmap-out", "PATTERN", "position-map EXR sequence",
               "OUT with .posmap before the frame token")
@@ -391,49 +373,6 @@ int runBake(const std::vector<std::string>& args) {
       .flag("--force",
             "bake a driver the sanity check refuses (another scale than the database's, or "
             "edges that do not correspond); its findings become warnings")
-      .option("--bind", "MAP", "binding mask (JSON): which driver groups each cloth group binds to")
-      .flag("--no-correct", "skip the collision correction (blend only)")
-      .option("--align", "MODE",
-              "none (the talk: weights compare world positions), rigid (each shot frame and "
-              "each database shape is rigidly fitted to the rest driver first, so shots that "
-              "travel and turn still match; the fit is weighted by how rigidly each vertex "
-              "moves across the database, so it follows the pelvis, not the legs) or rigid-all "
-              "(the same fit, every vertex weighted by its area alone)",
-              "rigid")
-      .option("--align-group", "LIST",
-              "driver vertices of the rigid fit: comma-separated OBJ group names and/or vertex "
-              "indices and ranges (0-99,250)",
-              "all")
-      .option("--blend", "MODE",
-              "world (blend world positions, then correct) or local (bind every cloth vertex "
-              "once at rest, blend the shapes' offsets in those local frames, rebuild them on "
-              "the shot's driver)",
-              "local")
-      .option("--skin-offset", "D",
-              "penetration resolution: cloth closer to the driver than D scene units (or "
-              "inside it) moves out to D along the surface normal (0.002 = 2 mm in metre "
-              "scenes)",
-              "0.002")
-      .option("--exit-fade", "K",
-              "penetration resolution: a vertex deep inside the body whose second-nearest exit "
-              "(elsewhere on the skin) is within K x its depth of the nearest moves only part "
-              "of the way, none where they tie, so cloth caught in a limb or in a bent joint "
-              "that passes through itself does not jump across it between frames (0 = always "
-              "all the way)",
-              "0.15")
-      .flag("--no-resolve", "skip the penetration resolution")
-      .option("--regions", "FILE.json",
-              "region-local weights: one QP per region (driver groups) mixed over the matching "
-              "driven groups with a smooth falloff; see docs/commands.md for the format")
-      .option("--max-weight-change", "TAU",
-              "temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order "
-              "within each --batch (0 = off)",
-              "0")
-      .option("--temporal-warmup", "N",
-              "with --max-weight-change: driver-cache frames solved, not written, before each "
-              "batch; results depend on N and --batch, not on --threads",
-              "8")
-      .flag("--no-audit", "skip the per-frame penetration/popping audit (faster)")
       .flag("--untrusted-driver",
             "bake a database whose driver mesh is not closed, manifold and consistently "
             "oriented (refused otherwise), without the audit and the penetration resolution; "
@@ -498,14 +437,16 @@ void createBakeFolders(const BakeOptions& options, const std::string& posmapPatt
   createOutputFoldersFor(paths, quiet);
 }
 
-int bakeParsed(const ArgParser& parser) {
+/// The bake's options from its command line (settings through the settings table); opens no
+/// file.
+BakeOptions bakeOptions(const ArgParser& parser) {
   BakeOptions options;
   options.frames = parseFrameRange(parser.get("--frames"));
   options.outputPattern = parser.get("-o");
   options.reportPath =
       parser.has("--report") ? parser.get("--report") : defaultReportPath(options.outputPattern);
-  options.chunkSize = parser.getInt("--batch", 1);
-  options.threads = threadsFor(parser.getInt("--threads", 0));
+  readSettings(parser, options);
+  options.threads = options.evaluator.threads = threadsFor(options.threads);
   if (parser.has("--chunk-size") || parser.has("--chunk-index")) {
     int chunkIndex = 0;
     options.frames = farmChunk(options.frames, parser, chunkIndex);
@@ -516,44 +457,10 @@ int bakeParsed(const ArgParser& parser) {
                                 ".chunk" + std::to_string(chunkIndex));
     }
   }
-  options.compression = parseExrCompression(parser.get("--compression"));
-  options.zipEncoder = parseZipEncoder(parser.get("--zip-encoder"));
-  options.exrWidth = parser.getInt("--exr-width", 1);
-  options.framesPerSecond = parser.getDouble("--fps", 1e-3);
   options.layers = readLayerFlags(parser, options.framesPerSecond);
   options.skipExisting = parser.has("--skip-existing");
   options.force = parser.has("--force");
-  options.evaluator.correct = !parser.has("--no-correct");
-  options.evaluator.audit = !parser.has("--no-audit");
   options.syncOutputs = parser.has("--sync");
-  if (parser.has("--bind")) {
-    if (!options.evaluator.correct) {
-      DS_THROW(kUsage, "--bind has no effect with --no-correct; drop one of them");
-    }
-    options.bindingMaskPath = parser.get("--bind");
-  }
-  options.evaluator.align = parseAlignMode(parser.get("--align"), "--align");
-  if (parser.has("--align-group")) {
-    if (options.evaluator.align == AlignMode::kNone) {
-      DS_THROW(kUsage, "--align-group has no effect with --align none; drop one of them");
-    }
-    options.evaluator.alignGroup = parser.get("--align-group");
-  }
-  options.evaluator.blend = parseBlendMode(parser.get("--blend"), "--blend");
-  if (!options.evaluator.correct && parser.has("--blend") &&
-      options.evaluator.blend == BlendMode::kLocal) {
-    DS_THROW(kUsage,
-             "--blend local rebuilds the blended offsets on the shot's driver, which is the "
-             "correction; it cannot run with --no-correct (which blends world positions)");
-  }
-  options.evaluator.resolve = !parser.has("--no-resolve");
-  options.evaluator.skinOffset = parser.getDouble("--skin-offset", 0.0);
-  options.evaluator.exitFade = parser.getDouble("--exit-fade", 0.0);
-  if (parser.has("--regions")) {
-    options.regionsPath = parser.get("--regions");
-  }
-  options.evaluator.maxWeightChange = parser.getDouble("--max-weight-change", 0.0);
-  options.temporalWarmup = parser.getInt("--temporal-warmup", 0);
   if (options.evaluator.maxWeightChange > 0 && parser.has("--chunk-size")) {
     const int farmChunk = parser.getInt("--chunk-size", 1);
     if (farmChunk % options.chunkSize != 0) {
@@ -563,59 +470,82 @@ int bakeParsed(const ArgParser& parser) {
                std::gcd(farmChunk, options.chunkSize), " to both");
     }
   }
-  options.evaluator.weightMode = parseWeightMode(parser.get("--weights"), "--weights");
-  options.evaluator.coverageTolerance = parser.getDouble("--coverage-tolerance", 0.0);
   if (!hasFramePattern(options.outputPattern)) {
     DS_THROW(kUsage, "-o '", options.outputPattern,
              "' has no frame token; use e.g. out/cloth.####.exr");
   }
-  std::string posmapPattern;
-  if (parser.has("--posmap")) {
-    posmapPattern = parser.has("--posmap-out") ? parser.get("--posmap-out")
-                                               : defaultPosmapPattern(options.outputPattern);
-    if (!hasFramePattern(posmapPattern)) {
-      DS_THROW(kUsage, "--posmap-out '", posmapPattern, "' has no frame token");
+  return options;
+}
+
+/// The position-map pattern of `bake --posmap`, or "" without it.
+std::string posmapPatternOf(const ArgParser& parser, const BakeOptions& options) {
+  if (!parser.has("--posmap")) {
+    return "";
+  }
+  const std::string pattern = parser.has("--posmap-out")
+                                  ? parser.get("--posmap-out")
+                                  : defaultPosmapPattern(options.outputPattern);
+  if (!hasFramePattern(pattern)) {
+    DS_THROW(kUsage, "--posmap-out '", pattern, "' has no frame token");
+  }
+  return pattern;
+}
+
+/// Position maps straight from the baked positions (bake --posmap) into `pattern`.
+void attachPositionMaps(const ArgParser& parser, const BakeOptions& options, const Database& db,
+                        Device& target, const std::string& pattern, CliObserver& observer) {
+  PositionMapOptions maps;
+  std::tie(maps.width, maps.height) =
+      parsePositionMapResolution(parser.get("--posmap"), "--posmap");
+  maps.padding = parser.getInt("--posmap-padding", 0);
+  maps.normals = parser.has("--posmap-normals");
+  maps.channels = parsePositionMapChannels(parser.get("--posmap-channels"), "--posmap-channels");
+  maps.compression = options.compression;
+  maps.zipEncoder = options.zipEncoder;
+  maps.framesPerSecond = options.framesPerSecond;
+  maps.threads = options.threads;
+  observer.setPositionMaps(
+      std::make_unique<PositionMapWriter>(db.drivenMesh, maps, target.makePositionMaps(),
+                                          "the database's driven mesh", &std::cerr),
+      pattern);
+}
+
+/// The audit's summary line: cloth vertices inside the driver per frame, binding switches, the
+/// largest jump.
+void printAudit(const BakeResult& result, const BakeOptions& options) {
+  // Counts that a mode does not measure are -1 in the records (local blending has no
+  // blended cloth to audit, world blending no binding switches to report).
+  long before = 0, corrected = 0, after = 0, switches = 0;
+  bool hasBefore = false, hasSwitches = false;
+  double jump = 0;
+  for (const FrameRecord& record : result.frames) {
+    if (!record.skipped) {
+      hasBefore = hasBefore || record.insideBefore >= 0;
+      hasSwitches = hasSwitches || record.bindingSwitches >= 0;
+      before += std::max(record.insideBefore, 0);
+      corrected += std::max(record.insideCorrected, 0);
+      after += record.insideAfter;
+      switches += std::max(record.bindingSwitches, 0);
+      jump = std::max(jump, record.maxJump);
     }
   }
-  checkBakePaths(parser, options, posmapPattern);
-  // Missing output folders are created once the inputs have loaded (createBakeFolders).
-  missingOutputFolders(expandFramePattern(options.outputPattern, options.frames.front()));
+  const double frames = result.baked;
+  std::cout << "audit:   cloth vertices inside the driver per frame: " << std::setprecision(1);
+  if (hasBefore) {
+    std::cout << before / frames << " blended, ";
+  }
+  std::cout << corrected / frames << (options.evaluator.correct ? " corrected" : " (no correction)")
+            << ", " << after / frames
+            << (options.evaluator.resolve ? " after resolution" : " written");
+  if (hasSwitches) {
+    std::cout << "; binding switches " << switches;
+  }
+  std::cout << "; largest frame-to-frame jump " << std::setprecision(4) << jump << "\n";
+}
 
-  const Database db = loadDatabase(parser.get("--db"));
-  admitDriverMesh(db, parser.get("--db"), parser.has("--untrusted-driver"), options);
-  // EXR driver caches carry a topology hash: it must be the database's driver mesh.
-  const auto driver = openPointCache(parser.get("--driver"), topologyHash(db.driverMesh));
-  if (options.threads > 0 && std::getenv("POCL_MAX_PTHREAD_COUNT") == nullptr) {
-    // PoCL reads this when the platform loads: cap its worker threads like ours.
-    ::setenv("POCL_MAX_PTHREAD_COUNT", std::to_string(options.threads).c_str(), 0);
-  }
-  const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
-  const std::string device = target->description();
-  const bool quiet = parser.has("--quiet");
-  createBakeFolders(options, posmapPattern, quiet);
-  if (!quiet) {
-    std::cerr << "baking " << options.frames.size() << " frames ("
-              << formatFrameRange(options.frames) << ") on " << device << "\n";
-  }
-  CliObserver observer(static_cast<long>(options.frames.size()), quiet);
-  if (parser.has("--posmap")) {
-    PositionMapOptions maps;
-    std::tie(maps.width, maps.height) =
-        parsePositionMapResolution(parser.get("--posmap"), "--posmap");
-    maps.padding = parser.getInt("--posmap-padding", 0);
-    maps.normals = parser.has("--posmap-normals");
-    maps.channels = parsePositionMapChannels(parser.get("--posmap-channels"), "--posmap-channels");
-    maps.compression = options.compression;
-    maps.zipEncoder = options.zipEncoder;
-    maps.framesPerSecond = options.framesPerSecond;
-    maps.threads = options.threads;
-    observer.setPositionMaps(
-        std::make_unique<PositionMapWriter>(db.drivenMesh, maps, target->makePositionMaps(),
-                                            "the database's driven mesh", &std::cerr),
-        posmapPattern);
-  }
-  const BakeResult result = bake(db, *driver, *target, options, &observer);
-  observer.finish();
+/// What a finished bake says on stderr (frames baked again, stale files) and stdout.
+void printBakeSummary(const BakeResult& result, const BakeOptions& options,
+                      const std::string& posmapPattern, const std::string& device) {
   for (const FrameRecord& record : result.frames) {
     if (!record.rebakeReason.empty()) {
       std::cerr << "rebaked frame " << record.frame << ": the existing " << record.output << " "
@@ -639,35 +569,40 @@ int bakeParsed(const ArgParser& parser) {
     std::cout << "report:  " << absolute(options.reportPath) << "\n";
   }
   if (options.evaluator.audit && result.baked > 0) {
-    // Counts that a mode does not measure are -1 in the records (local blending has no
-    // blended cloth to audit, world blending no binding switches to report).
-    long before = 0, corrected = 0, after = 0, switches = 0;
-    bool hasBefore = false, hasSwitches = false;
-    double jump = 0;
-    for (const FrameRecord& record : result.frames) {
-      if (!record.skipped) {
-        hasBefore = hasBefore || record.insideBefore >= 0;
-        hasSwitches = hasSwitches || record.bindingSwitches >= 0;
-        before += std::max(record.insideBefore, 0);
-        corrected += std::max(record.insideCorrected, 0);
-        after += record.insideAfter;
-        switches += std::max(record.bindingSwitches, 0);
-        jump = std::max(jump, record.maxJump);
-      }
-    }
-    const double frames = result.baked;
-    std::cout << "audit:   cloth vertices inside the driver per frame: " << std::setprecision(1);
-    if (hasBefore) {
-      std::cout << before / frames << " blended, ";
-    }
-    std::cout << corrected / frames
-              << (options.evaluator.correct ? " corrected" : " (no correction)") << ", "
-              << after / frames << (options.evaluator.resolve ? " after resolution" : " written");
-    if (hasSwitches) {
-      std::cout << "; binding switches " << switches;
-    }
-    std::cout << "; largest frame-to-frame jump " << std::setprecision(4) << jump << "\n";
+    printAudit(result, options);
   }
+}
+
+int bakeParsed(const ArgParser& parser) {
+  BakeOptions options = bakeOptions(parser);
+  const std::string posmapPattern = posmapPatternOf(parser, options);
+  checkBakePaths(parser, options, posmapPattern);
+  // Missing output folders are created once the inputs have loaded (createBakeFolders).
+  missingOutputFolders(expandFramePattern(options.outputPattern, options.frames.front()));
+
+  const Database db = loadDatabase(parser.get("--db"));
+  admitDriverMesh(db, parser.get("--db"), parser.has("--untrusted-driver"), options);
+  // EXR driver caches carry a topology hash: it must be the database's driver mesh.
+  const auto driver = openPointCache(parser.get("--driver"), topologyHash(db.driverMesh));
+  if (options.threads > 0 && std::getenv("POCL_MAX_PTHREAD_COUNT") == nullptr) {
+    // PoCL reads this when the platform loads: cap its worker threads like ours.
+    ::setenv("POCL_MAX_PTHREAD_COUNT", std::to_string(options.threads).c_str(), 0);
+  }
+  const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
+  const std::string device = target->description();
+  const bool quiet = parser.has("--quiet");
+  createBakeFolders(options, posmapPattern, quiet);
+  if (!quiet) {
+    std::cerr << "baking " << options.frames.size() << " frames ("
+              << formatFrameRange(options.frames) << ") on " << device << "\n";
+  }
+  CliObserver observer(static_cast<long>(options.frames.size()), quiet);
+  if (!posmapPattern.empty()) {
+    attachPositionMaps(parser, options, db, *target, posmapPattern, observer);
+  }
+  const BakeResult result = bake(db, *driver, *target, options, &observer);
+  observer.finish();
+  printBakeSummary(result, options, posmapPattern, device);
   return 0;
 }
 

@@ -12,6 +12,7 @@
 #include <drivenshape/evaluator.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/regions.h>
+#include <drivenshape/settings_table.h>
 
 namespace drivenshape::python {
 
@@ -185,7 +186,7 @@ py::list evaluateInto(EvaluatorHandle& handle, py::handle frames, py::handle dri
   return recordList(runEvaluator(handle, input, target.mutableData(), warmup));
 }
 
-void bindSettings(py::module_& module) {
+void bindSettingObjects(py::module_& module) {
   py::class_<BindingMask>(module, "BindingMask",
                           "Which driver triangles each driven vertex may bind to "
                           "(load_binding_mask / parse_binding_mask).")
@@ -242,106 +243,131 @@ void bindSettings(py::module_& module) {
         const Index size = static_cast<Index>(copy.size());
         return ownedArray(std::move(copy), {size});
       });
+}
 
-  const EvaluatorSettings defaults;
-  py::class_<EvaluatorSettings>(
-      module, "EvaluatorSettings",
-      "Everything that decides the cloth of a frame; the defaults are those of `drivenshape "
-      "bake`. Enums are strings: weight_mode auto|model|qp|nearest|bind (auto: the pose model "
-      "when the database has one, else qp), align none|rigid|rigid-all, "
-      "blend world|local. binding_mask, regions and layers come from load_binding_mask, "
-      "load_regions and load_layers (the loaders of the command line).")
-      .def(py::init([](const std::string& weightMode, const std::string& align,
-                       std::string alignGroup, const std::string& blend, bool correct,
-                       std::optional<BindingMask> bindingMask, bool resolve, double skinOffset,
-                       double exitFade, std::optional<RegionSet> regions, double maxWeightChange,
-                       double coverageTolerance, bool audit, std::optional<LayerSettings> layers,
-                       int threads) {
-             EvaluatorSettings settings;
-             settings.weightMode = parseWeightMode(weightMode, "weight_mode");
-             settings.align = parseAlignMode(align, "align");
-             settings.alignGroup = std::move(alignGroup);
-             settings.blend = parseBlendMode(blend, "blend");
-             settings.correct = correct;
-             settings.bindingMask = std::move(bindingMask);
-             settings.resolve = resolve;
-             settings.skinOffset = skinOffset;
-             settings.exitFade = exitFade;
-             settings.regions = std::move(regions);
-             settings.maxWeightChange = maxWeightChange;
-             settings.coverageTolerance = coverageTolerance;
-             settings.audit = audit;
-             if (layers) {
-               settings.layers = std::move(*layers);
-             }
-             settings.threads = threads;
-             return settings;
-           }),
-           py::kw_only(), py::arg("weight_mode") = weightModeName(defaults.weightMode),
-           py::arg("align") = alignModeName(defaults.align),
-           py::arg("align_group") = defaults.alignGroup,
-           py::arg("blend") = blendModeName(defaults.blend), py::arg("correct") = defaults.correct,
-           py::arg("binding_mask") = py::none(), py::arg("resolve") = defaults.resolve,
-           py::arg("skin_offset") = defaults.skinOffset, py::arg("exit_fade") = defaults.exitFade,
-           py::arg("regions") = py::none(), py::arg("max_weight_change") = defaults.maxWeightChange,
-           py::arg("coverage_tolerance") = defaults.coverageTolerance,
-           py::arg("audit") = defaults.audit, py::arg("layers") = py::none(),
-           py::arg("threads") = defaults.threads)
-      .def_property(
-          "weight_mode", [](const EvaluatorSettings& s) { return weightModeName(s.weightMode); },
-          [](EvaluatorSettings& s, const std::string& text) {
-            s.weightMode = parseWeightMode(text, "weight_mode");
-          })
-      .def_property(
-          "align", [](const EvaluatorSettings& s) { return alignModeName(s.align); },
-          [](EvaluatorSettings& s, const std::string& text) {
-            s.align = parseAlignMode(text, "align");
-          })
-      .def_readwrite("align_group", &EvaluatorSettings::alignGroup)
-      .def_property(
-          "blend", [](const EvaluatorSettings& s) { return blendModeName(s.blend); },
-          [](EvaluatorSettings& s, const std::string& text) {
-            s.blend = parseBlendMode(text, "blend");
-          })
-      .def_readwrite("correct", &EvaluatorSettings::correct)
-      .def_property(
-          "binding_mask", [](const EvaluatorSettings& s) { return s.bindingMask; },
-          [](EvaluatorSettings& s, std::optional<BindingMask> mask) {
-            s.bindingMask = std::move(mask);
-          })
-      .def_readwrite("resolve", &EvaluatorSettings::resolve)
-      .def_readwrite("skin_offset", &EvaluatorSettings::skinOffset)
-      .def_readwrite("exit_fade", &EvaluatorSettings::exitFade)
-      .def_property(
-          "regions", [](const EvaluatorSettings& s) { return s.regions; },
-          [](EvaluatorSettings& s, std::optional<RegionSet> regions) {
-            s.regions = std::move(regions);
-          })
-      .def_readwrite("max_weight_change", &EvaluatorSettings::maxWeightChange)
-      .def_readwrite("coverage_tolerance", &EvaluatorSettings::coverageTolerance,
-                     "pose model: flag frames predicted worse than this (scene units; 0 = 2% "
-                     "of the cloth's rest bounding-box diagonal)")
-      .def_readwrite("audit", &EvaluatorSettings::audit)
-      .def_property(
-          "layers", [](const EvaluatorSettings& s) { return s.layers; },
-          [](EvaluatorSettings& s, LayerSettings layers) { s.layers = std::move(layers); })
-      .def_readwrite("threads", &EvaluatorSettings::threads)
-      .def("__repr__", [](const EvaluatorSettings& s) {
-        std::ostringstream text;
-        text << "EvaluatorSettings(weight_mode='" << weightModeName(s.weightMode) << "', align='"
-             << alignModeName(s.align) << "', align_group='" << s.alignGroup << "', blend='"
-             << blendModeName(s.blend) << "', correct=" << (s.correct ? "True" : "False")
-             << ", binding_mask=" << (s.bindingMask ? "<BindingMask>" : "None")
-             << ", resolve=" << (s.resolve ? "True" : "False") << ", skin_offset=" << s.skinOffset
-             << ", exit_fade=" << s.exitFade << ", regions=" << (s.regions ? "<RegionSet>" : "None")
-             << ", max_weight_change=" << s.maxWeightChange
-             << ", coverage_tolerance=" << s.coverageTolerance
-             << ", audit=" << (s.audit ? "True" : "False")
-             << ", layers=" << (s.layers.empty() ? "None" : "<LayerSettings>")
-             << ", threads=" << s.threads << ")";
-        return text.str();
-      });
+// ---- EvaluatorSettings, from the settings table ----------------------------------------------
+// Every evaluator setting of drivenshape/settings_table.h is a keyword, an attribute and a part
+// of the repr, spelled by its key. Values go through the table (setSetting checks them); the
+// three kObject settings are the objects above.
 
+/// The Python value of `setting` in `s`: a bool, int, float or str, or the loaded object.
+py::object settingObject(const Setting& setting, const EvaluatorSettings& s) {
+  const std::string key = setting.key;
+  if (key == "binding_mask") {
+    return s.bindingMask ? py::cast(*s.bindingMask) : py::none();
+  }
+  if (key == "regions") {
+    return s.regions ? py::cast(*s.regions) : py::none();
+  }
+  if (key == "layers") {
+    return py::cast(s.layers);
+  }
+  return std::visit([](const auto& value) { return py::cast(value); }, settingValue(setting, s));
+}
+
+/// Sets `setting` of `s` from a Python value (None clears an object setting).
+void setSettingObject(const Setting& setting, EvaluatorSettings& s, py::handle value) {
+  const std::string key = setting.key;
+  try {
+    if (key == "binding_mask") {
+      s.bindingMask = value.is_none() ? std::nullopt : std::optional(value.cast<BindingMask>());
+    } else if (key == "regions") {
+      s.regions = value.is_none() ? std::nullopt : std::optional(value.cast<RegionSet>());
+    } else if (key == "layers") {
+      s.layers = value.is_none() ? LayerSettings() : value.cast<LayerSettings>();
+    } else if (setting.type == SettingType::kBool) {
+      setSetting(setting, s, value.cast<bool>());
+    } else if (setting.type == SettingType::kInt) {
+      setSetting(setting, s, value.cast<int>());
+    } else if (setting.type == SettingType::kNumber) {
+      setSetting(setting, s, value.cast<double>());
+    } else {
+      setSetting(setting, s, value.cast<std::string>());
+    }
+  } catch (const py::cast_error&) {
+    static const char* const kTypes[] = {"a bool", "an int", "a float", "a str", "a str", ""};
+    const std::string what = setting.type == SettingType::kObject
+                                 ? std::string("a ") + setting.label + " object or None"
+                                 : kTypes[static_cast<int>(setting.type)];
+    throw py::type_error("EvaluatorSettings." + key + " takes " + what + ", not " +
+                         std::string(py::str(value.get_type().attr("__name__"))));
+  }
+}
+
+/// Every evaluator setting of the table, in table order.
+std::vector<const Setting*> evaluatorSettings() {
+  std::vector<const Setting*> settings;
+  for (const Setting& setting : settingsTable()) {
+    if (setting.scope == SettingScope::kEvaluator) {
+      settings.push_back(&setting);
+    }
+  }
+  return settings;
+}
+
+std::string settingsRepr(const EvaluatorSettings& s) {
+  std::string text = "EvaluatorSettings(";
+  for (const Setting* setting : evaluatorSettings()) {
+    std::string value;
+    if (setting->type == SettingType::kObject) {
+      const bool set = !std::get<std::string>(setting->getEvaluator(s)).empty();
+      value = set ? std::string("<") + setting->label + ">" : "None";
+    } else {
+      value = py::repr(settingObject(*setting, s));
+    }
+    text += (text.back() == '(' ? "" : ", ") + std::string(setting->key) + "=" + value;
+  }
+  return text + ")";
+}
+
+/// The class's docstring: its keywords with their defaults and help.
+const char* settingsDoc() {
+  static const std::string doc = [] {
+    const EvaluatorSettings defaults;
+    std::string text =
+        "Everything that decides the cloth of a frame (the settings table, docs/commands.md); "
+        "the defaults are those of `drivenshape bake`. Keyword arguments only; binding_mask, "
+        "regions and layers come from load_binding_mask, load_regions and load_layers.\n";
+    for (const Setting* setting : evaluatorSettings()) {
+      const std::string value = setting->type == SettingType::kObject
+                                    ? std::string("None")
+                                    : std::string(py::repr(settingObject(*setting, defaults)));
+      text += std::string("\n") + setting->key + "=" + value + ": " + setting->help;
+    }
+    return text;
+  }();
+  return doc.c_str();
+}
+
+void bindEvaluatorSettings(py::module_& module) {
+  py::class_<EvaluatorSettings> settings(module, "EvaluatorSettings", settingsDoc());
+  settings.def(py::init([](const py::kwargs& keywords) {
+    EvaluatorSettings s;
+    for (const auto& [name, value] : keywords) {
+      const std::string key = py::str(name);
+      const Setting* setting = findSettingByKey(key);
+      if (setting == nullptr || setting->scope != SettingScope::kEvaluator) {
+        throw py::type_error("EvaluatorSettings() got an unexpected keyword argument '" + key +
+                             "'");
+      }
+      setSettingObject(*setting, s, value);
+    }
+    return s;
+  }));
+  for (const Setting* setting : evaluatorSettings()) {
+    settings.def_property(
+        setting->key, [setting](const EvaluatorSettings& s) { return settingObject(*setting, s); },
+        [setting](EvaluatorSettings& s, py::handle value) { setSettingObject(*setting, s, value); },
+        setting->help);
+  }
+  settings.def("__repr__", &settingsRepr);
+  module.def(
+      "settings_table", []() { return parseJson(settingsTableJson()); },
+      "The settings table (drivenshape/settings_table.h) as a list of dicts: key, flag, type, "
+      "default, minimum, maximum, choices, unit, help, hashed, used_when, ...");
+}
+
+void bindSettingLoaders(py::module_& module) {
   // The loaders the command line uses (bake's --bind, --regions, --mix..., --wind...).
   module.def(
       "load_binding_mask",
@@ -406,6 +432,12 @@ void bindSettings(py::module_& module) {
       py::arg("frames_per_second") = layerDefaults.framesPerSecond,
       "loadLayers: the bake's --mix, --mix-weight, --mix-falloff, --wind-* and --fps as "
       "keywords; weight maps are .json, .exr or group:NAME specs (see docs/commands.md)");
+}
+
+void bindSettings(py::module_& module) {
+  bindSettingObjects(module);
+  bindEvaluatorSettings(module);
+  bindSettingLoaders(module);
 }
 
 }  // namespace
@@ -554,7 +586,9 @@ void bindDatabase(py::module_& module) {
       "log.");
 }
 
-void bindEvaluator(py::module_& module) {
+namespace {
+
+void bindDevices(py::module_& module) {
   py::class_<DeviceHandle>(module, "Device",
                            "Where the stages run: the host reference path or one OpenCL "
                            "device (open_device).")
@@ -613,9 +647,9 @@ void bindEvaluator(py::module_& module) {
       },
       "Every OpenCL device as a dict (index, name, type, platform, version, ...); the host "
       "path is always there too, as open_device('host').");
+}
 
-  bindSettings(module);
-
+void bindFrameRecord(py::module_& module) {
   py::class_<FrameRecord>(module, "FrameRecord", "What happened to one frame (read-only).")
       .def_readonly("frame", &FrameRecord::frame)
       .def_readonly("weights", &FrameRecord::weights, "k per region, region-major")
@@ -647,20 +681,35 @@ void bindEvaluator(py::module_& module) {
              << record.relativeResidual << ", inside after " << record.insideAfter << ">";
         return text.str();
       });
+}
 
+/// The evaluator's warnings about its settings (settings it leaves unused), as Python
+/// warnings (UserWarning) too.
+std::unique_ptr<EvaluatorHandle> makeEvaluator(const Database& db,
+                                               std::optional<EvaluatorSettings> settings,
+                                               DeviceHandle& device) {
+  EvaluatorSettings chosen = settings.value_or(EvaluatorSettings());
+  std::unique_ptr<EvaluatorHandle> handle;
+  {
+    py::gil_scoped_release release;
+    handle = std::make_unique<EvaluatorHandle>(db, std::move(chosen), *device.device);
+  }
+  for (const std::string& message : handle->evaluator.warnings()) {
+    if (PyErr_WarnEx(PyExc_UserWarning, message.c_str(), 1) != 0) {
+      throw py::error_already_set();
+    }
+  }
+  return handle;
+}
+
+void bindEvaluatorClass(py::module_& module) {
   py::class_<EvaluatorHandle>(
       module, "Evaluator",
       "Frames of driver positions in, cloth positions out (drivenshape/evaluator.h). Keeps "
       "the database and the device alive. Not for two threads at once: calls from several "
       "threads take turns.")
-      .def(py::init([](const Database& db, std::optional<EvaluatorSettings> settings,
-                       DeviceHandle& device) {
-             EvaluatorSettings chosen = settings.value_or(EvaluatorSettings());
-             py::gil_scoped_release release;
-             return std::make_unique<EvaluatorHandle>(db, std::move(chosen), *device.device);
-           }),
-           py::arg("database"), py::arg("settings"), py::arg("device"), py::keep_alive<1, 2>(),
-           py::keep_alive<1, 4>(),
+      .def(py::init(&makeEvaluator), py::arg("database"), py::arg("settings"), py::arg("device"),
+           py::keep_alive<1, 2>(), py::keep_alive<1, 4>(),
            "Prepares everything that depends only on the database (settings None = the "
            "bake's defaults).")
       .def("evaluate", &evaluate, py::arg("frames"), py::arg("driver"), py::arg("warmup") = 0,
@@ -694,6 +743,10 @@ void bindEvaluator(py::module_& module) {
           "history_frames", [](const EvaluatorHandle& h) { return h.evaluator.historyFrames(); },
           "earlier driver frames the pose model reads before each frame: pass them as warm-up "
           "frames for a block (frames played in order one per call are remembered)")
+      .def_property_readonly(
+          "warnings", [](const EvaluatorHandle& h) { return h.evaluator.warnings(); },
+          "settings set away from their defaults that the others leave unused (each was also "
+          "a UserWarning when the evaluator was made)")
       .def("describe_settings",
            [](const EvaluatorHandle& h) { return parseJson(h.evaluator.describeSettings()); })
       .def("describe_layers",
@@ -715,6 +768,15 @@ void bindEvaluator(py::module_& module) {
       .def_property_readonly(
           "last_stage_seconds", [](const EvaluatorHandle& h) { return h.lastSeconds; },
           "seconds per stage of the last evaluate call");
+}
+
+}  // namespace
+
+void bindEvaluator(py::module_& module) {
+  bindDevices(module);
+  bindSettings(module);
+  bindFrameRecord(module);
+  bindEvaluatorClass(module);
 }
 
 // The shot planner's binding (bind_shot_plan.cpp) plans for an Evaluator's settings.

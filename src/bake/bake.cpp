@@ -26,6 +26,7 @@
 #include <drivenshape/hash.h>
 #include <drivenshape/mesh_check.h>
 #include <drivenshape/regions.h>
+#include <drivenshape/settings_table.h>
 #include <drivenshape/shot_plan.h>
 #include <drivenshape/version.h>
 #include "atomic_file.h"
@@ -47,19 +48,8 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeOpti
   if (options.frames.empty()) {
     DS_THROW(kUsage, "the frame range to bake is empty; give frames, e.g. 1001-1100");
   }
-  const WeightMode mode = options.evaluator.weightMode;  // kAuto resolves to kQp with these
-  if (mode != WeightMode::kQp && mode != WeightMode::kAuto &&
-      (!options.regionsPath.empty() || options.evaluator.maxWeightChange > 0)) {
-    DS_THROW(kUsage,
-             "regions and the temporal bound (maximum weight change) apply to the QP weights "
-             "only (--weights qp), not to the pose model or the nearest or bind baselines");
-  }
-  if (options.temporalWarmup < 0) {
-    DS_THROW(kUsage, "the temporal warm-up must be >= 0 frames (got ", options.temporalWarmup, ")");
-  }
-  if (options.chunkSize < 1) {
-    DS_THROW(kUsage, "the batch size must be at least 1 frame (got ", options.chunkSize, ")");
-  }
+  // The evaluator settings are checked by the Evaluator, with the settings they leave unused.
+  checkBakeSettings(options);
   if (!hasFramePattern(options.outputPattern)) {
     DS_THROW(kUsage, "output '", options.outputPattern,
              "' has no frame token; use e.g. out/cloth.####.exr");
@@ -360,12 +350,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
                  const BakeOptions& options, const Evaluator& evaluator, const BakeResult& result) {
   using nlohmann::json;
   json settings = parseJsonText(evaluator.describeSettings(), "the evaluator settings");
-  settings["binding_mask"] = options.bindingMaskPath;
-  settings["regions_file"] = options.regionsPath;
-  settings["temporal_warmup"] = options.evaluator.maxWeightChange > 0 ? options.temporalWarmup : 0;
-  settings["batch"] = options.chunkSize;
-  settings["compression"] = exrCompressionName(options.compression);
-  settings["exr_width"] = options.exrWidth;
+  settings.update(parseJsonText(describeBakeSettings(options), "the bake settings"));
   settings["untrusted_driver"] = !options.untrustedDriver.empty();
   json seconds{{"read", result.times.read},
                {"setup", result.times.setup},
@@ -475,6 +460,14 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   }
   if (!options.untrustedDriver.empty()) {
     warn(options.untrustedDriver);
+  }
+  for (const std::string& message : evaluator.warnings()) {
+    warn(message);
+  }
+  for (const UnusedSetting& unused : unusedSettings({evaluator.settings(), &options})) {
+    if (unused.setting->scope == SettingScope::kBake) {
+      warn(unused.message);
+    }
   }
   result.device = evaluator.deviceName();
   result.settingsHash = bakeHash(evaluator, options);

@@ -8,10 +8,10 @@
 #include <cmath>
 
 #include <drivenshape/error.h>
-#include <drivenshape/version.h>
 
 #include "finite.h"
 #include "json_text.h"
+#include "settings_rows.h"
 #include "stage.h"
 
 namespace drivenshape {
@@ -146,60 +146,12 @@ struct Evaluator::Impl {
   }
 
   /// The settings hash in the layout the bake's EXR headers have had since version 0.1 (a
-  /// file-format contract: a resume compares it, so it is written here in one fixed order).
-  /// Database, weight mode, [output width], correction and mask, alignment, blend, resolution,
-  /// regions, temporal bound, [warm-up and batch size], version; then the layers; then what
-  /// stages added since append (Stage::addToHash).
+  /// file-format contract: a resume compares it): the settings table's rows in their order
+  /// (pipeline::hashSettings), then what stages added since append (Stage::addToHash).
   std::uint64_t settingsHash(const OutputHashFields* output) const {
-    const EvaluatorSettings& settings = model.settings;
-    const BindingMask& mask = model.mask();
-    Hasher hasher;
-    hasher.addValue(model.db.contentHash());
-    hasher.addValue(static_cast<int>(settings.weightMode));
-    if (output != nullptr) {
-      hasher.addValue(output->exrWidth);
-    }
-    hasher.addValue(settings.correct);
-    for (int c = 0; c < mask.classCount(); ++c) {
-      hasher.add(mask.classTriangles(c).data(), mask.classTriangles(c).size() * sizeof(int));
-    }
-    hasher.add(mask.vertexClasses().data(), mask.vertexClasses().size() * sizeof(int));
-    hasher.addValue(static_cast<int>(settings.align));
-    hasher.add(model.alignVertices.data(), model.alignVertices.size() * sizeof(int));
-    if (model.aligner) {
-      hasher.add(model.aligner->weights().data(), model.aligner->weights().size() * sizeof(double));
-    }
-    hasher.addValue(model.local);
-    hasher.addValue(settings.resolve);
-    hasher.addValue(settings.resolve ? settings.skinOffset : 0.0);
-    // Off, the exit fade leaves the hash of the bakes before it.
-    if (settings.resolve && settings.exitFade > 0) {
-      hasher.addValue(settings.exitFade);
-    }
-    hasher.addValue(settings.regions.has_value());
-    if (settings.regions) {
-      hasher.addValue(settings.regions->falloff);
-      for (const Region& region : settings.regions->regions) {
-        hasher.add(region.driverVertices.data(), region.driverVertices.size() * sizeof(int));
-        hasher.add(region.drivenVertices.data(), region.drivenVertices.size() * sizeof(int));
-      }
-    }
-    hasher.addValue(settings.maxWeightChange);
-    if (output != nullptr && settings.maxWeightChange > 0) {
-      hasher.addValue(output->temporalWarmup);
-      hasher.addValue(output->batchSize);
-    }
-    hasher.addString(kVersion);
-    std::uint64_t value = hasher.value();
-    if (model.layerStack) {
-      Hasher layers;
-      layers.addValue(value);
-      model.layerStack->addToHash(layers);
-      value = layers.value();
-    }
-    // Stages added since then append: of the built-in ones, the resolution its side table,
-    // only when some driven vertex lives inside (never for cloth).
-    Hasher tail(value);
+    // Of the built-in stages, the resolution appends its side table, only when some driven
+    // vertex lives inside (never for cloth).
+    Hasher tail(pipeline::hashSettings(model, output));
     for (const auto& stage : stages) {
       stage->addToHash(tail);
     }
@@ -314,28 +266,17 @@ std::uint64_t Evaluator::settingsHash(const OutputHashFields& output) const {
 }
 
 std::string Evaluator::describeSettings() const {
-  const EvaluatorSettings& settings = mImpl->model.settings;
-  nlohmann::json json{
-      {"weights", weightModeName(settings.weightMode)},
-      {"correct", settings.correct},
-      {"audit", settings.audit},
-      {"align", alignModeName(settings.align)},
-      {"align_group", settings.alignGroup.empty() ? std::string("all") : settings.alignGroup},
-      {"align_vertices", 0},
-      {"blend", blendModeName(mImpl->model.local ? BlendMode::kLocal : BlendMode::kWorld)},
-      {"resolve", settings.resolve},
-      {"skin_offset", settings.skinOffset},
-      {"exit_fade", settings.exitFade},
-      {"regions", nlohmann::json::array()},
-      {"region_falloff", 0},
-      {"max_weight_change", settings.maxWeightChange},
-      {"layers", nlohmann::json::object()},
-      {"stages", stageNames()},
-  };
+  nlohmann::json json = nlohmann::json::object();
+  pipeline::describeSettings(mImpl->model, json);
+  json["stages"] = stageNames();
   for (const auto& stage : mImpl->stages) {
     stage->describe(json);
   }
   return jsonText(json);
+}
+
+const std::vector<std::string>& Evaluator::warnings() const {
+  return mImpl->model.warnings;
 }
 
 std::string Evaluator::describeLayers() const {

@@ -8,6 +8,7 @@
 
 #include <drivenshape/align.h>
 #include <drivenshape/error.h>
+#include <drivenshape/settings_table.h>
 #include "parallel.h"
 #include "text.h"
 
@@ -66,8 +67,10 @@ std::vector<std::int8_t> learnSides(const Database& db, ClosestBackend& closest,
 }
 
 /// `settings` with the weight mode resolved (kAuto) and checked against `db`: Error(kUsage)
-/// naming the setting when they cannot run on it.
+/// naming the setting when they cannot run on it. Values out of range, and settings these ones
+/// leave unused, are the settings table's to refuse (checkSettings, unusedSettings).
 EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
+  checkSettings(settings);
   settings.weightMode = resolvedWeightMode(settings, db);
   if (settings.weightMode == WeightMode::kModel) {
     if (db.poseModel.empty()) {
@@ -81,15 +84,6 @@ EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
                "the pose model blends in the local frames of the rest binding; it needs "
                "the local blend and the correction");
     }
-    if (settings.bindingMask) {
-      DS_THROW(kUsage,
-               "the pose model was fitted on the binding to every driver triangle; a "
-               "binding mask applies to the qp weights only");
-    }
-    if (!std::isfinite(settings.coverageTolerance) || settings.coverageTolerance < 0) {
-      DS_THROW(kUsage, "the coverage tolerance must be a distance >= 0 in scene units (got ",
-               settings.coverageTolerance, ")");
-    }
   }
   if (db.shapeCount() < 1) {
     DS_THROW(kInput, "the database has no shapes; build it again with `drivenshape db build`");
@@ -99,39 +93,10 @@ EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
              "the bind baseline is the correction applied to the rest shapes; it cannot run "
              "with the correction off");
   }
-  if (settings.weightMode != WeightMode::kQp &&
-      (settings.regions || settings.maxWeightChange > 0)) {
-    DS_THROW(kUsage,
-             "regions and a maximum weight change apply to the QP weights only (weight mode "
-             "qp)");
-  }
   if (!settings.alignGroup.empty() && settings.alignGroup != "all") {
     // Checked whichever weights run, so that a typo is never silently dropped.
     const std::string source = "align group '" + printableText(settings.alignGroup, 200) + "'";
     selectVertices(db.driverMesh, settings.alignGroup, source + " (driver mesh)");
-    if (settings.weightMode == WeightMode::kModel || settings.weightMode == WeightMode::kBind ||
-        settings.align == AlignMode::kNone) {
-      DS_THROW(kUsage, "the ", source,
-               " picks the driver vertices of the rigid alignment, which the pose model, the "
-               "bind baseline and align none do not run (here weights ",
-               weightModeName(settings.weightMode), ", align ", alignModeName(settings.align),
-               "); drop it, or choose weights qp");
-    }
-  }
-  if (!std::isfinite(settings.skinOffset) || settings.skinOffset < 0) {
-    DS_THROW(kUsage, "the skin offset must be a distance >= 0 in scene units (got ",
-             settings.skinOffset, ")");
-  }
-  if (!std::isfinite(settings.exitFade) || settings.exitFade < 0) {
-    DS_THROW(kUsage, "the exit fade must be a number >= 0 (0 = off; got ", settings.exitFade, ")");
-  }
-  if (!std::isfinite(settings.maxWeightChange) || settings.maxWeightChange < 0 ||
-      settings.maxWeightChange > 1) {
-    DS_THROW(kUsage, "the maximum weight change must be in [0, 1] (0 = off; got ",
-             settings.maxWeightChange, ")");
-  }
-  if (settings.threads < 0) {
-    DS_THROW(kUsage, "threads must be >= 0 (0 = all cores; got ", settings.threads, ")");
   }
   if (settings.bindingMask && settings.bindingMask->drivenVertexCount() != db.drivenVertexCount()) {
     DS_THROW(kInput, "the binding mask covers ", settings.bindingMask->drivenVertexCount(),
@@ -162,6 +127,7 @@ Model::Model(const Database& database, EvaluatorSettings evaluatorSettings, Devi
       driverValues(static_cast<std::size_t>(vp) * 3),
       drivenValues(static_cast<std::size_t>(vd) * 3),
       local(blendsLocally(settings)),
+      warnings(refuseUnusedSettings(unusedSettings({settings}))),
       mMask(settings.bindingMask ? *settings.bindingMask : BindingMask::all(vd)) {
   driverShapes = db.driverShapes;
   if (!local) {

@@ -45,6 +45,9 @@ class Model {
   const int k, vp, vd;
   const std::size_t driverValues, drivenValues;  ///< 3Vp, 3Vd
   const bool local;                              ///< blendsLocally(settings)
+  /// Settings set away from their defaults that these settings leave unused (the settings
+  /// table's unusedSettings on the resolved settings; those it refuses threw instead).
+  const std::vector<std::string> warnings;
   const BindingMask& mask() const { return mMask; }
 
   // Backends on the device, made on first use. binding() searches the triangles the mask

@@ -22,14 +22,17 @@ A missing OpenCL device fails (never skips).
   .venv/bin/python tests/golden/check_goldens.py --cli build/apps/drivenshape
       [--golden tests/data/golden/f302ac6.json] [--work DIR] [--configs default,talk]
       [--devices host] [--extra-flags "--skin-offset 0.003"] [--keep]
+      [--settings-doc build/apps/drivenshape_settings_doc]
 
 --extra-flags appends flags to every bake (to see the check fail on purpose).
 """
 
 import argparse
+import json
 import os
 import shlex
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -40,13 +43,33 @@ import golden_bakes  # noqa: E402
 DEFAULT_GOLDEN = os.path.join(golden_bakes.GOLDEN_DATA, "f302ac6.json")
 
 
-def compare_bake(expected, actual):
-    """(problems, notes): lines naming config/device/frame/field for each difference."""
+def table_defaults(settings_doc):
+    """{report key: default} of the settings table (`drivenshape_settings_doc --json`)."""
+    if not settings_doc:
+        return {}
+    table = json.loads(subprocess.run([settings_doc, "--json"], check=True, capture_output=True,
+                                      text=True).stdout)
+    return {row["report_key"]: row["default"] for row in table if row.get("report_key")}
+
+
+def compare_bake(expected, actual, defaults=None):
+    """(problems, notes): lines naming config/device/frame/field for each difference.
+    `defaults`: the settings table's {report key: default}; a report setting the recording
+    lacks that holds its default is a setting added since, which left the bake as it was."""
     tag = f"{expected['config']} {expected['device']}"
     problems, notes = [], []
 
+    summary = actual["summary"]
+    recorded = expected["summary"].get("settings", {})
+    added = [key for key, value in summary.get("settings", {}).items()
+             if key not in recorded and key in (defaults or {}) and value == defaults[key]]
+    if added:
+        notes.append(f"{tag}: settings added since the goldens, at their defaults (not "
+                     f"compared): {', '.join(sorted(added))}")
+        summary = dict(summary, settings={k: v for k, v in summary["settings"].items()
+                                          if k not in added})
     diffs = []
-    golden_bakes.describe_difference(expected["summary"], actual["summary"], "report", diffs)
+    golden_bakes.describe_difference(expected["summary"], summary, "report", diffs)
     problems += [f"{tag}: {d}" for d in diffs]
 
     want, got = expected["frames"], actual["frames"]
@@ -125,6 +148,9 @@ def main():
     parser.add_argument("--devices", help="comma-separated subset of host,cpu")
     parser.add_argument("--extra-flags", default="", help="flags appended to every bake")
     parser.add_argument("--keep", action="store_true", help="keep the bakes and the work folder")
+    parser.add_argument("--settings-doc",
+                        help="drivenshape_settings_doc, whose --json gives the settings table's "
+                             "defaults (report settings added since the recording)")
     args = parser.parse_args()
 
     golden = golden_bakes.load_json(args.golden)
@@ -177,13 +203,14 @@ def main():
     seconds = time.monotonic() - start
 
     expected = {(b["config"], b["device"]): b for b in golden["bakes"]}
+    defaults = table_defaults(args.settings_doc)
     problems, notes, lines = [], [], []
     for bake in baked["bakes"]:
         key = (bake["config"], bake["device"])
         if key not in expected:
             problems.append(f"{key[0]} {key[1]}: not in the goldens")
             continue
-        p, n, counts, report_problems = compare_bake(expected[key], bake)
+        p, n, counts, report_problems = compare_bake(expected[key], bake, defaults)
         problems += p
         notes += n
         parts = []

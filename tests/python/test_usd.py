@@ -114,10 +114,9 @@ def test_usd_bake_with_the_defaults_equals_the_cli_bake_with_the_pose_model(
     args = usd._parser().parse_args(["bake", "--db", "x", "--usd", "y", "--prim", "/p",
                                      "--out", "z"])
     defaults = ds.EvaluatorSettings()
-    for name in ("weight_mode", "align", "blend", "skin_offset", "exit_fade",
-                 "max_weight_change", "coverage_tolerance"):
-        flag = "weights" if name == "weight_mode" else name
-        assert getattr(args, flag) == getattr(defaults, name), name
+    for row in ds.settings_table():
+        if row["scope"] == "evaluator" and row["flag"] and row["type"] != "object":
+            assert getattr(args, row["key"]) == getattr(defaults, row["key"]), row["key"]
 
 
 def test_usd_bake_through_the_api_on_the_host(driver_usd, cli_bakes, database, tmp_path,

@@ -575,38 +575,7 @@ def _parser():
     add("--ignore-topology", action="store_true",
         help="accept a driver whose faces differ from the database's (the vertex count must "
              "still match)")
-    # Defaults are the library's (a default EvaluatorSettings), as `drivenshape bake`'s are.
-    defaults = ds.EvaluatorSettings()
-    add("--weights", choices=("auto", "model", "qp", "nearest", "bind"),
-        default=defaults.weight_mode,
-        help="auto: the pose model when the database has one, else the talk's QP blend "
-             f"[default: {defaults.weight_mode}]")
-    add("--coverage-tolerance", metavar="D", type=float, default=defaults.coverage_tolerance,
-        help="pose model: flag frames predicted worse than this (scene units; 0 = 2%% of the "
-             f"cloth's rest bounding-box diagonal) [default: {defaults.coverage_tolerance:g}]")
-    add("--align", choices=("none", "rigid", "rigid-all"), default=defaults.align,
-        help=f"[default: {defaults.align}]")
-    add("--align-group", metavar="LIST", default="",
-        help="driver vertices of the rigid fit [default: all]")
-    add("--blend", choices=("world", "local"), default=defaults.blend,
-        help=f"[default: {defaults.blend}]")
-    add("--no-correct", action="store_true", help="skip the collision correction")
-    add("--bind", metavar="MAP", help="binding mask (JSON)")
-    add("--skin-offset", metavar="D", type=float, default=defaults.skin_offset,
-        help=f"[default: {defaults.skin_offset:g}]")
-    add("--exit-fade", metavar="K", type=float, default=defaults.exit_fade,
-        help="deep vertices with two nearly equal exits move part of the way "
-             f"[default: {defaults.exit_fade:g}]")
-    add("--no-resolve", action="store_true", help="skip the penetration resolution")
-    add("--regions", metavar="FILE.json", help="region-local weights")
-    add("--max-weight-change", metavar="TAU", type=float, default=defaults.max_weight_change,
-        help=f"[default: {defaults.max_weight_change:g} (0 = off)]")
-    add("--temporal-warmup", metavar="N", type=int, default=8, help="[default: 8]")
-    add("--no-audit", action="store_true", help="skip the per-frame audit")
-    add("--threads", metavar="N", type=int, default=0,
-        help="host threads (0 = all cores) [default: 0]")
-    add("--batch", metavar="N", type=int, default=64,
-        help="frames per evaluate call, as bake's --batch [default: 64]")
+    _add_settings(add)
     add("--mix", metavar="CACHE", help="mix with another cache of the driven mesh")
     add("--mix-weight", metavar="MAP", help="where DrivenShape is kept (1) or --mix taken (0)")
     add("--mix-falloff", metavar="RINGS", type=int, default=3, help="[default: 3]")
@@ -658,6 +627,38 @@ def _export_main(args):
     return EXIT_OK
 
 
+# The bake settings that evaluate_cache's loop takes beside the evaluator's.
+_LOOP_SETTINGS = ("batch", "temporal_warmup")
+# The settings loaded from the file an option names.
+_LOADERS = {"binding_mask": "load_binding_mask", "regions": "load_regions"}
+
+
+def _setting_rows():
+    """The settings table's rows this tool takes: `drivenshape bake`'s evaluator options, and
+    the batch and warm-up of its loop."""
+    import drivenshape as ds
+
+    return [row for row in ds.settings_table() if row["flag"] and
+            (row["scope"] == "evaluator" or row["key"] in _LOOP_SETTINGS)]
+
+
+def _add_settings(add):
+    """The options, help and defaults of the settings table (docs/commands.md, Settings), as
+    `drivenshape bake` has them."""
+    for row in _setting_rows():
+        help_text = row["help"].replace("%", "%%")
+        if row["type"] == "bool":
+            add(row["flag"], dest=row["key"], action="store_false" if row["default"] else
+                "store_true", help=("turns off " if row["default"] else "turns on ") + help_text)
+        elif row["type"] == "object":
+            add(row["flag"], dest=row["key"], metavar=row["value_name"], help=help_text)
+        else:
+            kind = {"int": int, "number": float}.get(row["type"], str)
+            add(row["flag"], dest=row["key"], metavar=row["value_name"], type=kind,
+                default=row["default"], choices=row["choices"] or None,
+                help=f"{help_text} [default: {row['default']}]")
+
+
 def _settings(args, db):
     import drivenshape as ds
 
@@ -673,15 +674,15 @@ def _settings(args, db):
         wind_direction=direction, wind_speed=args.wind_speed, wind_octaves=args.wind_octaves,
         wind_seed=args.wind_seed, wind_weight=args.wind_weight, wind_falloff=args.wind_falloff,
         frames_per_second=args.fps or 24.0)
-    return ds.EvaluatorSettings(
-        weight_mode=args.weights, align=args.align, align_group=args.align_group,
-        blend=args.blend, correct=not args.no_correct,
-        binding_mask=ds.load_binding_mask(args.bind, db) if args.bind else None,
-        resolve=not args.no_resolve, skin_offset=args.skin_offset, exit_fade=args.exit_fade,
-        regions=ds.load_regions(args.regions, db) if args.regions else None,
-        max_weight_change=args.max_weight_change, coverage_tolerance=args.coverage_tolerance,
-        audit=not args.no_audit, layers=layers,
-        threads=args.threads)
+    settings = ds.EvaluatorSettings(layers=layers)
+    for row in _setting_rows():
+        key = row["key"]
+        value = getattr(args, key)
+        if key in _LOADERS:
+            value = getattr(ds, _LOADERS[key])(value, db) if value else None
+        if row["scope"] == "evaluator":
+            setattr(settings, key, value)  # checked by the settings table
+    return settings
 
 
 def main(argv=None):

@@ -243,6 +243,9 @@ class Evaluator {
   std::uint64_t settingsHash(const OutputHashFields& output) const;
   /// The settings as the bake report writes them (JSON object text).
   std::string describeSettings() const;
+  /// What the settings ask for that they leave unused (an exit fade without the resolution):
+  /// one message each (drivenshape/settings_table.h; those the table refuses throw instead).
+  const std::vector<std::string>& warnings() const;
   /// The layers as the EXR header's dsLayers attribute writes them ("{}" when none).
   std::string describeLayers() const;
   /// Earlier driver frames the settings read before each frame (the pose model's velocity and

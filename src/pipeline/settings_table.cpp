@@ -1,0 +1,1027 @@
+// SPDX-License-Identifier: Apache-2.0
+// The settings table (drivenshape/settings_table.h): each evaluator and bake setting declared
+// once, below, with its names, range, help, use and how it enters the hash and the report; and
+// the functions every tool reads it through.
+
+#include <drivenshape/settings_table.h>
+
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <sstream>
+#include <type_traits>
+
+#include <drivenshape/error.h>
+#include <drivenshape/point_cache.h>
+#include <drivenshape/version.h>
+
+#include "json_text.h"
+#include "settings_rows.h"
+#include "stage.h"
+
+namespace drivenshape {
+
+// Helpers in a named namespace: the pipeline's sources are compiled as one unity file.
+namespace settings_impl {
+
+using pipeline::HashInput;
+using pipeline::Model;
+using pipeline::SettingRow;
+
+constexpr double kNoLimit = std::numeric_limits<double>::infinity();
+/// The largest whole number a command line takes (ArgParser's bound before the table).
+constexpr double kMaxWhole = 1e9;
+
+template <typename T>
+struct MemberOf;
+template <typename C, typename T>
+struct MemberOf<T C::*> {
+  using Class = C;
+  using Type = T;
+};
+
+template <auto Member>
+using ClassOf = typename MemberOf<decltype(Member)>::Class;
+template <auto Member>
+using TypeOf = typename MemberOf<decltype(Member)>::Type;
+
+template <auto Member>
+SettingValue getField(const ClassOf<Member>& object) {
+  return SettingValue(object.*Member);
+}
+
+template <auto Member>
+void setField(ClassOf<Member>& object, const SettingValue& value) {
+  object.*Member = std::get<TypeOf<Member>>(value);
+}
+
+bool sameChoice(const std::string& a, const std::string& b) {
+  if (a.size() != b.size()) {
+    return false;
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (std::tolower(static_cast<unsigned char>(a[i])) !=
+        std::tolower(static_cast<unsigned char>(b[i]))) {
+      return false;
+    }
+  }
+  return true;
+}
+
+template <auto Member, auto Name>
+SettingValue getChoice(const ClassOf<Member>& object) {
+  return std::string(Name(object.*Member));
+}
+
+/// Enum values 0 .. Count-1 are the choices, spelled by Name (checked before: it is one).
+template <auto Member, auto Name, int Count>
+void setChoice(ClassOf<Member>& object, const SettingValue& value) {
+  using Mode = TypeOf<Member>;
+  for (int i = 0; i < Count; ++i) {
+    if (sameChoice(std::get<std::string>(value), Name(static_cast<Mode>(i)))) {
+      object.*Member = static_cast<Mode>(i);
+      return;
+    }
+  }
+  DS_THROW(kInternal, "setChoice: '", std::get<std::string>(value), "' was not checked");
+}
+
+/// Builds one row of the table in place (rows are declared as one chain each, below).
+class Row {
+ public:
+  Row(std::vector<SettingRow>& rows, const char* key, const char* label, SettingType type,
+      SettingScope scope = SettingScope::kEvaluator)
+      : mRow(rows.emplace_back()) {
+    mRow.setting.key = key;
+    mRow.setting.label = label;
+    mRow.setting.type = type;
+    mRow.setting.scope = scope;
+  }
+  Row& flag(const char* name, const char* valueName = nullptr) {
+    mRow.setting.flag = name;
+    mRow.setting.valueName = valueName;
+    return *this;
+  }
+  Row& range(double minimum, double maximum, const char* unit = "", const char* zero = "") {
+    mRow.setting.minimum = minimum;
+    mRow.setting.maximum = maximum;
+    mRow.setting.unit = unit;
+    mRow.setting.zero = zero;
+    return *this;
+  }
+  Row& help(const char* text) {
+    mRow.setting.help = text;
+    return *this;
+  }
+  Row& usedWhen(bool (*used)(const SettingsView&), const char* words, WhenUnused policy) {
+    mRow.setting.used = used;
+    mRow.setting.usedWhen = words;
+    mRow.setting.whenUnused = policy;
+    return *this;
+  }
+  Row& report(const char* key) {
+    mRow.setting.reportKey = key;
+    return *this;
+  }
+  Row& describe(void (*fn)(const Model&, nlohmann::json&)) {
+    mRow.describe = fn;
+    return *this;
+  }
+  Row& describeBake(void (*fn)(const BakeOptions&, nlohmann::json&)) {
+    mRow.describeBake = fn;
+    return *this;
+  }
+  Row& hash(void (*fn)(const HashInput&, Hasher&)) {
+    mRow.setting.hashed = true;
+    mRow.hash = fn;
+    return *this;
+  }
+  Row& hashAfterVersion(std::uint64_t (*fn)(const HashInput&, std::uint64_t)) {
+    mRow.setting.hashed = true;
+    mRow.hashAfterVersion = fn;
+    return *this;
+  }
+  /// The value is the member `Member` of EvaluatorSettings or BakeOptions.
+  template <auto Member>
+  Row& field() {
+    return access<ClassOf<Member>>(&getField<Member>, &setField<Member>);
+  }
+  /// The value is the enum member `Member`, spelled by `Name`, of `Count` values 0 .. Count-1.
+  template <auto Member, auto Name, int Count>
+  Row& choice() {
+    for (int i = 0; i < Count; ++i) {
+      mRow.setting.choices.emplace_back(Name(static_cast<TypeOf<Member>>(i)));
+    }
+    return access<ClassOf<Member>>(&getChoice<Member, Name>, &setChoice<Member, Name, Count>);
+  }
+  /// The value through `get` and `set` (nullptr: read-only) of EvaluatorSettings or BakeOptions.
+  template <typename Class>
+  Row& access(SettingValue (*get)(const Class&), void (*set)(Class&, const SettingValue&)) {
+    if constexpr (std::is_same_v<Class, EvaluatorSettings>) {
+      mRow.setting.getEvaluator = get;
+      mRow.setting.setEvaluator = set;
+    } else {
+      mRow.setting.getBake = get;
+      mRow.setting.setBake = set;
+    }
+    return *this;
+  }
+
+ private:
+  SettingRow& mRow;
+};
+
+// ---- When settings are used (WeightMode::kAuto counts as each mode it may become) -----------
+
+bool mayRunQp(const SettingsView& v) {
+  return v.evaluator.weightMode == WeightMode::kQp || v.evaluator.weightMode == WeightMode::kAuto;
+}
+bool mayRunModel(const SettingsView& v) {
+  const WeightMode mode = v.evaluator.weightMode;
+  return mode == WeightMode::kModel || mode == WeightMode::kAuto;
+}
+bool mayAlign(const SettingsView& v) {
+  const WeightMode mode = v.evaluator.weightMode;
+  return mode != WeightMode::kModel && mode != WeightMode::kBind;
+}
+bool bindsMasked(const SettingsView& v) {
+  return v.evaluator.correct && v.evaluator.weightMode != WeightMode::kModel;
+}
+bool alignsOnGroup(const SettingsView& v) {
+  const std::string& group = v.evaluator.alignGroup;
+  return group.empty() || group == "all" || (mayAlign(v) && v.evaluator.align != AlignMode::kNone);
+}
+bool blendUsed(const SettingsView& v) {
+  // World blending is what runs without the correction or with the bind baseline.
+  return v.evaluator.blend == BlendMode::kWorld ||
+         (v.evaluator.correct && v.evaluator.weightMode != WeightMode::kBind);
+}
+bool resolves(const SettingsView& v) {
+  return v.evaluator.resolve;
+}
+bool searchesClosest(const SettingsView& v) {
+  return v.evaluator.resolve || v.evaluator.audit;
+}
+bool boundsWeights(const SettingsView& v) {
+  return v.evaluator.maxWeightChange > 0;
+}
+bool zips(const SettingsView& v) {
+  return v.bake == nullptr || v.bake->compression == ExrCompression::kZip ||
+         v.bake->compression == ExrCompression::kZips;
+}
+
+// ---- Hash entries (the layout of 0.1's EXR headers: see hashSettings) ---------------------
+
+void hashWeightMode(const HashInput& in, Hasher& h) {
+  h.addValue(static_cast<int>(in.model.settings.weightMode));
+}
+void hashExrWidth(const HashInput& in, Hasher& h) {
+  if (in.output != nullptr) {
+    h.addValue(in.output->exrWidth);
+  }
+}
+void hashCorrect(const HashInput& in, Hasher& h) {
+  h.addValue(in.model.settings.correct);
+}
+void hashMask(const HashInput& in, Hasher& h) {
+  const BindingMask& mask = in.model.mask();
+  for (int c = 0; c < mask.classCount(); ++c) {
+    h.add(mask.classTriangles(c).data(), mask.classTriangles(c).size() * sizeof(int));
+  }
+  h.add(mask.vertexClasses().data(), mask.vertexClasses().size() * sizeof(int));
+}
+void hashAlign(const HashInput& in, Hasher& h) {
+  h.addValue(static_cast<int>(in.model.settings.align));
+}
+/// The vertices the group selects and the weights the alignment gives them.
+void hashAlignGroup(const HashInput& in, Hasher& h) {
+  h.add(in.model.alignVertices.data(), in.model.alignVertices.size() * sizeof(int));
+  if (in.model.aligner) {
+    const auto& weights = in.model.aligner->weights();
+    h.add(weights.data(), weights.size() * sizeof(double));
+  }
+}
+/// The blend that runs (blendsLocally), not the one asked for.
+void hashBlend(const HashInput& in, Hasher& h) {
+  h.addValue(in.model.local);
+}
+void hashResolve(const HashInput& in, Hasher& h) {
+  h.addValue(in.model.settings.resolve);
+}
+void hashSkinOffset(const HashInput& in, Hasher& h) {
+  h.addValue(in.model.settings.resolve ? in.model.settings.skinOffset : 0.0);
+}
+/// Off, the exit fade leaves the hash of the bakes before it.
+void hashExitFade(const HashInput& in, Hasher& h) {
+  if (in.model.settings.resolve && in.model.settings.exitFade > 0) {
+    h.addValue(in.model.settings.exitFade);
+  }
+}
+void hashRegions(const HashInput& in, Hasher& h) {
+  const std::optional<RegionSet>& regions = in.model.settings.regions;
+  h.addValue(regions.has_value());
+  if (regions) {
+    h.addValue(regions->falloff);
+    for (const Region& region : regions->regions) {
+      h.add(region.driverVertices.data(), region.driverVertices.size() * sizeof(int));
+      h.add(region.drivenVertices.data(), region.drivenVertices.size() * sizeof(int));
+    }
+  }
+}
+void hashMaxWeightChange(const HashInput& in, Hasher& h) {
+  h.addValue(in.model.settings.maxWeightChange);
+}
+/// With the temporal bound, the warm-up and the batch decide which frame bounds which.
+void hashTemporalWarmup(const HashInput& in, Hasher& h) {
+  if (in.output != nullptr && in.model.settings.maxWeightChange > 0) {
+    h.addValue(in.output->temporalWarmup);
+  }
+}
+void hashBatch(const HashInput& in, Hasher& h) {
+  if (in.output != nullptr && in.model.settings.maxWeightChange > 0) {
+    h.addValue(in.output->batchSize);
+  }
+}
+std::uint64_t hashLayers(const HashInput& in, std::uint64_t value) {
+  if (!in.model.layerStack) {
+    return value;
+  }
+  Hasher layers;
+  layers.addValue(value);
+  in.model.layerStack->addToHash(layers);
+  return layers.value();
+}
+
+// ---- Report entries that are not the plain value --------------------------------------------
+
+void describeAlignGroup(const Model& model, nlohmann::json& out) {
+  const std::string& group = model.settings.alignGroup;
+  out["align_group"] = group.empty() ? std::string("all") : group;
+  out["align_vertices"] = 0;  // the align stage writes the count where it runs
+}
+void describeBlend(const Model& model, nlohmann::json& out) {
+  out["blend"] = blendModeName(model.local ? BlendMode::kLocal : BlendMode::kWorld);
+}
+void describeRegions(const Model&, nlohmann::json& out) {
+  out["regions"] = nlohmann::json::array();  // the weights stage lists them where they run
+  out["region_falloff"] = 0;
+}
+void describeLayers(const Model&, nlohmann::json& out) {
+  out["layers"] = nlohmann::json::object();  // the layers stage describes them
+}
+void describeMaskFile(const BakeOptions& options, nlohmann::json& out) {
+  out["binding_mask"] = options.bindingMaskPath;
+}
+void describeRegionsFile(const BakeOptions& options, nlohmann::json& out) {
+  out["regions_file"] = options.regionsPath;
+}
+void describeTemporalWarmup(const BakeOptions& options, nlohmann::json& out) {
+  out["temporal_warmup"] = options.evaluator.maxWeightChange > 0 ? options.temporalWarmup : 0;
+}
+
+// ---- Accessors that are not one member -------------------------------------------------------
+
+SettingValue maskText(const EvaluatorSettings& s) {
+  return std::string(s.bindingMask ? "(a binding mask)" : "");
+}
+SettingValue regionsText(const EvaluatorSettings& s) {
+  return std::string(s.regions ? "(a region set)" : "");
+}
+SettingValue layersText(const EvaluatorSettings& s) {
+  return std::string(s.layers.empty() ? "" : "(layers)");
+}
+/// The bake's threads are BakeOptions::threads (the evaluator's are set from them).
+SettingValue bakeThreads(const BakeOptions& o) {
+  return o.threads;
+}
+void setBakeThreads(BakeOptions& o, const SettingValue& value) {
+  o.threads = o.evaluator.threads = std::get<int>(value);
+}
+
+// ---- The table ------------------------------------------------------------------------------
+// Rows in the order of the settings hash (a file-format contract: never reorder hashed rows),
+// then those it does not hash. Each row is the one declaration of its setting.
+
+void weightAndAlignmentRows(std::vector<SettingRow>& rows) {
+  using S = EvaluatorSettings;
+  Row(rows, "weight_mode", "weights", SettingType::kChoice)
+      .flag("--weights", "MODE")
+      .choice<&S::weightMode, &weightModeName, 5>()
+      .help(
+          "auto (model when the database has a pose model and the settings fit it, else qp), "
+          "model (the rest binding plus the pose model's learned correction), qp (the 2008 "
+          "DrivenShape blend); baselines: nearest (the closest database shape), bind (the rest "
+          "cloth bound to the rest driver and carried along, like Point Deform)")
+      .hash(&hashWeightMode)
+      .report("weights");
+  Row(rows, "exr_width", "EXR width", SettingType::kInt, SettingScope::kBake)
+      .flag("--exr-width", "W")
+      .field<&BakeOptions::exrWidth>()
+      .range(1, kMaxPointCacheExrWidth, "pixels")
+      .help("pixels per EXR row (vertex v is pixel v mod W, v div W)")
+      .hash(&hashExrWidth)
+      .report("exr_width");
+  Row(rows, "correct", "collision correction", SettingType::kBool)
+      .flag("--no-correct")
+      .field<&S::correct>()
+      .help("the collision correction: carry the blended cloth onto the shot's driver")
+      .hash(&hashCorrect)
+      .report("correct");
+  Row(rows, "binding_mask", "binding mask", SettingType::kObject)
+      .flag("--bind", "MAP.json")
+      .access<EvaluatorSettings>(&maskText, nullptr)
+      .field<&BakeOptions::bindingMaskPath>()
+      .help(
+          "which driver triangles each cloth vertex may bind to (a JSON file: "
+          "readBindingMask; Python: load_binding_mask); none = every triangle")
+      .usedWhen(&bindsMasked,
+                "with the correction and the qp, nearest or bind weights (the pose model was "
+                "fitted on the binding to every triangle)",
+                WhenUnused::kRefuse)
+      .hash(&hashMask)
+      .describeBake(&describeMaskFile);
+  Row(rows, "align", "alignment", SettingType::kChoice)
+      .flag("--align", "MODE")
+      .choice<&S::align, &alignModeName, 3>()
+      .help(
+          "none (the talk: weights compare world positions), rigid (each shot frame and "
+          "database shape is first fitted rigidly to the rest driver, weighted by how "
+          "rigidly each vertex moves across the database: the pelvis, not the legs) or "
+          "rigid-all (the same fit, every vertex weighted by its area alone)")
+      .usedWhen(&mayAlign, "with the qp or nearest weights", WhenUnused::kWarn)
+      .hash(&hashAlign)
+      .report("align");
+  Row(rows, "align_group", "align group", SettingType::kText)
+      .flag("--align-group", "LIST")
+      .field<&S::alignGroup>()
+      .help(
+          "driver vertices of the rigid fit: comma-separated OBJ group names and/or vertex "
+          "indices and ranges (0-99,250); empty or all = every vertex")
+      .usedWhen(&alignsOnGroup,
+                "with an alignment (align rigid or rigid-all) and the qp or "
+                "nearest weights",
+                WhenUnused::kRefuse)
+      .hash(&hashAlignGroup)
+      .describe(&describeAlignGroup);
+}
+
+void correctionRows(std::vector<SettingRow>& rows) {
+  using S = EvaluatorSettings;
+  Row(rows, "blend", "blend", SettingType::kChoice)
+      .flag("--blend", "MODE")
+      .choice<&S::blend, &blendModeName, 2>()
+      .help(
+          "world (blend world positions, then correct) or local (bind every cloth vertex "
+          "once at rest, blend the shapes' offsets in those local frames, rebuild them on the "
+          "shot's driver: that is the correction)")
+      .usedWhen(&blendUsed,
+                "with the correction and weights other than bind (which blend world "
+                "positions)",
+                WhenUnused::kRefuse)
+      .hash(&hashBlend)
+      .describe(&describeBlend);
+  Row(rows, "resolve", "penetration resolution", SettingType::kBool)
+      .flag("--no-resolve")
+      .field<&S::resolve>()
+      .help(
+          "the penetration resolution: cloth inside the driver or closer than the skin "
+          "offset moves out along the surface normal")
+      .hash(&hashResolve)
+      .report("resolve");
+  Row(rows, "skin_offset", "skin offset", SettingType::kNumber)
+      .flag("--skin-offset", "D")
+      .field<&S::skinOffset>()
+      .range(0, kNoLimit, "scene units")
+      .help(
+          "penetration resolution: cloth closer to the driver than D (or inside it) moves "
+          "out to D along the surface normal (0.002 = 2 mm in metre scenes)")
+      .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
+      .hash(&hashSkinOffset)
+      .report("skin_offset");
+  Row(rows, "exit_fade", "exit fade", SettingType::kNumber)
+      .flag("--exit-fade", "K")
+      .field<&S::exitFade>()
+      .range(0, kNoLimit, "", "off, always all the way")
+      .help(
+          "penetration resolution: a vertex deep inside the body whose second-nearest exit "
+          "is within K x its depth of the nearest moves only part of the way, none where "
+          "they tie, so cloth caught in a limb or a bent joint does not jump across it "
+          "between frames")
+      .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
+      .hash(&hashExitFade)
+      .report("exit_fade");
+  Row(rows, "regions", "regions", SettingType::kObject)
+      .flag("--regions", "FILE.json")
+      .access<EvaluatorSettings>(&regionsText, nullptr)
+      .field<&BakeOptions::regionsPath>()
+      .help(
+          "region-local weights: one QP per region (driver groups) mixed over the matching "
+          "driven groups with a smooth falloff (a JSON file: readRegions; Python: "
+          "load_regions); none = one QP on every driver row")
+      .usedWhen(&mayRunQp, "with the qp weights", WhenUnused::kRefuse)
+      .hash(&hashRegions)
+      .describe(&describeRegions)
+      .describeBake(&describeRegionsFile);
+  Row(rows, "max_weight_change", "maximum weight change", SettingType::kNumber)
+      .flag("--max-weight-change", "TAU")
+      .field<&S::maxWeightChange>()
+      .range(0, 1, "", "off")
+      .help(
+          "temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order "
+          "within each batch")
+      .usedWhen(&mayRunQp, "with the qp weights", WhenUnused::kRefuse)
+      .hash(&hashMaxWeightChange)
+      .report("max_weight_change");
+}
+
+void batchAndLayerRows(std::vector<SettingRow>& rows) {
+  using S = EvaluatorSettings;
+  Row(rows, "temporal_warmup", "temporal warm-up", SettingType::kInt, SettingScope::kBake)
+      .flag("--temporal-warmup", "N")
+      .field<&BakeOptions::temporalWarmup>()
+      .range(0, kNoLimit, "frames")
+      .help(
+          "with a maximum weight change: driver-cache frames solved, not written, before "
+          "each batch; results depend on N and the batch, not on the threads")
+      .usedWhen(&boundsWeights, "with a maximum weight change", WhenUnused::kWarn)
+      .hash(&hashTemporalWarmup)
+      .describeBake(&describeTemporalWarmup);
+  Row(rows, "batch", "batch", SettingType::kInt, SettingScope::kBake)
+      .flag("--batch", "N")
+      .field<&BakeOptions::chunkSize>()
+      .range(1, kNoLimit, "frames")
+      .help(
+          "frames per kernel launch (bounds device memory; lowered for large meshes except "
+          "with a maximum weight change, whose results depend on it)")
+      .hash(&hashBatch)
+      .report("batch");
+  Row(rows, "layers", "layers", SettingType::kObject)
+      .access<EvaluatorSettings>(&layersText, nullptr)
+      .help(
+          "layers after the correction and the resolution: a mix with another cache, wind "
+          "(command line: the --mix and --wind-* options, see Layer options; Python: "
+          "load_layers); none by default")
+      .hashAfterVersion(&hashLayers)
+      .describe(&describeLayers);
+  Row(rows, "audit", "audit", SettingType::kBool)
+      .flag("--no-audit")
+      .field<&S::audit>()
+      .help(
+          "the per-frame audit: cloth vertices inside the driver before and after the "
+          "correction, binding switches, the largest frame-to-frame jump (costs time)")
+      .report("audit");
+  Row(rows, "coverage_tolerance", "coverage tolerance", SettingType::kNumber)
+      .flag("--coverage-tolerance", "D")
+      .field<&S::coverageTolerance>()
+      .range(0, kNoLimit, "scene units", "2% of the cloth's rest bounding-box diagonal")
+      .help(
+          "pose model: frames whose predicted mean vertex error exceeds D are flagged for "
+          "simulation")
+      .usedWhen(&mayRunModel, "with the pose model (weights model)", WhenUnused::kWarn);
+}
+
+void runRows(std::vector<SettingRow>& rows) {
+  using S = EvaluatorSettings;
+  Row(rows, "threads", "threads", SettingType::kInt)
+      .flag("--threads", "N")
+      .field<&S::threads>()
+      .access<BakeOptions>(&bakeThreads, &setBakeThreads)
+      .range(0, kNoLimit, "", "all cores")
+      .help(
+          "host threads for the weights, the alignment, the closest-point search and EXR "
+          "writing");
+  Row(rows, "clearance_certificate", "clearance certificate", SettingType::kBool)
+      .field<&S::clearanceCertificate>()
+      .help(
+          "search closest points only where they can matter (the cloth and every count are "
+          "bitwise the same either way; off only to measure or check the full search)")
+      .usedWhen(&searchesClosest, "with the penetration resolution or the audit",
+                WhenUnused::kWarn);
+  Row(rows, "compression", "EXR compression", SettingType::kChoice, SettingScope::kBake)
+      .flag("--compression", "C")
+      .choice<&BakeOptions::compression, &exrCompressionName, 4>()
+      .help("EXR compression, all lossless")
+      .report("compression");
+  Row(rows, "zip_encoder", "zip encoder", SettingType::kChoice, SettingScope::kBake)
+      .flag("--zip-encoder", "E")
+      .choice<&BakeOptions::zipEncoder, &zipEncoderName, 2>()
+      .help(
+          "who deflates zip and zips files (standard files either way): libdeflate, or "
+          "openexr (OpenEXR's zlib writer, 2-4x the CPU: the bytes of earlier builds)")
+      .usedWhen(&zips, "with zip or zips compression", WhenUnused::kWarn);
+  Row(rows, "frames_per_second", "frames per second", SettingType::kNumber, SettingScope::kBake)
+      .flag("--fps", "X")
+      .field<&BakeOptions::framesPerSecond>()
+      .range(1e-3, kNoLimit)
+      .help("written to the EXR headers; the wind's time is frame / X");
+}
+
+std::vector<SettingRow> makeRows() {
+  std::vector<SettingRow> rows;
+  weightAndAlignmentRows(rows);
+  correctionRows(rows);
+  batchAndLayerRows(rows);
+  runRows(rows);
+  return rows;
+}
+
+// ---- Text -----------------------------------------------------------------------------------
+
+/// "exit fade (exit_fade, --exit-fade)"
+std::string settingNames(const Setting& setting) {
+  std::string text = std::string(setting.label) + " (" + setting.key;
+  if (setting.flag != nullptr) {
+    text += std::string(", ") + setting.flag;
+  }
+  return text + ")";
+}
+
+std::string rangeText(const Setting& setting) {
+  std::ostringstream text;
+  const char* what = setting.type == SettingType::kInt ? "a whole number" : "a number";
+  if (std::isinf(setting.maximum)) {
+    text << what << " >= " << formatSettingValue(setting.minimum);
+  } else {
+    text << what << " in [" << formatSettingValue(setting.minimum) << ", "
+         << formatSettingValue(setting.maximum) << "]";
+  }
+  if (*setting.unit != '\0') {
+    text << " " << setting.unit;
+  }
+  return text.str();
+}
+
+const char* typeName(SettingType type) {
+  switch (type) {
+    case SettingType::kBool:
+      return "bool";
+    case SettingType::kInt:
+      return "int";
+    case SettingType::kNumber:
+      return "number";
+    case SettingType::kText:
+      return "text";
+    case SettingType::kChoice:
+      return "choice";
+    case SettingType::kObject:
+      return "object";
+  }
+  return "?";
+}
+
+/// The value as JSON (numbers as numbers).
+nlohmann::json valueJson(const SettingValue& value) {
+  return std::visit([](const auto& v) { return nlohmann::json(v); }, value);
+}
+
+/// The value a setting has where the message's reader set it (the bake's file path, else the
+/// evaluator's value).
+SettingValue viewValue(const Setting& setting, const SettingsView& view) {
+  if (view.bake != nullptr && hasBakeValue(setting)) {
+    return settingValue(setting, *view.bake);
+  }
+  return setting.getEvaluator(view.evaluator);
+}
+
+std::string unusedMessage(const Setting& setting, const SettingValue& value,
+                          const SettingsView& view) {
+  const EvaluatorSettings& s = view.evaluator;
+  const std::string text = formatSettingValue(value);
+  std::ostringstream out;
+  out << setting.label;
+  if (setting.type != SettingType::kBool) {
+    out << " '" << text << "'";
+  }
+  out << " (" << setting.key << "=" << text;
+  if (setting.flag != nullptr) {
+    out << ", " << setting.flag << (setting.valueName != nullptr ? " " + text : "");
+  }
+  out << ") has no effect here: it applies " << setting.usedWhen << "; here weights "
+      << weightModeName(s.weightMode) << ", align " << alignModeName(s.align) << ", blend "
+      << blendModeName(s.blend) << ", correction " << (s.correct ? "on" : "off") << ", resolution "
+      << (s.resolve ? "on" : "off");
+  if (setting.scope == SettingScope::kBake && view.bake != nullptr) {
+    out << ", maximum weight change " << s.maxWeightChange << ", compression "
+        << exrCompressionName(view.bake->compression);
+  }
+  out << (setting.whenUnused == WhenUnused::kRefuse ? ". Drop it, or change those settings"
+                                                    : "; it is ignored");
+  return out.str();
+}
+
+}  // namespace settings_impl
+
+using settings_impl::settingNames;
+
+// ---- The public functions ---------------------------------------------------------------------
+
+namespace pipeline {
+
+const std::vector<SettingRow>& settingRows() {
+  static const std::vector<SettingRow> rows = settings_impl::makeRows();
+  return rows;
+}
+
+std::uint64_t hashSettings(const Model& model, const OutputHashFields* output) {
+  const HashInput input{model, output};
+  Hasher hasher;
+  hasher.addValue(model.db.contentHash());
+  for (const SettingRow& row : settingRows()) {
+    if (row.hash != nullptr) {
+      row.hash(input, hasher);
+    }
+  }
+  hasher.addString(kVersion);
+  std::uint64_t value = hasher.value();
+  for (const SettingRow& row : settingRows()) {
+    if (row.hashAfterVersion != nullptr) {
+      value = row.hashAfterVersion(input, value);
+    }
+  }
+  return value;
+}
+
+void describeSettings(const Model& model, nlohmann::json& settings) {
+  for (const SettingRow& row : settingRows()) {
+    if (row.describe != nullptr) {
+      row.describe(model, settings);
+    } else if (row.setting.reportKey != nullptr && row.setting.getEvaluator != nullptr) {
+      settings[row.setting.reportKey] =
+          settings_impl::valueJson(row.setting.getEvaluator(model.settings));
+    }
+  }
+}
+
+}  // namespace pipeline
+
+const std::vector<Setting>& settingsTable() {
+  static const std::vector<Setting> table = [] {
+    std::vector<Setting> settings;
+    for (const pipeline::SettingRow& row : pipeline::settingRows()) {
+      settings.push_back(row.setting);
+    }
+    return settings;
+  }();
+  return table;
+}
+
+const Setting* findSettingByKey(const std::string& key) {
+  for (const Setting& setting : settingsTable()) {
+    if (key == setting.key) {
+      return &setting;
+    }
+  }
+  return nullptr;
+}
+
+const Setting& findSetting(const std::string& key) {
+  const Setting* setting = findSettingByKey(key);
+  if (setting == nullptr) {
+    DS_THROW(kUsage, "there is no setting '", key,
+             "'; the settings are listed in "
+             "docs/commands.md (Settings)");
+  }
+  return *setting;
+}
+
+bool hasEvaluatorValue(const Setting& setting) {
+  return setting.setEvaluator != nullptr;
+}
+
+bool hasBakeValue(const Setting& setting) {
+  return setting.getBake != nullptr ||
+         (setting.scope == SettingScope::kEvaluator && setting.setEvaluator != nullptr);
+}
+
+SettingValue settingValue(const Setting& setting, const EvaluatorSettings& settings) {
+  if (!hasEvaluatorValue(setting)) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " has no value in EvaluatorSettings");
+  }
+  return setting.getEvaluator(settings);
+}
+
+SettingValue settingValue(const Setting& setting, const BakeOptions& options) {
+  if (setting.getBake != nullptr) {
+    return setting.getBake(options);
+  }
+  return settingValue(setting, options.evaluator);
+}
+
+SettingValue defaultSettingValue(const Setting& setting) {
+  static const BakeOptions defaults;
+  if (!hasBakeValue(setting)) {
+    return std::string();  // an object no tool has loaded
+  }
+  return settingValue(setting, defaults);
+}
+
+namespace settings_impl {
+
+/// `value` as `setting`'s type (an int taken for a number), checked.
+SettingValue checkedValue(const Setting& setting, SettingValue value) {
+  if (setting.type == SettingType::kNumber && std::holds_alternative<int>(value)) {
+    value = static_cast<double>(std::get<int>(value));
+  }
+  checkSettingValue(setting, value);
+  return value;
+}
+
+}  // namespace settings_impl
+
+using settings_impl::checkedValue;
+
+void setSetting(const Setting& setting, EvaluatorSettings& settings, const SettingValue& value) {
+  if (!hasEvaluatorValue(setting)) {
+    DS_THROW(kUsage, "the ", settingNames(setting),
+             " cannot be set from a value in "
+             "EvaluatorSettings");
+  }
+  setting.setEvaluator(settings, checkedValue(setting, value));
+}
+
+void setSetting(const Setting& setting, BakeOptions& options, const SettingValue& value) {
+  if (setting.setBake != nullptr) {
+    setting.setBake(options, checkedValue(setting, value));
+  } else {
+    setSetting(setting, options.evaluator, value);
+  }
+}
+
+void checkSettingValue(const Setting& setting, const SettingValue& value) {
+  static constexpr std::size_t kIndex[] = {0, 1, 2, 3, 3, 3};  // variant index of each type
+  const std::string names = settingNames(setting);
+  if (value.index() != kIndex[static_cast<int>(setting.type)]) {
+    DS_THROW(kUsage, "the ", names, " takes a ", settings_impl::typeName(setting.type), " (got ",
+             formatSettingValue(value), ")");
+  }
+  if (setting.type == SettingType::kChoice) {
+    std::string spellings;
+    for (const std::string& choice : setting.choices) {
+      if (settings_impl::sameChoice(std::get<std::string>(value), choice)) {
+        return;
+      }
+      spellings += (spellings.empty() ? "" : ", ") + choice;
+    }
+    DS_THROW(kUsage, "the ", names, " takes ", spellings, " (got '", std::get<std::string>(value),
+             "')");
+  }
+  if (setting.type == SettingType::kInt || setting.type == SettingType::kNumber) {
+    const double number =
+        setting.type == SettingType::kInt ? std::get<int>(value) : std::get<double>(value);
+    if (!std::isfinite(number) || number < setting.minimum || number > setting.maximum) {
+      const std::string zero =
+          *setting.zero != '\0' ? std::string("0 = ") + setting.zero + "; " : std::string();
+      DS_THROW(kUsage, "the ", names, " must be ", settings_impl::rangeText(setting), " (", zero,
+               "got ", formatSettingValue(value), ")");
+    }
+  }
+}
+
+void checkSettings(const EvaluatorSettings& settings) {
+  for (const Setting& setting : settingsTable()) {
+    if (hasEvaluatorValue(setting)) {
+      checkSettingValue(setting, setting.getEvaluator(settings));
+    }
+  }
+}
+
+void checkBakeSettings(const BakeOptions& options) {
+  for (const Setting& setting : settingsTable()) {
+    if (setting.scope == SettingScope::kBake) {
+      checkSettingValue(setting, settingValue(setting, options));
+    }
+  }
+}
+
+SettingValue parseSettingValue(const Setting& setting, const std::string& text) {
+  const std::string names = settingNames(setting);
+  char* end = nullptr;
+  switch (setting.type) {
+    case SettingType::kBool:
+      if (text == "true" || text == "1" || text == "on") {
+        return true;
+      }
+      if (text == "false" || text == "0" || text == "off") {
+        return false;
+      }
+      DS_THROW(kUsage, "the ", names, " takes true or false (got '", text, "')");
+    case SettingType::kInt: {
+      errno = 0;
+      const long value = std::strtol(text.c_str(), &end, 10);
+      if (text.empty() || *end != '\0' || errno != 0 || value < -settings_impl::kMaxWhole ||
+          value > settings_impl::kMaxWhole) {
+        DS_THROW(kUsage, "the ", names, " takes a whole number (got '", text, "')");
+      }
+      return static_cast<int>(value);
+    }
+    case SettingType::kNumber: {
+      const double value = std::strtod(text.c_str(), &end);
+      if (text.empty() || *end != '\0') {
+        DS_THROW(kUsage, "the ", names, " takes a number (got '", text, "')");
+      }
+      return value;
+    }
+    default:
+      return text;
+  }
+}
+
+std::string formatSettingValue(const SettingValue& value) {
+  if (const bool* flag = std::get_if<bool>(&value)) {
+    return *flag ? "true" : "false";
+  }
+  if (const int* whole = std::get_if<int>(&value)) {
+    return std::to_string(*whole);
+  }
+  if (const double* number = std::get_if<double>(&value)) {
+    // The shortest text that reads back to the same double.
+    char text[32];
+    for (int digits = 1; digits <= 17; ++digits) {
+      std::snprintf(text, sizeof(text), "%.*g", digits, *number);
+      if (std::strtod(text, nullptr) == *number) {
+        break;
+      }
+    }
+    return text;
+  }
+  return std::get<std::string>(value);
+}
+
+std::vector<UnusedSetting> unusedSettings(const SettingsView& view,
+                                          const std::vector<std::string>& given) {
+  std::vector<UnusedSetting> unused;
+  for (const Setting& setting : settingsTable()) {
+    const bool bake = setting.scope == SettingScope::kBake;
+    if (setting.used == nullptr || (bake && view.bake == nullptr) ||
+        (!bake && setting.getEvaluator == nullptr)) {
+      continue;
+    }
+    const SettingValue value = settings_impl::viewValue(setting, view);
+    bool set = value != defaultSettingValue(setting);
+    for (const std::string& key : given) {
+      set = set || key == setting.key;
+    }
+    if (set && !setting.used(view)) {
+      unused.push_back({&setting, settings_impl::unusedMessage(setting, value, view)});
+    }
+  }
+  return unused;
+}
+
+std::vector<std::string> refuseUnusedSettings(const std::vector<UnusedSetting>& unused) {
+  std::vector<std::string> warnings;
+  for (const UnusedSetting& entry : unused) {
+    if (entry.setting->whenUnused == WhenUnused::kRefuse) {
+      DS_THROW(kUsage, entry.message);
+    }
+    warnings.push_back(entry.message);
+  }
+  return warnings;
+}
+
+std::string describeBakeSettings(const BakeOptions& options) {
+  nlohmann::json settings = nlohmann::json::object();
+  for (const pipeline::SettingRow& row : pipeline::settingRows()) {
+    if (row.describeBake != nullptr) {
+      row.describeBake(options, settings);
+    } else if (row.setting.scope == SettingScope::kBake && row.setting.reportKey != nullptr) {
+      settings[row.setting.reportKey] =
+          settings_impl::valueJson(settingValue(row.setting, options));
+    }
+  }
+  return jsonText(settings);
+}
+
+std::string settingsTableJson() {
+  nlohmann::json table = nlohmann::json::array();
+  for (const Setting& s : settingsTable()) {
+    const bool valued = hasBakeValue(s) || hasEvaluatorValue(s);
+    nlohmann::json row{
+        {"key", s.key},
+        {"label", s.label},
+        {"flag", s.flag != nullptr ? nlohmann::json(s.flag) : nlohmann::json()},
+        {"value_name", s.valueName != nullptr ? nlohmann::json(s.valueName) : nlohmann::json()},
+        {"scope", s.scope == SettingScope::kBake ? "bake" : "evaluator"},
+        {"type", settings_impl::typeName(s.type)},
+        {"default", valued ? settings_impl::valueJson(defaultSettingValue(s)) : nlohmann::json()},
+        {"choices", s.choices},
+        {"unit", s.unit},
+        {"zero", s.zero},
+        {"help", s.help},
+        {"hashed", s.hashed},
+        {"report_key", s.reportKey != nullptr ? nlohmann::json(s.reportKey) : nlohmann::json()},
+        {"used_when", s.usedWhen},
+        {"when_unused", s.used == nullptr                     ? "always used"
+                        : s.whenUnused == WhenUnused::kRefuse ? "refused"
+                                                              : "warned"}};
+    if (s.type == SettingType::kInt || s.type == SettingType::kNumber) {
+      row["minimum"] = s.minimum;
+      row["maximum"] = std::isinf(s.maximum) ? nlohmann::json() : nlohmann::json(s.maximum);
+    }
+    table.push_back(row);
+  }
+  return jsonText(table, 1);
+}
+
+namespace settings_impl {
+
+/// Text for a Markdown table cell: pipes escaped.
+std::string cell(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    out += c == '|' ? std::string("\\|") : std::string(1, c);
+  }
+  return out;
+}
+
+std::string markdownRange(const Setting& s) {
+  std::string range;
+  if (s.type == SettingType::kChoice) {
+    for (const std::string& choice : s.choices) {
+      range += (range.empty() ? "`" : ", `") + choice + "`";
+    }
+  } else if (s.type == SettingType::kInt || s.type == SettingType::kNumber) {
+    range = std::isinf(s.maximum)
+                ? ">= " + formatSettingValue(s.minimum)
+                : formatSettingValue(s.minimum) + " to " + formatSettingValue(s.maximum);
+    range += *s.unit != '\0' ? std::string(" ") + s.unit : std::string();
+    range += *s.zero != '\0' ? std::string(" (0 = ") + s.zero + ")" : std::string();
+  }
+  return range;
+}
+
+std::string markdownRow(const Setting& s) {
+  std::string flag = "-";
+  if (s.flag != nullptr) {
+    flag = std::string("`") + s.flag +
+           (s.valueName != nullptr ? std::string(" ") + s.valueName : "") + "`";
+  }
+  const bool valued = hasBakeValue(s) || hasEvaluatorValue(s);
+  const std::string text = valued ? formatSettingValue(defaultSettingValue(s)) : "";
+  const std::string value = text.empty() ? "none" : "`" + text + "`";
+  std::string used = "always";
+  if (s.used != nullptr) {
+    used = std::string(s.usedWhen) +
+           (s.whenUnused == WhenUnused::kRefuse ? "; else refused" : "; else warned about");
+  }
+  return "| `" + std::string(s.key) + "` | " + flag + " | " + value + " | " +
+         cell(markdownRange(s)) + " | " + (s.hashed ? "yes" : "no") + " | " + cell(used) + " | " +
+         cell(s.help) + " |\n";
+}
+
+}  // namespace settings_impl
+
+std::string settingsTableMarkdown() {
+  std::string table =
+      "| setting (Python, add-on) | command line | default | range | hashed | used | what it "
+      "does |\n|---|---|---|---|---|---|---|\n";
+  for (const Setting& setting : settingsTable()) {
+    table += settings_impl::markdownRow(setting);
+  }
+  return table;
+}
+
+}  // namespace drivenshape

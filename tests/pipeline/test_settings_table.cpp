@@ -1,0 +1,160 @@
+// SPDX-License-Identifier: Apache-2.0
+// The settings table (drivenshape/settings_table.h): its rows, the one check of a value, the
+// text a command line gives, and the settings it calls unused. The hash it derives is pinned
+// in test_settings_hash.cpp; the Python keywords and the add-on's properties in
+// tests/python/test_settings.py; docs/commands.md by the CTest settings_doc.
+
+#include <set>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <drivenshape/bake.h>
+#include <drivenshape/error.h>
+#include <drivenshape/evaluator.h>
+#include <drivenshape/settings_table.h>
+
+#include "test_support.h"
+
+namespace drivenshape {
+namespace {
+
+TEST(SettingsTable, RowsAreUniqueAndHaveWhatTheToolsRead) {
+  std::set<std::string> keys, flags;
+  for (const Setting& setting : settingsTable()) {
+    EXPECT_TRUE(keys.insert(setting.key).second) << setting.key;
+    if (setting.flag != nullptr) {
+      EXPECT_TRUE(flags.insert(setting.flag).second) << setting.flag;
+      EXPECT_EQ(setting.valueName == nullptr, setting.type == SettingType::kBool) << setting.key;
+    }
+    EXPECT_NE(std::string(setting.help), "") << setting.key;
+    EXPECT_EQ(setting.used == nullptr, std::string(setting.usedWhen).empty()) << setting.key;
+    if (setting.type == SettingType::kObject) {
+      continue;
+    }
+    // The default is the struct's, and passes the table's own check.
+    ASSERT_TRUE(hasBakeValue(setting)) << setting.key;
+    EXPECT_NO_THROW(checkSettingValue(setting, defaultSettingValue(setting))) << setting.key;
+  }
+  EXPECT_EQ(formatSettingValue(defaultSettingValue(findSetting("exit_fade"))), "0.15");
+  EXPECT_EQ(std::get<double>(defaultSettingValue(findSetting("skin_offset"))),
+            EvaluatorSettings().skinOffset);
+  EXPECT_EQ(std::get<int>(defaultSettingValue(findSetting("batch"))), BakeOptions().chunkSize);
+  EXPECT_EQ(findSettingByKey("no_such_setting"), nullptr);
+  testing::expectThrows([] { findSetting("no_such_setting"); }, ErrorCode::kUsage,
+                        "no setting 'no_such_setting'");
+}
+
+TEST(SettingsTable, OneCheckOfAValueNamesTheSettingAndItsRange) {
+  const Setting& fade = findSetting("exit_fade");
+  EvaluatorSettings settings;
+  setSetting(fade, settings, 0.3);
+  EXPECT_EQ(settings.exitFade, 0.3);
+  setSetting(fade, settings, 1);  // a whole number for a number
+  EXPECT_EQ(settings.exitFade, 1.0);
+  testing::expectThrows([&] { setSetting(fade, settings, -1.0); }, ErrorCode::kUsage,
+                        "exit fade (exit_fade, --exit-fade) must be a number >= 0");
+  EXPECT_EQ(settings.exitFade, 1.0);
+  testing::expectThrows([&] { setSetting(fade, settings, std::string("x")); }, ErrorCode::kUsage,
+                        "takes a number");
+  testing::expectThrows([&] { setSetting(findSetting("max_weight_change"), settings, 1.5); },
+                        ErrorCode::kUsage, "in [0, 1]");
+  testing::expectThrows([&] { setSetting(findSetting("threads"), settings, -1); },
+                        ErrorCode::kUsage, "0 = all cores");
+  testing::expectThrows(
+      [&] { setSetting(findSetting("blend"), settings, std::string("sideways")); },
+      ErrorCode::kUsage, "takes world, local (got 'sideways')");
+  setSetting(findSetting("weight_mode"), settings, std::string("Nearest"));
+  EXPECT_EQ(settings.weightMode, WeightMode::kNearest);
+  // A value set on the struct directly meets the same check in the Evaluator (checkSettings).
+  settings.skinOffset = std::numeric_limits<double>::quiet_NaN();
+  testing::expectThrows([&] { checkSettings(settings); }, ErrorCode::kUsage, "skin offset");
+  BakeOptions options;
+  options.chunkSize = 0;
+  testing::expectThrows([&] { checkBakeSettings(options); }, ErrorCode::kUsage,
+                        "batch (batch, --batch) must be a whole number >= 1");
+}
+
+TEST(SettingsTable, TextOfACommandLine) {
+  EXPECT_EQ(std::get<double>(parseSettingValue(findSetting("exit_fade"), "0.25")), 0.25);
+  EXPECT_EQ(std::get<int>(parseSettingValue(findSetting("batch"), "7")), 7);
+  EXPECT_EQ(std::get<std::string>(parseSettingValue(findSetting("align"), "none")), "none");
+  testing::expectThrows([] { parseSettingValue(findSetting("batch"), "1.5"); }, ErrorCode::kUsage,
+                        "--batch) takes a whole number (got '1.5')");
+  testing::expectThrows([] { parseSettingValue(findSetting("skin_offset"), "2mm"); },
+                        ErrorCode::kUsage, "--skin-offset) takes a number (got '2mm')");
+  EXPECT_EQ(formatSettingValue(0.1 + 0.2), "0.30000000000000004");
+  EXPECT_EQ(formatSettingValue(0.002), "0.002");
+  EXPECT_EQ(formatSettingValue(64), "64");
+  EXPECT_EQ(formatSettingValue(false), "false");
+}
+
+std::vector<std::string> unusedKeys(const SettingsView& view,
+                                    const std::vector<std::string>& given = {}) {
+  std::vector<std::string> keys;
+  for (const UnusedSetting& unused : unusedSettings(view, given)) {
+    keys.emplace_back(unused.setting->key);
+  }
+  return keys;
+}
+
+TEST(SettingsTable, SettingsTheOthersLeaveUnusedAreRefusedOrWarnedAbout) {
+  EvaluatorSettings settings;
+  EXPECT_TRUE(unusedKeys({settings}).empty());
+  settings.resolve = false;
+  EXPECT_TRUE(unusedKeys({settings}).empty()) << "defaults are never unused";
+  settings.exitFade = 0.3;
+  settings.skinOffset = 0.004;
+  EXPECT_EQ(unusedKeys({settings}), (std::vector<std::string>{"skin_offset", "exit_fade"}));
+  const std::vector<std::string> warnings = refuseUnusedSettings(unusedSettings({settings}));
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_NE(warnings[1].find("exit fade '0.3' (exit_fade=0.3, --exit-fade 0.3)"), std::string::npos)
+      << warnings[1];
+  EXPECT_NE(warnings[1].find("resolution off"), std::string::npos) << warnings[1];
+
+  // A value a tool was given counts even at its default: --blend local with --no-correct.
+  settings = EvaluatorSettings();
+  settings.correct = false;
+  EXPECT_TRUE(unusedKeys({settings}).empty());
+  EXPECT_EQ(unusedKeys({settings}, {"blend"}), std::vector<std::string>{"blend"});
+  testing::expectThrows([&] { refuseUnusedSettings(unusedSettings({settings}, {"blend"})); },
+                        ErrorCode::kUsage, "blend 'local'");
+  settings.blend = BlendMode::kWorld;  // what runs without the correction: used
+  EXPECT_TRUE(unusedKeys({settings}, {"blend"}).empty());
+
+  // kAuto may become the QP: regions are used until the weights resolve to something else.
+  settings = EvaluatorSettings();
+  settings.regions = RegionSet();
+  EXPECT_TRUE(unusedKeys({settings}).empty());
+  settings.weightMode = WeightMode::kNearest;
+  testing::expectThrows([&] { refuseUnusedSettings(unusedSettings({settings})); },
+                        ErrorCode::kUsage, "regions");
+
+  // Bake settings are judged only with the bake's options.
+  BakeOptions options;
+  options.temporalWarmup = 3;
+  EXPECT_TRUE(unusedKeys({options.evaluator}).empty());
+  EXPECT_EQ(unusedKeys({options.evaluator, &options}), std::vector<std::string>{"temporal_warmup"});
+  options.evaluator.maxWeightChange = 0.1;
+  EXPECT_TRUE(unusedKeys({options.evaluator, &options}).empty());
+}
+
+TEST(SettingsTable, JsonAndMarkdownListEveryRow) {
+  const nlohmann::json table = nlohmann::json::parse(settingsTableJson());
+  ASSERT_EQ(table.size(), settingsTable().size());
+  const std::string markdown = settingsTableMarkdown();
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    const Setting& setting = settingsTable()[i];
+    EXPECT_EQ(table[i].at("key"), setting.key);
+    EXPECT_EQ(table[i].at("hashed"), setting.hashed);
+    EXPECT_NE(markdown.find(std::string("| `") + setting.key + "` |"), std::string::npos)
+        << setting.key;
+  }
+  EXPECT_EQ(table[0].at("key"), "weight_mode");
+  EXPECT_NE(markdown.find("\\|w_t - w_{t-1}\\|"), std::string::npos) << "pipes escaped";
+}
+
+}  // namespace
+}  // namespace drivenshape
