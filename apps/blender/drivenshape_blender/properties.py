@@ -5,6 +5,7 @@ add-on preference that says where the drivenshape module is."""
 import bpy
 from bpy.props import (
     BoolProperty,
+    CollectionProperty,
     EnumProperty,
     FloatProperty,
     IntProperty,
@@ -53,6 +54,24 @@ def _settings_changed(_self, context):
     from . import live  # noqa: PLC0415
 
     live.settings_changed(context)
+
+
+def _error_colors_changed(_self, context):
+    from . import coverage  # noqa: PLC0415
+
+    coverage.error_colors_changed(context)
+
+
+class DrivenShapeVerdict(bpy.types.PropertyGroup):
+    """One evaluated frame's coverage verdict, from the last bake or Mark Frames to Simulate."""
+
+    frame: IntProperty(name="Frame")
+    predicted_error: FloatProperty(name="Predicted Error", unit="LENGTH",
+                                   description="Predicted mean vertex error (scene units)")
+    flagged: BoolProperty(name="Simulate",
+                          description="The predicted error is over the coverage tolerance")
+    marker: StringProperty(name="Marker",
+                           description="The timeline marker the add-on put on the frame, if any")
 
 
 class DrivenShapeSettings(bpy.types.PropertyGroup):
@@ -130,6 +149,23 @@ class DrivenShapeSettings(bpy.types.PropertyGroup):
         name="Threads", default=0, min=0, soft_max=64, update=_settings_changed,
         description="Host threads (0: all cores)")
     space: EnumProperty(name="Space", items=SPACES, default="LOCAL", update=_settings_changed)
+    coverage_tolerance: FloatProperty(
+        name="Tolerance", default=0.0, min=0.0, soft_max=0.1, precision=4, step=0.1,
+        unit="LENGTH", update=_settings_changed,
+        description="Coverage tolerance: a frame whose predicted mean vertex error (pose model) "
+        "is over it is flagged to simulate (0: 2% of the cloth's rest bounding-box diagonal, "
+        "as in the command line)")
+
+    # The last bake's or Mark Frames to Simulate's verdicts (coverage.py).
+    verdicts: CollectionProperty(type=DrivenShapeVerdict)
+    verdict_tolerance: FloatProperty(
+        name="Tolerance Used", default=-1.0, unit="LENGTH",
+        description="The coverage tolerance of the stored verdicts (-1: none stored)")
+    error_colors: BoolProperty(
+        name="Error Colors", default=False, update=_error_colors_changed,
+        description="Color the cloth by the pose model's predicted error (one color per frame: "
+        "green at half the tolerance, yellow at it, red at 1.5 times it), in a color attribute "
+        "shown by Solid shading's Attribute colors")
 
     # Live mode.
     live_restore: BoolProperty(
@@ -182,7 +218,7 @@ class DrivenShapePreferences(bpy.types.AddonPreferences):
         layout.operator("drivenshape.retry_import")
 
 
-CLASSES = (DrivenShapeSettings, DrivenShapePreferences)
+CLASSES = (DrivenShapeVerdict, DrivenShapeSettings, DrivenShapePreferences)
 
 
 def register():
