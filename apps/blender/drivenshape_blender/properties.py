@@ -15,20 +15,21 @@ from bpy.props import (
 
 WEIGHT_MODES = (
     ("auto", "Auto", "The pose model when the database has one, else the DrivenShape QP"),
-    ("model", "Pose model", "The rest binding plus the pose model's learned correction, fitted "
+    ("model", "Pose Model", "The rest binding plus the pose model's learned correction, fitted "
      "over the whole reference clip"),
-    ("qp", "DrivenShape (QP)", "Blend weights that best reproduce the pose: the DrivenShape QP"),
-    ("nearest", "Nearest shape", "Baseline: all weight on the closest database driver shape"),
-    ("bind", "Bind only", "Baseline: no database shapes; the rest cloth carried by the driver"),
+    ("qp", "QP Blend", "DrivenShape as in the talk: blend weights that best reproduce the pose "
+     "(a QP)"),
+    ("nearest", "Nearest", "Baseline: all weight on the closest database driver shape"),
+    ("bind", "Bind Only", "Baseline: no database shapes; the rest cloth carried by the driver"),
 )
 ALIGN_MODES = (
     ("rigid", "Rigid", "Fit each frame rigidly to the rest driver, following its most rigid "
      "part (the pelvis, not the legs) before solving the weights"),
-    ("rigid-all", "Rigid (all vertices)", "The same rigid fit, every vertex weighted alike"),
+    ("rigid-all", "Rigid (All)", "The same rigid fit, every vertex weighted alike"),
     ("none", "None", "Compare world positions, as in the talk"),
 )
 BLEND_MODES = (
-    ("local", "Local frames", "Blend the shapes' offsets in the driver's local frames and "
+    ("local", "Local Frames", "Blend the shapes' offsets in the driver's local frames and "
      "rebuild them on the current pose (no per-frame search)"),
     ("world", "World", "Blend world positions, then correct onto the pose (the talk)"),
 )
@@ -39,9 +40,10 @@ SPACES = (
      "into the cloth object's space when written"),
 )
 BUILD_SOURCES = (
-    ("ANIMATION", "Objects' animation", "Sample the driver's and the cloth's evaluated meshes "
-     "over the frame range (Mesh Cache modifiers, a cloth simulation, an armature)"),
-    ("PC2", "PC2 files", "Read the reference driver and cloth animation from PC2 files"),
+    ("ANIMATION", "Animation", "The objects' animation: sample the driver's and the cloth's "
+     "evaluated meshes over the frame range (Mesh Cache modifiers, a cloth simulation, an "
+     "armature)"),
+    ("PC2", "PC2 Files", "Read the reference driver and cloth animation from PC2 files"),
 )
 
 

@@ -30,7 +30,7 @@ def _chars(context):
     """How many characters of a message fit on a line of the region (after an icon)."""
     region = getattr(context, "region", None)
     width = region.width if region else 220
-    return max(16, int(width / (CHAR_PIXELS * context.preferences.view.ui_scale)) - 5)
+    return max(16, int(width / (CHAR_PIXELS * context.preferences.view.ui_scale)) - 7)
 
 
 def _wrapped(layout, text, width, icon="NONE", alert=False):
@@ -130,7 +130,8 @@ class DRIVENSHAPE_PT_main(_Panel, bpy.types.Panel):
                 read, evaluate, write, total = stats
                 _pair(box, "Frame", f"{total:.1f} ms, {1000.0 / total:.0f} fps")
                 _pair(box, "Evaluate", f"{evaluate:.1f} ms")
-                _pair(box, "Read, Write", f"{read:.2f}, {write:.2f} ms")
+                _pair(box, "Read", f"{read:.2f} ms")
+                _pair(box, "Write", f"{write:.2f} ms")
             record = live.SESSION.last_record
             if record is not None and record.inside_after >= 0:  # measured with Audit on
                 _pair(box, "Inside", f"{record.inside_after} vertices")
