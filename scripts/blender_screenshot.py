@@ -1,14 +1,17 @@
 # SPDX-License-Identifier: Apache-2.0
 """Screenshot of the add-on at work: a real Blender window (on a virtual X server), the bundled
-sleeve scene in live mode, the DrivenShape tab open in the 3D view's sidebar.
+sleeve scene in live mode, the DrivenShape tab open in the 3D view's sidebar at its default
+width, the frames to simulate marked on the timeline and the sleeve coloured by its predicted
+error.
 
     xvfb-run -s "-screen 0 1600x900x24" blender --factory-startup --enable-event-simulate \
         --python scripts/blender_screenshot.py -- [--out docs/images/blender_live.png]
 
 DRIVENSHAPE_PYTHONPATH must name the folder that holds the drivenshape module (build/python).
 The add-on is loaded from the source tree (apps/blender). The database is built with the module
-from tests/data/sleeve's training clip (out/screenshot/sleeve.dsdb); the driver plays the test
-clip through a Mesh Cache modifier. Blender quits after writing the image (exit code 1 on a
+from tests/data/sleeve's training clip (out/screenshot/sleeve.dsdb, with the pose model); the
+driver plays the test clip through a Mesh Cache modifier. The coverage tolerance is TOLERANCE
+(the default, 12.5 mm here, flags no frame of the test clip). Blender quits after writing the image (exit code 1 on a
 failure).
 """
 
@@ -27,6 +30,7 @@ import drivenshape_blender  # noqa: E402
 
 DATA = os.path.join(ROOT, "tests", "data", "sleeve")
 FRAME = 33
+TOLERANCE = 0.011  # metres
 
 
 def parse_args():
@@ -34,6 +38,10 @@ def parse_args():
     parser = argparse.ArgumentParser()
     parser.add_argument("--out", default=os.path.join(ROOT, "docs", "images",
                                                       "blender_live.png"))
+    # To check every label at the default width: open the sub-panels that start closed and
+    # scroll the sidebar down by this many mouse-wheel steps.
+    parser.add_argument("--open-all", action="store_true")
+    parser.add_argument("--scroll", type=int, default=0)
     return parser.parse_args(argv)
 
 
@@ -58,6 +66,9 @@ def view3d():
 
 
 def setup():
+    if ARGS.open_all:
+        for panel in drivenshape_blender.ui.CLASSES:
+            panel.bl_options = set(getattr(panel, "bl_options", set())) - {"DEFAULT_CLOSED"}
     drivenshape_blender.register()
     ds = drivenshape_blender.module.get()
     database = os.path.join(ROOT, "out", "screenshot", "sleeve.dsdb")
@@ -83,6 +94,9 @@ def setup():
     settings = scene.drivenshape
     settings.driver, settings.cloth, settings.database_path = driver, cloth, database
     settings.bake_pc2_path = "//drivenshape/sleeve.pc2"
+    settings.coverage_tolerance = TOLERANCE
+    bpy.ops.drivenshape.mark_frames()
+    settings.error_colors = True
     scene.frame_set(scene.frame_start)
     bpy.ops.drivenshape.live_start()
     for frame in range(scene.frame_start, FRAME + 1):  # play up to FRAME: the panel's timings
@@ -92,7 +106,7 @@ def setup():
     space = area.spaces.active
     space.show_region_ui = True
     space.shading.type = "SOLID"
-    space.shading.color_type = "OBJECT"
+    space.shading.color_type = "VERTEX"  # Attribute: the cloth's error colours
     view = space.region_3d
     view.view_perspective = "PERSP"
     view.view_location = mathutils.Vector(cloth.location) + mathutils.Vector(
@@ -100,47 +114,16 @@ def setup():
     view.view_rotation = mathutils.Euler((1.25, 0.0, 0.75)).to_quaternion()
     view.view_distance = 0.75
     bpy.ops.object.select_all(action="DESELECT")
-    for timeline in bpy.context.window.screen.areas:
+    window = bpy.context.window
+    for timeline in window.screen.areas:
         if timeline.type == "DOPESHEET_EDITOR":
+            # Taller than the factory layout's, so that the markers show under the frames.
+            with bpy.context.temp_override(window=window, screen=window.screen, area=timeline):
+                bpy.ops.screen.area_move(x=timeline.x + timeline.width // 2,
+                                         y=timeline.y + timeline.height, delta=40)
             with bpy.context.temp_override(area=timeline, region=timeline.regions[-1]):
                 bpy.ops.action.view_all()
-    bpy.app.timers.register(widen_sidebar, first_interval=0.5)
-
-
-def widen_sidebar(offsets=(1, 4, 7, 10, 13, -2)):
-    """Drags the sidebar's left edge 160 pixels to the left, so that its labels fit: one
-    simulated event per timer tick, as a hand would (the drag is a modal operator). The edge's
-    grip sits a few pixels inside the region (its panels are inset): the drag is tried from
-    a few offsets until the sidebar is wider."""
-    area, _region = view3d()
-    sidebar = next(r for r in area.regions if r.type == "UI")
-    width = sidebar.width
-    if not offsets:
-        print("could not widen the sidebar; the screenshot shows it at its default width")
-        bpy.app.timers.register(click_tab, first_interval=0.3)
-        return None
-    x, y = sidebar.x + offsets[0], sidebar.y + sidebar.height // 2
-    events = [("MOUSEMOVE", "NOTHING", x - 20), ("MOUSEMOVE", "NOTHING", x),
-              ("MOUSEMOVE", "NOTHING", x), ("LEFTMOUSE", "PRESS", x)]
-    events += [("MOUSEMOVE", "NOTHING", x - 20 * step) for step in range(1, 9)]
-    events += [("LEFTMOUSE", "RELEASE", x - 160)]
-    window = bpy.context.window_manager.windows[0]
-
-    def next_event():
-        if not events:
-            if sidebar.width > width + 50:
-                print(f"sidebar widened from {width} to {sidebar.width} px "
-                      f"(grip at +{offsets[0]})")
-                bpy.app.timers.register(click_tab, first_interval=0.3)
-            else:
-                bpy.app.timers.register(lambda: widen_sidebar(offsets[1:]), first_interval=0.2)
-            return None
-        kind, value, at = events.pop(0)
-        window.event_simulate(type=kind, value=value, x=at, y=y)
-        return 0.05
-
-    bpy.app.timers.register(next_event, first_interval=0.05)
-    return None
+    bpy.app.timers.register(click_tab, first_interval=0.5)
 
 
 # Blender 3.4 cannot pick a sidebar tab from Python (Region.active_panel_category came in a
@@ -161,7 +144,7 @@ CLICK = {"step": 0}
 
 def click_tab():
     if DRAWN:
-        bpy.app.timers.register(shoot, first_interval=1.0)
+        bpy.app.timers.register(scroll if ARGS.scroll else shoot, first_interval=1.0)
         return None
     area, _region = view3d()
     sidebar = next(r for r in area.regions if r.type == "UI")
@@ -180,6 +163,18 @@ def click_tab():
     DRAWN.clear()
     CLICK["step"] += 1
     return 0.3
+
+
+def scroll():
+    area, _region = view3d()
+    sidebar = next(r for r in area.regions if r.type == "UI")
+    window = bpy.context.window_manager.windows[0]
+    x, y = sidebar.x + sidebar.width // 2, sidebar.y + sidebar.height // 2
+    window.event_simulate(type="MOUSEMOVE", value="NOTHING", x=x, y=y)
+    for _ in range(ARGS.scroll):
+        window.event_simulate(type="WHEELDOWNMOUSE", value="PRESS", x=x, y=y)
+    window.event_simulate(type="MOUSEMOVE", value="NOTHING", x=area.x + 60, y=area.y + 60)
+    bpy.app.timers.register(shoot, first_interval=1.0)
 
 
 def shoot():

@@ -10,6 +10,8 @@
 #   WORK/sleeve_pose.dsdb             db build with its defaults: the pose model, which reads
 #                                     history frames before every frame
 #   WORK/cli/pose/sleeve.####.exr     bake of the test clip with it, frames 1-48, defaults
+#   WORK/cli/pose_tolerance/          the same with a coverage tolerance that flags part of the
+#     sleeve.report.json              clip; its report's per-frame verdicts
 #   WORK/drivenshape_blender.zip      the add-on, packed by scripts/blender_package.py
 # Usage: blender_fixture.sh CLI SOURCE_DIR WORK
 set -euo pipefail
@@ -19,7 +21,8 @@ work=$3
 data=$source_dir/tests/data/sleeve
 
 rm -rf "$work"
-mkdir -p "$work/cli/default" "$work/cli/bound" "$work/cli/bound_jump" "$work/cli/pose"
+mkdir -p "$work/cli/default" "$work/cli/bound" "$work/cli/bound_jump" "$work/cli/pose" \
+  "$work/cli/pose_tolerance"
 
 "$cli" db build --driver-mesh "$data/driver_rest.obj" --driven-mesh "$data/driven_rest.obj" \
   --driver "$data/train.driver.pc2" --driven "$data/train.driven.pc2" --count 30 --model none --quiet \
@@ -39,5 +42,9 @@ bound=(--max-weight-change 0.02 --batch 64)
   -o "$work/sleeve_pose.dsdb"
 "$cli" bake --db "$work/sleeve_pose.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
   -o "$work/cli/pose/sleeve.####.exr"
+# The default tolerance flags no frame of the test clip; this one flags part of it. It is
+# 91/8192, a float32 exactly, as Blender's float properties hold it.
+"$cli" bake --db "$work/sleeve_pose.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
+  --coverage-tolerance 0.0111083984375 -o "$work/cli/pose_tolerance/sleeve.####.exr"
 
 python3 "$source_dir/scripts/blender_package.py" -o "$work/drivenshape_blender.zip"

@@ -68,8 +68,8 @@ checks.check(units.system == "METRIC" and units.scale_length == 1.0,
              "the factory scene is metric at scale 1 (a Blender unit is a metre)")
 lines = addon.ui.coverage_lines(record, evaluator.describe_settings(), units)
 print(lines)
-expected = [(f"Predicted error {predicted * 1000.0:.1f} mm (pose model)", "INFO", False),
-            (f"Within {tolerance * 1000.0:.1f} mm: DrivenShape is enough", "CHECKMARK", False)]
+expected = [("Predicted", f"{predicted * 1000.0:.1f} mm", False),
+            ("Simulate", f"No: ≤ {tolerance * 1000.0:.1f} mm", False)]
 checks.check(not record.flagged and predicted < tolerance,
              f"frame {FRAME} is within the default tolerance {tolerance:.4g}")
 checks.check(lines == expected, f"the panel says {lines}, expected {expected}")
@@ -77,18 +77,16 @@ checks.check(lines == expected, f"the panel says {lines}, expected {expected}")
 # A scene in centimetres (unit scale 0.01): a Blender unit is 10 mm.
 units.scale_length = 0.01
 lines = addon.ui.coverage_lines(record, evaluator.describe_settings(), units)
-checks.check(lines[0][0] == f"Predicted error {predicted * 10.0:.1f} mm (pose model)",
-             f"centimetre scene: {lines[0][0]}")
+checks.check(lines[0][1] == f"{predicted * 10.0:.1f} mm", f"centimetre scene: {lines[0]}")
 units.system = "NONE"
 lines = addon.ui.coverage_lines(record, evaluator.describe_settings(), units)
-checks.check(lines[0][0] == f"Predicted error {predicted:.4g} BU (pose model)",
-             f"a scene without units: {lines[0][0]}")
+checks.check(lines[0][1] == f"{predicted:.4g} BU", f"a scene without units: {lines[0]}")
 units.system, units.scale_length = "METRIC", 1.0
 
 # A frame over the tolerance is an alert (the record's flag decides, as in the bake's report).
 over = types.SimpleNamespace(predicted_error=0.02, flagged=1)
 lines = addon.ui.coverage_lines(over, {"coverage_tolerance": 0.0125}, units)
-checks.check(lines[1] == ("Over 12.5 mm: simulate this pose", "ERROR", True),
+checks.check(lines[1] == ("Simulate", "Yes: > 12.5 mm", True),
              f"a flagged frame: {lines[1]}")
 
 # The QP predicts nothing: no coverage lines.

@@ -21,15 +21,25 @@ if "bpy" in locals():
     # F8 / "Reload Scripts": reload the submodules in dependency order.
     import importlib
 
-    for _name in ("module", "engine", "live", "bake", "properties", "operators", "ui"):
+    for _name in ("module", "engine", "coverage", "live", "bake", "properties", "operators",
+                  "ui"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
 import bpy  # noqa: E402,F401 (the reload test above looks for it)
 
-from . import bake, engine, live, module, operators, properties, ui  # noqa: E402,F401
+from . import (  # noqa: E402,F401
+    bake,
+    coverage,
+    engine,
+    live,
+    module,
+    operators,
+    properties,
+    ui,
+)
 
-_PARTS = (properties, operators, ui, live)
+_PARTS = (properties, operators, ui, live, coverage)
 
 
 def register():

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Baking a frame range (PC2, optional point-cache EXRs, a Mesh Cache modifier to show it) and
-building a database from the scene: the work behind the operators, without the UI, so that a
+"""Baking a frame range (PC2, optional point-cache EXRs, a Mesh Cache modifier to show it, the
+frames to simulate on the timeline), marking the frames to simulate without a bake, and building
+a database from the scene: the work behind the operators, without the UI, so that a
 modal operator can run it a few frames at a time and a script can run it all at once."""
 
 import os
@@ -8,7 +9,7 @@ import os
 import bpy
 import numpy as np
 
-from . import engine, live, module
+from . import coverage, engine, live, module
 from .engine import UserError
 
 # Driver frames read per step(): how often the modal bake looks at the keyboard and moves the
@@ -43,25 +44,37 @@ def prepare_folder(path, what):
 
 
 class Bake:
-    """Evaluates the scene's frame range into memory in the batches of the library's shot plan
-    (history and temporal warm-up frames as `drivenshape bake` reads them from a cache of the
-    scene's frame range), READ_STEP driver frames per step(); then finish() writes the PC2 and
-    sets up the Mesh Cache modifier. EXRs are written as batches finish."""
+    """Evaluates frames of the scene in the batches of the library's shot plan (history and
+    temporal warm-up frames as `drivenshape bake` reads them from a cache of the scene's frame
+    range), READ_STEP driver frames per step(); then finish() stores the frames' coverage
+    verdicts and the timeline markers (coverage.py) and, for a bake, writes the PC2 and sets up
+    the Mesh Cache modifier. EXRs are written as batches finish.
 
-    def __init__(self, context):
+    With `write_files` off (Mark Frames to Simulate) it evaluates the scene's frame range the
+    same way, keeps only the verdicts and writes nothing."""
+
+    def __init__(self, context, write_files=True):
         self.scene = scene = context.scene
         settings = scene.drivenshape
+        self.write_files = write_files
         self.driver, self.cloth = scene_objects(scene)
-        self.frames = bake_frames(scene)
-        self.pc2_setting = settings.bake_pc2_path
-        self.pc2_path = engine.abspath(settings.bake_pc2_path)
-        if not self.pc2_path:
-            raise UserError("Set the PC2 file the bake writes")
-        self.exr_pattern = engine.abspath(settings.bake_exr_pattern) \
-            if settings.bake_write_exr else None
-        if settings.bake_write_exr:
-            engine.expand_pattern(self.exr_pattern, self.frames[0])  # checks the pattern
-        self.add_mesh_cache = settings.bake_add_mesh_cache
+        if write_files:
+            self.frames = bake_frames(scene)
+            self.pc2_setting = settings.bake_pc2_path
+            self.pc2_path = engine.abspath(settings.bake_pc2_path)
+            if not self.pc2_path:
+                raise UserError("Set the PC2 file the bake writes")
+            self.exr_pattern = engine.abspath(settings.bake_exr_pattern) \
+                if settings.bake_write_exr else None
+            if settings.bake_write_exr:
+                engine.expand_pattern(self.exr_pattern, self.frames[0])  # checks the pattern
+            self.add_mesh_cache = settings.bake_add_mesh_cache
+        else:
+            if scene.frame_end < scene.frame_start:
+                raise UserError(f"The scene's frame range {scene.frame_start}-"
+                                f"{scene.frame_end} is empty")
+            self.frames = list(range(scene.frame_start, scene.frame_end + 1))
+            self.exr_pattern = None
         self.world = settings.space == "WORLD"
 
         # Live mode would evaluate every frame the bake steps through, and write the cloth.
@@ -72,20 +85,30 @@ class Bake:
             raise UserError(
                 f"The cloth object '{self.cloth.name}' has {len(self.cloth.data.vertices)} "
                 f"vertices; the database's driven mesh has {database.driven_vertex_count}")
+        described = self.evaluator.describe_settings()
+        if not write_files and described.get("weights") != "model":
+            raise UserError(
+                f"Only the pose model predicts which frames to simulate; these settings evaluate "
+                f"'{described.get('weights')}' weights. Set Weights to Auto or Pose model, with a "
+                "database built with the pose model")
+        self.tolerance = described.get("coverage_tolerance", -1.0)
         self.database = database
         self.topology_hash = database.driven_mesh.topology_hash
         self.plan = [(b.first, b.frames, b.solve_frames, len(b.warmup))
                      for b in engine.plan_shot(self.evaluator, scene, self.frames)]
         longest = max(len(solve) for _first, _frames, solve, _warm in self.plan)
-        self.cloth_frames = np.empty((len(self.frames), database.driven_vertex_count, 3),
-                                     dtype=np.float32)
+        # A bake keeps every frame for the PC2; a marking only one batch at a time.
+        kept = len(self.frames) if write_files else max(len(f) for _a, f, _b, _c in self.plan)
+        self.cloth_frames = np.empty((kept, database.driven_vertex_count, 3), dtype=np.float32)
         self.driver_batch = np.empty((longest, database.driver_vertex_count, 3), dtype=np.float32)
         self.cloth_matrices = [None] * len(self.frames)  # cloth to world, per frame (WORLD)
+        self.verdicts = []  # (frame, predicted error, flagged) of the frames with a prediction
         self.batch = 0  # the batch of the plan being read
         self.read = 0  # its driver frames read so far
         self.done = 0
         self.exr_written = 0
         self.frame_before = scene.frame_current
+        coverage.SUSPENDED = True
 
     @property
     def total(self):
@@ -112,13 +135,18 @@ class Bake:
 
     def evaluate_batch(self):
         first, frames, solve, warm = self.plan[self.batch]
-        out = self.cloth_frames[first:first + len(frames)]
+        at = first if self.write_files else 0
+        out = self.cloth_frames[at:at + len(frames)]
         self.evaluator.reset_temporal_bound()
         try:
-            self.evaluator.evaluate_into(solve, self.driver_batch[:len(solve)], out, warmup=warm)
+            records = self.evaluator.evaluate_into(solve, self.driver_batch[:len(solve)], out,
+                                                   warmup=warm)
         except Exception as error:
             raise UserError(f"Bake of frames {frames[0]}-{frames[-1]}: "
                             f"{engine.describe_error(error)}") from None
+        for record in records:
+            if record.predicted_error >= 0:
+                self.verdicts.append((record.frame, record.predicted_error, record.flagged == 1))
         if self.exr_pattern:
             for i, frame in enumerate(frames):
                 self.write_exr(frame, out[i])
@@ -140,10 +168,15 @@ class Bake:
         self.exr_written += 1
 
     def finish(self):
-        """Writes the PC2 (cloth object space), sets up the Mesh Cache modifier, puts the scene
-        back on its frame. Returns a summary for the report."""
-        ds = module.get()
+        """Puts the scene back on its frame, stores the verdicts and the markers; for a bake
+        writes the PC2 (cloth object space) and sets up the Mesh Cache modifier. Returns a
+        summary for the report."""
         self.restore_frame()
+        flagged = coverage.store(self.scene, self.verdicts, self.tolerance)
+        verdict = self.verdict_summary(flagged)
+        if not self.write_files:
+            return f"Frames {self.frames[0]}-{self.frames[-1]}: {verdict}"
+        ds = module.get()
         positions = self.cloth_frames
         if self.world:
             positions = positions.copy()
@@ -162,9 +195,19 @@ class Bake:
                    f"{self.pc2_path}")
         if self.exr_pattern:
             summary += f" and {self.exr_written} EXRs ({self.exr_pattern})"
-        return summary
+        return f"{summary}; {verdict}"
+
+    def verdict_summary(self, flagged):
+        if not self.verdicts:
+            return "no predicted errors (only the pose model predicts them)"
+        limit = engine.length_text(self.tolerance, self.scene.unit_settings)
+        if not flagged:
+            return f"none of {len(self.verdicts)} frames to simulate (all within {limit})"
+        return (f"{len(flagged)} of {len(self.verdicts)} frames to simulate (over {limit}), "
+                f"marked '{coverage.MARKER_PREFIX}' on the timeline")
 
     def restore_frame(self):
+        coverage.SUSPENDED = False
         if self.scene.frame_current != self.frame_before:
             self.scene.frame_set(self.frame_before)
 

@@ -64,8 +64,17 @@ def evaluator_kwargs(settings):
         exit_fade=settings.exit_fade,
         max_weight_change=settings.max_weight_change,
         audit=settings.audit,
+        coverage_tolerance=settings.coverage_tolerance,
         threads=settings.threads,
     )
+
+
+def length_text(value, unit_settings):
+    """A length in Blender units as the scene shows lengths: mm for a metric or imperial scene
+    (Blender units x the unit scale are metres), Blender units when the scene has no unit."""
+    if unit_settings.system == "NONE":
+        return f"{value:.4g} BU"
+    return f"{value * unit_settings.scale_length * 1000.0:.1f} mm"
 
 
 class EvaluatorCache:

@@ -28,7 +28,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from . import engine
+from . import coverage, engine
 from .engine import UserError
 
 # The one live session of this Blender (None when live mode is off), and the reason the last
@@ -47,6 +47,7 @@ class LiveSession:
         self.rest = None  # the cloth mesh's positions when live mode took it over
         self.hidden = []  # modifiers whose viewport display live mode turned off
         self.planner = None  # drivenshape.PlaybackPlanner of the current Evaluator
+        self.tolerance = -1.0  # the current Evaluator's coverage tolerance (scene units)
         self.driver_in = np.empty((1, 0, 3), dtype=np.float32)
         self.driver_seen = np.empty((1, 0, 3), dtype=np.float32)
         self.block = np.empty((1, 0, 3), dtype=np.float32)  # warm-up frames, then the frame
@@ -106,6 +107,7 @@ class LiveSession:
     def prepare(self, evaluator, database):
         """Buffers and the playback plan for a new Evaluator."""
         self.planner = engine.playback_planner(evaluator)
+        self.tolerance = evaluator.describe_settings().get("coverage_tolerance", -1.0)
         driver_count = database.driver_vertex_count
         self.recent = {f: p for f, p in self.recent.items() if len(p) == driver_count}
         self.driver_in = np.empty((1, driver_count, 3), dtype=np.float32)
@@ -157,6 +159,9 @@ class LiveSession:
         result = self.cloth_out[0]
         if world:
             result = engine.to_space(result.copy(), cloth.matrix_world.inverted())
+        if settings.error_colors:
+            coverage.paint(cloth, records[0].predicted_error if records else None,
+                           self.tolerance, tag=False)  # write_positions updates the mesh
         engine.write_positions(cloth, result)
         self.cloth_written = result
         done = time.perf_counter()
@@ -252,6 +257,9 @@ def stop(restore=True):
     if session is not None:
         restore = restore and _restore_setting(session)
         session.give_back_cloth(restore=restore)
+        scene = bpy.data.scenes.get(session.scene_name)
+        if scene is not None:
+            coverage.paint_stored(scene)  # the stored verdict's colour, not the live frame's
         redraw_panels()
 
 

@@ -1,14 +1,15 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Operators: live mode on and off, building a database, baking (modal with progress and Esc
-from the UI, all at once from scripts), the Mesh Cache modifier, retrying the module import.
+"""Operators: live mode on and off, building a database, baking and marking the frames to simulate
+(modal with progress and Esc from the UI, all at once from scripts), going to the flagged
+frames, the Mesh Cache modifier, retrying the module import.
 Every failure is reported with self.report({'ERROR'}, ...) naming the file, frame or object."""
 
 import time
 
 import bpy
-from bpy.props import StringProperty
+from bpy.props import BoolProperty, StringProperty
 
-from . import bake, engine, live, module
+from . import bake, coverage, engine, live, module
 from .engine import UserError
 
 
@@ -72,21 +73,20 @@ class DRIVENSHAPE_OT_build_database(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class DRIVENSHAPE_OT_bake(bpy.types.Operator):
-    bl_idname = "drivenshape.bake"
-    bl_label = "Bake"
-    bl_description = ("Evaluate the frame range, write a PC2 (and EXR point caches) and show it "
-                      "on the cloth with a Mesh Cache modifier. Esc cancels")
-    bl_options = {"REGISTER"}
+class _ShotOperator:
+    """Runs a bake.Bake job: all at once from a script (execute), a few frames per timer tick
+    from the UI (invoke, modal) with a progress bar and the status text; Esc cancels."""
 
     STEP_SECONDS = 0.2
+    WRITE_FILES = True
+    STATUS = "DrivenShape"
     _bake = None
     _timer = None
 
     def execute(self, context):
         # From scripts (and background mode): the whole range at once.
         try:
-            job = bake.Bake(context)
+            job = bake.Bake(context, write_files=self.WRITE_FILES)
         except Exception as error:
             return _report_failure(self, error)
         window_manager = context.window_manager
@@ -106,7 +106,7 @@ class DRIVENSHAPE_OT_bake(bpy.types.Operator):
     def invoke(self, context, _event):
         # From the UI: a few frames per timer tick, progress in the status bar, Esc cancels.
         try:
-            self._bake = bake.Bake(context)
+            self._bake = bake.Bake(context, write_files=self.WRITE_FILES)
         except Exception as error:
             return _report_failure(self, error)
         window_manager = context.window_manager
@@ -121,9 +121,8 @@ class DRIVENSHAPE_OT_bake(bpy.types.Operator):
             frame = self._bake.frames[min(self._bake.done, self._bake.total - 1)]
             self._end(context)
             self._bake.restore_frame()
-            written = (f"; {self._bake.exr_written} EXRs were written"
-                       if self._bake.exr_written else "")
-            self.report({"WARNING"}, f"Bake cancelled at frame {frame}: no PC2 written{written}")
+            self.report({"WARNING"}, f"{self.bl_label} cancelled at frame {frame}: "
+                        f"{self._cancelled()}")
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"RUNNING_MODAL"}
@@ -146,10 +145,13 @@ class DRIVENSHAPE_OT_bake(bpy.types.Operator):
         self.report({"INFO"}, summary)
         return {"FINISHED"}
 
+    def _cancelled(self):
+        return "the markers are as they were"
+
     def _status(self, context):
         job = self._bake
         context.workspace.status_text_set(
-            f"DrivenShape bake: {job.done}/{job.total} frames (Esc to cancel)")
+            f"{self.STATUS}: {job.done}/{job.total} frames (Esc to cancel)")
 
     def _end(self, context):
         window_manager = context.window_manager
@@ -158,6 +160,71 @@ class DRIVENSHAPE_OT_bake(bpy.types.Operator):
             self._timer = None
         window_manager.progress_end()
         context.workspace.status_text_set(None)
+
+
+class DRIVENSHAPE_OT_bake(_ShotOperator, bpy.types.Operator):
+    bl_idname = "drivenshape.bake"
+    bl_label = "Bake"
+    bl_description = ("Evaluate the frame range, write a PC2 (and EXR point caches), show it "
+                      "on the cloth with a Mesh Cache modifier and mark the frames to simulate "
+                      "on the timeline. Esc cancels")
+    bl_options = {"REGISTER"}
+    STATUS = "DrivenShape bake"
+
+    def _cancelled(self):
+        written = (f"; {self._bake.exr_written} EXRs were written"
+                   if self._bake.exr_written else "")
+        return f"no PC2 written{written}"
+
+
+class DRIVENSHAPE_OT_mark_frames(_ShotOperator, bpy.types.Operator):
+    bl_idname = "drivenshape.mark_frames"
+    bl_label = "Mark Frames to Simulate"
+    bl_description = ("Evaluate the scene's frame range as the bake does, writing no file, and "
+                      "put a timeline marker on every frame the pose model says to simulate "
+                      "(its predicted error is over the tolerance). Esc cancels")
+    bl_options = {"REGISTER", "UNDO"}
+    WRITE_FILES = False
+    STATUS = "DrivenShape: marking frames to simulate"
+
+
+class DRIVENSHAPE_OT_jump_flagged(bpy.types.Operator):
+    bl_idname = "drivenshape.jump_flagged"
+    bl_label = "Next Frame to Simulate"
+    bl_description = ("Go to the next frame the last bake or marking flagged to simulate "
+                      "(wraps around)")
+    bl_options = {"REGISTER"}
+
+    previous: BoolProperty(name="Previous", default=False,
+                           description="Go to the previous flagged frame instead")
+
+    @classmethod
+    def description(cls, _context, properties):
+        if properties.previous:
+            return "Go to the previous frame flagged to simulate (wraps around)"
+        return cls.bl_description
+
+    def execute(self, context):
+        scene = context.scene
+        frame = coverage.next_flagged(scene.drivenshape, scene.frame_current, self.previous)
+        if frame is None:
+            self.report({"INFO"}, "No frame is flagged to simulate: bake, or Mark Frames to "
+                        "Simulate, with the pose model")
+            return {"CANCELLED"}
+        scene.frame_set(frame)
+        return {"FINISHED"}
+
+
+class DRIVENSHAPE_OT_clear_marks(bpy.types.Operator):
+    bl_idname = "drivenshape.clear_marks"
+    bl_label = "Clear Frames to Simulate"
+    bl_description = ("Remove the add-on's timeline markers and the stored verdicts (your own "
+                      "markers stay)")
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        coverage.clear(context.scene)
+        return {"FINISHED"}
 
 
 class DRIVENSHAPE_OT_add_mesh_cache(bpy.types.Operator):
@@ -210,6 +277,9 @@ CLASSES = (
     DRIVENSHAPE_OT_live_stop,
     DRIVENSHAPE_OT_build_database,
     DRIVENSHAPE_OT_bake,
+    DRIVENSHAPE_OT_mark_frames,
+    DRIVENSHAPE_OT_jump_flagged,
+    DRIVENSHAPE_OT_clear_marks,
     DRIVENSHAPE_OT_add_mesh_cache,
     DRIVENSHAPE_OT_retry_import,
 )

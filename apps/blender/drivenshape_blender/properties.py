@@ -5,6 +5,7 @@ add-on preference that says where the drivenshape module is."""
 import bpy
 from bpy.props import (
     BoolProperty,
+    CollectionProperty,
     EnumProperty,
     FloatProperty,
     IntProperty,
@@ -14,20 +15,21 @@ from bpy.props import (
 
 WEIGHT_MODES = (
     ("auto", "Auto", "The pose model when the database has one, else the DrivenShape QP"),
-    ("model", "Pose model", "The rest binding plus the pose model's learned correction, fitted "
+    ("model", "Pose Model", "The rest binding plus the pose model's learned correction, fitted "
      "over the whole reference clip"),
-    ("qp", "DrivenShape (QP)", "Blend weights that best reproduce the pose: the DrivenShape QP"),
-    ("nearest", "Nearest shape", "Baseline: all weight on the closest database driver shape"),
-    ("bind", "Bind only", "Baseline: no database shapes; the rest cloth carried by the driver"),
+    ("qp", "QP Blend", "DrivenShape as in the talk: blend weights that best reproduce the pose "
+     "(a QP)"),
+    ("nearest", "Nearest", "Baseline: all weight on the closest database driver shape"),
+    ("bind", "Bind Only", "Baseline: no database shapes; the rest cloth carried by the driver"),
 )
 ALIGN_MODES = (
     ("rigid", "Rigid", "Fit each frame rigidly to the rest driver, following its most rigid "
      "part (the pelvis, not the legs) before solving the weights"),
-    ("rigid-all", "Rigid (all vertices)", "The same rigid fit, every vertex weighted alike"),
+    ("rigid-all", "Rigid (All)", "The same rigid fit, every vertex weighted alike"),
     ("none", "None", "Compare world positions, as in the talk"),
 )
 BLEND_MODES = (
-    ("local", "Local frames", "Blend the shapes' offsets in the driver's local frames and "
+    ("local", "Local Frames", "Blend the shapes' offsets in the driver's local frames and "
      "rebuild them on the current pose (no per-frame search)"),
     ("world", "World", "Blend world positions, then correct onto the pose (the talk)"),
 )
@@ -38,9 +40,10 @@ SPACES = (
      "into the cloth object's space when written"),
 )
 BUILD_SOURCES = (
-    ("ANIMATION", "Objects' animation", "Sample the driver's and the cloth's evaluated meshes "
-     "over the frame range (Mesh Cache modifiers, a cloth simulation, an armature)"),
-    ("PC2", "PC2 files", "Read the reference driver and cloth animation from PC2 files"),
+    ("ANIMATION", "Animation", "The objects' animation: sample the driver's and the cloth's "
+     "evaluated meshes over the frame range (Mesh Cache modifiers, a cloth simulation, an "
+     "armature)"),
+    ("PC2", "PC2 Files", "Read the reference driver and cloth animation from PC2 files"),
 )
 
 
@@ -53,6 +56,24 @@ def _settings_changed(_self, context):
     from . import live  # noqa: PLC0415
 
     live.settings_changed(context)
+
+
+def _error_colors_changed(_self, context):
+    from . import coverage  # noqa: PLC0415
+
+    coverage.error_colors_changed(context)
+
+
+class DrivenShapeVerdict(bpy.types.PropertyGroup):
+    """One evaluated frame's coverage verdict, from the last bake or Mark Frames to Simulate."""
+
+    frame: IntProperty(name="Frame")
+    predicted_error: FloatProperty(name="Predicted Error", unit="LENGTH",
+                                   description="Predicted mean vertex error (scene units)")
+    flagged: BoolProperty(name="Simulate",
+                          description="The predicted error is over the coverage tolerance")
+    marker: StringProperty(name="Marker",
+                           description="The timeline marker the add-on put on the frame, if any")
 
 
 class DrivenShapeSettings(bpy.types.PropertyGroup):
@@ -130,6 +151,23 @@ class DrivenShapeSettings(bpy.types.PropertyGroup):
         name="Threads", default=0, min=0, soft_max=64, update=_settings_changed,
         description="Host threads (0: all cores)")
     space: EnumProperty(name="Space", items=SPACES, default="LOCAL", update=_settings_changed)
+    coverage_tolerance: FloatProperty(
+        name="Tolerance", default=0.0, min=0.0, soft_max=0.1, precision=4, step=0.1,
+        unit="LENGTH", update=_settings_changed,
+        description="Coverage tolerance: a frame whose predicted mean vertex error (pose model) "
+        "is over it is flagged to simulate (0: 2% of the cloth's rest bounding-box diagonal, "
+        "as in the command line)")
+
+    # The last bake's or Mark Frames to Simulate's verdicts (coverage.py).
+    verdicts: CollectionProperty(type=DrivenShapeVerdict)
+    verdict_tolerance: FloatProperty(
+        name="Tolerance Used", default=-1.0, unit="LENGTH",
+        description="The coverage tolerance of the stored verdicts (-1: none stored)")
+    error_colors: BoolProperty(
+        name="Error Colors", default=False, update=_error_colors_changed,
+        description="Color the cloth by the pose model's predicted error (one color per frame: "
+        "green at half the tolerance, yellow at it, red at 1.5 times it), in a color attribute "
+        "shown by Solid shading's Attribute colors")
 
     # Live mode.
     live_restore: BoolProperty(
@@ -182,7 +220,7 @@ class DrivenShapePreferences(bpy.types.AddonPreferences):
         layout.operator("drivenshape.retry_import")
 
 
-CLASSES = (DrivenShapeSettings, DrivenShapePreferences)
+CLASSES = (DrivenShapeVerdict, DrivenShapeSettings, DrivenShapePreferences)
 
 
 def register():

@@ -1,9 +1,17 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The DrivenShape tab of the 3D view's sidebar (N panel)."""
+"""The DrivenShape tab of the 3D view's sidebar (N panel).
+
+Everything fits the sidebar's default width (about 190 pixels of text at a UI scale of 1): short
+labels in a property split (the tooltips carry the detail), values that could be long as
+label-value pairs, messages wrapped to the region's width, rarely changed settings in closed
+sub-panels. scripts/blender_screenshot.py shows it at that width."""
 
 import bpy
 
-from . import engine, live, module
+from . import coverage, engine, live, module
+
+# Average width of a character of the UI font at a UI scale of 1, in pixels (for wrapping).
+CHAR_PIXELS = 7.0
 
 
 class _Panel:
@@ -12,7 +20,20 @@ class _Panel:
     bl_category = "DrivenShape"
 
 
-def _wrapped(layout, text, icon="NONE", alert=False, width=48):
+def _split(layout):
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
+def _chars(context):
+    """How many characters of a message fit on a line of the region (after an icon)."""
+    region = getattr(context, "region", None)
+    width = region.width if region else 220
+    return max(16, int(width / (CHAR_PIXELS * context.preferences.view.ui_scale)) - 7)
+
+
+def _wrapped(layout, text, width, icon="NONE", alert=False):
     """A long message as several labels (panels do not wrap text)."""
     column = layout.column(align=True)
     column.alert = alert
@@ -27,29 +48,60 @@ def _wrapped(layout, text, icon="NONE", alert=False, width=48):
         column.label(text=line, icon=icon if first else "BLANK1")
 
 
+def _pair(layout, label, value, icon="NONE", alert=False):
+    """A read-only value beside its label, aligned as a property split aligns them."""
+    split = layout.split(factor=0.4)
+    left = split.row()
+    left.alignment = "RIGHT"
+    left.label(text=label)
+    right = split.row()
+    right.alert = alert
+    right.label(text=value, icon=icon)
+
+
 def length_text(value, unit_settings):
-    """A length in Blender units as the scene shows lengths: mm for a metric or imperial scene
-    (Blender units x the unit scale are metres), Blender units when the scene has no unit."""
-    if unit_settings.system == "NONE":
-        return f"{value:.4g} BU"
-    return f"{value * unit_settings.scale_length * 1000.0:.1f} mm"
+    return engine.length_text(value, unit_settings)
 
 
 def coverage_lines(record, settings, unit_settings):
-    """The pose model's verdict on the live frame: [(text, icon, alert)], empty when the model that
-    evaluated it predicts nothing (the QP, the nearest shape, the rest binding). `settings` is
-    the Evaluator's describe_settings() (its coverage_tolerance, what the bake's report states)."""
+    """The pose model's verdict on the live frame: [(label, value, alert)], empty when the model
+    that evaluated it predicts nothing (the QP, the nearest shape, the rest binding). `settings`
+    is the Evaluator's describe_settings() (its coverage_tolerance, what the bake's report
+    states)."""
     if record is None or record.predicted_error < 0:
         return []
     predicted = length_text(record.predicted_error, unit_settings)
     tolerance = settings.get("coverage_tolerance")
-    limit = "the tolerance" if tolerance is None else length_text(tolerance, unit_settings)
-    lines = [(f"Predicted error {predicted} (pose model)", "INFO", False)]
+    limit = "tolerance" if tolerance is None else length_text(tolerance, unit_settings)
+    lines = [("Predicted", predicted, False)]
     if record.flagged == 1:
-        lines.append((f"Over {limit}: simulate this pose", "ERROR", True))
+        lines.append(("Simulate", f"Yes: > {limit}", True))
     else:
-        lines.append((f"Within {limit}: DrivenShape is enough", "CHECKMARK", False))
+        lines.append(("Simulate", f"No: ≤ {limit}", False))
     return lines
+
+
+def verdict_lines(settings, unit_settings):
+    """What the stored verdicts (the last bake or marking) say: [(label, value, alert)], empty
+    when none are stored."""
+    verdicts = settings.verdicts
+    if not verdicts:
+        return []
+    flagged = len(coverage.flagged_frames(settings))
+    frames = f"{verdicts[0].frame}-{verdicts[-1].frame}"
+    return [("Frames", frames, False),
+            ("Simulate", f"{flagged} of {len(verdicts)}", flagged > 0),
+            ("Tolerance", length_text(settings.verdict_tolerance, unit_settings), False)]
+
+
+def color_scale_lines(tolerance, unit_settings):
+    """The Error Colors scale: [(icon, text)] from green to red, in the scene's units."""
+    if tolerance is None or tolerance <= 0:
+        return [("SEQUENCE_COLOR_09", "No prediction yet")]
+    return [("SEQUENCE_COLOR_04", f"{length_text(0.5 * tolerance, unit_settings)} or less"),
+            ("SEQUENCE_COLOR_03", f"{length_text(tolerance, unit_settings)} tolerance"),
+            ("SEQUENCE_COLOR_01", f"{length_text(1.5 * tolerance, unit_settings)} or more"),
+            ("SEQUENCE_COLOR_09", "No prediction")]
 
 
 class DRIVENSHAPE_PT_main(_Panel, bpy.types.Panel):
@@ -60,45 +112,80 @@ class DRIVENSHAPE_PT_main(_Panel, bpy.types.Panel):
         settings = context.scene.drivenshape
         ok, text = module.status()
         if not ok:
-            _wrapped(layout, text, icon="ERROR", alert=True)
-            layout.operator("drivenshape.retry_import", icon="FILE_REFRESH")
+            _wrapped(layout, text, _chars(context), icon="ERROR", alert=True)
+            layout.operator("drivenshape.retry_import", text="Retry", icon="FILE_REFRESH")
             return
 
-        column = layout.column()
+        column = _split(layout.column())
         column.prop(settings, "driver", icon="OUTLINER_OB_ARMATURE")
         column.prop(settings, "cloth", icon="MOD_CLOTH")
         column.prop(settings, "database_path")
 
         box = layout.box()
+        units = context.scene.unit_settings
         if live.is_live(context.scene):
             box.operator("drivenshape.live_stop", text="Live Mode", icon="PAUSE", depress=True)
             stats = live.SESSION.stats()
             if stats:
                 read, evaluate, write, total = stats
-                box.label(text=f"Handler: {total:.1f} ms/frame ({1000.0 / total:.0f} fps)",
-                          icon="TIME")
-                box.label(text=f"read {read:.2f} · evaluate {evaluate:.1f} · write {write:.2f}")
+                _pair(box, "Frame", f"{total:.1f} ms, {1000.0 / total:.0f} fps")
+                _pair(box, "Evaluate", f"{evaluate:.1f} ms")
+                _pair(box, "Read", f"{read:.2f} ms")
+                _pair(box, "Write", f"{write:.2f} ms")
             record = live.SESSION.last_record
             if record is not None and record.inside_after >= 0:  # measured with Audit on
-                units = context.scene.unit_settings
-                jump = (f" · largest jump {length_text(record.max_jump, units)}"
-                        if record.max_jump >= 0 else "")
-                box.label(text=f"inside the body: {record.inside_after}{jump}")
+                _pair(box, "Inside", f"{record.inside_after} vertices")
+                if record.max_jump >= 0:
+                    _pair(box, "Jump", length_text(record.max_jump, units))
             evaluator = engine.CACHE.evaluator
             if record is not None and evaluator is not None:
-                for text, icon, alert in coverage_lines(record, evaluator.describe_settings(),
-                                                        context.scene.unit_settings):
-                    row = box.row()
-                    row.alert = alert
-                    row.label(text=text, icon=icon)
+                for label, value, alert in coverage_lines(record, evaluator.describe_settings(),
+                                                          units):
+                    _pair(box, label, value, alert=alert)
             device = engine.CACHE.device
             if device is not None and device.note:  # "auto" found no OpenCL device
-                _wrapped(box, device.note, icon="INFO")
+                _wrapped(box, device.note, _chars(context), icon="INFO")
         else:
             box.operator("drivenshape.live_start", text="Live Mode", icon="PLAY")
-        box.prop(settings, "live_restore")
+        box.prop(settings, "live_restore", text="Restore on Stop")
         if live.LAST_ERROR:
-            _wrapped(box, live.LAST_ERROR, icon="ERROR", alert=True)
+            _wrapped(box, live.LAST_ERROR, _chars(context), icon="ERROR", alert=True)
+
+
+class DRIVENSHAPE_PT_coverage(_Panel, bpy.types.Panel):
+    bl_label = "Frames to Simulate"
+    bl_parent_id = "DRIVENSHAPE_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        scene = context.scene
+        settings = scene.drivenshape
+        units = scene.unit_settings
+        _split(layout).prop(settings, "coverage_tolerance")
+        layout.operator("drivenshape.mark_frames", text="Mark Frames", icon="MARKER_HLT")
+        lines = verdict_lines(settings, units)
+        if not lines:
+            _wrapped(layout, "Bake or mark frames (pose model) to see which to simulate.",
+                     _chars(context), icon="INFO")
+        for label, value, alert in lines:
+            _pair(layout, label, value, alert=alert)
+        if coverage.flagged_frames(settings):
+            row = layout.row(align=True)
+            row.operator("drivenshape.jump_flagged", text="", icon="TRIA_LEFT").previous = True
+            row.operator("drivenshape.jump_flagged", text="Next", icon="TRIA_RIGHT").previous \
+                = False
+            row.operator("drivenshape.clear_marks", text="", icon="X")
+        elif lines:
+            layout.operator("drivenshape.clear_marks", text="Clear", icon="X")
+
+        layout.prop(settings, "error_colors")
+        if settings.error_colors:
+            tolerance = settings.verdict_tolerance
+            if live.is_live(scene) and live.SESSION.tolerance > 0:
+                tolerance = live.SESSION.tolerance
+            column = layout.column(align=True)
+            for icon, text in color_scale_lines(tolerance, units):
+                column.label(text=text, icon=icon)
 
 
 class DRIVENSHAPE_PT_settings(_Panel, bpy.types.Panel):
@@ -106,27 +193,42 @@ class DRIVENSHAPE_PT_settings(_Panel, bpy.types.Panel):
     bl_parent_id = "DRIVENSHAPE_PT_main"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = _split(self.layout)
         settings = context.scene.drivenshape
         layout.prop(settings, "weight_mode")
         layout.prop(settings, "align")
         layout.prop(settings, "blend")
-        layout.prop(settings, "correct")
-        column = layout.column()
-        column.prop(settings, "resolve")
-        row = column.row()
-        row.active = settings.resolve
-        row.prop(settings, "skin_offset")
-        row = column.row()
-        row.active = settings.resolve
-        row.prop(settings, "exit_fade")
-        layout.prop(settings, "max_weight_change")
-        layout.prop(settings, "audit")
         layout.prop(settings, "space")
+        layout.prop(settings, "max_weight_change", text="Temporal")
+
+
+class DRIVENSHAPE_PT_collision(_Panel, bpy.types.Panel):
+    bl_label = "Collision"
+    bl_parent_id = "DRIVENSHAPE_PT_settings"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = _split(self.layout)
+        settings = context.scene.drivenshape
+        layout.column(heading="Collision").prop(settings, "correct", text="Correction")
+        layout.column(heading="Resolve").prop(settings, "resolve", text="Penetrations")
+        column = layout.column()
+        column.active = settings.resolve
+        column.prop(settings, "skin_offset", text="Offset")
+        column.prop(settings, "exit_fade")
+
+
+class DRIVENSHAPE_PT_device(_Panel, bpy.types.Panel):
+    bl_label = "Device"
+    bl_parent_id = "DRIVENSHAPE_PT_settings"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = _split(self.layout)
+        settings = context.scene.drivenshape
         layout.prop(settings, "device")
         layout.prop(settings, "threads")
+        layout.prop(settings, "audit")
 
 
 class DRIVENSHAPE_PT_build(_Panel, bpy.types.Panel):
@@ -135,21 +237,19 @@ class DRIVENSHAPE_PT_build(_Panel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = _split(self.layout)
         settings = context.scene.drivenshape
-        layout.prop(settings, "build_source")
+        layout.prop(settings, "build_source", text="From")
         if settings.build_source == "PC2":
-            layout.prop(settings, "build_driver_pc2")
-            layout.prop(settings, "build_cloth_pc2")
+            layout.prop(settings, "build_driver_pc2", text="Driver")
+            layout.prop(settings, "build_cloth_pc2", text="Cloth")
         column = layout.column(align=True)
         column.prop(settings, "build_frame_start", text="Frame Start")
         column.prop(settings, "build_frame_end", text="End")
         layout.prop(settings, "build_count")
         layout.prop(settings, "build_model")
         layout.prop(settings, "build_output")
-        layout.operator("drivenshape.build_database", icon="IMPORT")
+        layout.operator("drivenshape.build_database", text="Build", icon="IMPORT")
 
 
 class DRIVENSHAPE_PT_bake(_Panel, bpy.types.Panel):
@@ -157,9 +257,7 @@ class DRIVENSHAPE_PT_bake(_Panel, bpy.types.Panel):
     bl_parent_id = "DRIVENSHAPE_PT_main"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = _split(self.layout)
         settings = context.scene.drivenshape
         layout.prop(settings, "bake_use_scene_range")
         column = layout.column(align=True)
@@ -167,16 +265,17 @@ class DRIVENSHAPE_PT_bake(_Panel, bpy.types.Panel):
         column.prop(settings, "bake_frame_start", text="Frame Start")
         column.prop(settings, "bake_frame_end", text="End")
         layout.prop(settings, "bake_pc2_path")
-        layout.prop(settings, "bake_write_exr")
+        layout.column(heading="EXR").prop(settings, "bake_write_exr", text="Point Caches")
         row = layout.row()
         row.active = settings.bake_write_exr
-        row.prop(settings, "bake_exr_pattern")
-        layout.prop(settings, "bake_add_mesh_cache")
+        row.prop(settings, "bake_exr_pattern", text="Pattern")
+        layout.column(heading="Add").prop(settings, "bake_add_mesh_cache", text="Mesh Cache")
         layout.operator("drivenshape.bake", icon="RENDER_ANIMATION")
         layout.operator("drivenshape.add_mesh_cache", icon="MOD_MESHDEFORM")
 
 
-CLASSES = (DRIVENSHAPE_PT_main, DRIVENSHAPE_PT_settings, DRIVENSHAPE_PT_build,
+CLASSES = (DRIVENSHAPE_PT_main, DRIVENSHAPE_PT_coverage, DRIVENSHAPE_PT_settings,
+           DRIVENSHAPE_PT_collision, DRIVENSHAPE_PT_device, DRIVENSHAPE_PT_build,
            DRIVENSHAPE_PT_bake)
 
 
