@@ -20,7 +20,7 @@
 # the OLD binary's sha256 matches; the NEW side is baked every run (OUTDIR/new-*.json). Bakes go
 # to OUTDIR/work and are deleted once hashed (KEEP_BAKES=1 keeps them).
 # Environment: DRIVENSHAPE_DATA (default ../shared/data), CLIPS (default "pants sleeve"),
-#   MODES (default "default talk bind"), DEVICES (default "host cpu"), HOST_STEP (bake every
+#   MODES (default "default talk bind"; also qp: --weights qp), DEVICES (default "host cpu"), HOST_STEP (bake every
 #   Nth frame on the host path; default 1 = every frame: the host bakes a whole clip in ~5 s).
 # Exit status: 0 when every compared bake is pixel-identical with identical report records, 1
 # otherwise (or on a failed bake).
@@ -55,6 +55,7 @@ mode_flags() {
     default) echo "" ;;
     talk) echo "--align none --blend world --no-resolve" ;;
     bind) echo "--weights bind" ;;
+    qp) echo "--weights qp" ;;
     *) echo "golden_clips: unknown mode '$1'" >&2; exit 2 ;;
   esac
 }
