@@ -22,6 +22,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/hash.h>
 #include <drivenshape/position_map.h>
+#include <drivenshape/settings_table.h>
 #include "atomic_file.h"
 #include "parallel.h"
 #include "progress.h"
@@ -276,8 +277,10 @@ extern "C" void onStopSignal(int) {
 
 class CliObserver : public BakeObserver {
  public:
-  explicit CliObserver(long total, bool quiet)
-      : mProgress("bake", quiet ? 0 : total), mQuiet(quiet) {}
+  /// `verbose`: a line per frame on a terminal too (instead of the bar), with the frame's
+  /// predicted error and verdict.
+  CliObserver(long total, bool quiet, bool verbose)
+      : mProgress("bake", quiet || verbose ? 0 : total), mQuiet(quiet), mVerbose(verbose) {}
   bool stopRequested() override { return gStopRequested.load(); }
   /// Position maps straight from the baked positions (bake --posmap).
   void setPositionMaps(std::unique_ptr<PositionMapWriter> writer, std::string pattern) {
@@ -305,6 +308,12 @@ class CliObserver : public BakeObserver {
     if (mQuiet) {
       return;
     }
+    if (mVerbose) {
+      std::fprintf(stderr, "frame %d baked in %.4f s, residual %.3e%s -> %s\n", record.frame,
+                   seconds, record.relativeResidual, verdictText(record).c_str(),
+                   record.output.c_str());
+      return;
+    }
     if (!mProgress.isTerminal()) {
       std::fprintf(stderr, "frame %d baked in %.4f s, residual %.3e -> %s\n", record.frame, seconds,
                    record.relativeResidual, record.output.c_str());
@@ -312,14 +321,26 @@ class CliObserver : public BakeObserver {
     mProgress.advance();
   }
   void finish() {
-    if (!mQuiet) {
+    if (!mQuiet && !mVerbose) {
       mProgress.finish();
     }
   }
 
  private:
+  /// ", predicted error E, simulate" for a frame the pose model predicted, else "".
+  static std::string verdictText(const FrameRecord& record) {
+    if (record.predictedError < 0) {
+      return "";
+    }
+    std::ostringstream text;
+    text << ", predicted error " << std::setprecision(4) << record.predictedError
+         << (record.flagged > 0 ? ", simulate" : ", enough");
+    return text.str();
+  }
+
   Progress mProgress;
   bool mQuiet;
+  bool mVerbose;
   std::unique_ptr<PositionMapWriter> mMaps;
   std::string mMapPattern;
 };
@@ -381,6 +402,7 @@ int runBake(const std::vector<std::string>& args) {
             "fsync every output before its atomic rename (survives a power loss; costs a disk "
             "or NFS round trip per frame)")
       .flag("--quiet", "no progress or per-frame lines")
+      .flag("--verbose", "also print every setting, a line per frame and the seconds per stage")
       .epilog(
           "Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical, "
           "7 interrupted.");
@@ -573,6 +595,40 @@ void printBakeSummary(const BakeResult& result, const BakeOptions& options,
   }
 }
 
+/// bake --verbose: every setting of the settings table by its label, with its value and, where
+/// it is not the default, the default.
+void printSettings(const BakeOptions& options) {
+  std::cerr << "settings:\n";
+  for (const Setting& setting : settingsTable()) {
+    if (setting.flag == nullptr || !(hasEvaluatorValue(setting) || hasBakeValue(setting))) {
+      continue;
+    }
+    const SettingValue value = hasEvaluatorValue(setting) ? settingValue(setting, options.evaluator)
+                                                          : settingValue(setting, options);
+    const std::string text = formatSettingValue(value);
+    const std::string fallback = formatSettingValue(defaultSettingValue(setting));
+    std::string unit = *setting.unit != '\0' ? std::string(" ") + setting.unit : "";
+    if (text == "0" && *setting.zero != '\0') {
+      unit += std::string(" (") + setting.zero + ")";
+    }
+    std::cerr << "  " << std::left << std::setw(24) << setting.label
+              << (text.empty() ? "-" : text + unit)
+              << (text == fallback ? "" : "  (default " + (fallback.empty() ? "-" : fallback) + ")")
+              << "\n";
+  }
+}
+
+/// bake --verbose: the seconds of each stage over the whole bake.
+void printStageSeconds(const BakeResult& result) {
+  std::cerr << "seconds:" << std::fixed << std::setprecision(3);
+  for (const auto& [stage, seconds] : result.times.stages) {
+    std::cerr << " " << stage << " " << seconds << ",";
+  }
+  std::cerr << " read " << result.times.read << ", write " << result.times.write << ", setup "
+            << result.times.setup << ", total " << result.times.total << "\n";
+  std::cerr.unsetf(std::ios::floatfield);
+}
+
 int bakeParsed(const ArgParser& parser) {
   BakeOptions options = bakeOptions(parser);
   const std::string posmapPattern = posmapPatternOf(parser, options);
@@ -591,17 +647,27 @@ int bakeParsed(const ArgParser& parser) {
   const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
   const std::string device = target->description();
   const bool quiet = parser.has("--quiet");
+  const bool verbose = parser.has("--verbose");
+  if (quiet && verbose) {
+    DS_THROW(kUsage, "--quiet and --verbose contradict each other; give one");
+  }
   createBakeFolders(options, posmapPattern, quiet);
+  if (verbose) {
+    printSettings(options);
+  }
   if (!quiet) {
     std::cerr << "baking " << options.frames.size() << " frames ("
               << formatFrameRange(options.frames) << ") on " << device << "\n";
   }
-  CliObserver observer(static_cast<long>(options.frames.size()), quiet);
+  CliObserver observer(static_cast<long>(options.frames.size()), quiet, verbose);
   if (!posmapPattern.empty()) {
     attachPositionMaps(parser, options, db, *target, posmapPattern, observer);
   }
   const BakeResult result = bake(db, *driver, *target, options, &observer);
   observer.finish();
+  if (verbose) {
+    printStageSeconds(result);
+  }
   printBakeSummary(result, options, posmapPattern, device);
   return 0;
 }

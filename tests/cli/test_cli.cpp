@@ -20,6 +20,7 @@
 
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+#include <drivenshape/settings_table.h>
 
 #include "cli_test_util.h"
 #include "test_support.h"
@@ -292,6 +293,34 @@ TEST(Cli, BakeAndPosmapCreateMissingOutputFoldersAndSaySo) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("created folder " + dir.file("posmaps")), std::string::npos) << r.err;
   EXPECT_EQ(filesIn(dir.file("posmaps")).size(), 2u);
+}
+
+TEST(Cli, BakeVerboseNamesEverySettingEachFrameAndTheStages) {
+  TempDir dir;
+  const std::string db = buildPoseDb(dir);  // db build's defaults: the pose model
+  CliRun r =
+      runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1-3",
+                   "-o", dir.file("v/x.####.exr"), "--verbose", "--exit-fade", "0.1"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const Setting& setting : settingsTable()) {
+    if (setting.flag != nullptr && (hasEvaluatorValue(setting) || hasBakeValue(setting))) {
+      EXPECT_NE(r.err.find("\n  " + std::string(setting.label) + " "), std::string::npos)
+          << setting.label << " in: " << r.err;
+    }
+  }
+  // The one setting given is marked with the documented default (docs/commands.md).
+  EXPECT_NE(r.err.find("exit fade               0.1  (default 0.15)\n"), std::string::npos)
+      << r.err;
+  for (int frame = 1; frame <= 3; ++frame) {
+    EXPECT_NE(r.err.find("frame " + std::to_string(frame) + " baked in "), std::string::npos)
+        << r.err;
+  }
+  EXPECT_NE(r.err.find(", predicted error "), std::string::npos) << "the pose model's: " << r.err;
+  EXPECT_NE(r.err.find("seconds: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(" resolve "), std::string::npos) << r.err;
+  r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1", "-o",
+                   dir.file("v/y.####.exr"), "--verbose", "--quiet"});
+  expectError(r, 2, "--quiet and --verbose");
 }
 
 TEST(Cli, UnwritableOutputFolderIsAnOutputError) {
