@@ -440,9 +440,7 @@ void bindSettings(py::module_& module) {
   bindSettingLoaders(module);
 }
 
-}  // namespace
-
-void bindDatabase(py::module_& module) {
+void bindDatabaseClass(py::module_& module) {
   py::class_<Database>(module, "Database",
                        "N pairs of driver and driven shapes with their meshes "
                        "(load_database / build_database).")
@@ -496,6 +494,66 @@ void bindDatabase(py::module_& module) {
                std::to_string(db.driverVertexCount()) + " vertices, driven " +
                std::to_string(db.drivenVertexCount()) + " vertices>";
       });
+}
+
+/// `build_database`: the keywords of `drivenshape db build` read into its options.
+Database buildDatabaseFromArguments(py::handle driverMesh, py::handle drivenMesh,
+                                    py::handle driverCache, py::handle drivenCache, int count,
+                                    py::handle frames, py::handle addFrames,
+                                    py::handle removeFrames, double duplicateTolerance,
+                                    const std::string& model, int modelParts,
+                                    py::handle startFrameObject, py::handle also, py::handle log) {
+  const int startFrame = frameNumber(startFrameObject, "start_frame");
+  std::optional<Mesh> driverStorage;
+  std::optional<Mesh> drivenStorage;
+  const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
+  const Mesh& driven = meshArgument(drivenMesh, drivenStorage, "driven_mesh");
+  const std::shared_ptr<PointCacheReader> driverFrames = cacheArgument(driverCache, startFrame);
+  const std::shared_ptr<PointCacheReader> drivenFrames = cacheArgument(drivenCache, startFrame);
+  DatabaseBuildOptions options;
+  options.count = count;
+  options.frames = optionalFrames(frames, "frames");
+  options.addFrames = optionalFrames(addFrames, "add_frames");
+  options.removeFrames = optionalFrames(removeFrames, "remove_frames");
+  options.duplicateTolerance = duplicateTolerance;
+  if (model != "pose" && model != "none") {
+    DS_THROW(kUsage, "model takes 'pose' or 'none' (got '", model, "')");
+  }
+  options.poseModel = model == "pose";
+  options.model.parts = modelParts;
+  // Extra reference clips (db build --also): (driver_cache, driven_cache[, frames]).
+  std::vector<std::shared_ptr<PointCacheReader>> alsoCaches;
+  std::vector<ReferenceClip> clips;
+  if (!also.is_none()) {
+    for (py::handle item : also) {
+      const py::sequence clip = py::reinterpret_borrow<py::sequence>(item);
+      if (!py::isinstance<py::sequence>(item) || (clip.size() != 2 && clip.size() != 3)) {
+        DS_THROW(kUsage, "also: each clip is (driver_cache, driven_cache[, frames])");
+      }
+      alsoCaches.push_back(cacheArgument(clip[0], startFrame));
+      alsoCaches.push_back(cacheArgument(clip[1], startFrame));
+      clips.push_back(
+          {alsoCaches[alsoCaches.size() - 2].get(), alsoCaches.back().get(),
+           clip.size() == 3 ? optionalFrames(clip[2], "also frames") : std::vector<int>()});
+    }
+  }
+  std::ostringstream text;
+  std::optional<Database> database;
+  {
+    py::gil_scoped_release release;
+    database = buildDatabase(driver, driven, *driverFrames, *drivenFrames, clips, options,
+                             log.is_none() ? nullptr : &text);
+  }
+  if (!log.is_none()) {
+    log.attr("write")(text.str());
+  }
+  return std::move(*database);
+}
+
+}  // namespace
+
+void bindDatabase(py::module_& module) {
+  bindDatabaseClass(module);
 
   module.def(
       "load_database",
@@ -515,63 +573,10 @@ void bindDatabase(py::module_& module) {
       py::arg("path"), py::arg("database"));
   const DatabaseBuildOptions buildDefaults;
   module.def(
-      "build_database",
-      [](py::handle driverMesh, py::handle drivenMesh, py::handle driverCache,
-         py::handle drivenCache, int count, py::handle frames, py::handle addFrames,
-         py::handle removeFrames, double duplicateTolerance, const std::string& model,
-         int modelParts, py::handle startFrameObject, py::handle also, py::handle log) {
-        const int startFrame = frameNumber(startFrameObject, "start_frame");
-        std::optional<Mesh> driverStorage;
-        std::optional<Mesh> drivenStorage;
-        const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
-        const Mesh& driven = meshArgument(drivenMesh, drivenStorage, "driven_mesh");
-        const std::shared_ptr<PointCacheReader> driverFrames =
-            cacheArgument(driverCache, startFrame);
-        const std::shared_ptr<PointCacheReader> drivenFrames =
-            cacheArgument(drivenCache, startFrame);
-        DatabaseBuildOptions options;
-        options.count = count;
-        options.frames = optionalFrames(frames, "frames");
-        options.addFrames = optionalFrames(addFrames, "add_frames");
-        options.removeFrames = optionalFrames(removeFrames, "remove_frames");
-        options.duplicateTolerance = duplicateTolerance;
-        if (model != "pose" && model != "none") {
-          DS_THROW(kUsage, "model takes 'pose' or 'none' (got '", model, "')");
-        }
-        options.poseModel = model == "pose";
-        options.model.parts = modelParts;
-        // Extra reference clips (db build --also): (driver_cache, driven_cache[, frames]).
-        std::vector<std::shared_ptr<PointCacheReader>> alsoCaches;
-        std::vector<ReferenceClip> clips;
-        if (!also.is_none()) {
-          for (py::handle item : also) {
-            const py::sequence clip = py::reinterpret_borrow<py::sequence>(item);
-            if (!py::isinstance<py::sequence>(item) || (clip.size() != 2 && clip.size() != 3)) {
-              DS_THROW(kUsage, "also: each clip is (driver_cache, driven_cache[, frames])");
-            }
-            alsoCaches.push_back(cacheArgument(clip[0], startFrame));
-            alsoCaches.push_back(cacheArgument(clip[1], startFrame));
-            clips.push_back(
-                {alsoCaches[alsoCaches.size() - 2].get(), alsoCaches.back().get(),
-                 clip.size() == 3 ? optionalFrames(clip[2], "also frames") : std::vector<int>()});
-          }
-        }
-        std::ostringstream text;
-        std::optional<Database> database;
-        {
-          py::gil_scoped_release release;
-          database = buildDatabase(driver, driven, *driverFrames, *drivenFrames, clips, options,
-                                   log.is_none() ? nullptr : &text);
-        }
-        if (!log.is_none()) {
-          log.attr("write")(text.str());
-        }
-        return std::move(*database);
-      },
-      py::arg("driver_mesh"), py::arg("driven_mesh"), py::arg("driver_cache"),
-      py::arg("driven_cache"), py::kw_only(), py::arg("count") = buildDefaults.count,
-      py::arg("frames") = py::none(), py::arg("add_frames") = py::none(),
-      py::arg("remove_frames") = py::none(),
+      "build_database", &buildDatabaseFromArguments, py::arg("driver_mesh"), py::arg("driven_mesh"),
+      py::arg("driver_cache"), py::arg("driven_cache"), py::kw_only(),
+      py::arg("count") = buildDefaults.count, py::arg("frames") = py::none(),
+      py::arg("add_frames") = py::none(), py::arg("remove_frames") = py::none(),
       py::arg("duplicate_tolerance") = buildDefaults.duplicateTolerance, py::arg("model") = "pose",
       py::arg("model_parts") = 0, py::arg("start_frame") = 1, py::arg("also") = py::none(),
       py::arg("log") = py::none(),

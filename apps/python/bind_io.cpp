@@ -239,29 +239,9 @@ py::object convertUpAxisCopy(py::handle positions, const std::string& fromAxis,
   return ownedArray(std::move(xyz), std::move(shape));
 }
 
-}  // namespace
-
-std::shared_ptr<PointCacheReader> makeArrayCache(py::handle positions, int startFrame,
-                                                 py::handle frames) {
-  return std::make_shared<ArrayPointCache>(positions, startFrame, frames);
-}
-
-void bindMeshes(py::module_& module) {
-  py::class_<Mesh>(module, "Mesh",
-                   "A polygon mesh: positions, faces of any size, UVs, face groups, and the fan "
-                   "triangulation the correction uses. Array properties are read-only views of "
-                   "the mesh's own memory (no copy).")
-      .def_static("from_polygons", &meshFromPolygons, py::arg("positions"), py::arg("face_start"),
-                  py::arg("face_vertices"), py::arg("uvs") = py::none(),
-                  py::arg("face_uvs") = py::none(), py::arg("face_groups") = py::none(),
-                  py::arg("group_names") = std::vector<std::string>(),
-                  "Mesh from positions (V, 3), face_start (F + 1 offsets, or F as Blender's "
-                  "loop_start) and face_vertices (the corners' vertex ids, concatenated); "
-                  "optional uvs (U, 2) with face_uvs (one uv id per corner), face_groups (F "
-                  "group ids) with group_names. Validated like an OBJ (Error kind 'input').")
-      .def_property_readonly("vertex_count", &Mesh::vertexCount)
-      .def_property_readonly("face_count", &Mesh::faceCount)
-      .def_property_readonly("triangle_count", &Mesh::triangleCount)
+/// The mesh's arrays as properties: read-only numpy views of its own memory (no copy).
+void bindMeshArrays(py::class_<Mesh>& meshClass) {
+  meshClass
       .def_property_readonly(
           "positions",
           [](py::object self) {
@@ -328,39 +308,10 @@ void bindMeshes(py::module_& module) {
             return viewArray(mesh.faceGroup.data(), {static_cast<Index>(mesh.faceGroup.size())},
                              self);
           },
-          "(F,) int32 group id of each face (index into group_names)")
-      .def_readonly("group_names", &Mesh::groupNames)
-      .def_property_readonly("has_uvs", &Mesh::hasUvs)
-      .def_property_readonly(
-          "topology_hash", [](const Mesh& mesh) { return topologyHash(mesh); },
-          "hash of the vertex count and faces (as EXR headers and databases record it)")
-      .def("__repr__", &meshRepr);
-
-  module.def(
-      "read_obj",
-      [](py::handle path) {
-        const std::string file = pathString(path);
-        py::gil_scoped_release release;
-        return readObj(file);
-      },
-      py::arg("path"), "Reads an OBJ (vertex order kept exactly as in the file).");
-  module.def(
-      "write_obj",
-      [](py::handle path, const Mesh& mesh) {
-        const std::string file = pathString(path);
-        py::gil_scoped_release release;
-        writeObj(file, mesh);
-      },
-      py::arg("path"), py::arg("mesh"), "Writes positions, faces, UVs and groups as OBJ.");
-  module.def("convert_up_axis", &convertUpAxisCopy, py::arg("positions"), py::arg("from_axis"),
-             py::arg("to_axis"),
-             "A float32 copy of positions (..., 3) rotated from the up axis from_axis to to_axis "
-             "('Y' or 'Z'): Z -> Y is (x, y, z) -> (x, z, -y), Y -> Z its inverse (x, y, z) -> "
-             "(x, -z, y). Values are only moved and negated, never rounded: the conversion is "
-             "exact.");
+          "(F,) int32 group id of each face (index into group_names)");
 }
 
-void bindPointCaches(py::module_& module) {
+void bindPointCacheClass(py::module_& module) {
   py::class_<PointCacheReader, std::shared_ptr<PointCacheReader>>(
       module, "PointCache",
       "Frames of vertex positions: a PC2 file, a point-cache EXR sequence "
@@ -406,7 +357,49 @@ void bindPointCaches(py::module_& module) {
                std::to_string(cache.vertexCount()) + " vertices, frames " +
                formatFrameRange(cache.frames()) + ">";
       });
+}
 
+/// `write_point_cache_exr`: one frame of positions (V, 3) and optional normals.
+void writeExrFrame(py::handle path, py::handle positions, py::handle normals, py::handle frame,
+                   py::handle width, const std::string& compression, std::uint64_t topology,
+                   std::uint64_t settings, double fps,
+                   std::map<std::string, std::string> attributes, bool sync,
+                   const std::string& zipEncoder) {
+  const std::string file = pathString(path);
+  ExrWriteOptions options;
+  // Before anything is allocated: the writer pads every row out to the full width.
+  options.width = static_cast<int>(wholeNumber(width, "width", 1, kMaxPointCacheExrWidth));
+  options.frame = frameNumber(frame, "frame");
+  const FloatArray xyz(positions, "positions");
+  if (xyz.ndim() != 2 || xyz.dim(1) != 3) {
+    DS_THROW(kUsage, "positions must be shaped (vertices, 3); got ", xyz.describe());
+  }
+  if (xyz.dim(0) == 0) {
+    DS_THROW(kUsage, "positions hold no vertices (", xyz.describe(),
+             "); a point-cache EXR holds at least one");
+  }
+  std::optional<FloatArray> normalArray;
+  if (!normals.is_none()) {
+    normalArray.emplace(normals, "normals");
+    if (normalArray->ndim() != 2 || normalArray->dim(0) != xyz.dim(0) || normalArray->dim(1) != 3) {
+      DS_THROW(kUsage, "normals must be shaped like positions ", xyz.describe(), "; got ",
+               normalArray->describe());
+    }
+  }
+  options.compression = parseExrCompression(compression);
+  options.zipEncoder = parseZipEncoder(zipEncoder, "zip_encoder");
+  options.topologyHash = topology;
+  options.settingsHash = settings;
+  options.framesPerSecond = fps;
+  options.stringAttributes.assign(attributes.begin(), attributes.end());
+  options.syncToDisk = sync;
+  py::gil_scoped_release release;
+  writePointCacheExr(file, static_cast<int>(xyz.dim(0)), xyz.data(),
+                     normalArray ? normalArray->data() : nullptr, options);
+}
+
+/// Opening caches, and PC2 files read and written whole.
+void bindCacheFiles(py::module_& module) {
   module.def(
       "open_point_cache",
       [](py::handle spec, std::uint64_t expectedTopology) {
@@ -434,54 +427,19 @@ void bindPointCaches(py::module_& module) {
       py::arg("sample_rate") = 1.0f,
       "Writes positions (F, V, 3) as PC2 (atomically), sample s at start_frame + s * "
       "sample_rate.");
+}
 
-  module.def(
-      "write_point_cache_exr",
-      [](py::handle path, py::handle positions, py::handle normals, py::handle frame,
-         py::handle width, const std::string& compression, std::uint64_t topology,
-         std::uint64_t settings, double fps, std::map<std::string, std::string> attributes,
-         bool sync, const std::string& zipEncoder) {
-        const std::string file = pathString(path);
-        ExrWriteOptions options;
-        // Before anything is allocated: the writer pads every row out to the full width.
-        options.width = static_cast<int>(wholeNumber(width, "width", 1, kMaxPointCacheExrWidth));
-        options.frame = frameNumber(frame, "frame");
-        const FloatArray xyz(positions, "positions");
-        if (xyz.ndim() != 2 || xyz.dim(1) != 3) {
-          DS_THROW(kUsage, "positions must be shaped (vertices, 3); got ", xyz.describe());
-        }
-        if (xyz.dim(0) == 0) {
-          DS_THROW(kUsage, "positions hold no vertices (", xyz.describe(),
-                   "); a point-cache EXR holds at least one");
-        }
-        std::optional<FloatArray> normalArray;
-        if (!normals.is_none()) {
-          normalArray.emplace(normals, "normals");
-          if (normalArray->ndim() != 2 || normalArray->dim(0) != xyz.dim(0) ||
-              normalArray->dim(1) != 3) {
-            DS_THROW(kUsage, "normals must be shaped like positions ", xyz.describe(), "; got ",
-                     normalArray->describe());
-          }
-        }
-        options.compression = parseExrCompression(compression);
-        options.zipEncoder = parseZipEncoder(zipEncoder, "zip_encoder");
-        options.topologyHash = topology;
-        options.settingsHash = settings;
-        options.framesPerSecond = fps;
-        options.stringAttributes.assign(attributes.begin(), attributes.end());
-        options.syncToDisk = sync;
-        py::gil_scoped_release release;
-        writePointCacheExr(file, static_cast<int>(xyz.dim(0)), xyz.data(),
-                           normalArray ? normalArray->data() : nullptr, options);
-      },
-      py::arg("path"), py::arg("positions"), py::arg("normals") = py::none(), py::arg("frame") = 0,
-      py::arg("width") = 1024, py::arg("compression") = "zip", py::arg("topology_hash") = 0,
-      py::arg("settings_hash") = 0, py::arg("frames_per_second") = 24.0,
-      py::arg("string_attributes") = std::map<std::string, std::string>(), py::arg("sync") = true,
-      py::arg("zip_encoder") = "libdeflate",
-      "Writes one point-cache EXR frame atomically: positions (V, 3), optional normals, "
-      "compression zip|none|zips|piz, zip_encoder libdeflate|openexr (who deflates zip and "
-      "zips), header attributes as in docs/formats.md.");
+/// Point-cache EXR frames (docs/formats.md).
+void bindPointCacheExr(py::module_& module) {
+  module.def("write_point_cache_exr", &writeExrFrame, py::arg("path"), py::arg("positions"),
+             py::arg("normals") = py::none(), py::arg("frame") = 0, py::arg("width") = 1024,
+             py::arg("compression") = "zip", py::arg("topology_hash") = 0,
+             py::arg("settings_hash") = 0, py::arg("frames_per_second") = 24.0,
+             py::arg("string_attributes") = std::map<std::string, std::string>(),
+             py::arg("sync") = true, py::arg("zip_encoder") = "libdeflate",
+             "Writes one point-cache EXR frame atomically: positions (V, 3), optional normals, "
+             "compression zip|none|zips|piz, zip_encoder libdeflate|openexr (who deflates zip and "
+             "zips), header attributes as in docs/formats.md.");
   module.def(
       "read_point_cache_exr",
       [](py::handle path, int expectedVertexCount, std::uint64_t expectedTopology) {
@@ -510,7 +468,9 @@ void bindPointCaches(py::module_& module) {
         return exrInfoDict(info);
       },
       py::arg("path"), "The header of one point-cache EXR as a dict.");
+}
 
+void bindFrameRanges(py::module_& module) {
   module.def("parse_frame_range", &parseFrameRange, py::arg("text"),
              "'1001-1100', '1001-1100x2', '1001,1005,1010-1020' -> list of frames");
   module.def(
@@ -523,6 +483,69 @@ void bindPointCaches(py::module_& module) {
       },
       py::arg("pattern"), py::arg("frame"),
       "'out.####.exr', 12 -> 'out.0012.exr' (also %04d and $F4)");
+}
+
+}  // namespace
+
+std::shared_ptr<PointCacheReader> makeArrayCache(py::handle positions, int startFrame,
+                                                 py::handle frames) {
+  return std::make_shared<ArrayPointCache>(positions, startFrame, frames);
+}
+
+void bindMeshes(py::module_& module) {
+  py::class_<Mesh> meshClass(module, "Mesh",
+                             "A polygon mesh: positions, faces of any size, UVs, face groups, "
+                             "and the fan triangulation the correction uses. Array properties "
+                             "are read-only views of the mesh's own memory (no copy).");
+  meshClass
+      .def_static("from_polygons", &meshFromPolygons, py::arg("positions"), py::arg("face_start"),
+                  py::arg("face_vertices"), py::arg("uvs") = py::none(),
+                  py::arg("face_uvs") = py::none(), py::arg("face_groups") = py::none(),
+                  py::arg("group_names") = std::vector<std::string>(),
+                  "Mesh from positions (V, 3), face_start (F + 1 offsets, or F as Blender's "
+                  "loop_start) and face_vertices (the corners' vertex ids, concatenated); "
+                  "optional uvs (U, 2) with face_uvs (one uv id per corner), face_groups (F "
+                  "group ids) with group_names. Validated like an OBJ (Error kind 'input').")
+      .def_property_readonly("vertex_count", &Mesh::vertexCount)
+      .def_property_readonly("face_count", &Mesh::faceCount)
+      .def_property_readonly("triangle_count", &Mesh::triangleCount);
+  bindMeshArrays(meshClass);
+  meshClass.def_readonly("group_names", &Mesh::groupNames)
+      .def_property_readonly("has_uvs", &Mesh::hasUvs)
+      .def_property_readonly(
+          "topology_hash", [](const Mesh& mesh) { return topologyHash(mesh); },
+          "hash of the vertex count and faces (as EXR headers and databases record it)")
+      .def("__repr__", &meshRepr);
+
+  module.def(
+      "read_obj",
+      [](py::handle path) {
+        const std::string file = pathString(path);
+        py::gil_scoped_release release;
+        return readObj(file);
+      },
+      py::arg("path"), "Reads an OBJ (vertex order kept exactly as in the file).");
+  module.def(
+      "write_obj",
+      [](py::handle path, const Mesh& mesh) {
+        const std::string file = pathString(path);
+        py::gil_scoped_release release;
+        writeObj(file, mesh);
+      },
+      py::arg("path"), py::arg("mesh"), "Writes positions, faces, UVs and groups as OBJ.");
+  module.def("convert_up_axis", &convertUpAxisCopy, py::arg("positions"), py::arg("from_axis"),
+             py::arg("to_axis"),
+             "A float32 copy of positions (..., 3) rotated from the up axis from_axis to to_axis "
+             "('Y' or 'Z'): Z -> Y is (x, y, z) -> (x, z, -y), Y -> Z its inverse (x, y, z) -> "
+             "(x, -z, y). Values are only moved and negated, never rounded: the conversion is "
+             "exact.");
+}
+
+void bindPointCaches(py::module_& module) {
+  bindPointCacheClass(module);
+  bindCacheFiles(module);
+  bindPointCacheExr(module);
+  bindFrameRanges(module);
 }
 
 }  // namespace drivenshape::python
