@@ -33,8 +33,9 @@ std::string meshRepr(const Mesh& mesh) {
          " triangles, groups [" + groups + "]" + (mesh.hasUvs() ? ", UVs>" : ">");
 }
 
-Mesh meshFromPolygons(py::handle positions, py::handle faceStart, py::handle faceVertices,
-                      py::handle uvs, py::handle faceUvs, py::handle faceGroups,
+Mesh meshFromPolygons(types::ArrayLike positions, types::ArrayLike faceStart,
+                      types::ArrayLike faceVertices, types::OptionalArrayLike uvs,
+                      types::OptionalArrayLike faceUvs, types::OptionalArrayLike faceGroups,
                       std::vector<std::string> groupNames) {
   Mesh mesh;
   const FloatArray points(positions, "positions");
@@ -163,21 +164,22 @@ class ArrayPointCache final : public PointCacheReader {
   std::vector<std::pair<int, int>> mOrder;  ///< (frame, index), sorted
 };
 
-py::object readCacheFrames(const PointCacheReader& cache, const std::vector<int>& frames) {
+types::Float32Array readCacheFrames(const PointCacheReader& cache, const std::vector<int>& frames) {
   std::vector<float> values;
   {
     py::gil_scoped_release release;
     values = readFrames(cache, frames);
   }
-  return ownedArray(std::move(values), {static_cast<Index>(frames.size()),
-                                        static_cast<Index>(cache.vertexCount()), 3});
+  return types::Float32Array(
+      ownedArray(std::move(values),
+                 {static_cast<Index>(frames.size()), static_cast<Index>(cache.vertexCount()), 3}));
 }
 
 /// (positions (F, V, 3), start frame, sample rate) of every sample of a PC2 file, including
 /// samples between whole frames (which openPc2's reader does not give). The samples are read
 /// as they are stored, little-endian, which is the host order of every platform this builds
 /// for (x86-64, arm64).
-py::tuple readPc2(const std::string& path) {
+types::Pc2Samples readPc2(const std::string& path) {
   std::vector<float> values;
   float header[2] = {0.0f, 0.0f};
   int points = 0;
@@ -200,10 +202,10 @@ py::tuple readPc2(const std::string& path) {
     }
   }
   py::object array = ownedArray(std::move(values), {samples, points, 3});
-  return py::make_tuple(array, header[0], header[1]);
+  return types::Pc2Samples(py::make_tuple(array, header[0], header[1]));
 }
 
-py::dict exrInfoDict(const ExrPointCacheInfo& info) {
+types::JsonDict exrInfoDict(const ExrPointCacheInfo& info) {
   py::dict out;
   out["vertex_count"] = info.vertexCount;
   out["width"] = info.width;
@@ -218,12 +220,12 @@ py::dict exrInfoDict(const ExrPointCacheInfo& info) {
   out["compression"] = exrCompressionName(info.compression);
   out["pixels_crc"] = info.hasPixelsCrc ? py::object(py::int_(info.pixelsCrc)) : py::none();
   out["string_attributes"] = info.stringAttributes;
-  return out;
+  return types::JsonDict(out);
 }
 
 /// `convert_up_axis`: a float32 copy of positions (..., 3) rotated between the up axes.
-py::object convertUpAxisCopy(py::handle positions, const std::string& fromAxis,
-                             const std::string& toAxis) {
+types::Float32Array convertUpAxisCopy(types::ArrayLike positions, const std::string& fromAxis,
+                                      const std::string& toAxis) {
   const UpAxis from = parseUpAxis(fromAxis, "from_axis");
   const UpAxis to = parseUpAxis(toAxis, "to_axis");
   const FloatArray array(positions, "positions");
@@ -236,7 +238,7 @@ py::object convertUpAxisCopy(py::handle positions, const std::string& fromAxis,
   }
   std::vector<float> xyz(array.data(), array.data() + array.size());
   convertUpAxis(xyz.data(), xyz.size() / 3, from, to);
-  return ownedArray(std::move(xyz), std::move(shape));
+  return types::Float32Array(ownedArray(std::move(xyz), std::move(shape)));
 }
 
 /// The mesh's arrays as properties: read-only numpy views of its own memory (no copy).
@@ -246,67 +248,71 @@ void bindMeshArrays(py::class_<Mesh>& meshClass) {
           "positions",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.positions.data(), {mesh.positions.rows(), 3}, self);
+            return types::Float32Array(
+                viewArray(mesh.positions.data(), {mesh.positions.rows(), 3}, self));
           },
           "(V, 3) float32, read-only view")
       .def_property_readonly(
           "triangles",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.triangles.data(), {mesh.triangles.rows(), 3}, self);
+            return types::Int32Array(
+                viewArray(mesh.triangles.data(), {mesh.triangles.rows(), 3}, self));
           },
           "(T, 3) int32 fan triangles, read-only view")
       .def_property_readonly(
           "triangle_face",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.triangleFace.data(),
-                             {static_cast<Index>(mesh.triangleFace.size())}, self);
+            return types::Int32Array(viewArray(
+                mesh.triangleFace.data(), {static_cast<Index>(mesh.triangleFace.size())}, self));
           },
           "(T,) int32: the face each triangle came from")
       .def_property_readonly(
           "face_start",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceStart.data(), {static_cast<Index>(mesh.faceStart.size())},
-                             self);
+            return types::Int32Array(viewArray(mesh.faceStart.data(),
+                                               {static_cast<Index>(mesh.faceStart.size())}, self));
           },
           "(F + 1,) int32 offsets into face_vertices")
       .def_property_readonly(
           "face_vertices",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceVertices.data(),
-                             {static_cast<Index>(mesh.faceVertices.size())}, self);
+            return types::Int32Array(viewArray(
+                mesh.faceVertices.data(), {static_cast<Index>(mesh.faceVertices.size())}, self));
           },
           "int32 vertex ids of every face corner, concatenated")
       .def_property_readonly(
           "faces",
           [](py::object self) {
-            return py::make_tuple(self.attr("face_start"), self.attr("face_vertices"));
+            return types::Faces(
+                py::make_tuple(self.attr("face_start"), self.attr("face_vertices")));
           },
           "(face_start, face_vertices)")
       .def_property_readonly(
           "uvs",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.uvs.empty() ? nullptr : mesh.uvs[0].data(),
-                             {static_cast<Index>(mesh.uvs.size()), 2}, self);
+            return types::Float32Array(viewArray(mesh.uvs.empty() ? nullptr : mesh.uvs[0].data(),
+                                                 {static_cast<Index>(mesh.uvs.size()), 2}, self));
           },
           "(U, 2) float32 texture coordinates (may be empty)")
       .def_property_readonly(
           "face_uvs",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceUvs.data(), {static_cast<Index>(mesh.faceUvs.size())}, self);
+            return types::Int32Array(
+                viewArray(mesh.faceUvs.data(), {static_cast<Index>(mesh.faceUvs.size())}, self));
           },
           "int32 uv id per face corner (parallel to face_vertices; -1 = none), or empty")
       .def_property_readonly(
           "face_groups",
           [](py::object self) {
             const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceGroup.data(), {static_cast<Index>(mesh.faceGroup.size())},
-                             self);
+            return types::Int32Array(viewArray(mesh.faceGroup.data(),
+                                               {static_cast<Index>(mesh.faceGroup.size())}, self));
           },
           "(F,) int32 group id of each face (index into group_names)");
 }
@@ -318,7 +324,7 @@ void bindPointCacheClass(py::module_& module) {
       "(open_point_cache) or an in-memory array (PointCache.from_array).")
       .def_static(
           "from_array",
-          [](py::handle positions, py::handle startFrame, py::handle frames) {
+          [](types::ArrayLike positions, types::Frame startFrame, types::OptionalFrames frames) {
             return makeArrayCache(positions, frameNumber(startFrame, "start_frame"), frames);
           },
           py::arg("positions"), py::arg("start_frame") = 1, py::arg("frames") = py::none(),
@@ -330,25 +336,25 @@ void bindPointCacheClass(py::module_& module) {
       .def_property_readonly("path", &PointCacheReader::path)
       .def(
           "has_frame",
-          [](const PointCacheReader& cache, py::handle frame) {
+          [](const PointCacheReader& cache, types::Frame frame) {
             return cache.hasFrame(frameNumber(frame, "frame"));
           },
           py::arg("frame"))
       .def(
           "read",
-          [](const PointCacheReader& cache, py::handle frameObject) {
+          [](const PointCacheReader& cache, types::Frame frameObject) {
             const int frame = frameNumber(frameObject, "frame");
             std::vector<float> xyz(3 * static_cast<std::size_t>(cache.vertexCount()));
             {
               py::gil_scoped_release release;
               cache.readFrame(frame, xyz.data());
             }
-            return ownedArray(std::move(xyz), {cache.vertexCount(), 3});
+            return types::Float32Array(ownedArray(std::move(xyz), {cache.vertexCount(), 3}));
           },
           py::arg("frame"), "(V, 3) float32 positions of one frame")
       .def(
           "read_frames",
-          [](const PointCacheReader& cache, py::handle frames) {
+          [](const PointCacheReader& cache, types::Frames frames) {
             return readCacheFrames(cache, frameList(frames));
           },
           py::arg("frames"), "(F, V, 3) float32 positions of the frames, in the order given")
@@ -360,9 +366,9 @@ void bindPointCacheClass(py::module_& module) {
 }
 
 /// `write_point_cache_exr`: one frame of positions (V, 3) and optional normals.
-void writeExrFrame(py::handle path, py::handle positions, py::handle normals, py::handle frame,
-                   py::handle width, const std::string& compression, std::uint64_t topology,
-                   std::uint64_t settings, double fps,
+void writeExrFrame(types::Path path, types::ArrayLike positions, types::OptionalArrayLike normals,
+                   types::Frame frame, types::WholeNumber width, const std::string& compression,
+                   std::uint64_t topology, std::uint64_t settings, double fps,
                    std::map<std::string, std::string> attributes, bool sync,
                    const std::string& zipEncoder) {
   const std::string file = pathString(path);
@@ -402,7 +408,7 @@ void writeExrFrame(py::handle path, py::handle positions, py::handle normals, py
 void bindCacheFiles(py::module_& module) {
   module.def(
       "open_point_cache",
-      [](py::handle spec, std::uint64_t expectedTopology) {
+      [](types::Path spec, std::uint64_t expectedTopology) {
         const std::string text = pathString(spec);
         py::gil_scoped_release release;
         return std::shared_ptr<PointCacheReader>(openPointCache(text, expectedTopology));
@@ -412,11 +418,11 @@ void bindCacheFiles(py::module_& module) {
       "with expected_topology, every EXR's topology hash is checked.");
 
   module.def(
-      "read_pc2", [](py::handle path) { return readPc2(pathString(path)); }, py::arg("path"),
+      "read_pc2", [](types::Path path) { return readPc2(pathString(path)); }, py::arg("path"),
       "(positions (F, V, 3) float32, start_frame, sample_rate) of every sample of a PC2 file");
   module.def(
       "write_pc2",
-      [](py::handle path, py::handle positions, float startFrame, float sampleRate) {
+      [](types::Path path, types::ArrayLike positions, float startFrame, float sampleRate) {
         const std::string file = pathString(path);
         const FloatArray array(positions, "positions");
         const FrameBlockShape shape = frameBlockShape(array, "positions");
@@ -442,7 +448,7 @@ void bindPointCacheExr(py::module_& module) {
              "zips), header attributes as in docs/formats.md.");
   module.def(
       "read_point_cache_exr",
-      [](py::handle path, int expectedVertexCount, std::uint64_t expectedTopology) {
+      [](types::Path path, int expectedVertexCount, std::uint64_t expectedTopology) {
         const std::string file = pathString(path);
         std::vector<float> xyz;
         ExrPointCacheInfo info;
@@ -451,14 +457,15 @@ void bindPointCacheExr(py::module_& module) {
           info = readPointCacheExr(file, xyz, expectedVertexCount, expectedTopology);
         }
         const int count = info.vertexCount;
-        return py::make_tuple(ownedArray(std::move(xyz), {count, 3}), exrInfoDict(info));
+        return types::ExrFrame(
+            py::make_tuple(ownedArray(std::move(xyz), {count, 3}), exrInfoDict(info)));
       },
       py::arg("path"), py::arg("expected_vertex_count") = 0, py::arg("expected_topology") = 0,
       "(positions (V, 3) float32, header dict) of one point-cache EXR; a nonzero expected "
       "vertex count or topology hash that differs from the header is an Error.");
   module.def(
       "read_point_cache_exr_info",
-      [](py::handle path) {
+      [](types::Path path) {
         const std::string file = pathString(path);
         ExrPointCacheInfo info;
         {
@@ -474,11 +481,11 @@ void bindFrameRanges(py::module_& module) {
   module.def("parse_frame_range", &parseFrameRange, py::arg("text"),
              "'1001-1100', '1001-1100x2', '1001,1005,1010-1020' -> list of frames");
   module.def(
-      "format_frame_range", [](py::handle frames) { return formatFrameRange(frameList(frames)); },
-      py::arg("frames"));
+      "format_frame_range",
+      [](types::Frames frames) { return formatFrameRange(frameList(frames)); }, py::arg("frames"));
   module.def(
       "expand_frame_pattern",
-      [](const std::string& pattern, py::handle frame) {
+      [](const std::string& pattern, types::Frame frame) {
         return expandFramePattern(pattern, frameNumber(frame, "frame"));
       },
       py::arg("pattern"), py::arg("frame"),
@@ -519,7 +526,7 @@ void bindMeshes(py::module_& module) {
 
   module.def(
       "read_obj",
-      [](py::handle path) {
+      [](types::Path path) {
         const std::string file = pathString(path);
         py::gil_scoped_release release;
         return readObj(file);
@@ -527,7 +534,7 @@ void bindMeshes(py::module_& module) {
       py::arg("path"), "Reads an OBJ (vertex order kept exactly as in the file).");
   module.def(
       "write_obj",
-      [](py::handle path, const Mesh& mesh) {
+      [](types::Path path, const Mesh& mesh) {
         const std::string file = pathString(path);
         py::gil_scoped_release release;
         writeObj(file, mesh);
