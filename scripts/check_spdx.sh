@@ -2,9 +2,10 @@
 # SPDX-License-Identifier: Apache-2.0
 # Fails when a source file (tracked, or new and not ignored by git) lacks its SPDX license line:
 # line 1, or line 2 after a `#!` shebang, must read `// SPDX-License-Identifier: Apache-2.0`
-# (C, C++, OpenCL) or `# SPDX-License-Identifier: Apache-2.0` (Python, shell, CMake, YAML, TOML,
-# other scripts with a shebang). Data (tests/data, the fuzz seeds and regressions), Markdown,
-# JSON, meshes, caches, images and dot-files such as .clang-format are not sources: not checked.
+# (C, C++, OpenCL) or `# SPDX-License-Identifier: Apache-2.0` (Python, its .pyi stubs and py.typed
+# markers, shell, CMake, YAML, TOML, other scripts with a shebang). Data (tests/data, the fuzz
+# seeds and regressions), Markdown, JSON, meshes, caches, images and dot-files such as
+# .clang-format are not sources: not checked.
 #   scripts/check_spdx.sh          check (CTest: spdx_check)
 #   scripts/check_spdx.sh --fix    add the line where it is missing, then check
 set -euo pipefail
@@ -23,8 +24,8 @@ comment_of() {
   case $file in
     tests/data/* | tests/fuzz/corpus/* | tests/fuzz/regressions/*) return ;;
     *.cpp | *.h | *.cl | *.cxx | *.hpp | *.cc | *.c) echo "//" ;;
-    *.py | *.sh | *.cmake | *.cmake.in | CMakeLists.txt | */CMakeLists.txt | *.yml | *.yaml | \
-      *.toml) echo "#" ;;
+    *.py | *.pyi | */py.typed | *.sh | *.cmake | *.cmake.in | CMakeLists.txt | */CMakeLists.txt | \
+      *.yml | *.yaml | *.toml) echo "#" ;;
     *.md | *.json | *.obj | *.pc2 | *.exr | *.dsdb | *.png | *.txt) return ;;
     .clang-format | .gitignore | .gitattributes | */.gitignore | */.gitattributes) return ;;
     *) # an extension-less script: a shell or Python shebang

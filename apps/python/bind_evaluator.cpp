@@ -70,13 +70,15 @@ std::vector<int> optionalFrames(py::handle object, const std::string& what) {
   return object.is_none() ? std::vector<int>() : frameList(object, what);
 }
 
-py::object parseJson(const std::string& text) {
-  return py::module_::import("json").attr("loads")(text);
+/// A JSON object (describe_settings, describe_layers) or array (settings_table) as Python.
+template <typename Result>
+Result parseJson(const std::string& text) {
+  return Result(py::module_::import("json").attr("loads")(text));
 }
 
 // ---- Records ----------------------------------------------------------------------------
 
-py::dict recordDict(const FrameRecord& record) {
+types::JsonDict recordDict(const FrameRecord& record) {
   py::dict out;
   out["frame"] = record.frame;
   out["weights"] = record.weights;
@@ -98,15 +100,15 @@ py::dict recordDict(const FrameRecord& record) {
   out["pose_distance"] = record.poseDistance;
   out["predicted_error"] = record.predictedError;
   out["flagged"] = record.flagged;
-  return out;
+  return types::JsonDict(out);
 }
 
-py::list recordList(std::vector<FrameRecord>&& records) {
+types::Records recordList(std::vector<FrameRecord>&& records) {
   py::list out(records.size());
   for (std::size_t i = 0; i < records.size(); ++i) {
     out[i] = py::cast(std::move(records[i]));
   }
-  return out;
+  return types::Records(out);
 }
 
 // ---- Evaluation ---------------------------------------------------------------------------
@@ -158,19 +160,20 @@ std::vector<FrameRecord> runEvaluator(EvaluatorHandle& handle, const DriverInput
   return records;
 }
 
-py::tuple evaluate(EvaluatorHandle& handle, py::handle frames, py::handle driver, int warmup) {
+types::Evaluation evaluate(EvaluatorHandle& handle, types::Frames frames, types::ArrayLike driver,
+                           int warmup) {
   const DriverInput input = driverInput(handle, frames, driver, warmup);
   const Index count = static_cast<Index>(input.frames.size()) - warmup;
   const Index drivenCount = handle.evaluator.drivenVertexCount();
   // Not zero-filled: the evaluator writes every value.
   std::shared_ptr<float[]> cloth(new float[static_cast<std::size_t>(count * drivenCount * 3)]);
   std::vector<FrameRecord> records = runEvaluator(handle, input, cloth.get(), warmup);
-  return py::make_tuple(ownedFloatArray(std::move(cloth), {count, drivenCount, 3}),
-                        recordList(std::move(records)));
+  return types::Evaluation(py::make_tuple(
+      ownedFloatArray(std::move(cloth), {count, drivenCount, 3}), recordList(std::move(records))));
 }
 
-py::list evaluateInto(EvaluatorHandle& handle, py::handle frames, py::handle driver, py::handle out,
-                      int warmup) {
+types::Records evaluateInto(EvaluatorHandle& handle, types::Frames frames, types::ArrayLike driver,
+                            types::Float32Array out, int warmup) {
   const DriverInput input = driverInput(handle, frames, driver, warmup);
   const FloatArray target(out, "out", true);
   const Index count = static_cast<Index>(input.frames.size()) - warmup;
@@ -184,6 +187,12 @@ py::list evaluateInto(EvaluatorHandle& handle, py::handle frames, py::handle dri
              "after warm-up, driven vertices, xyz); got ", target.describe());
   }
   return recordList(runEvaluator(handle, input, target.mutableData(), warmup));
+}
+
+/// A float32 copy of per-vertex weights.
+types::Float32Array weightArray(std::vector<float> weights) {
+  const Index size = static_cast<Index>(weights.size());
+  return types::Float32Array(ownedArray(std::move(weights), {size}));
 }
 
 void bindSettingObjects(py::module_& module) {
@@ -232,16 +241,10 @@ void bindSettingObjects(py::module_& module) {
       .def_property_readonly("empty", &LayerSettings::empty)
       .def_property_readonly("mix_cache",
                              [](const LayerSettings& layers) { return layers.options.mixCache; })
-      .def_property_readonly("mix_weights",
-                             [](const LayerSettings& layers) {
-                               std::vector<float> copy = layers.mixWeights;
-                               const Index size = static_cast<Index>(copy.size());
-                               return ownedArray(std::move(copy), {size});
-                             })
+      .def_property_readonly(
+          "mix_weights", [](const LayerSettings& layers) { return weightArray(layers.mixWeights); })
       .def_property_readonly("wind_weights", [](const LayerSettings& layers) {
-        std::vector<float> copy = layers.windWeights;
-        const Index size = static_cast<Index>(copy.size());
-        return ownedArray(std::move(copy), {size});
+        return weightArray(layers.windWeights);
       });
 }
 
@@ -339,30 +342,106 @@ const char* settingsDoc() {
   return doc.c_str();
 }
 
+/// The Python type of a setting's value, as the stubs write it: from the table's type, a
+/// choice as the typing.Literal of its spellings, the objects as their class (None: not set;
+/// for layers, which is never None, the setter takes None for no layer).
+std::string settingPythonType(const Setting& setting, bool setter) {
+  const std::string key = setting.key;
+  if (key == "binding_mask") {
+    return "BindingMask | None";
+  }
+  if (key == "regions") {
+    return "RegionSet | None";
+  }
+  if (key == "layers") {
+    return setter ? "LayerSettings | None" : "LayerSettings";
+  }
+  switch (setting.type) {
+    case SettingType::kBool:
+      return "bool";
+    case SettingType::kInt:
+      return "int";
+    case SettingType::kNumber:
+      return "float";
+    case SettingType::kChoice: {
+      std::string text = "typing.Literal[";
+      for (const std::string& choice : setting.choices) {
+        text += (text.back() == '[' ? "" : ", ") + std::string(py::repr(py::str(choice)));
+      }
+      return text + "]";
+    }
+    case SettingType::kText:
+    case SettingType::kObject:
+      break;
+  }
+  return "str";
+}
+
+/// The constructor's signature, one keyword per evaluator setting with its type and default:
+/// pybind11 would show `**kwargs`, which says nothing to help() or a type checker.
+std::string settingsInitSignature() {
+  const EvaluatorSettings defaults;
+  std::string text = "__init__(self, *";
+  for (const Setting* setting : evaluatorSettings()) {
+    const std::string value = setting->type == SettingType::kObject
+                                  ? std::string("None")
+                                  : std::string(py::repr(settingObject(*setting, defaults)));
+    text +=
+        std::string(", ") + setting->key + ": " + settingPythonType(*setting, true) + " = " + value;
+  }
+  return text + ") -> None";
+}
+
+/// Each setting as a property whose getter and setter carry their Python types (their
+/// signatures are written here, as the constructor's: the values are Python objects).
+void bindSettingProperties(py::class_<EvaluatorSettings>& settings) {
+  for (const Setting* setting : evaluatorSettings()) {
+    py::cpp_function getter;
+    py::cpp_function setter;
+    {
+      py::options options;
+      options.disable_function_signatures();
+      const std::string type = settingPythonType(*setting, false);
+      getter = py::cpp_function(
+          [setting](const EvaluatorSettings& s) { return settingObject(*setting, s); },
+          ("(self) -> " + type).c_str());
+      setter = py::cpp_function(
+          [setting](EvaluatorSettings& s, py::handle value) {
+            setSettingObject(*setting, s, value);
+          },
+          ("(self, value: " + settingPythonType(*setting, true) + ") -> None").c_str());
+    }
+    settings.def_property(setting->key, getter, setter, setting->help);
+  }
+}
+
 void bindEvaluatorSettings(py::module_& module) {
   py::class_<EvaluatorSettings> settings(module, "EvaluatorSettings", settingsDoc());
-  settings.def(py::init([](const py::kwargs& keywords) {
-    EvaluatorSettings s;
-    for (const auto& [name, value] : keywords) {
-      const std::string key = py::str(name);
-      const Setting* setting = findSettingByKey(key);
-      if (setting == nullptr || setting->scope != SettingScope::kEvaluator) {
-        throw py::type_error("EvaluatorSettings() got an unexpected keyword argument '" + key +
-                             "'");
-      }
-      setSettingObject(*setting, s, value);
-    }
-    return s;
-  }));
-  for (const Setting* setting : evaluatorSettings()) {
-    settings.def_property(
-        setting->key, [setting](const EvaluatorSettings& s) { return settingObject(*setting, s); },
-        [setting](EvaluatorSettings& s, py::handle value) { setSettingObject(*setting, s, value); },
-        setting->help);
+  {
+    py::options options;
+    options.disable_function_signatures();
+    const std::string doc = settingsInitSignature() +
+                            "\n\nKeyword arguments only, one per evaluator setting (see the "
+                            "class's docstring); the others keep their defaults.";
+    settings.def(py::init([](const py::kwargs& keywords) {
+                   EvaluatorSettings s;
+                   for (const auto& [name, value] : keywords) {
+                     const std::string key = py::str(name);
+                     const Setting* setting = findSettingByKey(key);
+                     if (setting == nullptr || setting->scope != SettingScope::kEvaluator) {
+                       throw py::type_error(
+                           "EvaluatorSettings() got an unexpected keyword argument '" + key + "'");
+                     }
+                     setSettingObject(*setting, s, value);
+                   }
+                   return s;
+                 }),
+                 doc.c_str());
   }
+  bindSettingProperties(settings);
   settings.def("__repr__", &settingsRepr);
   module.def(
-      "settings_table", []() { return parseJson(settingsTableJson()); },
+      "settings_table", []() { return parseJson<types::JsonList>(settingsTableJson()); },
       "The settings table (drivenshape/settings_table.h) as a list of dicts: key, flag, type, "
       "default, minimum, maximum, choices, unit, help, hashed, used_when, ...");
 }
@@ -371,7 +450,7 @@ void bindSettingLoaders(py::module_& module) {
   // The loaders the command line uses (bake's --bind, --regions, --mix..., --wind...).
   module.def(
       "load_binding_mask",
-      [](py::handle path, const Database& db) {
+      [](types::Path path, const Database& db) {
         return readBindingMask(pathString(path), db.driverMesh, db.drivenMesh);
       },
       py::arg("path"), py::arg("database"),
@@ -385,7 +464,7 @@ void bindSettingLoaders(py::module_& module) {
       "parseBindingMask: the same from JSON text");
   module.def(
       "load_regions",
-      [](py::handle path, const Database& db) {
+      [](types::Path path, const Database& db) {
         return readRegions(pathString(path), db.driverMesh, db.drivenMesh);
       },
       py::arg("path"), py::arg("database"), "readRegions: a region JSON file (bake --regions)");
@@ -401,16 +480,16 @@ void bindSettingLoaders(py::module_& module) {
       "load_layers",
       [](const Database& db, std::optional<std::string> mixCache,
          std::optional<std::string> mixWeight, int mixFalloff, double windAmplitude,
-         double windFrequency, std::array<double, 3> windDirection, double windSpeed,
-         int windOctaves, std::uint32_t windSeed, std::optional<std::string> windWeight,
-         int windFalloff, double framesPerSecond) {
+         double windFrequency, Vector3 windDirection, double windSpeed, int windOctaves,
+         std::uint32_t windSeed, std::optional<std::string> windWeight, int windFalloff,
+         double framesPerSecond) {
         LayerOptions options;
         options.mixCache = mixCache.value_or("");
         options.mixWeight = mixWeight.value_or(options.mixWeight);
         options.mixFalloff = mixFalloff;
         options.windAmplitude = windAmplitude;
         options.windFrequency = windFrequency;
-        options.windDirection = windDirection;
+        options.windDirection = windDirection.xyz;
         options.windSpeed = windSpeed;
         options.windOctaves = windOctaves;
         options.windSeed = windSeed;
@@ -424,7 +503,7 @@ void bindSettingLoaders(py::module_& module) {
       py::arg("mix_weight") = py::none(), py::arg("mix_falloff") = layerDefaults.mixFalloff,
       py::arg("wind_amplitude") = layerDefaults.windAmplitude,
       py::arg("wind_frequency") = layerDefaults.windFrequency,
-      py::arg("wind_direction") = layerDefaults.windDirection,
+      py::arg("wind_direction") = Vector3{layerDefaults.windDirection},
       py::arg("wind_speed") = layerDefaults.windSpeed,
       py::arg("wind_octaves") = layerDefaults.windOctaves,
       py::arg("wind_seed") = layerDefaults.windSeed, py::arg("wind_weight") = py::none(),
@@ -440,9 +519,7 @@ void bindSettings(py::module_& module) {
   bindSettingLoaders(module);
 }
 
-}  // namespace
-
-void bindDatabase(py::module_& module) {
+void bindDatabaseClass(py::module_& module) {
   py::class_<Database>(module, "Database",
                        "N pairs of driver and driven shapes with their meshes "
                        "(load_database / build_database).")
@@ -467,16 +544,16 @@ void bindDatabase(py::module_& module) {
           "driver_shapes",
           [](py::object self) {
             const Database& db = self.cast<const Database&>();
-            return viewArray(db.driverShapes.data(), {db.shapeCount(), db.driverVertexCount(), 3},
-                             self);
+            return types::Float32Array(viewArray(
+                db.driverShapes.data(), {db.shapeCount(), db.driverVertexCount(), 3}, self));
           },
           "(N, Vp, 3) float32, read-only view")
       .def_property_readonly(
           "driven_shapes",
           [](py::object self) {
             const Database& db = self.cast<const Database&>();
-            return viewArray(db.drivenShapes.data(), {db.shapeCount(), db.drivenVertexCount(), 3},
-                             self);
+            return types::Float32Array(viewArray(
+                db.drivenShapes.data(), {db.shapeCount(), db.drivenVertexCount(), 3}, self));
           },
           "(N, Vd, 3) float32, read-only view")
       .def_readonly("driver_source", &Database::driverSource)
@@ -485,7 +562,7 @@ void bindDatabase(py::module_& module) {
       .def_readonly("created", &Database::created)
       .def(
           "save",
-          [](const Database& db, py::handle path) {
+          [](const Database& db, types::Path path) {
             const std::string file = pathString(path);
             py::gil_scoped_release release;
             saveDatabase(file, db);
@@ -496,10 +573,72 @@ void bindDatabase(py::module_& module) {
                std::to_string(db.driverVertexCount()) + " vertices, driven " +
                std::to_string(db.drivenVertexCount()) + " vertices>";
       });
+}
+
+/// `build_database`: the keywords of `drivenshape db build` read into its options.
+Database buildDatabaseFromArguments(types::MeshSource driverMesh, types::MeshSource drivenMesh,
+                                    types::CacheSource driverCache, types::CacheSource drivenCache,
+                                    int count, types::OptionalFrames frames,
+                                    types::OptionalFrames addFrames,
+                                    types::OptionalFrames removeFrames, double duplicateTolerance,
+                                    const std::string& model, int modelParts,
+                                    types::Frame startFrameObject, types::ReferenceClips also,
+                                    types::TextOutput log) {
+  const int startFrame = frameNumber(startFrameObject, "start_frame");
+  std::optional<Mesh> driverStorage;
+  std::optional<Mesh> drivenStorage;
+  const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
+  const Mesh& driven = meshArgument(drivenMesh, drivenStorage, "driven_mesh");
+  const std::shared_ptr<PointCacheReader> driverFrames = cacheArgument(driverCache, startFrame);
+  const std::shared_ptr<PointCacheReader> drivenFrames = cacheArgument(drivenCache, startFrame);
+  DatabaseBuildOptions options;
+  options.count = count;
+  options.frames = optionalFrames(frames, "frames");
+  options.addFrames = optionalFrames(addFrames, "add_frames");
+  options.removeFrames = optionalFrames(removeFrames, "remove_frames");
+  options.duplicateTolerance = duplicateTolerance;
+  if (model != "pose" && model != "none") {
+    DS_THROW(kUsage, "model takes 'pose' or 'none' (got '", model, "')");
+  }
+  options.poseModel = model == "pose";
+  options.model.parts = modelParts;
+  // Extra reference clips (db build --also): (driver_cache, driven_cache[, frames]).
+  std::vector<std::shared_ptr<PointCacheReader>> alsoCaches;
+  std::vector<ReferenceClip> clips;
+  if (!also.is_none()) {
+    for (py::handle item : also) {
+      const py::sequence clip = py::reinterpret_borrow<py::sequence>(item);
+      if (!py::isinstance<py::sequence>(item) || (clip.size() != 2 && clip.size() != 3)) {
+        DS_THROW(kUsage, "also: each clip is (driver_cache, driven_cache[, frames])");
+      }
+      alsoCaches.push_back(cacheArgument(clip[0], startFrame));
+      alsoCaches.push_back(cacheArgument(clip[1], startFrame));
+      clips.push_back(
+          {alsoCaches[alsoCaches.size() - 2].get(), alsoCaches.back().get(),
+           clip.size() == 3 ? optionalFrames(clip[2], "also frames") : std::vector<int>()});
+    }
+  }
+  std::ostringstream text;
+  std::optional<Database> database;
+  {
+    py::gil_scoped_release release;
+    database = buildDatabase(driver, driven, *driverFrames, *drivenFrames, clips, options,
+                             log.is_none() ? nullptr : &text);
+  }
+  if (!log.is_none()) {
+    log.attr("write")(text.str());
+  }
+  return std::move(*database);
+}
+
+}  // namespace
+
+void bindDatabase(py::module_& module) {
+  bindDatabaseClass(module);
 
   module.def(
       "load_database",
-      [](py::handle path) {
+      [](types::Path path) {
         const std::string file = pathString(path);
         py::gil_scoped_release release;
         return loadDatabase(file);
@@ -507,7 +646,7 @@ void bindDatabase(py::module_& module) {
       py::arg("path"), "Reads and verifies a database file.");
   module.def(
       "save_database",
-      [](py::handle path, const Database& db) {
+      [](types::Path path, const Database& db) {
         const std::string file = pathString(path);
         py::gil_scoped_release release;
         saveDatabase(file, db);
@@ -515,63 +654,10 @@ void bindDatabase(py::module_& module) {
       py::arg("path"), py::arg("database"));
   const DatabaseBuildOptions buildDefaults;
   module.def(
-      "build_database",
-      [](py::handle driverMesh, py::handle drivenMesh, py::handle driverCache,
-         py::handle drivenCache, int count, py::handle frames, py::handle addFrames,
-         py::handle removeFrames, double duplicateTolerance, const std::string& model,
-         int modelParts, py::handle startFrameObject, py::handle also, py::handle log) {
-        const int startFrame = frameNumber(startFrameObject, "start_frame");
-        std::optional<Mesh> driverStorage;
-        std::optional<Mesh> drivenStorage;
-        const Mesh& driver = meshArgument(driverMesh, driverStorage, "driver_mesh");
-        const Mesh& driven = meshArgument(drivenMesh, drivenStorage, "driven_mesh");
-        const std::shared_ptr<PointCacheReader> driverFrames =
-            cacheArgument(driverCache, startFrame);
-        const std::shared_ptr<PointCacheReader> drivenFrames =
-            cacheArgument(drivenCache, startFrame);
-        DatabaseBuildOptions options;
-        options.count = count;
-        options.frames = optionalFrames(frames, "frames");
-        options.addFrames = optionalFrames(addFrames, "add_frames");
-        options.removeFrames = optionalFrames(removeFrames, "remove_frames");
-        options.duplicateTolerance = duplicateTolerance;
-        if (model != "pose" && model != "none") {
-          DS_THROW(kUsage, "model takes 'pose' or 'none' (got '", model, "')");
-        }
-        options.poseModel = model == "pose";
-        options.model.parts = modelParts;
-        // Extra reference clips (db build --also): (driver_cache, driven_cache[, frames]).
-        std::vector<std::shared_ptr<PointCacheReader>> alsoCaches;
-        std::vector<ReferenceClip> clips;
-        if (!also.is_none()) {
-          for (py::handle item : also) {
-            const py::sequence clip = py::reinterpret_borrow<py::sequence>(item);
-            if (!py::isinstance<py::sequence>(item) || (clip.size() != 2 && clip.size() != 3)) {
-              DS_THROW(kUsage, "also: each clip is (driver_cache, driven_cache[, frames])");
-            }
-            alsoCaches.push_back(cacheArgument(clip[0], startFrame));
-            alsoCaches.push_back(cacheArgument(clip[1], startFrame));
-            clips.push_back(
-                {alsoCaches[alsoCaches.size() - 2].get(), alsoCaches.back().get(),
-                 clip.size() == 3 ? optionalFrames(clip[2], "also frames") : std::vector<int>()});
-          }
-        }
-        std::ostringstream text;
-        std::optional<Database> database;
-        {
-          py::gil_scoped_release release;
-          database = buildDatabase(driver, driven, *driverFrames, *drivenFrames, clips, options,
-                                   log.is_none() ? nullptr : &text);
-        }
-        if (!log.is_none()) {
-          log.attr("write")(text.str());
-        }
-        return std::move(*database);
-      },
-      py::arg("driver_mesh"), py::arg("driven_mesh"), py::arg("driver_cache"),
-      py::arg("driven_cache"), py::kw_only(), py::arg("count") = buildDefaults.count,
-      py::arg("frames") = py::none(), py::arg("add_frames") = py::none(),
-      py::arg("remove_frames") = py::none(),
+      "build_database", &buildDatabaseFromArguments, py::arg("driver_mesh"), py::arg("driven_mesh"),
+      py::arg("driver_cache"), py::arg("driven_cache"), py::kw_only(),
+      py::arg("count") = buildDefaults.count, py::arg("frames") = py::none(),
+      py::arg("add_frames") = py::none(), py::arg("remove_frames") = py::none(),
       py::arg("duplicate_tolerance") = buildDefaults.duplicateTolerance, py::arg("model") = "pose",
       py::arg("model_parts") = 0, py::arg("start_frame") = 1, py::arg("also") = py::none(),
       py::arg("log") = py::none(),
@@ -608,7 +694,7 @@ void bindDevices(py::module_& module) {
              out["downloads"] = counts.downloads;
              out["upload_bytes"] = counts.uploadBytes;
              out["download_bytes"] = counts.downloadBytes;
-             return out;
+             return types::TransferCounts(out);
            })
       .def("__repr__", [](const DeviceHandle& d) {
         return "<drivenshape.Device " + d.device->description() + ">";
@@ -643,7 +729,7 @@ void bindDevices(py::module_& module) {
           entry["description"] = info.description;
           out.append(entry);
         }
-        return out;
+        return types::JsonList(out);
       },
       "Every OpenCL device as a dict (index, name, type, platform, version, ...); the host "
       "path is always there too, as open_device('host').");
@@ -721,8 +807,12 @@ void bindEvaluatorClass(py::module_& module) {
            py::arg("warmup") = 0,
            "The same into `out`, a writable C-contiguous float32 array (F - warmup, Vd, 3): "
            "no cloth allocation per call. Returns the records.")
-      .def("check_frames", [](EvaluatorHandle& h,
-                              py::handle frames) { h.evaluator.checkFrames(frameList(frames)); })
+      .def(
+          "check_frames",
+          [](EvaluatorHandle& h, types::Frames frames) {
+            h.evaluator.checkFrames(frameList(frames));
+          },
+          py::arg("frames"))
       .def("reset_temporal_bound",
            [](EvaluatorHandle& h) {
              // Waits for a call on another thread without holding the GIL it needs to finish.
@@ -748,9 +838,13 @@ void bindEvaluatorClass(py::module_& module) {
           "settings set away from their defaults that the others leave unused (each was also "
           "a UserWarning when the evaluator was made)")
       .def("describe_settings",
-           [](const EvaluatorHandle& h) { return parseJson(h.evaluator.describeSettings()); })
+           [](const EvaluatorHandle& h) {
+             return parseJson<types::JsonDict>(h.evaluator.describeSettings());
+           })
       .def("describe_layers",
-           [](const EvaluatorHandle& h) { return parseJson(h.evaluator.describeLayers()); })
+           [](const EvaluatorHandle& h) {
+             return parseJson<types::JsonDict>(h.evaluator.describeLayers());
+           })
       .def_property_readonly("stage_names",
                              [](const EvaluatorHandle& h) { return h.evaluator.stageNames(); })
       .def_property_readonly("settings",

@@ -33,8 +33,9 @@ std::string meshRepr(const Mesh& mesh) {
          " triangles, groups [" + groups + "]" + (mesh.hasUvs() ? ", UVs>" : ">");
 }
 
-Mesh meshFromPolygons(py::handle positions, py::handle faceStart, py::handle faceVertices,
-                      py::handle uvs, py::handle faceUvs, py::handle faceGroups,
+Mesh meshFromPolygons(types::ArrayLike positions, types::ArrayLike faceStart,
+                      types::ArrayLike faceVertices, types::OptionalArrayLike uvs,
+                      types::OptionalArrayLike faceUvs, types::OptionalArrayLike faceGroups,
                       std::vector<std::string> groupNames) {
   Mesh mesh;
   const FloatArray points(positions, "positions");
@@ -163,21 +164,22 @@ class ArrayPointCache final : public PointCacheReader {
   std::vector<std::pair<int, int>> mOrder;  ///< (frame, index), sorted
 };
 
-py::object readCacheFrames(const PointCacheReader& cache, const std::vector<int>& frames) {
+types::Float32Array readCacheFrames(const PointCacheReader& cache, const std::vector<int>& frames) {
   std::vector<float> values;
   {
     py::gil_scoped_release release;
     values = readFrames(cache, frames);
   }
-  return ownedArray(std::move(values), {static_cast<Index>(frames.size()),
-                                        static_cast<Index>(cache.vertexCount()), 3});
+  return types::Float32Array(
+      ownedArray(std::move(values),
+                 {static_cast<Index>(frames.size()), static_cast<Index>(cache.vertexCount()), 3}));
 }
 
 /// (positions (F, V, 3), start frame, sample rate) of every sample of a PC2 file, including
 /// samples between whole frames (which openPc2's reader does not give). The samples are read
 /// as they are stored, little-endian, which is the host order of every platform this builds
 /// for (x86-64, arm64).
-py::tuple readPc2(const std::string& path) {
+types::Pc2Samples readPc2(const std::string& path) {
   std::vector<float> values;
   float header[2] = {0.0f, 0.0f};
   int points = 0;
@@ -200,10 +202,10 @@ py::tuple readPc2(const std::string& path) {
     }
   }
   py::object array = ownedArray(std::move(values), {samples, points, 3});
-  return py::make_tuple(array, header[0], header[1]);
+  return types::Pc2Samples(py::make_tuple(array, header[0], header[1]));
 }
 
-py::dict exrInfoDict(const ExrPointCacheInfo& info) {
+types::JsonDict exrInfoDict(const ExrPointCacheInfo& info) {
   py::dict out;
   out["vertex_count"] = info.vertexCount;
   out["width"] = info.width;
@@ -218,12 +220,12 @@ py::dict exrInfoDict(const ExrPointCacheInfo& info) {
   out["compression"] = exrCompressionName(info.compression);
   out["pixels_crc"] = info.hasPixelsCrc ? py::object(py::int_(info.pixelsCrc)) : py::none();
   out["string_attributes"] = info.stringAttributes;
-  return out;
+  return types::JsonDict(out);
 }
 
 /// `convert_up_axis`: a float32 copy of positions (..., 3) rotated between the up axes.
-py::object convertUpAxisCopy(py::handle positions, const std::string& fromAxis,
-                             const std::string& toAxis) {
+types::Float32Array convertUpAxisCopy(types::ArrayLike positions, const std::string& fromAxis,
+                                      const std::string& toAxis) {
   const UpAxis from = parseUpAxis(fromAxis, "from_axis");
   const UpAxis to = parseUpAxis(toAxis, "to_axis");
   const FloatArray array(positions, "positions");
@@ -236,7 +238,258 @@ py::object convertUpAxisCopy(py::handle positions, const std::string& fromAxis,
   }
   std::vector<float> xyz(array.data(), array.data() + array.size());
   convertUpAxis(xyz.data(), xyz.size() / 3, from, to);
-  return ownedArray(std::move(xyz), std::move(shape));
+  return types::Float32Array(ownedArray(std::move(xyz), std::move(shape)));
+}
+
+/// The mesh's arrays as properties: read-only numpy views of its own memory (no copy).
+void bindMeshArrays(py::class_<Mesh>& meshClass) {
+  meshClass
+      .def_property_readonly(
+          "positions",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Float32Array(
+                viewArray(mesh.positions.data(), {mesh.positions.rows(), 3}, self));
+          },
+          "(V, 3) float32, read-only view")
+      .def_property_readonly(
+          "triangles",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Int32Array(
+                viewArray(mesh.triangles.data(), {mesh.triangles.rows(), 3}, self));
+          },
+          "(T, 3) int32 fan triangles, read-only view")
+      .def_property_readonly(
+          "triangle_face",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Int32Array(viewArray(
+                mesh.triangleFace.data(), {static_cast<Index>(mesh.triangleFace.size())}, self));
+          },
+          "(T,) int32: the face each triangle came from")
+      .def_property_readonly(
+          "face_start",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Int32Array(viewArray(mesh.faceStart.data(),
+                                               {static_cast<Index>(mesh.faceStart.size())}, self));
+          },
+          "(F + 1,) int32 offsets into face_vertices")
+      .def_property_readonly(
+          "face_vertices",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Int32Array(viewArray(
+                mesh.faceVertices.data(), {static_cast<Index>(mesh.faceVertices.size())}, self));
+          },
+          "int32 vertex ids of every face corner, concatenated")
+      .def_property_readonly(
+          "faces",
+          [](py::object self) {
+            return types::Faces(
+                py::make_tuple(self.attr("face_start"), self.attr("face_vertices")));
+          },
+          "(face_start, face_vertices)")
+      .def_property_readonly(
+          "uvs",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Float32Array(viewArray(mesh.uvs.empty() ? nullptr : mesh.uvs[0].data(),
+                                                 {static_cast<Index>(mesh.uvs.size()), 2}, self));
+          },
+          "(U, 2) float32 texture coordinates (may be empty)")
+      .def_property_readonly(
+          "face_uvs",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Int32Array(
+                viewArray(mesh.faceUvs.data(), {static_cast<Index>(mesh.faceUvs.size())}, self));
+          },
+          "int32 uv id per face corner (parallel to face_vertices; -1 = none), or empty")
+      .def_property_readonly(
+          "face_groups",
+          [](py::object self) {
+            const Mesh& mesh = self.cast<const Mesh&>();
+            return types::Int32Array(viewArray(mesh.faceGroup.data(),
+                                               {static_cast<Index>(mesh.faceGroup.size())}, self));
+          },
+          "(F,) int32 group id of each face (index into group_names)");
+}
+
+void bindPointCacheClass(py::module_& module) {
+  py::class_<PointCacheReader, std::shared_ptr<PointCacheReader>>(
+      module, "PointCache",
+      "Frames of vertex positions: a PC2 file, a point-cache EXR sequence "
+      "(open_point_cache) or an in-memory array (PointCache.from_array).")
+      .def_static(
+          "from_array",
+          [](types::ArrayLike positions, types::Frame startFrame, types::OptionalFrames frames) {
+            return makeArrayCache(positions, frameNumber(startFrame, "start_frame"), frames);
+          },
+          py::arg("positions"), py::arg("start_frame") = 1, py::arg("frames") = py::none(),
+          "A cache over positions (F, V, 3): frames start_frame, start_frame + 1, ... or the "
+          "frame numbers given. C-contiguous float32 arrays are used in place (do not change "
+          "them while the cache is in use); other arrays are converted once.")
+      .def_property_readonly("vertex_count", &PointCacheReader::vertexCount)
+      .def_property_readonly("frames", &PointCacheReader::frames, "frames it holds, ascending")
+      .def_property_readonly("path", &PointCacheReader::path)
+      .def(
+          "has_frame",
+          [](const PointCacheReader& cache, types::Frame frame) {
+            return cache.hasFrame(frameNumber(frame, "frame"));
+          },
+          py::arg("frame"))
+      .def(
+          "read",
+          [](const PointCacheReader& cache, types::Frame frameObject) {
+            const int frame = frameNumber(frameObject, "frame");
+            std::vector<float> xyz(3 * static_cast<std::size_t>(cache.vertexCount()));
+            {
+              py::gil_scoped_release release;
+              cache.readFrame(frame, xyz.data());
+            }
+            return types::Float32Array(ownedArray(std::move(xyz), {cache.vertexCount(), 3}));
+          },
+          py::arg("frame"), "(V, 3) float32 positions of one frame")
+      .def(
+          "read_frames",
+          [](const PointCacheReader& cache, types::Frames frames) {
+            return readCacheFrames(cache, frameList(frames));
+          },
+          py::arg("frames"), "(F, V, 3) float32 positions of the frames, in the order given")
+      .def("__repr__", [](const PointCacheReader& cache) {
+        return "<drivenshape.PointCache '" + cache.path() + "', " +
+               std::to_string(cache.vertexCount()) + " vertices, frames " +
+               formatFrameRange(cache.frames()) + ">";
+      });
+}
+
+/// `write_point_cache_exr`: one frame of positions (V, 3) and optional normals.
+void writeExrFrame(types::Path path, types::ArrayLike positions, types::OptionalArrayLike normals,
+                   types::Frame frame, types::WholeNumber width, const std::string& compression,
+                   std::uint64_t topology, std::uint64_t settings, double fps,
+                   std::map<std::string, std::string> attributes, bool sync,
+                   const std::string& zipEncoder) {
+  const std::string file = pathString(path);
+  ExrWriteOptions options;
+  // Before anything is allocated: the writer pads every row out to the full width.
+  options.width = static_cast<int>(wholeNumber(width, "width", 1, kMaxPointCacheExrWidth));
+  options.frame = frameNumber(frame, "frame");
+  const FloatArray xyz(positions, "positions");
+  if (xyz.ndim() != 2 || xyz.dim(1) != 3) {
+    DS_THROW(kUsage, "positions must be shaped (vertices, 3); got ", xyz.describe());
+  }
+  if (xyz.dim(0) == 0) {
+    DS_THROW(kUsage, "positions hold no vertices (", xyz.describe(),
+             "); a point-cache EXR holds at least one");
+  }
+  std::optional<FloatArray> normalArray;
+  if (!normals.is_none()) {
+    normalArray.emplace(normals, "normals");
+    if (normalArray->ndim() != 2 || normalArray->dim(0) != xyz.dim(0) || normalArray->dim(1) != 3) {
+      DS_THROW(kUsage, "normals must be shaped like positions ", xyz.describe(), "; got ",
+               normalArray->describe());
+    }
+  }
+  options.compression = parseExrCompression(compression);
+  options.zipEncoder = parseZipEncoder(zipEncoder, "zip_encoder");
+  options.topologyHash = topology;
+  options.settingsHash = settings;
+  options.framesPerSecond = fps;
+  options.stringAttributes.assign(attributes.begin(), attributes.end());
+  options.syncToDisk = sync;
+  py::gil_scoped_release release;
+  writePointCacheExr(file, static_cast<int>(xyz.dim(0)), xyz.data(),
+                     normalArray ? normalArray->data() : nullptr, options);
+}
+
+/// Opening caches, and PC2 files read and written whole.
+void bindCacheFiles(py::module_& module) {
+  module.def(
+      "open_point_cache",
+      [](types::Path spec, std::uint64_t expectedTopology) {
+        const std::string text = pathString(spec);
+        py::gil_scoped_release release;
+        return std::shared_ptr<PointCacheReader>(openPointCache(text, expectedTopology));
+      },
+      py::arg("spec"), py::arg("expected_topology") = 0,
+      "Opens a .pc2 file or a point-cache EXR sequence pattern (out.####.exr, %04d, $F4); "
+      "with expected_topology, every EXR's topology hash is checked.");
+
+  module.def(
+      "read_pc2", [](types::Path path) { return readPc2(pathString(path)); }, py::arg("path"),
+      "(positions (F, V, 3) float32, start_frame, sample_rate) of every sample of a PC2 file");
+  module.def(
+      "write_pc2",
+      [](types::Path path, types::ArrayLike positions, float startFrame, float sampleRate) {
+        const std::string file = pathString(path);
+        const FloatArray array(positions, "positions");
+        const FrameBlockShape shape = frameBlockShape(array, "positions");
+        py::gil_scoped_release release;
+        writePc2(file, shape.vertices, startFrame, shape.frames, array.data(), sampleRate);
+      },
+      py::arg("path"), py::arg("positions"), py::arg("start_frame") = 1.0f,
+      py::arg("sample_rate") = 1.0f,
+      "Writes positions (F, V, 3) as PC2 (atomically), sample s at start_frame + s * "
+      "sample_rate.");
+}
+
+/// Point-cache EXR frames (docs/formats.md).
+void bindPointCacheExr(py::module_& module) {
+  module.def("write_point_cache_exr", &writeExrFrame, py::arg("path"), py::arg("positions"),
+             py::arg("normals") = py::none(), py::arg("frame") = 0, py::arg("width") = 1024,
+             py::arg("compression") = "zip", py::arg("topology_hash") = 0,
+             py::arg("settings_hash") = 0, py::arg("frames_per_second") = 24.0,
+             py::arg("string_attributes") = std::map<std::string, std::string>(),
+             py::arg("sync") = true, py::arg("zip_encoder") = "libdeflate",
+             "Writes one point-cache EXR frame atomically: positions (V, 3), optional normals, "
+             "compression zip|none|zips|piz, zip_encoder libdeflate|openexr (who deflates zip and "
+             "zips), header attributes as in docs/formats.md.");
+  module.def(
+      "read_point_cache_exr",
+      [](types::Path path, int expectedVertexCount, std::uint64_t expectedTopology) {
+        const std::string file = pathString(path);
+        std::vector<float> xyz;
+        ExrPointCacheInfo info;
+        {
+          py::gil_scoped_release release;
+          info = readPointCacheExr(file, xyz, expectedVertexCount, expectedTopology);
+        }
+        const int count = info.vertexCount;
+        return types::ExrFrame(
+            py::make_tuple(ownedArray(std::move(xyz), {count, 3}), exrInfoDict(info)));
+      },
+      py::arg("path"), py::arg("expected_vertex_count") = 0, py::arg("expected_topology") = 0,
+      "(positions (V, 3) float32, header dict) of one point-cache EXR; a nonzero expected "
+      "vertex count or topology hash that differs from the header is an Error.");
+  module.def(
+      "read_point_cache_exr_info",
+      [](types::Path path) {
+        const std::string file = pathString(path);
+        ExrPointCacheInfo info;
+        {
+          py::gil_scoped_release release;
+          info = readPointCacheExrInfo(file);
+        }
+        return exrInfoDict(info);
+      },
+      py::arg("path"), "The header of one point-cache EXR as a dict.");
+}
+
+void bindFrameRanges(py::module_& module) {
+  module.def("parse_frame_range", &parseFrameRange, py::arg("text"),
+             "'1001-1100', '1001-1100x2', '1001,1005,1010-1020' -> list of frames");
+  module.def(
+      "format_frame_range",
+      [](types::Frames frames) { return formatFrameRange(frameList(frames)); }, py::arg("frames"));
+  module.def(
+      "expand_frame_pattern",
+      [](const std::string& pattern, types::Frame frame) {
+        return expandFramePattern(pattern, frameNumber(frame, "frame"));
+      },
+      py::arg("pattern"), py::arg("frame"),
+      "'out.####.exr', 12 -> 'out.0012.exr' (also %04d and $F4)");
 }
 
 }  // namespace
@@ -247,10 +500,11 @@ std::shared_ptr<PointCacheReader> makeArrayCache(py::handle positions, int start
 }
 
 void bindMeshes(py::module_& module) {
-  py::class_<Mesh>(module, "Mesh",
-                   "A polygon mesh: positions, faces of any size, UVs, face groups, and the fan "
-                   "triangulation the correction uses. Array properties are read-only views of "
-                   "the mesh's own memory (no copy).")
+  py::class_<Mesh> meshClass(module, "Mesh",
+                             "A polygon mesh: positions, faces of any size, UVs, face groups, "
+                             "and the fan triangulation the correction uses. Array properties "
+                             "are read-only views of the mesh's own memory (no copy).");
+  meshClass
       .def_static("from_polygons", &meshFromPolygons, py::arg("positions"), py::arg("face_start"),
                   py::arg("face_vertices"), py::arg("uvs") = py::none(),
                   py::arg("face_uvs") = py::none(), py::arg("face_groups") = py::none(),
@@ -261,75 +515,9 @@ void bindMeshes(py::module_& module) {
                   "group ids) with group_names. Validated like an OBJ (Error kind 'input').")
       .def_property_readonly("vertex_count", &Mesh::vertexCount)
       .def_property_readonly("face_count", &Mesh::faceCount)
-      .def_property_readonly("triangle_count", &Mesh::triangleCount)
-      .def_property_readonly(
-          "positions",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.positions.data(), {mesh.positions.rows(), 3}, self);
-          },
-          "(V, 3) float32, read-only view")
-      .def_property_readonly(
-          "triangles",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.triangles.data(), {mesh.triangles.rows(), 3}, self);
-          },
-          "(T, 3) int32 fan triangles, read-only view")
-      .def_property_readonly(
-          "triangle_face",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.triangleFace.data(),
-                             {static_cast<Index>(mesh.triangleFace.size())}, self);
-          },
-          "(T,) int32: the face each triangle came from")
-      .def_property_readonly(
-          "face_start",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceStart.data(), {static_cast<Index>(mesh.faceStart.size())},
-                             self);
-          },
-          "(F + 1,) int32 offsets into face_vertices")
-      .def_property_readonly(
-          "face_vertices",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceVertices.data(),
-                             {static_cast<Index>(mesh.faceVertices.size())}, self);
-          },
-          "int32 vertex ids of every face corner, concatenated")
-      .def_property_readonly(
-          "faces",
-          [](py::object self) {
-            return py::make_tuple(self.attr("face_start"), self.attr("face_vertices"));
-          },
-          "(face_start, face_vertices)")
-      .def_property_readonly(
-          "uvs",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.uvs.empty() ? nullptr : mesh.uvs[0].data(),
-                             {static_cast<Index>(mesh.uvs.size()), 2}, self);
-          },
-          "(U, 2) float32 texture coordinates (may be empty)")
-      .def_property_readonly(
-          "face_uvs",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceUvs.data(), {static_cast<Index>(mesh.faceUvs.size())}, self);
-          },
-          "int32 uv id per face corner (parallel to face_vertices; -1 = none), or empty")
-      .def_property_readonly(
-          "face_groups",
-          [](py::object self) {
-            const Mesh& mesh = self.cast<const Mesh&>();
-            return viewArray(mesh.faceGroup.data(), {static_cast<Index>(mesh.faceGroup.size())},
-                             self);
-          },
-          "(F,) int32 group id of each face (index into group_names)")
-      .def_readonly("group_names", &Mesh::groupNames)
+      .def_property_readonly("triangle_count", &Mesh::triangleCount);
+  bindMeshArrays(meshClass);
+  meshClass.def_readonly("group_names", &Mesh::groupNames)
       .def_property_readonly("has_uvs", &Mesh::hasUvs)
       .def_property_readonly(
           "topology_hash", [](const Mesh& mesh) { return topologyHash(mesh); },
@@ -338,7 +526,7 @@ void bindMeshes(py::module_& module) {
 
   module.def(
       "read_obj",
-      [](py::handle path) {
+      [](types::Path path) {
         const std::string file = pathString(path);
         py::gil_scoped_release release;
         return readObj(file);
@@ -346,7 +534,7 @@ void bindMeshes(py::module_& module) {
       py::arg("path"), "Reads an OBJ (vertex order kept exactly as in the file).");
   module.def(
       "write_obj",
-      [](py::handle path, const Mesh& mesh) {
+      [](types::Path path, const Mesh& mesh) {
         const std::string file = pathString(path);
         py::gil_scoped_release release;
         writeObj(file, mesh);
@@ -361,168 +549,10 @@ void bindMeshes(py::module_& module) {
 }
 
 void bindPointCaches(py::module_& module) {
-  py::class_<PointCacheReader, std::shared_ptr<PointCacheReader>>(
-      module, "PointCache",
-      "Frames of vertex positions: a PC2 file, a point-cache EXR sequence "
-      "(open_point_cache) or an in-memory array (PointCache.from_array).")
-      .def_static(
-          "from_array",
-          [](py::handle positions, py::handle startFrame, py::handle frames) {
-            return makeArrayCache(positions, frameNumber(startFrame, "start_frame"), frames);
-          },
-          py::arg("positions"), py::arg("start_frame") = 1, py::arg("frames") = py::none(),
-          "A cache over positions (F, V, 3): frames start_frame, start_frame + 1, ... or the "
-          "frame numbers given. C-contiguous float32 arrays are used in place (do not change "
-          "them while the cache is in use); other arrays are converted once.")
-      .def_property_readonly("vertex_count", &PointCacheReader::vertexCount)
-      .def_property_readonly("frames", &PointCacheReader::frames, "frames it holds, ascending")
-      .def_property_readonly("path", &PointCacheReader::path)
-      .def(
-          "has_frame",
-          [](const PointCacheReader& cache, py::handle frame) {
-            return cache.hasFrame(frameNumber(frame, "frame"));
-          },
-          py::arg("frame"))
-      .def(
-          "read",
-          [](const PointCacheReader& cache, py::handle frameObject) {
-            const int frame = frameNumber(frameObject, "frame");
-            std::vector<float> xyz(3 * static_cast<std::size_t>(cache.vertexCount()));
-            {
-              py::gil_scoped_release release;
-              cache.readFrame(frame, xyz.data());
-            }
-            return ownedArray(std::move(xyz), {cache.vertexCount(), 3});
-          },
-          py::arg("frame"), "(V, 3) float32 positions of one frame")
-      .def(
-          "read_frames",
-          [](const PointCacheReader& cache, py::handle frames) {
-            return readCacheFrames(cache, frameList(frames));
-          },
-          py::arg("frames"), "(F, V, 3) float32 positions of the frames, in the order given")
-      .def("__repr__", [](const PointCacheReader& cache) {
-        return "<drivenshape.PointCache '" + cache.path() + "', " +
-               std::to_string(cache.vertexCount()) + " vertices, frames " +
-               formatFrameRange(cache.frames()) + ">";
-      });
-
-  module.def(
-      "open_point_cache",
-      [](py::handle spec, std::uint64_t expectedTopology) {
-        const std::string text = pathString(spec);
-        py::gil_scoped_release release;
-        return std::shared_ptr<PointCacheReader>(openPointCache(text, expectedTopology));
-      },
-      py::arg("spec"), py::arg("expected_topology") = 0,
-      "Opens a .pc2 file or a point-cache EXR sequence pattern (out.####.exr, %04d, $F4); "
-      "with expected_topology, every EXR's topology hash is checked.");
-
-  module.def(
-      "read_pc2", [](py::handle path) { return readPc2(pathString(path)); }, py::arg("path"),
-      "(positions (F, V, 3) float32, start_frame, sample_rate) of every sample of a PC2 file");
-  module.def(
-      "write_pc2",
-      [](py::handle path, py::handle positions, float startFrame, float sampleRate) {
-        const std::string file = pathString(path);
-        const FloatArray array(positions, "positions");
-        const FrameBlockShape shape = frameBlockShape(array, "positions");
-        py::gil_scoped_release release;
-        writePc2(file, shape.vertices, startFrame, shape.frames, array.data(), sampleRate);
-      },
-      py::arg("path"), py::arg("positions"), py::arg("start_frame") = 1.0f,
-      py::arg("sample_rate") = 1.0f,
-      "Writes positions (F, V, 3) as PC2 (atomically), sample s at start_frame + s * "
-      "sample_rate.");
-
-  module.def(
-      "write_point_cache_exr",
-      [](py::handle path, py::handle positions, py::handle normals, py::handle frame,
-         py::handle width, const std::string& compression, std::uint64_t topology,
-         std::uint64_t settings, double fps, std::map<std::string, std::string> attributes,
-         bool sync, const std::string& zipEncoder) {
-        const std::string file = pathString(path);
-        ExrWriteOptions options;
-        // Before anything is allocated: the writer pads every row out to the full width.
-        options.width = static_cast<int>(wholeNumber(width, "width", 1, kMaxPointCacheExrWidth));
-        options.frame = frameNumber(frame, "frame");
-        const FloatArray xyz(positions, "positions");
-        if (xyz.ndim() != 2 || xyz.dim(1) != 3) {
-          DS_THROW(kUsage, "positions must be shaped (vertices, 3); got ", xyz.describe());
-        }
-        if (xyz.dim(0) == 0) {
-          DS_THROW(kUsage, "positions hold no vertices (", xyz.describe(),
-                   "); a point-cache EXR holds at least one");
-        }
-        std::optional<FloatArray> normalArray;
-        if (!normals.is_none()) {
-          normalArray.emplace(normals, "normals");
-          if (normalArray->ndim() != 2 || normalArray->dim(0) != xyz.dim(0) ||
-              normalArray->dim(1) != 3) {
-            DS_THROW(kUsage, "normals must be shaped like positions ", xyz.describe(), "; got ",
-                     normalArray->describe());
-          }
-        }
-        options.compression = parseExrCompression(compression);
-        options.zipEncoder = parseZipEncoder(zipEncoder, "zip_encoder");
-        options.topologyHash = topology;
-        options.settingsHash = settings;
-        options.framesPerSecond = fps;
-        options.stringAttributes.assign(attributes.begin(), attributes.end());
-        options.syncToDisk = sync;
-        py::gil_scoped_release release;
-        writePointCacheExr(file, static_cast<int>(xyz.dim(0)), xyz.data(),
-                           normalArray ? normalArray->data() : nullptr, options);
-      },
-      py::arg("path"), py::arg("positions"), py::arg("normals") = py::none(), py::arg("frame") = 0,
-      py::arg("width") = 1024, py::arg("compression") = "zip", py::arg("topology_hash") = 0,
-      py::arg("settings_hash") = 0, py::arg("frames_per_second") = 24.0,
-      py::arg("string_attributes") = std::map<std::string, std::string>(), py::arg("sync") = true,
-      py::arg("zip_encoder") = "libdeflate",
-      "Writes one point-cache EXR frame atomically: positions (V, 3), optional normals, "
-      "compression zip|none|zips|piz, zip_encoder libdeflate|openexr (who deflates zip and "
-      "zips), header attributes as in docs/formats.md.");
-  module.def(
-      "read_point_cache_exr",
-      [](py::handle path, int expectedVertexCount, std::uint64_t expectedTopology) {
-        const std::string file = pathString(path);
-        std::vector<float> xyz;
-        ExrPointCacheInfo info;
-        {
-          py::gil_scoped_release release;
-          info = readPointCacheExr(file, xyz, expectedVertexCount, expectedTopology);
-        }
-        const int count = info.vertexCount;
-        return py::make_tuple(ownedArray(std::move(xyz), {count, 3}), exrInfoDict(info));
-      },
-      py::arg("path"), py::arg("expected_vertex_count") = 0, py::arg("expected_topology") = 0,
-      "(positions (V, 3) float32, header dict) of one point-cache EXR; a nonzero expected "
-      "vertex count or topology hash that differs from the header is an Error.");
-  module.def(
-      "read_point_cache_exr_info",
-      [](py::handle path) {
-        const std::string file = pathString(path);
-        ExrPointCacheInfo info;
-        {
-          py::gil_scoped_release release;
-          info = readPointCacheExrInfo(file);
-        }
-        return exrInfoDict(info);
-      },
-      py::arg("path"), "The header of one point-cache EXR as a dict.");
-
-  module.def("parse_frame_range", &parseFrameRange, py::arg("text"),
-             "'1001-1100', '1001-1100x2', '1001,1005,1010-1020' -> list of frames");
-  module.def(
-      "format_frame_range", [](py::handle frames) { return formatFrameRange(frameList(frames)); },
-      py::arg("frames"));
-  module.def(
-      "expand_frame_pattern",
-      [](const std::string& pattern, py::handle frame) {
-        return expandFramePattern(pattern, frameNumber(frame, "frame"));
-      },
-      py::arg("pattern"), py::arg("frame"),
-      "'out.####.exr', 12 -> 'out.0012.exr' (also %04d and $F4)");
+  bindPointCacheClass(module);
+  bindCacheFiles(module);
+  bindPointCacheExr(module);
+  bindFrameRanges(module);
 }
 
 }  // namespace drivenshape::python

@@ -70,7 +70,7 @@ void bindShotPlan(py::module_& module) {
 
   module.def(
       "plan_shot",
-      [](py::handle evaluator, py::handle frames, py::handle available, int batch,
+      [](types::EvaluatorObject evaluator, types::Frames frames, types::Frames available, int batch,
          int temporalWarmup) {
         const ShotPlanSettings settings = planSettings(evaluator, batch, temporalWarmup);
         return planShot(frameList(frames), availableFrames(available), settings);
@@ -85,14 +85,14 @@ void bindShotPlan(py::module_& module) {
                               "The plan of a timeline played frame by frame (live mode): each "
                               "frame continues the evaluator or starts a batch with its warm-up, "
                               "so that it is the frame of a bake.")
-      .def(py::init([](py::handle evaluator, int batch, int temporalWarmup) {
+      .def(py::init([](types::EvaluatorObject evaluator, int batch, int temporalWarmup) {
              return PlaybackPlanner(planSettings(evaluator, batch, temporalWarmup));
            }),
            py::arg("evaluator"), py::arg("batch") = kDefaultBatchFrames,
            py::arg("temporal_warmup") = kDefaultTemporalWarmup)
       .def(
           "next",
-          [](PlaybackPlanner& planner, py::handle frame, py::handle available) {
+          [](PlaybackPlanner& planner, types::Frame frame, types::Frames available) {
             const int number = frameNumber(frame, "frame");
             return planner.next(number, availableFrames(available));
           },

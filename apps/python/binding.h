@@ -12,9 +12,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <drivenshape/error.h>
@@ -24,6 +26,99 @@
 namespace drivenshape::python {
 
 namespace py = pybind11;
+
+/// A Python argument or result that the binding reads or builds itself (a path, frames, an
+/// array), with the Python type it stands for in its signature: help(), the docstrings and so
+/// the stubs (apps/python/drivenshape/_drivenshape.pyi, generated from them) show `Name::name`
+/// instead of pybind11's `object`/`handle`. It converts and checks nothing: any object is
+/// passed through unchanged, and the binding checks it with its own messages as before.
+template <typename Name>
+class Typed : public py::object {
+ public:
+  using py::object::object;
+  Typed() = default;
+  explicit Typed(py::object value) : py::object(std::move(value)) {}
+  static bool check_(py::handle object) { return object.ptr() != nullptr; }
+};
+
+/// The Python types of Typed, spelled as the stubs write them (PEP 604 unions, qualified
+/// names; classes of this module by their own name).
+namespace type_names {
+#define DS_PYTHON_TYPE(Tag, spelling)                              \
+  struct Tag {                                                     \
+    static constexpr auto name = py::detail::const_name(spelling); \
+  }
+#define DS_PYTHON_FRAMES                                                     \
+  "typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | " \
+  "numpy.typing.NDArray[numpy.integer[typing.Any]]"
+#define DS_PYTHON_CACHE "PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike"
+#define DS_PYTHON_FLOAT32 "numpy.typing.NDArray[numpy.float32]"
+#define DS_PYTHON_INT32 "numpy.typing.NDArray[numpy.int32]"
+// Inputs: one frame or several (frameNumber, frameList); arrays that are read as float32 or
+// int32, any array-like converted once (FloatArray, intVector).
+DS_PYTHON_TYPE(Path, "str | os.PathLike[str]");
+DS_PYTHON_TYPE(Frame, "typing.SupportsIndex");
+DS_PYTHON_TYPE(WholeNumber, "typing.SupportsIndex");
+DS_PYTHON_TYPE(Frames, DS_PYTHON_FRAMES);
+DS_PYTHON_TYPE(OptionalFrames, DS_PYTHON_FRAMES " | None");
+DS_PYTHON_TYPE(ArrayLike, "numpy.typing.ArrayLike");
+DS_PYTHON_TYPE(OptionalArrayLike, "numpy.typing.ArrayLike | None");
+DS_PYTHON_TYPE(MeshSource, "Mesh | str | os.PathLike[str]");
+DS_PYTHON_TYPE(CacheSource, DS_PYTHON_CACHE);
+DS_PYTHON_TYPE(ReferenceClips, "collections.abc.Iterable[tuple[" DS_PYTHON_CACHE
+                               ", " DS_PYTHON_CACHE "] | tuple[" DS_PYTHON_CACHE
+                               ", " DS_PYTHON_CACHE ", " DS_PYTHON_FRAMES " | None]] | None");
+DS_PYTHON_TYPE(TextOutput, "typing.TextIO | None");
+DS_PYTHON_TYPE(EvaluatorObject, "Evaluator");
+// Outputs, and evaluate_into's `out` (which must already be float32).
+DS_PYTHON_TYPE(Float32Array, DS_PYTHON_FLOAT32);
+DS_PYTHON_TYPE(Int32Array, DS_PYTHON_INT32);
+DS_PYTHON_TYPE(Faces, "tuple[" DS_PYTHON_INT32 ", " DS_PYTHON_INT32 "]");
+DS_PYTHON_TYPE(Pc2Samples, "tuple[" DS_PYTHON_FLOAT32 ", float, float]");
+DS_PYTHON_TYPE(ExrFrame, "tuple[" DS_PYTHON_FLOAT32 ", dict[str, typing.Any]]");
+DS_PYTHON_TYPE(Evaluation, "tuple[" DS_PYTHON_FLOAT32 ", list[FrameRecord]]");
+DS_PYTHON_TYPE(Records, "list[FrameRecord]");
+DS_PYTHON_TYPE(JsonDict, "dict[str, typing.Any]");
+DS_PYTHON_TYPE(JsonList, "list[dict[str, typing.Any]]");
+DS_PYTHON_TYPE(TransferCounts, "dict[str, int]");
+#undef DS_PYTHON_TYPE
+#undef DS_PYTHON_FRAMES
+#undef DS_PYTHON_CACHE
+#undef DS_PYTHON_FLOAT32
+#undef DS_PYTHON_INT32
+}  // namespace type_names
+
+/// Arguments and results by their Python type: `types::Path path`.
+namespace types {
+using Path = Typed<type_names::Path>;
+using Frame = Typed<type_names::Frame>;
+using WholeNumber = Typed<type_names::WholeNumber>;
+using Frames = Typed<type_names::Frames>;
+using OptionalFrames = Typed<type_names::OptionalFrames>;
+using ArrayLike = Typed<type_names::ArrayLike>;
+using OptionalArrayLike = Typed<type_names::OptionalArrayLike>;
+using MeshSource = Typed<type_names::MeshSource>;
+using CacheSource = Typed<type_names::CacheSource>;
+using ReferenceClips = Typed<type_names::ReferenceClips>;
+using TextOutput = Typed<type_names::TextOutput>;
+using EvaluatorObject = Typed<type_names::EvaluatorObject>;
+using Float32Array = Typed<type_names::Float32Array>;
+using Int32Array = Typed<type_names::Int32Array>;
+using Faces = Typed<type_names::Faces>;
+using Pc2Samples = Typed<type_names::Pc2Samples>;
+using ExrFrame = Typed<type_names::ExrFrame>;
+using Evaluation = Typed<type_names::Evaluation>;
+using Records = Typed<type_names::Records>;
+using JsonDict = Typed<type_names::JsonDict>;
+using JsonList = Typed<type_names::JsonList>;
+using TransferCounts = Typed<type_names::TransferCounts>;
+}  // namespace types
+
+/// A direction (x, y, z): read as pybind11 reads std::array<double, 3> (a sequence of three
+/// numbers, else a TypeError), shown as a Python type (pybind11 says `list[float[3]]`).
+struct Vector3 {
+  std::array<double, 3> xyz{};
+};
 
 /// Memory handed to numpy: a buffer-protocol object that keeps the memory alive, either by
 /// owning it (`keep`, e.g. the cloth of an evaluate() call) or by holding the Python object
@@ -127,3 +222,27 @@ void bindShotPlan(py::module_& module);
 const Evaluator& evaluatorOf(py::handle object);
 
 }  // namespace drivenshape::python
+
+namespace pybind11::detail {
+template <typename Name>
+struct handle_type_name<drivenshape::python::Typed<Name>> {
+  static constexpr auto name = Name::name;
+};
+
+template <>
+struct type_caster<drivenshape::python::Vector3> {
+  using Array = std::array<double, 3>;
+  PYBIND11_TYPE_CASTER(drivenshape::python::Vector3, const_name("collections.abc.Sequence[float]"));
+  bool load(handle source, bool convert) {
+    make_caster<Array> array;
+    if (!array.load(source, convert)) {
+      return false;
+    }
+    value.xyz = cast_op<Array&&>(std::move(array));
+    return true;
+  }
+  static handle cast(const drivenshape::python::Vector3& vector, return_value_policy, handle) {
+    return pybind11::make_tuple(vector.xyz[0], vector.xyz[1], vector.xyz[2]).release();
+  }
+};
+}  // namespace pybind11::detail

@@ -43,6 +43,8 @@ packages="$work/prefix/lib/python3/dist-packages"
 if [[ -f "$build/python/drivenshape/__init__.py" ]]; then
   test -f "$packages/drivenshape/usd.py"
   test -f "$packages/drivenshape/qc.py"
+  test -f "$packages/drivenshape/_drivenshape.pyi"  # the types (docs/python.md#types)
+  test -f "$packages/drivenshape/py.typed"
   (cd "$work" && PYTHONPATH="$packages" /usr/bin/python3 - "$work" "$data" <<'PY'
 import sys
 import drivenshape as ds

@@ -3,7 +3,8 @@
 # `pip install .` end to end (pyproject.toml, scikit-build-core): a fresh venv gets the test
 # dependencies (scripts/requirements.txt) and the package built from the source tree; the
 # console scripts answer --help, the module imports from the venv (not from the build tree) and
-# says the project's version, and the Python tests run against the installed package.
+# says the project's version, its types check (tests/python/check_typing.py) and the Python tests
+# run against the installed package.
 #   test_wheel.sh BUILD_DIR SOURCE_DIR CLI
 # The wheel's CMake build stays in BUILD_DIR/wheel-build, so a second run is incremental.
 set -euo pipefail
@@ -31,6 +32,13 @@ assert where.startswith(os.path.realpath(venv)), f"drivenshape imported from {wh
 assert drivenshape.__version__ == version, (drivenshape.__version__, version)
 print(f"drivenshape {drivenshape.__version__} from {where}")
 PY
+# The types reach the wheel (wheel.packages copies apps/python/drivenshape): mypy, finding the
+# installed package through py.typed, accepts the typed example and rejects the wrong uses.
+site=$("$python" -c 'import drivenshape, os; print(os.path.dirname(drivenshape.__file__))')
+test -f "$site/_drivenshape.pyi"
+test -f "$site/py.typed"
+"$python" "$source/tests/python/check_typing.py" --data "$source/tests/data/sleeve" \
+  --work "$work/typing"
 "$work/venv/bin/drivenshape-usd" --help > /dev/null
 "$work/venv/bin/drivenshape-qc" --help > /dev/null
 "$python" -m pytest -q -p no:cacheprovider "$source/tests/python" --basetemp="$work/pytest" \

@@ -22,6 +22,11 @@ Errors are `drivenshape.Error` (a RuntimeError) with `.kind` ('usage', 'input', 
 'device', 'numerical', ...) and `.code` (the command line's exit code).
 """
 
+from __future__ import annotations
+
+import typing as _typing
+from collections.abc import Sequence as _Sequence
+
 from ._drivenshape import (  # noqa: F401
     BindingMask,
     Database,
@@ -64,21 +69,51 @@ from ._drivenshape import (  # noqa: F401
 )
 
 import numpy as _np
+import numpy.typing as _npt
+
+# evaluate_cache's frames: one frame number, or a sequence or an integer array of them.
+_FrameList = _typing.Union[int, "_np.integer[_typing.Any]", _Sequence[_typing.SupportsIndex],
+                           "_npt.NDArray[_np.integer[_typing.Any]]"]
+_Cloth = _npt.NDArray[_np.float32]
 
 
-def evaluate_cache(evaluator, cache, frames, batch=64, temporal_warmup=8, with_seconds=False):
+@_typing.overload
+def evaluate_cache(evaluator: Evaluator, cache: PointCache, frames: _FrameList, batch: int = 64,
+                   temporal_warmup: int = 8, with_seconds: _typing.Literal[False] = False
+                   ) -> tuple[_Cloth, list[FrameRecord]]: ...
+
+
+@_typing.overload
+def evaluate_cache(evaluator: Evaluator, cache: PointCache, frames: _FrameList, batch: int = 64,
+                   temporal_warmup: int = 8, *, with_seconds: _typing.Literal[True]
+                   ) -> tuple[_Cloth, list[FrameRecord], dict[str, float]]: ...
+
+
+@_typing.overload
+def evaluate_cache(evaluator: Evaluator, cache: PointCache, frames: _FrameList, batch: int = 64,
+                   temporal_warmup: int = 8, with_seconds: bool = False
+                   ) -> (tuple[_Cloth, list[FrameRecord]]
+                         | tuple[_Cloth, list[FrameRecord], dict[str, float]]): ...
+
+
+def evaluate_cache(evaluator: Evaluator, cache: PointCache, frames: _FrameList, batch: int = 64,
+                   temporal_warmup: int = 8, with_seconds: bool = False
+                   ) -> (tuple[_Cloth, list[FrameRecord]]
+                         | tuple[_Cloth, list[FrameRecord], dict[str, float]]):
     """Evaluates `frames` (any order) of a PointCache the way `drivenshape bake` does, without
     files, in the batches plan_shot gives: each starts the evaluator's temporal state afresh
     after its warm-up frames from the cache (the pose model's history, and `temporal_warmup`
     frames with max_weight_change > 0), so every frame is bitwise the bake's. Returns
     (cloth (F, Vd, 3) float32, [FrameRecord]) and, with with_seconds, the seconds per stage
     summed over the batches."""
-    frames = [frames] if isinstance(frames, (int, _np.integer)) else list(frames)
-    evaluator.check_frames(frames)  # drivenshape.Error (usage) for a frame outside C++ ints
-    plan = plan_shot(evaluator, frames, cache.frames, batch=batch,
+    frame_list: list[_typing.SupportsIndex] = (
+        [frames] if isinstance(frames, (int, _np.integer)) else list(frames))
+    evaluator.check_frames(frame_list)  # drivenshape.Error (usage) for a frame outside C++ ints
+    plan = plan_shot(evaluator, frame_list, cache.frames, batch=batch,
                      temporal_warmup=temporal_warmup)
-    cloth = _np.empty((len(frames), evaluator.driven_vertex_count, 3), dtype=_np.float32)
-    records, seconds = [], {}
+    cloth = _np.empty((len(frame_list), evaluator.driven_vertex_count, 3), dtype=_np.float32)
+    records: list[FrameRecord] = []
+    seconds: dict[str, float] = {}
     for step in plan:
         solve = step.solve_frames
         evaluator.reset_temporal_bound()
