@@ -366,7 +366,7 @@ std::vector<Option> options() {
   return list;
 }
 
-int runBench(const std::vector<std::string>& args) {
+ds::cli::ArgParser benchParser() {
   ds::cli::ArgParser parser(
       "drivenshape_bench_exr [options]",
       "Writes the same frames with every EXR encoding worth considering and prints one table: "
@@ -380,26 +380,10 @@ int runBench(const std::vector<std::string>& args) {
       .option("--repeats", "R", "write each option's frames R times; the fastest pass counts", "3")
       .option("--only", "TEXT", "only the options whose name contains TEXT (e.g. libdeflate)")
       .option("--out", "DIR", "scratch folder (default: a temp folder, removed)");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
-  const int frames = parser.getInt("--frames", 2);
-  const int repeats = parser.getInt("--repeats", 1);
-  const fs::path root =
-      parser.has("--out")
-          ? fs::path(parser.get("--out"))
-          : fs::temp_directory_path() / ("drivenshape-bench-exr-" + std::to_string(::getpid()));
-  fs::create_directories(root);
+  return parser;
+}
 
-  std::vector<std::string> wanted;
-  {
-    std::istringstream list(parser.get("--data"));
-    for (std::string name; std::getline(list, name, ',');) {
-      wanted.push_back(name);
-    }
-  }
-  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+void printTableHead(unsigned cores) {
   std::printf(
       "EXR encodings, %u cores. ms per frame: write on 1 thread (CPU time; %uT gain: wall time "
       "on 1 thread / on all, with OpenEXR's thread pool or our chunk threads; '-' where a frame "
@@ -412,27 +396,155 @@ int runBench(const std::vector<std::string>& args) {
   std::printf("%-7s %-17s %-24s %11s %6s %8s %8s %8s %9s %10s %5s\n", "data", "size", "option",
               "bytes/frame", "ratio", "write 1T", manyThreads.c_str(), "read", "oiiotool",
               "max error", "bits");
-  for (const std::string& name : wanted) {
-    DataSet data;
-    int count = frames;
-    if (name == "W1") {
-      data = tubeData("W1", count, root);
-    } else if (name == "W2") {
-      count = std::max(2, frames / 4);
-      data = tubeData("W2", count, root);
-    } else if (name == "pants" || name == "posmap") {
-      if (!parser.has("--pants")) {
-        DS_THROW(kUsage, "data set ", name, " needs --pants DIR");
-      }
-      count = name == "pants" ? frames : std::max(2, frames / 16);
-      data = name == "pants"
-                 ? pantsData(parser.get("--pants"), count, root)
-                 : posmapData(parser.get("--pants"), parser.getInt("--posmap-res", 1), count, root);
-    } else {
-      DS_THROW(kUsage, "unknown data set '", name, "' (W1, W2, pants, posmap)");
+}
+
+/// Data set `name` of --data: W2 takes a quarter of --frames, posmap a sixteenth.
+DataSet loadDataSet(const std::string& name, const ds::cli::ArgParser& parser, int frames,
+                    const fs::path& root) {
+  if (name == "W1") {
+    return tubeData("W1", frames, root);
+  }
+  if (name == "W2") {
+    return tubeData("W2", std::max(2, frames / 4), root);
+  }
+  if (name == "pants" || name == "posmap") {
+    if (!parser.has("--pants")) {
+      DS_THROW(kUsage, "data set ", name, " needs --pants DIR");
     }
-    count = static_cast<int>(data.positions.size());
-    const bool oneChunk = data.height <= 16;
+    return name == "pants" ? pantsData(parser.get("--pants"), frames, root)
+                           : posmapData(parser.get("--pants"), parser.getInt("--posmap-res", 1),
+                                        std::max(2, frames / 16), root);
+  }
+  DS_THROW(kUsage, "unknown data set '", name, "' (W1, W2, pants, posmap)");
+}
+
+/// One row of the table: an option on a data set.
+struct Row {
+  double bytes = 0;  // per frame
+  double write1 = 1e30, wall1 = 1e30, wallMany = 1e30;
+  double read = 1e30;
+  double maxError = 0;
+  bool bitwise = true;
+  double oiio = 0;
+  std::vector<std::string> hashes;
+};
+
+/// Write times: the best of `repeats` passes; one and all threads take turns, so that both see
+/// the same load of a shared machine and their ratio holds where the wall times do not. Then
+/// the files checked afterwards, written on one thread.
+void timeWrites(const DataSet& data, const Option& option, const std::vector<Planes>& planes,
+                const std::vector<std::string>& files, int repeats, unsigned cores, Row& row) {
+  const int count = static_cast<int>(files.size());
+  const bool oneChunk = data.height <= 16;
+  // All frames once on `threads` threads: {CPU ms of this thread, wall ms} per frame.
+  auto writeAll = [&](int threads) {
+    Imf::setGlobalThreadCount(threads > 1 ? threads : 0);
+    const auto start = Clock::now();
+    const double cpu = threadCpuMs();
+    for (int f = 0; f < count; ++f) {
+      writeFrame(data, option, planes[f], files[f], threads);
+    }
+    const std::pair<double, double> ms{(threadCpuMs() - cpu) / count, msSince(start) / count};
+    Imf::setGlobalThreadCount(0);
+    return ms;
+  };
+  for (int r = 0; r < repeats; ++r) {
+    const auto [cpu, wall] = writeAll(1);
+    row.write1 = std::min(row.write1, cpu);
+    row.wall1 = std::min(row.wall1, wall);
+    if (!oneChunk) {
+      row.wallMany = std::min(row.wallMany, writeAll(static_cast<int>(cores)).second);
+    }
+  }
+  writeAll(1);
+}
+
+/// Read back: the best of `repeats` timed passes, then the bits and the position error.
+void readBack(const std::string& name, const DataSet& data, const std::vector<std::string>& files,
+              int repeats, Row& row) {
+  const int count = static_cast<int>(files.size());
+  for (int r = 0; r < repeats; ++r) {
+    const double start = threadCpuMs();
+    for (int f = 0; f < count; ++f) {
+      if (name == "posmap") {
+        readAll(data, files[f]);
+      } else {
+        std::vector<float> xyz;
+        ds::readPointCacheExr(files[f], xyz);
+      }
+    }
+    row.read = std::min(row.read, (threadCpuMs() - start) / count);
+  }
+  for (int f = 0; f < count; ++f) {
+    const auto planesRead = readAll(data, files[f]);
+    for (std::size_t c = 0; c < data.channels.size(); ++c) {
+      for (std::size_t i = 0; i < data.coverage.size(); ++i) {
+        const float want =
+            data.axis[c] < 0 ? data.coverage[i] : data.positions[f][3 * i + data.axis[c]];
+        const float got = planesRead[c][i];
+        row.bitwise = row.bitwise && std::memcmp(&want, &got, sizeof(float)) == 0;
+        if (data.axis[c] >= 0 && data.coverage[i] > 0.0f) {
+          row.maxError = std::max(row.maxError, static_cast<double>(std::fabs(got - want)));
+        }
+      }
+    }
+  }
+}
+
+/// Writes, reads and decodes data set `name` with `option`; "none" sets `rawBytes` and the
+/// `referenceHashes` the lossless options must match.
+Row measureOption(const std::string& name, const DataSet& data, const Option& option, int repeats,
+                  unsigned cores, const fs::path& root, double& rawBytes,
+                  std::vector<std::string>& referenceHashes) {
+  const int count = static_cast<int>(data.positions.size());
+  std::vector<Planes> planes;
+  for (const auto& positions : data.positions) {
+    planes.push_back(planesOf(data, positions, option.halfP));
+  }
+  std::vector<std::string> files;
+  for (int f = 0; f < count; ++f) {
+    files.push_back((root / (name + "." + std::to_string(f) + ".exr")).string());
+  }
+  Row row;
+  timeWrites(data, option, planes, files, repeats, cores, row);
+  for (const std::string& file : files) {
+    row.bytes += static_cast<double>(fs::file_size(file));
+  }
+  row.bytes /= count;
+  if (option.compression == Imf::NO_COMPRESSION) {
+    rawBytes = row.bytes;
+  }
+  readBack(name, data, files, repeats, row);
+  const int passes = std::max(2, (name == "posmap" ? 8 : 96) / count);
+  row.oiio = oiiotoolDecode(files, passes, row.hashes);
+  if (option.compression == Imf::NO_COMPRESSION) {
+    referenceHashes = row.hashes;
+  }
+  return row;
+}
+
+int runBench(const std::vector<std::string>& args) {
+  ds::cli::ArgParser parser = benchParser();
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const int frames = parser.getInt("--frames", 2);
+  const int repeats = parser.getInt("--repeats", 1);
+  const fs::path root =
+      parser.has("--out")
+          ? fs::path(parser.get("--out"))
+          : fs::temp_directory_path() / ("drivenshape-bench-exr-" + std::to_string(::getpid()));
+  fs::create_directories(root);
+  std::vector<std::string> wanted;
+  std::istringstream list(parser.get("--data"));
+  for (std::string name; std::getline(list, name, ',');) {
+    wanted.push_back(name);
+  }
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  printTableHead(cores);
+  for (const std::string& name : wanted) {
+    const DataSet data = loadDataSet(name, parser, frames, root);
     double rawBytes = 0;
     std::vector<std::string> referenceHashes;
     for (const Option& option : options()) {
@@ -440,94 +552,21 @@ int runBench(const std::vector<std::string>& args) {
           option.name.find(parser.get("--only")) == std::string::npos) {
         continue;  // "none" always runs: it is the reference of the ratio and the hashes
       }
-      std::vector<Planes> planes;
-      for (const auto& positions : data.positions) {
-        planes.push_back(planesOf(data, positions, option.halfP));
-      }
-      std::vector<std::string> files;
-      for (int f = 0; f < count; ++f) {
-        files.push_back((root / (name + "." + std::to_string(f) + ".exr")).string());
-      }
-      // All frames once on `threads` threads: {CPU ms of this thread, wall ms} per frame.
-      auto writeAll = [&](int threads) {
-        Imf::setGlobalThreadCount(threads > 1 ? threads : 0);
-        const auto start = Clock::now();
-        const double cpu = threadCpuMs();
-        for (int f = 0; f < count; ++f) {
-          writeFrame(data, option, planes[f], files[f], threads);
-        }
-        const std::pair<double, double> ms{(threadCpuMs() - cpu) / count, msSince(start) / count};
-        Imf::setGlobalThreadCount(0);
-        return ms;
-      };
-      // The best of `repeats` passes; one and all threads take turns, so that both see the same
-      // load of a shared machine and their ratio holds where the wall times do not.
-      double write1 = 1e30, wall1 = 1e30, wallMany = 1e30;
-      for (int r = 0; r < repeats; ++r) {
-        const auto [cpu, wall] = writeAll(1);
-        write1 = std::min(write1, cpu);
-        wall1 = std::min(wall1, wall);
-        if (!oneChunk) {
-          wallMany = std::min(wallMany, writeAll(static_cast<int>(cores)).second);
-        }
-      }
-      writeAll(1);  // the files checked below: written on one thread
-      double bytes = 0;
-      for (const std::string& file : files) {
-        bytes += static_cast<double>(fs::file_size(file));
-      }
-      bytes /= count;
-      if (option.compression == Imf::NO_COMPRESSION) {
-        rawBytes = bytes;
-      }
-      // Read back: time, bits and the position error.
-      double read = 1e30;
-      double maxError = 0;
-      bool bitwise = true;
-      for (int r = 0; r < repeats; ++r) {
-        const double start = threadCpuMs();
-        for (int f = 0; f < count; ++f) {
-          if (name == "posmap") {
-            readAll(data, files[f]);
-          } else {
-            std::vector<float> xyz;
-            ds::readPointCacheExr(files[f], xyz);
-          }
-        }
-        read = std::min(read, (threadCpuMs() - start) / count);
-      }
-      for (int f = 0; f < count; ++f) {
-        const auto planesRead = readAll(data, files[f]);
-        for (std::size_t c = 0; c < data.channels.size(); ++c) {
-          for (std::size_t i = 0; i < data.coverage.size(); ++i) {
-            const float want =
-                data.axis[c] < 0 ? data.coverage[i] : data.positions[f][3 * i + data.axis[c]];
-            const float got = planesRead[c][i];
-            bitwise = bitwise && std::memcmp(&want, &got, sizeof(float)) == 0;
-            if (data.axis[c] >= 0 && data.coverage[i] > 0.0f) {
-              maxError = std::max(maxError, static_cast<double>(std::fabs(got - want)));
-            }
-          }
-        }
-      }
-      std::vector<std::string> hashes;
-      const int passes = std::max(2, (name == "posmap" ? 8 : 96) / count);
-      const double oiio = oiiotoolDecode(files, passes, hashes);
-      if (option.compression == Imf::NO_COMPRESSION) {
-        referenceHashes = hashes;
-      }
-      const bool sameHashes = hashes == referenceHashes;
-      if (!option.lossy && (!bitwise || !sameHashes)) {
+      const Row row =
+          measureOption(name, data, option, repeats, cores, root, rawBytes, referenceHashes);
+      const bool sameHashes = row.hashes == referenceHashes;
+      if (!option.lossy && (!row.bitwise || !sameHashes)) {
         DS_THROW(kInternal, name, " ", option.name, ": a lossless option did not read back ",
-                 bitwise ? "the same under oiiotool" : "bitwise");
+                 row.bitwise ? "the same under oiiotool" : "bitwise");
       }
       char many[16] = "-";
-      if (!oneChunk) {
-        std::snprintf(many, sizeof(many), "%.2fx", wall1 / wallMany);
+      if (data.height > 16) {
+        std::snprintf(many, sizeof(many), "%.2fx", row.wall1 / row.wallMany);
       }
       std::printf("%-7s %-17s %-24s %11.0f %6.2f %8.2f %8s %8.2f %9.2f %10.2g %5s\n", name.c_str(),
-                  data.size.c_str(), option.name.c_str(), bytes, rawBytes / bytes, write1, many,
-                  read, oiio, maxError, bitwise ? "same" : (sameHashes ? "hash=" : "lossy"));
+                  data.size.c_str(), option.name.c_str(), row.bytes, rawBytes / row.bytes,
+                  row.write1, many, row.read, row.oiio, row.maxError,
+                  row.bitwise ? "same" : (sameHashes ? "hash=" : "lossy"));
       std::fflush(stdout);
     }
   }

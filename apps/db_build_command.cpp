@@ -85,9 +85,7 @@ void reportSuggestions(const std::vector<ReferenceSuggestion>& suggestions,
   writeFileAtomically(jsonPath, jsonText(report, 1) + "\n");
 }
 
-}  // namespace
-
-int runDbBuild(const std::vector<std::string>& args) {
+ArgParser dbBuildParser() {
   ArgParser parser(
       "drivenshape db build --driver-mesh M.obj --driven-mesh M.obj --driver CACHE "
       "--driven CACHE -o DB",
@@ -143,10 +141,11 @@ int runDbBuild(const std::vector<std::string>& args) {
       .epilog(
           "Exit codes: 0 success, 1 internal error, 2 usage, 3 input (a missing or "
           "malformed file, a cache that does not match the meshes), 4 output, 6 numerical.");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
+  return parser;
+}
+
+/// The pick and pose model settings of the command line, checked.
+DatabaseBuildOptions buildOptionsFrom(const ArgParser& parser) {
   DatabaseBuildOptions options;
   options.count = parser.getInt("--count", 1);
   options.duplicateTolerance = parser.getDouble("--duplicate-tolerance", 0.0);
@@ -176,8 +175,12 @@ int runDbBuild(const std::vector<std::string>& args) {
     DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",
              options.model.velocityLag, " and ", options.model.historyFrames, ")");
   }
-  const bool suggest = parser.has("--suggest");
-  const int suggestCount = suggest ? parser.getInt("--suggest", 1) : 0;
+  return options;
+}
+
+/// Refuses the options that --suggest needs without it (and -o missing), or lacks with it, and
+/// --also clips without a pose model.
+void checkSuggestUsage(const ArgParser& parser, bool suggest, bool poseModel) {
   if (!suggest) {
     for (const char* name : {"--candidate", "--shot", "--suggest-json"}) {
       if (parser.has(name)) {
@@ -195,94 +198,153 @@ int runDbBuild(const std::vector<std::string>& args) {
                "--suggest needs --candidate DRIVER[:FRAMES] and at least one --shot "
                "DRIVER[:FRAMES]");
     }
-    if (!options.poseModel) {
+    if (!poseModel) {
       DS_THROW(kUsage, "--suggest reads the pose model; drop --model none");
     }
   }
-  if (!parser.all("--also").empty() && !options.poseModel) {
+  if (!parser.all("--also").empty() && !poseModel) {
     DS_THROW(kUsage, "--also clips feed the pose model; drop --model none or the --also clips");
   }
-  const std::string output = parser.has("-o") ? parser.get("-o") : std::string();
-  if (!output.empty()) {
-    checkOutputFolderWritable(output);
+}
+
+/// Everything `db build` asks for, checked before anything is read.
+struct DbBuildRequest {
+  DatabaseBuildOptions options;
+  int suggestCount = 0;                                 ///< 0 without --suggest
+  std::string output;                                   ///< -o, empty when not given
+  std::string jsonPath;                                 ///< --suggest-json, empty when not given
+  std::vector<std::pair<std::string, CacheSpec>> also;  ///< --also DRIVER DRIVEN[:FRAMES]
+  CacheSpec candidate;
+  std::vector<CacheSpec> shots;
+};
+
+/// Usage errors first: the options, the output folders, distinct paths, then every cache word.
+DbBuildRequest dbBuildRequestFrom(const ArgParser& parser) {
+  DbBuildRequest request;
+  request.options = buildOptionsFrom(parser);
+  const bool suggest = parser.has("--suggest");
+  request.suggestCount = suggest ? parser.getInt("--suggest", 1) : 0;
+  checkSuggestUsage(parser, suggest, request.options.poseModel);
+  request.output = parser.has("-o") ? parser.get("-o") : std::string();
+  if (!request.output.empty()) {
+    checkOutputFolderWritable(request.output);
   }
-  const std::string jsonPath = parser.has("--suggest-json") ? parser.get("--suggest-json") : "";
-  if (!jsonPath.empty()) {
-    checkOutputFolderWritable(jsonPath);
+  request.jsonPath = parser.has("--suggest-json") ? parser.get("--suggest-json") : "";
+  if (!request.jsonPath.empty()) {
+    checkOutputFolderWritable(request.jsonPath);
   }
   checkDistinctPaths(
       givenPaths(parser, {"-o", "--suggest-json"}), {},
       givenPaths(parser, {"--driver-mesh", "--driven-mesh", "--driver", "--driven", "--rig"}));
-  // Parse every cache word before reading anything (usage errors first).
-  std::vector<std::pair<std::string, CacheSpec>> alsoSpecs;
   for (const std::vector<std::string>& words : parser.all("--also")) {
-    alsoSpecs.emplace_back(words[0], parseCacheSpec(words[1]));
+    request.also.emplace_back(words[0], parseCacheSpec(words[1]));
   }
-  const CacheSpec candidateSpec = suggest ? parseCacheSpec(parser.get("--candidate")) : CacheSpec{};
-  std::vector<CacheSpec> shotSpecs;
+  if (suggest) {
+    request.candidate = parseCacheSpec(parser.get("--candidate"));
+  }
   for (const std::vector<std::string>& words : parser.all("--shot")) {
-    shotSpecs.push_back(parseCacheSpec(words[0]));
+    request.shots.push_back(parseCacheSpec(words[0]));
   }
+  return request;
+}
 
-  const Mesh driverMesh = readObj(parser.get("--driver-mesh"));
+/// The meshes and caches `db build` reads; the clips point into `caches`.
+struct DbBuildInputs {
+  Mesh driverMesh;
+  Mesh drivenMesh;
+  std::unique_ptr<PointCacheReader> driver;
+  std::unique_ptr<PointCacheReader> driven;
+  std::vector<std::unique_ptr<PointCacheReader>> caches;
+  std::vector<ReferenceClip> clips;
+  DriverClip candidate;
+  std::vector<DriverClip> shots;
+};
+
+/// Reads the meshes (warning about an untrusted driver), the rig's parts into the request's
+/// options, and opens every cache.
+DbBuildInputs openDbBuildInputs(const ArgParser& parser, DbBuildRequest& request) {
+  DbBuildInputs in;
+  in.driverMesh = readObj(parser.get("--driver-mesh"));
   const std::string untrusted =
-      checkDriverMesh(driverMesh, parser.get("--driver-mesh"), DriverMeshUse::kDatabase,
+      checkDriverMesh(in.driverMesh, parser.get("--driver-mesh"), DriverMeshUse::kDatabase,
                       parser.has("--untrusted-driver"));
   if (!untrusted.empty()) {
     std::cerr << "warning: " << untrusted << "\n";
   }
-  const Mesh drivenMesh = readObj(parser.get("--driven-mesh"));
+  in.drivenMesh = readObj(parser.get("--driven-mesh"));
   if (parser.has("--rig")) {
-    readRigParts(parser.get("--rig"), driverMesh.vertexCount(), options.model.partOf,
-                 options.model.parentOf);
+    readRigParts(parser.get("--rig"), in.driverMesh.vertexCount(), request.options.model.partOf,
+                 request.options.model.parentOf);
   }
-  const auto driver = openPointCache(parser.get("--driver"), 0);
-  const auto driven = openPointCache(parser.get("--driven"), 0);
-  std::vector<std::unique_ptr<PointCacheReader>> caches;
-  std::vector<ReferenceClip> clips;
-  for (const auto& [driverPath, drivenSpec] : alsoSpecs) {
-    caches.push_back(openPointCache(driverPath, 0));
-    caches.push_back(openPointCache(drivenSpec.path, 0));
-    clips.push_back({caches[caches.size() - 2].get(), caches.back().get(), drivenSpec.frames});
+  in.driver = openPointCache(parser.get("--driver"), 0);
+  in.driven = openPointCache(parser.get("--driven"), 0);
+  for (const auto& [driverPath, drivenSpec] : request.also) {
+    in.caches.push_back(openPointCache(driverPath, 0));
+    in.caches.push_back(openPointCache(drivenSpec.path, 0));
+    in.clips.push_back(
+        {in.caches[in.caches.size() - 2].get(), in.caches.back().get(), drivenSpec.frames});
   }
-  DriverClip candidate;
-  std::vector<DriverClip> shots;
-  if (suggest) {
-    caches.push_back(openPointCache(candidateSpec.path, 0));
-    candidate = {caches.back().get(), candidateSpec.frames};
-    for (const CacheSpec& spec : shotSpecs) {
-      caches.push_back(openPointCache(spec.path, 0));
-      shots.push_back({caches.back().get(), spec.frames});
+  if (request.suggestCount > 0) {
+    in.caches.push_back(openPointCache(request.candidate.path, 0));
+    in.candidate = {in.caches.back().get(), request.candidate.frames};
+    for (const CacheSpec& spec : request.shots) {
+      in.caches.push_back(openPointCache(spec.path, 0));
+      in.shots.push_back({in.caches.back().get(), spec.frames});
     }
   }
+  return in;
+}
+
+void saveAndDescribe(const std::string& output, const Database& db) {
+  saveDatabase(output, db);
+  std::cout << "database: " << absolute(output) << " (" << db.shapeCount() << " shapes, driver "
+            << db.driverVertexCount() << " vertices, driven " << db.drivenVertexCount()
+            << " vertices)\n";
+}
+
+/// --suggest: the frames of the candidate clip worth simulating, printed (and written as
+/// JSON), then on `log` how to add them.
+void runSuggest(const Database& db, const DbBuildRequest& request, const DbBuildInputs& in,
+                std::ostream* log) {
+  if (db.poseModel.empty()) {
+    DS_THROW(kInput,
+             "--suggest reads the pose model, and the reference frames were too few to "
+             "fit one (it needs 10)");
+  }
+  const std::vector<ReferenceSuggestion> suggestions = suggestReferenceFrames(
+      db, in.candidate, in.shots, request.suggestCount, request.options.model.threads, log);
+  reportSuggestions(suggestions, request.candidate, request.shots, db, request.jsonPath);
+  if (log != nullptr) {
+    std::vector<int> frames;
+    for (const ReferenceSuggestion& s : suggestions) {
+      frames.push_back(s.frame);
+    }
+    std::sort(frames.begin(), frames.end());
+    *log << "to add them: simulate the cloth of " << request.candidate.path
+         << " and rebuild with --also " << request.candidate.path
+         << " CLOTH.pc2:" << formatFrameRange(frames)
+         << " (velocity and history read the driver's earlier frames)\n";
+  }
+}
+
+}  // namespace
+
+int runDbBuild(const std::vector<std::string>& args) {
+  ArgParser parser = dbBuildParser();
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  DbBuildRequest request = dbBuildRequestFrom(parser);
+  const DbBuildInputs in = openDbBuildInputs(parser, request);
   std::ostream* log = parser.has("--quiet") ? nullptr : &std::cerr;
-  const Database db = buildDatabase(driverMesh, drivenMesh, *driver, *driven, clips, options, log);
-  if (!output.empty()) {
-    saveDatabase(output, db);
-    std::cout << "database: " << absolute(output) << " (" << db.shapeCount() << " shapes, driver "
-              << db.driverVertexCount() << " vertices, driven " << db.drivenVertexCount()
-              << " vertices)\n";
+  const Database db = buildDatabase(in.driverMesh, in.drivenMesh, *in.driver, *in.driven, in.clips,
+                                    request.options, log);
+  if (!request.output.empty()) {
+    saveAndDescribe(request.output, db);
   }
-  if (suggest) {
-    if (db.poseModel.empty()) {
-      DS_THROW(kInput,
-               "--suggest reads the pose model, and the reference frames were too few to "
-               "fit one (it needs 10)");
-    }
-    const std::vector<ReferenceSuggestion> suggestions =
-        suggestReferenceFrames(db, candidate, shots, suggestCount, options.model.threads, log);
-    reportSuggestions(suggestions, candidateSpec, shotSpecs, db, jsonPath);
-    if (log != nullptr) {
-      std::vector<int> frames;
-      for (const ReferenceSuggestion& s : suggestions) {
-        frames.push_back(s.frame);
-      }
-      std::sort(frames.begin(), frames.end());
-      *log << "to add them: simulate the cloth of " << candidateSpec.path
-           << " and rebuild with --also " << candidateSpec.path
-           << " CLOTH.pc2:" << formatFrameRange(frames)
-           << " (velocity and history read the driver's earlier frames)\n";
-    }
+  if (request.suggestCount > 0) {
+    runSuggest(db, request, in, log);
   }
   return 0;
 }

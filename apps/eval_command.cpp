@@ -208,15 +208,8 @@ void printCoverage(const CoverageCheck& c, const std::string& reportPath, std::o
       << c.missed << " over); " << c.flagged << " flagged, true mean " << withMm(c.flaggedTrueError)
       << "\n";
   if (!c.frames.empty()) {
-    double sum = 0.0;
-    const CoverageFrame* worst = &c.frames.front();
-    for (const CoverageFrame& f : c.frames) {
-      sum += f.predictedError;
-      worst = f.predictedError > worst->predictedError ? &f : worst;
-    }
-    out << "  predicted mean vertex error: mean "
-        << withMm(sum / static_cast<double>(c.frames.size())) << ", max "
-        << withMm(worst->predictedError) << " at frame " << worst->frame << "\n";
+    out << "  predicted mean vertex error: mean " << withMm(c.predictedMean) << ", max "
+        << withMm(c.predictedMax) << " at frame " << c.predictedMaxFrame << "\n";
   }
   out << "  verdict "
       << (!c.verdictHolds   ? "not tested: no frame is predicted enough"
@@ -299,9 +292,7 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
       {"frames", frames}};
 }
 
-}  // namespace
-
-int runEval(const std::vector<std::string>& args) {
+ArgParser evalParser() {
   ArgParser parser(
       "drivenshape eval --truth CACHE --bake CACHE --frames RANGE [--driver CACHE "
       "(--driver-mesh M.obj [--driven-mesh M.obj] | --db DB)] [--baseline] [--report PATH]",
@@ -334,19 +325,19 @@ int runEval(const std::vector<std::string>& args) {
       .option("--threads", "N", "host threads (0 = all cores)", "0")
       .option("--batch", "N", "frames per closest-triangle call (bounds memory)", "16")
       .epilog("Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device.");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
-  const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
+  return parser;
+}
+
+/// Refuses the driver options without --driver, --baseline without the meshes it needs, and
+/// --bind without --baseline; checks the --json output before anything is read.
+void checkEvalUsage(const ArgParser& parser) {
   const bool baseline = parser.has("--baseline");
-  const bool haveDriver = parser.has("--driver");
   if (parser.has("--db") && (parser.has("--driver-mesh") || parser.has("--driven-mesh"))) {
     DS_THROW(kUsage,
              "--db already gives both rest meshes; drop --driver-mesh/--driven-mesh or "
              "--db");
   }
-  if (!haveDriver) {
+  if (!parser.has("--driver")) {
     for (const char* flag :
          {"--driver-mesh", "--driven-mesh", "--db", "--bind", "--untrusted-driver"}) {
       if (parser.has(flag)) {
@@ -383,71 +374,76 @@ int runEval(const std::vector<std::string>& args) {
     checkDistinctPaths(givenPaths(parser, {"--json"}), parseFrameRange(parser.get("--frames")),
                        inputs);
   }
+}
 
-  // Read before the evaluation, so a bad report fails at once.
-  std::optional<BakeReportCoverage> report;
-  if (parser.has("--report")) {
-    report = readBakeReportCoverage(parser.get("--report"));
-  }
-
-  const auto truth = openPointCache(parser.get("--truth"));
-  const auto baked = openPointCache(parser.get("--bake"));
-  ShotEvaluationInput input;
-  input.truth = truth.get();
-  input.bake = baked.get();
-  input.baseline = baseline;
-  input.batch = parser.getInt("--batch", 1);
-  input.threads = parser.getInt("--threads", 0);
-  input.untrustedDriver = parser.has("--untrusted-driver");
-
+/// What evaluateShot reads, owned here: `input` points into the rest.
+struct EvalInputs {
+  std::unique_ptr<PointCacheReader> truth;
+  std::unique_ptr<PointCacheReader> baked;
   std::unique_ptr<PointCacheReader> driver;
   std::optional<Database> db;
-  Mesh driverMesh, drivenMesh;
+  Mesh driverMesh;
+  Mesh drivenMesh;
   std::optional<BindingMask> mask;
   std::unique_ptr<Device> device;  // outlives `closest`
   std::unique_ptr<ClosestBackend> closest;
   std::string deviceName = "none";
-  if (haveDriver) {
-    if (parser.has("--db")) {
-      db = loadDatabase(parser.get("--db"));
-      input.driverMesh = &db->driverMesh;
-      input.drivenMesh = &db->drivenMesh;
-      input.driverMeshName = input.drivenMeshName = parser.get("--db");
-    } else {
-      driverMesh = readObj(parser.get("--driver-mesh"));
-      input.driverMesh = &driverMesh;
-      input.driverMeshName = parser.get("--driver-mesh");
-      if (parser.has("--driven-mesh")) {
-        drivenMesh = readObj(parser.get("--driven-mesh"));
-        input.drivenMesh = &drivenMesh;
-        input.drivenMeshName = parser.get("--driven-mesh");
-      }
-    }
-    // EXR driver caches carry a topology hash: it must be the driver mesh's.
-    driver = openPointCache(parser.get("--driver"), topologyHash(*input.driverMesh));
-    input.driver = driver.get();
-    if (parser.has("--bind")) {
-      mask = readBindingMask(parser.get("--bind"), *input.driverMesh, *input.drivenMesh);
-      input.mask = &*mask;
-    }
-    ClosestOptions search;
-    search.threads = input.threads;
-    device = openCliDevice(parser.get("--device"), std::cerr);
-    closest = device->makeClosest(search);
-    deviceName = device->isOpenCl() ? device->description() : "host";
+  ShotEvaluationInput input;
+};
+
+/// With --driver: the rest meshes (of --db or the OBJs), the driver cache, the binding mask
+/// and the closest-triangle search on --device.
+void openShotDriver(const ArgParser& parser, EvalInputs& in) {
+  if (parser.has("--db")) {
+    in.db = loadDatabase(parser.get("--db"));
+    in.input.driverMesh = &in.db->driverMesh;
+    in.input.drivenMesh = &in.db->drivenMesh;
+    in.input.driverMeshName = in.input.drivenMeshName = parser.get("--db");
   } else {
-    closest = makeHostClosest();
+    in.driverMesh = readObj(parser.get("--driver-mesh"));
+    in.input.driverMesh = &in.driverMesh;
+    in.input.driverMeshName = parser.get("--driver-mesh");
+    if (parser.has("--driven-mesh")) {
+      in.drivenMesh = readObj(parser.get("--driven-mesh"));
+      in.input.drivenMesh = &in.drivenMesh;
+      in.input.drivenMeshName = parser.get("--driven-mesh");
+    }
   }
+  // EXR driver caches carry a topology hash: it must be the driver mesh's.
+  in.driver = openPointCache(parser.get("--driver"), topologyHash(*in.input.driverMesh));
+  in.input.driver = in.driver.get();
+  if (parser.has("--bind")) {
+    in.mask = readBindingMask(parser.get("--bind"), *in.input.driverMesh, *in.input.drivenMesh);
+    in.input.mask = &*in.mask;
+  }
+  ClosestOptions search;
+  search.threads = in.input.threads;
+  in.device = openCliDevice(parser.get("--device"), std::cerr);
+  in.closest = in.device->makeClosest(search);
+  in.deviceName = in.device->isOpenCl() ? in.device->description() : "host";
+}
 
-  const ShotEvaluation result = evaluateShot(input, frames, *closest);
-  if (!result.untrustedDriver.empty()) {
-    std::cerr << "warning: " << result.untrustedDriver << "\n";
+void openEvalInputs(const ArgParser& parser, EvalInputs& in) {
+  in.truth = openPointCache(parser.get("--truth"));
+  in.baked = openPointCache(parser.get("--bake"));
+  in.input.truth = in.truth.get();
+  in.input.bake = in.baked.get();
+  in.input.baseline = parser.has("--baseline");
+  in.input.batch = parser.getInt("--batch", 1);
+  in.input.threads = parser.getInt("--threads", 0);
+  in.input.untrustedDriver = parser.has("--untrusted-driver");
+  if (parser.has("--driver")) {
+    openShotDriver(parser, in);
+  } else {
+    in.closest = makeHostClosest();
   }
-  std::optional<CoverageCheck> coverage;
-  if (report) {
-    coverage = checkCoverage(*report, result);
-  }
+}
 
+/// The summary on stdout: the sizes, every frame with --per-frame, the side-by-side table, the
+/// overall figures and the coverage verdict.
+void printEvaluation(const ShotEvaluation& result, const std::optional<CoverageCheck>& coverage,
+                     const std::vector<int>& frames, const std::string& deviceName, bool perFrame,
+                     const std::string& reportPath) {
   std::cout << "eval: " << frames.size() << " frames (" << formatFrameRange(frames) << ") x "
             << result.vertexCount << " cloth vertices";
   if (result.penetrations) {
@@ -456,21 +452,50 @@ int runEval(const std::vector<std::string>& args) {
   }
   std::cout << "\n";
   std::cout << std::setprecision(6);
-  if (parser.has("--per-frame")) {
+  if (perFrame) {
     printPerFrame(result, coverage, std::cout);
   }
   printTable(result, std::cout);
   std::cout << "overall over " << result.frames.size() << " frames x " << result.vertexCount
             << " vertices: mean " << result.bake.mean << ", rms " << result.bake.rms << ", max "
             << result.bake.max << " (frame " << result.bake.maxFrame << ")\n";
-  const std::string reportPath = parser.has("--report") ? parser.get("--report") : std::string();
   if (coverage) {
     printCoverage(*coverage, reportPath, std::cout);
   }
+}
+
+}  // namespace
+
+int runEval(const std::vector<std::string>& args) {
+  ArgParser parser = evalParser();
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
+  checkEvalUsage(parser);
+  // Read before the evaluation, so a bad report fails at once.
+  std::optional<BakeReportCoverage> report;
+  if (parser.has("--report")) {
+    report = readBakeReportCoverage(parser.get("--report"));
+  }
+  EvalInputs in;
+  openEvalInputs(parser, in);
+
+  const ShotEvaluation result = evaluateShot(in.input, frames, *in.closest);
+  if (!result.untrustedDriver.empty()) {
+    std::cerr << "warning: " << result.untrustedDriver << "\n";
+  }
+  std::optional<CoverageCheck> coverage;
+  if (report) {
+    coverage = checkCoverage(*report, result);
+  }
+  const std::string reportPath = parser.has("--report") ? parser.get("--report") : std::string();
+  printEvaluation(result, coverage, frames, in.deviceName, parser.has("--per-frame"), reportPath);
   if (parser.has("--json")) {
     const nlohmann::json json =
-        reportJson(result, haveDriver ? parser.get("--driver") : std::string(), deviceName,
-                   coverage, reportPath);
+        reportJson(result, parser.has("--driver") ? parser.get("--driver") : std::string(),
+                   in.deviceName, coverage, reportPath);
     writeFileAtomically(parser.get("--json"), jsonText(json, 1) + "\n");
   }
   return 0;

@@ -48,9 +48,7 @@ void checkFramesFitPc2(const std::vector<int>& frames, const std::string& text) 
   }
 }
 
-}  // namespace
-
-int runExport(const std::vector<std::string>& args) {
+ArgParser exportParser() {
   ArgParser parser(
       "drivenshape export --cache CACHE --frames RANGE [--pc2 OUT.pc2] "
       "[--obj FIRST.obj --mesh DRIVEN.obj] [--up-axis Z|Y]",
@@ -76,42 +74,53 @@ int runExport(const std::vector<std::string>& args) {
               "Z")
       .flag("--quiet", "no progress lines")
       .epilog("Exit codes: 0 ok, 2 usage, 3 input, 4 output.");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
-  const bool wantPc2 = parser.has("--pc2");
-  const bool wantObj = parser.has("--obj");
-  if (!wantPc2 && !wantObj) {
+  return parser;
+}
+
+/// What to export, checked before anything is read.
+struct ExportRequest {
+  bool pc2 = false;
+  bool obj = false;
+  UpAxis upAxis = UpAxis::kZ;
+  std::vector<int> frames;
+  int step = 1;  ///< the PC2 sample rate
+};
+
+ExportRequest exportRequestFrom(const ArgParser& parser) {
+  ExportRequest request;
+  request.pc2 = parser.has("--pc2");
+  request.obj = parser.has("--obj");
+  if (!request.pc2 && !request.obj) {
     DS_THROW(kUsage, "`drivenshape export` needs --pc2 OUT.pc2 and/or --obj FIRST.obj");
   }
-  if (wantObj && !parser.has("--mesh")) {
+  if (request.obj && !parser.has("--mesh")) {
     DS_THROW(kUsage, "--obj needs --mesh DRIVEN.obj (the rest mesh whose faces and UVs to keep)");
   }
-  const UpAxis upAxis = parseUpAxis(parser.get("--up-axis"), "--up-axis");
+  request.upAxis = parseUpAxis(parser.get("--up-axis"), "--up-axis");
   const std::string rangeText = parser.get("--frames");
-  const std::vector<int> frames = parseFrameRange(rangeText);
-  const int step = wantPc2 ? sampleStep(frames, rangeText) : 1;
-  if (wantPc2) {
-    checkFramesFitPc2(frames, rangeText);
+  request.frames = parseFrameRange(rangeText);
+  request.step = request.pc2 ? sampleStep(request.frames, rangeText) : 1;
+  if (request.pc2) {
+    checkFramesFitPc2(request.frames, rangeText);
     checkOutputFolderWritable(parser.get("--pc2"));
   }
-  if (wantObj) {
+  if (request.obj) {
     checkOutputFolderWritable(parser.get("--obj"));
   }
-  {
-    std::vector<NamedPath> inputs = givenPaths(parser, {"--cache"}, true);
-    const std::vector<NamedPath> mesh = givenPaths(parser, {"--mesh"});
-    inputs.insert(inputs.end(), mesh.begin(), mesh.end());
-    checkDistinctPaths(givenPaths(parser, {"--pc2", "--obj"}), frames, inputs);
-  }
+  std::vector<NamedPath> inputs = givenPaths(parser, {"--cache"}, true);
+  const std::vector<NamedPath> mesh = givenPaths(parser, {"--mesh"});
+  inputs.insert(inputs.end(), mesh.begin(), mesh.end());
+  checkDistinctPaths(givenPaths(parser, {"--pc2", "--obj"}), request.frames, inputs);
+  return request;
+}
 
-  std::optional<Mesh> mesh;
-  if (parser.has("--mesh")) {
-    mesh = readObj(parser.get("--mesh"));
-  }
+/// Opens --cache (an EXR's topology must be the mesh's) and checks it has the mesh's vertex
+/// count and every frame.
+std::unique_ptr<PointCacheReader> openExportCache(const ArgParser& parser,
+                                                  const std::optional<Mesh>& mesh,
+                                                  const std::vector<int>& frames) {
   const std::string cachePath = parser.get("--cache");
-  const auto cache = openPointCache(cachePath, mesh ? topologyHash(*mesh) : 0);
+  auto cache = openPointCache(cachePath, mesh ? topologyHash(*mesh) : 0);
   const int vertexCount = cache->vertexCount();
   if (mesh && mesh->vertexCount() != vertexCount) {
     DS_THROW(kInput, cachePath, " has ", vertexCount, " vertices but --mesh ", parser.get("--mesh"),
@@ -123,34 +132,64 @@ int runExport(const std::vector<std::string>& args) {
                formatFrameRange(cache->frames()));
     }
   }
+  return cache;
+}
 
+/// --obj: the first frame on the rest mesh's faces, UVs and groups.
+void exportFirstFrameObj(const std::string& out, const PointCacheReader& cache, Mesh& mesh,
+                         const ExportRequest& request) {
+  const int vertexCount = cache.vertexCount();
   std::vector<float> xyz(3 * static_cast<std::size_t>(vertexCount));
-  const bool quiet = parser.has("--quiet");
-  if (wantObj) {
-    cache->readFrame(frames.front(), xyz.data());
-    convertUpAxis(xyz.data(), static_cast<std::size_t>(vertexCount), UpAxis::kZ, upAxis);
-    mesh->positions = Eigen::Map<const Positions>(xyz.data(), vertexCount, 3);
-    writeObj(parser.get("--obj"), *mesh);
-    std::cout << "wrote " << parser.get("--obj") << " (frame " << frames.front() << ", "
-              << vertexCount << " vertices, " << mesh->faceCount() << " faces"
-              << (mesh->hasUvs() ? ", UVs" : "") << ", " << upAxisName(upAxis) << " up)\n";
-  }
-  if (wantPc2) {
-    const std::string out = parser.get("--pc2");
-    Pc2Writer writer(out, vertexCount, static_cast<float>(frames.front()),
-                     static_cast<int>(frames.size()), static_cast<float>(step));
-    for (std::size_t i = 0; i < frames.size(); ++i) {
-      cache->readFrame(frames[i], xyz.data());
-      convertUpAxis(xyz.data(), static_cast<std::size_t>(vertexCount), UpAxis::kZ, upAxis);
-      writer.writeFrame(xyz.data());
-      if (!quiet && (i + 1) % 100 == 0) {
-        std::cerr << "export: " << i + 1 << " of " << frames.size() << " frames\n";
-      }
+  cache.readFrame(request.frames.front(), xyz.data());
+  convertUpAxis(xyz.data(), static_cast<std::size_t>(vertexCount), UpAxis::kZ, request.upAxis);
+  mesh.positions = Eigen::Map<const Positions>(xyz.data(), vertexCount, 3);
+  writeObj(out, mesh);
+  std::cout << "wrote " << out << " (frame " << request.frames.front() << ", " << vertexCount
+            << " vertices, " << mesh.faceCount() << " faces" << (mesh.hasUvs() ? ", UVs" : "")
+            << ", " << upAxisName(request.upAxis) << " up)\n";
+}
+
+/// --pc2: every frame, one sample each, with progress lines every 100 frames unless `quiet`.
+void exportPc2(const std::string& out, const PointCacheReader& cache, const ExportRequest& request,
+               bool quiet) {
+  const std::vector<int>& frames = request.frames;
+  const int vertexCount = cache.vertexCount();
+  std::vector<float> xyz(3 * static_cast<std::size_t>(vertexCount));
+  Pc2Writer writer(out, vertexCount, static_cast<float>(frames.front()),
+                   static_cast<int>(frames.size()), static_cast<float>(request.step));
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    cache.readFrame(frames[i], xyz.data());
+    convertUpAxis(xyz.data(), static_cast<std::size_t>(vertexCount), UpAxis::kZ, request.upAxis);
+    writer.writeFrame(xyz.data());
+    if (!quiet && (i + 1) % 100 == 0) {
+      std::cerr << "export: " << i + 1 << " of " << frames.size() << " frames\n";
     }
-    writer.commit();
-    std::cout << "wrote " << out << " (" << frames.size() << " frames " << formatFrameRange(frames)
-              << ", start " << frames.front() << ", sample rate " << step << ", " << vertexCount
-              << " points, " << upAxisName(upAxis) << " up)\n";
+  }
+  writer.commit();
+  std::cout << "wrote " << out << " (" << frames.size() << " frames " << formatFrameRange(frames)
+            << ", start " << frames.front() << ", sample rate " << request.step << ", "
+            << vertexCount << " points, " << upAxisName(request.upAxis) << " up)\n";
+}
+
+}  // namespace
+
+int runExport(const std::vector<std::string>& args) {
+  ArgParser parser = exportParser();
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const ExportRequest request = exportRequestFrom(parser);
+  std::optional<Mesh> mesh;
+  if (parser.has("--mesh")) {
+    mesh = readObj(parser.get("--mesh"));
+  }
+  const auto cache = openExportCache(parser, mesh, request.frames);
+  if (request.obj) {
+    exportFirstFrameObj(parser.get("--obj"), *cache, *mesh, request);
+  }
+  if (request.pc2) {
+    exportPc2(parser.get("--pc2"), *cache, request, parser.has("--quiet"));
   }
   return 0;
 }

@@ -237,19 +237,66 @@ void addJobOptions(ArgParser& parser) {
       .flag("--no-check", "do not check from this machine that the inputs exist");
 }
 
+/// --binary made absolute, else this executable.
+std::string drivenshapeBinary(const ArgParser& parser) {
+  if (parser.has("--binary")) {
+    return absolute(parser.get("--binary"));
+  }
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) {
+    DS_THROW(kInternal, "cannot find this executable through /proc/self/exe (", ec.message(),
+             "); pass --binary /path/to/drivenshape");
+  }
+  return self.string();
+}
+
+/// --extra-args as words; refuses the options the farm command sets itself and notes a
+/// --report of the user's (no per-chunk reports then).
+void readExtraArgs(const ArgParser& parser, FarmJob& job) {
+  if (parser.has("--extra-args")) {
+    job.extraArgs = splitWords(parser.get("--extra-args"));
+  }
+  for (const std::string& word : job.extraArgs) {
+    const std::string name = word.substr(0, word.find('='));
+    if (name == "--report") {
+      job.perChunkReport = false;
+    }
+    for (const char* reserved : kReservedBakeOptions) {
+      if (name == reserved) {
+        DS_THROW(kUsage, "--extra-args must not hold ", reserved,
+                 ": the farm command sets it on every task");
+      }
+    }
+  }
+}
+
+/// From this machine: the executable and the database exist, the driver has every frame.
+void checkJobInputs(const FarmJob& job, const std::vector<int>& frames) {
+  std::error_code ec;
+  if (!fs::is_regular_file(job.binary, ec)) {
+    DS_THROW(kInput, "drivenshape executable '", job.binary, "' does not exist");
+  }
+  if (!fs::is_regular_file(job.database, ec)) {
+    DS_THROW(kInput, "database '", job.database,
+             "' does not exist (or pass --no-check when only the farm can see it)");
+  }
+  const auto driver = openPointCache(job.driver);
+  std::vector<int> missing;
+  for (int frame : frames) {
+    if (!driver->hasFrame(frame)) {
+      missing.push_back(frame);
+    }
+  }
+  if (!missing.empty()) {
+    DS_THROW(kInput, "driver cache '", job.driver, "' lacks frames ", formatFrameRange(missing),
+             " of --frames ", job.frames, "; fix the range or the cache");
+  }
+}
+
 FarmJob jobFrom(const ArgParser& parser) {
   FarmJob job;
-  std::error_code ec;
-  if (parser.has("--binary")) {
-    job.binary = absolute(parser.get("--binary"));
-  } else {
-    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-    if (ec) {
-      DS_THROW(kInternal, "cannot find this executable through /proc/self/exe (", ec.message(),
-               "); pass --binary /path/to/drivenshape");
-    }
-    job.binary = self.string();
-  }
+  job.binary = drivenshapeBinary(parser);
   job.database = absolute(parser.get("--db"));
   job.driver = absolute(parser.get("--driver"));
   job.outputPattern = absolute(parser.get("-o"));
@@ -287,41 +334,9 @@ FarmJob jobFrom(const ArgParser& parser) {
   }
   job.cpus = parser.has("--cpus") ? parser.getInt("--cpus", 1) : 0;
   job.memoryMb = parser.has("--mem") ? parser.getInt("--mem", 1) : 0;
-  if (parser.has("--extra-args")) {
-    job.extraArgs = splitWords(parser.get("--extra-args"));
-  }
-  for (const std::string& word : job.extraArgs) {
-    const std::string name = word.substr(0, word.find('='));
-    if (name == "--report") {
-      job.perChunkReport = false;
-    }
-    for (const char* reserved : kReservedBakeOptions) {
-      if (name == reserved) {
-        DS_THROW(kUsage, "--extra-args must not hold ", reserved,
-                 ": the farm command sets it on every task");
-      }
-    }
-  }
-
+  readExtraArgs(parser, job);
   if (!parser.has("--no-check")) {
-    if (!fs::is_regular_file(job.binary, ec)) {
-      DS_THROW(kInput, "drivenshape executable '", job.binary, "' does not exist");
-    }
-    if (!fs::is_regular_file(job.database, ec)) {
-      DS_THROW(kInput, "database '", job.database,
-               "' does not exist (or pass --no-check when only the farm can see it)");
-    }
-    const auto driver = openPointCache(job.driver);
-    std::vector<int> missing;
-    for (int frame : frames) {
-      if (!driver->hasFrame(frame)) {
-        missing.push_back(frame);
-      }
-    }
-    if (!missing.empty()) {
-      DS_THROW(kInput, "driver cache '", job.driver, "' lacks frames ", formatFrameRange(missing),
-               " of --frames ", job.frames, "; fix the range or the cache");
-    }
+    checkJobInputs(job, frames);
   }
   return job;
 }
@@ -630,6 +645,116 @@ void checkTemplatePath(const std::string& who, const std::string& path) {
   }
 }
 
+[[noreturn]] void failTemplateCheck(const std::string& where, const std::string& why) {
+  DS_THROW(kInternal, "the Open Job Description template would fail `openjd check`: ", where, " ",
+           why, "; please report this with the command line");
+}
+
+/// Every string and key under `value` is UTF-8.
+void checkTemplateUtf8(const nlohmann::ordered_json& value, const std::string& where) {
+  if (value.is_string() && !isUtf8(value.get_ref<const std::string&>())) {
+    failTemplateCheck(where, "is not valid UTF-8");
+  }
+  if (value.is_object()) {
+    for (const auto& item : value.items()) {
+      if (!isUtf8(item.key())) {
+        failTemplateCheck(where, "has a key that is not valid UTF-8");
+      }
+      checkTemplateUtf8(item.value(), where + "." + item.key());
+    }
+  } else if (value.is_array()) {
+    for (std::size_t i = 0; i < value.size(); ++i) {
+      checkTemplateUtf8(value[i], where + "[" + std::to_string(i) + "]");
+    }
+  }
+}
+
+/// A string of minLength..maxLength characters with no control character but
+/// `allowedControls` (any, when null); returns it.
+std::string templateText(const nlohmann::ordered_json& value, const std::string& where,
+                         std::size_t minLength, std::size_t maxLength,
+                         const char* allowedControls) {
+  if (!value.is_string()) {
+    failTemplateCheck(where, "is not a string");
+  }
+  const std::string& content = value.get_ref<const std::string&>();
+  const std::size_t length = characterCount(content);
+  if (length < minLength || length > maxLength) {
+    failTemplateCheck(where, "has " + std::to_string(length) + " characters, not " +
+                                 std::to_string(minLength) + " to " + std::to_string(maxLength));
+  }
+  if (allowedControls != nullptr && hasControlCharacter(content, allowedControls)) {
+    failTemplateCheck(where, "holds a control character");
+  }
+  return content;
+}
+
+/// A format string whose expressions are all `symbols`. OpenJD finds the next "{{" and the
+/// next "}}" and parses what lies between as an expression.
+void checkFormatString(const nlohmann::ordered_json& value, const std::string& where,
+                       const std::set<std::string>& symbols, std::size_t minLength,
+                       std::size_t maxLength, const char* allowedControls) {
+  const std::string content = templateText(value, where, minLength, maxLength, allowedControls);
+  std::size_t at = 0;
+  for (;;) {
+    const std::size_t open = content.find("{{", at);
+    const std::size_t close = content.find("}}", at);
+    if (open == std::string::npos && close == std::string::npos) {
+      break;
+    }
+    if (open == std::string::npos || close < open) {
+      failTemplateCheck(where, "'" + content + "' has '}}' without '{{'");
+    }
+    std::string expression = content.substr(open + 2, close - open - 2);
+    expression.erase(0, expression.find_first_not_of(' '));
+    expression.erase(expression.find_last_not_of(' ') + 1);
+    if (symbols.count(expression) == 0) {
+      failTemplateCheck(where,
+                        "'" + content + "' refers to '" + expression + "', which is not defined");
+    }
+    at = close + 2;
+  }
+}
+
+void checkTemplateDescription(const nlohmann::ordered_json& owner, const std::string& where) {
+  if (owner.contains("description")) {
+    templateText(owner.at("description"), where + ".description", 1, kOpenJdMaxDescription,
+                 "\r\n\t");
+  }
+}
+
+/// A step: its environments' variables, its command and arguments (which may also use the
+/// step's task parameters and the session folder), its notify period.
+void checkTemplateStep(const nlohmann::ordered_json& step,
+                       const std::set<std::string>& jobSymbols) {
+  using json = nlohmann::ordered_json;
+  const std::string where = "step " + step.at("name").get<std::string>();
+  checkTemplateDescription(step, where);
+  std::set<std::string> symbols = jobSymbols;
+  symbols.insert("Session.WorkingDirectory");
+  for (const json& parameter : step.at("parameterSpace").at("taskParameterDefinitions")) {
+    symbols.insert("Task.Param." + parameter.at("name").get<std::string>());
+  }
+  for (const json& environment : step.at("stepEnvironments")) {
+    checkTemplateDescription(environment, where + " environment");
+    for (const auto& variable : environment.at("variables").items()) {
+      checkFormatString(variable.value(), where + " variable " + variable.key(), symbols, 0,
+                        kOpenJdMaxVariableValue, "");
+    }
+  }
+  const json& onRun = step.at("script").at("actions").at("onRun");
+  checkFormatString(onRun.at("command"), where + " command", symbols, 1, SIZE_MAX, "");
+  for (std::size_t i = 0; i < onRun.at("args").size(); ++i) {
+    checkFormatString(onRun.at("args")[i], where + " argument " + std::to_string(i + 1), symbols, 0,
+                      SIZE_MAX, "\r\n");
+  }
+  const int notify = onRun.at("cancelation").at("notifyPeriodInSeconds").get<int>();
+  if (notify < 1 || notify > kOpenJdMaxNotifySeconds) {
+    failTemplateCheck(where,
+                      "notifyPeriodInSeconds " + std::to_string(notify) + " is outside 1..600");
+  }
+}
+
 /// The template's own check before it is written: what openjd-model (`openjd check`) refuses
 /// in the fields this command writes. Every string UTF-8; the format strings (name, command,
 /// arguments, environment variables) with balanced `{{ }}` around only the expressions this
@@ -639,123 +764,27 @@ void checkTemplatePath(const std::string& who, const std::string& path) {
 /// come first and name the option, so a failure here is a bug: Error(kInternal).
 void checkJobTemplate(const nlohmann::ordered_json& jobTemplate) {
   using json = nlohmann::ordered_json;
-  const auto fail = [](const std::string& where, const std::string& why) {
-    DS_THROW(kInternal, "the Open Job Description template would fail `openjd check`: ", where, " ",
-             why, "; please report this with the command line");
-  };
-  std::function<void(const json&, const std::string&)> checkUtf8 = [&](const json& value,
-                                                                       const std::string& where) {
-    if (value.is_string() && !isUtf8(value.get_ref<const std::string&>())) {
-      fail(where, "is not valid UTF-8");
-    }
-    if (value.is_object()) {
-      for (const auto& item : value.items()) {
-        if (!isUtf8(item.key())) {
-          fail(where, "has a key that is not valid UTF-8");
-        }
-        checkUtf8(item.value(), where + "." + item.key());
-      }
-    } else if (value.is_array()) {
-      for (std::size_t i = 0; i < value.size(); ++i) {
-        checkUtf8(value[i], where + "[" + std::to_string(i) + "]");
-      }
-    }
-  };
-  checkUtf8(jobTemplate, "template");
-  const auto text = [&](const json& value, const std::string& where, std::size_t minLength,
-                        std::size_t maxLength, const char* allowedControls) {
-    if (!value.is_string()) {
-      fail(where, "is not a string");
-    }
-    const std::string& content = value.get_ref<const std::string&>();
-    const std::size_t length = characterCount(content);
-    if (length < minLength || length > maxLength) {
-      fail(where, "has " + std::to_string(length) + " characters, not " +
-                      std::to_string(minLength) + " to " + std::to_string(maxLength));
-    }
-    if (allowedControls != nullptr && hasControlCharacter(content, allowedControls)) {
-      fail(where, "holds a control character");
-    }
-    return content;
-  };
-  // OpenJD finds the next "{{" and the next "}}" and parses what lies between as an expression.
-  const auto formatString = [&](const json& value, const std::string& where,
-                                const std::set<std::string>& symbols, std::size_t minLength,
-                                std::size_t maxLength, const char* allowedControls) {
-    const std::string content = text(value, where, minLength, maxLength, allowedControls);
-    std::size_t at = 0;
-    for (;;) {
-      const std::size_t open = content.find("{{", at);
-      const std::size_t close = content.find("}}", at);
-      if (open == std::string::npos && close == std::string::npos) {
-        break;
-      }
-      if (open == std::string::npos || close < open) {
-        fail(where, "'" + content + "' has '}}' without '{{'");
-      }
-      std::string expression = content.substr(open + 2, close - open - 2);
-      expression.erase(0, expression.find_first_not_of(' '));
-      expression.erase(expression.find_last_not_of(' ') + 1);
-      if (symbols.count(expression) == 0) {
-        fail(where, "'" + content + "' refers to '" + expression + "', which is not defined");
-      }
-      at = close + 2;
-    }
-  };
-  const auto description = [&](const json& owner, const std::string& where) {
-    if (owner.contains("description")) {
-      text(owner.at("description"), where + ".description", 1, kOpenJdMaxDescription, "\r\n\t");
-    }
-  };
+  checkTemplateUtf8(jobTemplate, "template");
   std::set<std::string> jobSymbols;
   for (const json& parameter : jobTemplate.at("parameterDefinitions")) {
     const std::string name = parameter.at("name").get<std::string>();
     jobSymbols.insert("Param." + name);
-    description(parameter, "parameter " + name);
+    checkTemplateDescription(parameter, "parameter " + name);
     if (parameter.contains("default")) {
-      text(parameter.at("default"), "parameter " + name + ".default", 0, kOpenJdMaxParameterValue,
-           nullptr);
+      templateText(parameter.at("default"), "parameter " + name + ".default", 0,
+                   kOpenJdMaxParameterValue, nullptr);
     }
   }
-  formatString(jobTemplate.at("name"), "the job name", jobSymbols, 1, kOpenJdMaxName, "");
-  description(jobTemplate, "the job");
+  checkFormatString(jobTemplate.at("name"), "the job name", jobSymbols, 1, kOpenJdMaxName, "");
+  checkTemplateDescription(jobTemplate, "the job");
   for (const json& step : jobTemplate.at("steps")) {
-    const std::string where = "step " + step.at("name").get<std::string>();
-    description(step, where);
-    std::set<std::string> symbols = jobSymbols;
-    symbols.insert("Session.WorkingDirectory");
-    for (const json& parameter : step.at("parameterSpace").at("taskParameterDefinitions")) {
-      symbols.insert("Task.Param." + parameter.at("name").get<std::string>());
-    }
-    for (const json& environment : step.at("stepEnvironments")) {
-      description(environment, where + " environment");
-      for (const auto& variable : environment.at("variables").items()) {
-        formatString(variable.value(), where + " variable " + variable.key(), symbols, 0,
-                     kOpenJdMaxVariableValue, "");
-      }
-    }
-    const json& onRun = step.at("script").at("actions").at("onRun");
-    formatString(onRun.at("command"), where + " command", symbols, 1, SIZE_MAX, "");
-    for (std::size_t i = 0; i < onRun.at("args").size(); ++i) {
-      formatString(onRun.at("args")[i], where + " argument " + std::to_string(i + 1), symbols, 0,
-                   SIZE_MAX, "\r\n");
-    }
-    const int notify = onRun.at("cancelation").at("notifyPeriodInSeconds").get<int>();
-    if (notify < 1 || notify > kOpenJdMaxNotifySeconds) {
-      fail(where, "notifyPeriodInSeconds " + std::to_string(notify) + " is outside 1..600");
-    }
+    checkTemplateStep(step, jobSymbols);
   }
 }
 
-/// The template. PATH parameters (path-mapped by render managers) hold the data. The spec
-/// only allows relative defaults that stay inside the template's folder `templateDir` (they are
-/// joined to it when a job is created), so a path gets a default only there; every path's
-/// absolute value also goes into `values`, the job parameter values file written beside the
-/// template. The executable is a STRING: it is where drivenshape is installed on the workers,
-/// not data to map.
-nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& templateDir,
-                                       long timeoutSeconds, int notifySeconds,
-                                       nlohmann::ordered_json& values) {
+/// The step's command arguments: the bake of chunk {{Task.Param.Chunk}} on the job's path
+/// parameters, and its per-chunk report in {{Param.ReportFolder}}.
+nlohmann::ordered_json templateBakeArguments(const FarmJob& job) {
   using json = nlohmann::ordered_json;
   json args = json::array();
   for (const std::string& word : bakeCommand(job, "{{Task.Param.Chunk}}")) {
@@ -772,9 +801,15 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
     args.push_back("{{Param.ReportFolder}}/" + sequenceStem(job.outputPattern) +
                    ".chunk{{Task.Param.Chunk}}.report.json");
   }
+  return args;
+}
 
+/// The one step: a task per chunk, the PoCL cache in the session folder, the host needs.
+nlohmann::ordered_json templateBakeStep(const FarmJob& job, long timeoutSeconds,
+                                        int notifySeconds) {
+  using json = nlohmann::ordered_json;
   json onRun{{"command", "{{Param.DrivenshapeBinary}}"},
-             {"args", args},
+             {"args", templateBakeArguments(job)},
              {"cancelation",
               {{"mode", "NOTIFY_THEN_TERMINATE"}, {"notifyPeriodInSeconds", notifySeconds}}}};
   if (timeoutSeconds > 0) {
@@ -805,39 +840,59 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
     }
     step["hostRequirements"] = {{"amounts", amounts}};
   }
-  auto pathParameter = [&](const char* name, const std::string& value, const char* objectType,
-                           const char* flow, const char* description) {
-    json parameter{{"name", name}, {"type", "PATH"}, {"dataFlow", flow}};
-    if (objectType != nullptr) {
-      parameter["objectType"] = objectType;
-    }
-    const fs::path relative = fs::path(value).lexically_relative(templateDir);
-    if (!relative.empty() && *relative.begin() != "..") {
-      parameter["default"] = relative.string();
-    }
-    parameter["description"] = description;
-    values[name] = value;
-    return parameter;
-  };
-  return json{{"specificationVersion", "jobtemplate-2023-09"},
-              {"name", job.name},
-              {"description", "drivenshape " + std::string(kVersion) + " bake of " +
-                                  std::to_string(job.frameCount) + " frames (" + job.framesText +
-                                  ") in " + std::to_string(job.chunks) + " chunks"},
-              {"parameterDefinitions",
-               json::array({{{"name", "DrivenshapeBinary"},
-                             {"type", "STRING"},
-                             {"default", job.binary},
-                             {"description", "the drivenshape executable on the workers"}},
-                            pathParameter("Database", job.database, "FILE", "IN",
-                                          "database from `drivenshape db build`"),
-                            pathParameter("DriverCache", job.driver, nullptr, "IN",
-                                          "shot driver cache (.pc2 or name.####.exr)"),
-                            pathParameter("OutputPattern", job.outputPattern, nullptr, "OUT",
-                                          "output EXR sequence"),
-                            pathParameter("ReportFolder", job.outputFolder, "DIRECTORY", "OUT",
-                                          "folder of the per-chunk JSON reports")})},
-              {"steps", json::array({step})}};
+  return step;
+}
+
+/// A PATH job parameter holding `value`; its default is `value` relative to `templateDir` when
+/// it lies inside it. The absolute value goes into `values`.
+nlohmann::ordered_json pathParameter(const char* name, const std::string& value,
+                                     const char* objectType, const char* flow,
+                                     const char* description, const std::string& templateDir,
+                                     nlohmann::ordered_json& values) {
+  nlohmann::ordered_json parameter{{"name", name}, {"type", "PATH"}, {"dataFlow", flow}};
+  if (objectType != nullptr) {
+    parameter["objectType"] = objectType;
+  }
+  const fs::path relative = fs::path(value).lexically_relative(templateDir);
+  if (!relative.empty() && *relative.begin() != "..") {
+    parameter["default"] = relative.string();
+  }
+  parameter["description"] = description;
+  values[name] = value;
+  return parameter;
+}
+
+/// The template. PATH parameters (path-mapped by render managers) hold the data. The spec
+/// only allows relative defaults that stay inside the template's folder `templateDir` (they are
+/// joined to it when a job is created), so a path gets a default only there; every path's
+/// absolute value also goes into `values`, the job parameter values file written beside the
+/// template. The executable is a STRING: it is where drivenshape is installed on the workers,
+/// not data to map.
+nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& templateDir,
+                                       long timeoutSeconds, int notifySeconds,
+                                       nlohmann::ordered_json& values) {
+  using json = nlohmann::ordered_json;
+  const json step = templateBakeStep(job, timeoutSeconds, notifySeconds);
+  return json{
+      {"specificationVersion", "jobtemplate-2023-09"},
+      {"name", job.name},
+      {"description", "drivenshape " + std::string(kVersion) + " bake of " +
+                          std::to_string(job.frameCount) + " frames (" + job.framesText + ") in " +
+                          std::to_string(job.chunks) + " chunks"},
+      {"parameterDefinitions",
+       json::array({{{"name", "DrivenshapeBinary"},
+                     {"type", "STRING"},
+                     {"default", job.binary},
+                     {"description", "the drivenshape executable on the workers"}},
+                    pathParameter("Database", job.database, "FILE", "IN",
+                                  "database from `drivenshape db build`", templateDir, values),
+                    pathParameter("DriverCache", job.driver, nullptr, "IN",
+                                  "shot driver cache (.pc2 or name.####.exr)", templateDir, values),
+                    pathParameter("OutputPattern", job.outputPattern, nullptr, "OUT",
+                                  "output EXR sequence", templateDir, values),
+                    pathParameter("ReportFolder", job.outputFolder, "DIRECTORY", "OUT",
+                                  "folder of the per-chunk JSON reports", templateDir, values)})},
+      {"steps", json::array({step})}};
 }
 
 /// A mapping key: plain when it is an identifier, else a JSON (double-quoted) string.

@@ -19,7 +19,9 @@
 
 namespace drivenshape::cli {
 
-int runPosmap(const std::vector<std::string>& args) {
+namespace {
+
+ArgParser posmapParser() {
   ArgParser parser(
       "drivenshape posmap --mesh M.obj --cache CACHE --frames RANGE --res W[xH] -o OUT.####.exr",
       "Writes position maps for compositing: per frame, a UV-space EXR whose texels hold the "
@@ -51,10 +53,10 @@ int runPosmap(const std::vector<std::string>& args) {
       .flag("--preview", "also write OUT.####.png, P mapped to colours, for eyeballing")
       .flag("--quiet", "no progress or per-frame lines")
       .epilog("Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device.");
-  if (!parser.parse(args)) {
-    std::cout << parser.help();
-    return 0;
-  }
+  return parser;
+}
+
+PositionMapOptions positionMapOptionsFrom(const ArgParser& parser) {
   const auto [width, height] = parsePositionMapResolution(parser.get("--res"), "--res");
   PositionMapOptions options;
   options.width = width;
@@ -69,6 +71,57 @@ int runPosmap(const std::vector<std::string>& args) {
   options.threads = parser.getInt("--threads", 0);
   options.chunkSize = parser.getInt("--chunk", 0);
   options.channels = parsePositionMapChannels(parser.get("--channels"), "--channels");
+  return options;
+}
+
+/// Writes every frame, with a progress bar and (not on a terminal) a line per frame unless
+/// `quiet`.
+PositionMapRunResult writeMapsWithProgress(PositionMapWriter& writer, const PointCacheReader& cache,
+                                           const std::vector<int>& frames,
+                                           const std::string& output, bool quiet) {
+  std::unique_ptr<Progress> progress;
+  if (!quiet) {
+    progress = std::make_unique<Progress>("posmap", static_cast<long>(frames.size()));
+  }
+  const PositionMapRunResult result = writePositionMapSequence(
+      writer, cache, frames, output, [&](int frame, const std::string& path) {
+        if (progress) {
+          if (!progress->isTerminal()) {
+            std::cerr << "frame " << frame << " -> " << path << "\n";
+          }
+          progress->advance();
+        }
+      });
+  if (progress) {
+    progress->finish();
+  }
+  return result;
+}
+
+void printPosmapSummary(const PositionMapRunResult& result, const PositionMapOptions& options,
+                        const std::string& device, const std::string& output,
+                        const std::vector<int>& frames) {
+  const double fps = result.totalSeconds > 0 ? result.written / result.totalSeconds : 0.0;
+  std::cout << "wrote " << result.written << " position maps (" << options.width << "x"
+            << options.height << ") in " << std::fixed << std::setprecision(3)
+            << result.totalSeconds << " s, " << std::setprecision(1) << fps << " frames/s on "
+            << device << " (read " << std::setprecision(3) << result.readSeconds << " s, evaluate "
+            << result.evaluateSeconds << " s, write " << result.writeSeconds << " s)\n"
+            << "outputs: " << absolute(output) << " (frames " << formatFrameRange(frames) << ")\n";
+  if (options.preview) {
+    std::cout << "previews: " << absolute(positionMapPreviewPath(output)) << "\n";
+  }
+}
+
+}  // namespace
+
+int runPosmap(const std::vector<std::string>& args) {
+  ArgParser parser = posmapParser();
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const PositionMapOptions options = positionMapOptionsFrom(parser);
   const std::vector<int> frames = parseFrameRange(parser.get("--frames"));
   const std::string output = parser.get("-o");
   if (!hasFramePattern(output)) {
@@ -86,42 +139,17 @@ int runPosmap(const std::vector<std::string>& args) {
   const auto cache = openPointCache(parser.get("--cache"), topologyHash(mesh));
   const bool quiet = parser.has("--quiet");
   createOutputFoldersFor({expandFramePattern(output, frames.front())}, quiet);
-  std::string device;
   const std::unique_ptr<Device> target = openCliDevice(parser.get("--device"), std::cerr);
-  device = target->description();
+  const std::string device = target->description();
   PositionMapWriter writer(mesh, options, target->makePositionMaps(), meshPath, &std::cerr);
   if (!quiet) {
-    std::cerr << "position maps " << width << "x" << height << ", padding " << options.padding
-              << ": " << writer.tables().coveredCount << " covered and "
+    std::cerr << "position maps " << options.width << "x" << options.height << ", padding "
+              << options.padding << ": " << writer.tables().coveredCount << " covered and "
               << writer.tables().paddedCount << " padded texels; " << frames.size() << " frames on "
               << device << "\n";
   }
-  std::unique_ptr<Progress> progress;
-  if (!quiet) {
-    progress = std::make_unique<Progress>("posmap", static_cast<long>(frames.size()));
-  }
-  const PositionMapRunResult result = writePositionMapSequence(
-      writer, *cache, frames, output, [&](int frame, const std::string& path) {
-        if (progress) {
-          if (!progress->isTerminal()) {
-            std::cerr << "frame " << frame << " -> " << path << "\n";
-          }
-          progress->advance();
-        }
-      });
-  if (progress) {
-    progress->finish();
-  }
-  const double fps = result.totalSeconds > 0 ? result.written / result.totalSeconds : 0.0;
-  std::cout << "wrote " << result.written << " position maps (" << width << "x" << height << ") in "
-            << std::fixed << std::setprecision(3) << result.totalSeconds << " s, "
-            << std::setprecision(1) << fps << " frames/s on " << device << " (read "
-            << std::setprecision(3) << result.readSeconds << " s, evaluate "
-            << result.evaluateSeconds << " s, write " << result.writeSeconds << " s)\n"
-            << "outputs: " << absolute(output) << " (frames " << formatFrameRange(frames) << ")\n";
-  if (options.preview) {
-    std::cout << "previews: " << absolute(positionMapPreviewPath(output)) << "\n";
-  }
+  const PositionMapRunResult result = writeMapsWithProgress(writer, *cache, frames, output, quiet);
+  printPosmapSummary(result, options, device, output, frames);
   return 0;
 }
 

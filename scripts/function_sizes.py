@@ -2,12 +2,18 @@
 # SPDX-License-Identifier: Apache-2.0
 """Lists the longest functions (lines from signature to closing brace) in C++ sources.
 
-  scripts/function_sizes.py [--top N] [--rev COMMIT] [PATHS...]   (default: src)
+  scripts/function_sizes.py [--top N] [--rev COMMIT] [--max PATH=N,...] [PATHS...]
+                                                     (default: src, or the --max paths)
 
 A brace-matching heuristic, not a parser: a function starts at a line that opens a block after
 a parameter list `(...)` and is not a control statement, a lambda, a class or a namespace; it
 ends at the matching brace. Comments and string literals are stripped first. With --rev the
 files are read from that commit (git show), to compare before and after a change.
+
+With --max (e.g. `--max apps=80,src=120`, the limits of docs/contributing.md and of the CTest
+function_sizes), every function under a PATH longer than its N lines is listed after the top
+ones, and the exit status is 1 if there is any (the longest PATH that holds a file sets its
+limit; files under no PATH have none).
 """
 import argparse
 import re
@@ -63,12 +69,51 @@ def functions(path, text):
     return found
 
 
+def parse_limits(text):
+    """`apps=80,src=120` -> {("apps",): 80, ("src",): 120} (paths as their parts)."""
+    limits = {}
+    for item in text.split(","):
+        path, _, lines = item.partition("=")
+        if not path.strip() or not lines.strip().isdigit():
+            raise argparse.ArgumentTypeError(f"--max takes PATH=N,... (got '{item}')")
+        limits[Path(path.strip()).parts] = int(lines)
+    return limits
+
+
+def limit_of(path, limits):
+    """The limit of the longest path in `limits` that holds `path`, or None."""
+    parts = Path(path).parts
+    held = [key for key in limits if parts[: len(key)] == key]
+    return limits[max(held, key=len)] if held else None
+
+
+def report_over(results, limits):
+    """Prints the functions over their limit; returns how many there are."""
+    over = [(length, path, start, name, limit)
+            for length, path, start, name in results
+            for limit in [limit_of(path, limits)]
+            if limit is not None and length > limit]
+    spelled = ", ".join(f"{'/'.join(key)} {lines}" for key, lines in limits.items())
+    if not over:
+        print(f"no function over the limits (lines: {spelled})")
+        return 0
+    print(f"{len(over)} function(s) over the limits (lines: {spelled}); split them into steps "
+          "(docs/contributing.md):")
+    for length, path, start, name, limit in over:
+        print(f"{length:5d}  {path}:{start}  {name.rstrip()}  (limit {limit})")
+    return len(over)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("paths", nargs="*", default=["src"])
+    parser.add_argument("paths", nargs="*")
     parser.add_argument("--top", type=int, default=5)
     parser.add_argument("--rev")
+    parser.add_argument("--max", type=parse_limits, metavar="PATH=N,...",
+                        help="fail (exit 1) when a function under PATH is over N lines")
     args = parser.parse_args()
+    if not args.paths:
+        args.paths = ["/".join(key) for key in args.max] if args.max else ["src"]
     results = []
     if args.rev:
         names = subprocess.run(["git", "ls-tree", "-r", "--name-only", args.rev, *args.paths],
@@ -86,6 +131,8 @@ def main():
     results.sort(reverse=True)
     for length, path, start, name in results[: args.top]:
         print(f"{length:5d}  {path}:{start}  {name}")
+    if args.max:
+        return 1 if report_over(results, args.max) else 0
     return 0
 
 

@@ -151,7 +151,11 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
              "); pass the frames of this bake to --frames");
   }
   std::vector<double> predicted, truth, enough, flagged;
+  double predictedSum = 0.0;
+  const CoverageFrame* worst = &check.frames.front();
   for (const CoverageFrame& f : check.frames) {
+    predictedSum += f.predictedError;
+    worst = f.predictedError > worst->predictedError ? &f : worst;
     predicted.push_back(f.predictedError);
     truth.push_back(f.trueError);
     (f.flagged ? flagged : enough).push_back(f.trueError);
@@ -159,6 +163,9 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
       ++check.missed;
     }
   }
+  check.predictedMean = predictedSum / static_cast<double>(check.frames.size());
+  check.predictedMax = worst->predictedError;
+  check.predictedMaxFrame = worst->frame;
   check.spearman = spearmanCorrelation(predicted, truth);
   check.enough = static_cast<int>(enough.size());
   check.flagged = static_cast<int>(flagged.size());

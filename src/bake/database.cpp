@@ -122,40 +122,52 @@ std::uint64_t Database::contentHash() const {
   return hasher.value();
 }
 
-void saveDatabase(const std::string& path, const Database& db) {
-  if (!isLittleEndian()) {
-    DS_THROW(kInternal, "database files are little-endian; big-endian hosts are not supported");
-  }
+namespace {
+
+/// The arrays a database file holds that the Database does not store flat: rest positions,
+/// UVs and the side table, kept alive while the blocks point into them.
+struct FlatDatabaseArrays {
+  explicit FlatDatabaseArrays(const Database& db)
+      : driverRest(flatPositions(db.driverMesh)),
+        drivenRest(flatPositions(db.drivenMesh)),
+        driverUv(flatUvs(db.driverMesh)),
+        drivenUv(flatUvs(db.drivenMesh)),
+        sides(db.drivenSides.begin(), db.drivenSides.end()) {}
+  std::vector<float> driverRest;
+  std::vector<float> drivenRest;
+  std::vector<float> driverUv;
+  std::vector<float> drivenUv;
+  std::vector<int> sides;
+};
+
+/// The blocks of the file, in file order: shapes, both meshes, the side table and the pose
+/// model when there are.
+std::vector<BlockData> databaseBlocks(const Database& db, const FlatDatabaseArrays& flat) {
   const std::int64_t k = db.shapeCount();
   const std::int64_t vp = db.driverVertexCount();
   const std::int64_t vd = db.drivenVertexCount();
-  const std::vector<float> driverRest = flatPositions(db.driverMesh);
-  const std::vector<float> drivenRest = flatPositions(db.drivenMesh);
-  const std::vector<float> driverUv = flatUvs(db.driverMesh);
-  const std::vector<float> drivenUv = flatUvs(db.drivenMesh);
   const Mesh& dm = db.driverMesh;
   const Mesh& cm = db.drivenMesh;
   std::vector<BlockData> blocks = {
       block("driver_shapes", db.driverShapes, {k, vp, 3}),
       block("driven_shapes", db.drivenShapes, {k, vd, 3}),
-      block("driver_rest", driverRest, {vp, 3}),
+      block("driver_rest", flat.driverRest, {vp, 3}),
       block("driver_face_start", dm.faceStart, {static_cast<std::int64_t>(dm.faceStart.size())}),
       block("driver_face_vertices", dm.faceVertices,
             {static_cast<std::int64_t>(dm.faceVertices.size())}),
       block("driver_face_uvs", dm.faceUvs, {static_cast<std::int64_t>(dm.faceUvs.size())}),
       block("driver_face_group", dm.faceGroup, {static_cast<std::int64_t>(dm.faceGroup.size())}),
-      block("driver_uvs", driverUv, {static_cast<std::int64_t>(dm.uvs.size()), 2}),
-      block("driven_rest", drivenRest, {vd, 3}),
+      block("driver_uvs", flat.driverUv, {static_cast<std::int64_t>(dm.uvs.size()), 2}),
+      block("driven_rest", flat.drivenRest, {vd, 3}),
       block("driven_face_start", cm.faceStart, {static_cast<std::int64_t>(cm.faceStart.size())}),
       block("driven_face_vertices", cm.faceVertices,
             {static_cast<std::int64_t>(cm.faceVertices.size())}),
       block("driven_face_uvs", cm.faceUvs, {static_cast<std::int64_t>(cm.faceUvs.size())}),
       block("driven_face_group", cm.faceGroup, {static_cast<std::int64_t>(cm.faceGroup.size())}),
-      block("driven_uvs", drivenUv, {static_cast<std::int64_t>(cm.uvs.size()), 2}),
+      block("driven_uvs", flat.drivenUv, {static_cast<std::int64_t>(cm.uvs.size()), 2}),
   };
-  const std::vector<int> sides(db.drivenSides.begin(), db.drivenSides.end());
-  if (!sides.empty()) {
-    blocks.push_back(block("driven_sides", sides, {vd}));
+  if (!flat.sides.empty()) {
+    blocks.push_back(block("driven_sides", flat.sides, {vd}));
   }
   const PoseModel& model = db.poseModel;
   if (!model.empty()) {
@@ -167,7 +179,29 @@ void saveDatabase(const std::string& path, const Database& db) {
     blocks.push_back(block("model_coefficients", model.coefficients, {r, t}));
     blocks.push_back(block("model_basis", model.basis, {r, vd, 3}));
   }
+  return blocks;
+}
 
+/// The header's `pose_model` entry: the model's sizes and settings.
+json poseModelJson(const PoseModel& model) {
+  return {{"parts", model.partCount()},
+          {"rank", model.rank()},
+          {"frames", model.frameCount()},
+          {"features", model.featureCount()},
+          {"up", model.up},
+          {"velocity_lag", model.velocityLag},
+          {"history_frames", model.historyFrames},
+          {"length_scale", model.lengthScale},
+          {"linear_weight", model.linearWeight},
+          {"ridge", model.ridge},
+          {"error_bias", model.errorBias},
+          {"error_scale", model.errorScale},
+          {"cross_validation_error", model.crossValidationError},
+          {"binding_error", model.bindingError}};
+}
+
+/// The JSON header without its block table: picks, meshes, sources, settings, pose model.
+json databaseHeader(const Database& db) {
   json picks = json::array();
   for (int i = 0; i < db.shapeCount(); ++i) {
     picks.push_back({{"frame", db.frames[i]},
@@ -202,25 +236,18 @@ void saveDatabase(const std::string& path, const Database& db) {
     }
     header["sources"]["extra_clips"] = clips;
   }
-  if (!model.empty()) {
-    header["pose_model"] = {{"parts", model.partCount()},
-                            {"rank", model.rank()},
-                            {"frames", model.frameCount()},
-                            {"features", model.featureCount()},
-                            {"up", model.up},
-                            {"velocity_lag", model.velocityLag},
-                            {"history_frames", model.historyFrames},
-                            {"length_scale", model.lengthScale},
-                            {"linear_weight", model.linearWeight},
-                            {"ridge", model.ridge},
-                            {"error_bias", model.errorBias},
-                            {"error_scale", model.errorScale},
-                            {"cross_validation_error", model.crossValidationError},
-                            {"binding_error", model.bindingError}};
+  if (!db.poseModel.empty()) {
+    header["pose_model"] = poseModelJson(db.poseModel);
   }
-  // Offsets depend on the header length, which depends on the offsets' digits: lay out with
-  // a fixed-width placeholder pass until stable.
-  std::vector<std::size_t> offsets(blocks.size(), 0);
+  return header;
+}
+
+/// Adds the block table to `header` and sets each block's offset; returns the header's text.
+/// Offsets depend on the header length, which depends on the offsets' digits: lay out with
+/// a fixed-width placeholder pass until stable.
+std::string layOutBlocks(json& header, const std::vector<BlockData>& blocks,
+                         std::vector<std::size_t>& offsets) {
+  offsets.assign(blocks.size(), 0);
   std::string headerText;
   for (int pass = 0; pass < 4; ++pass) {
     json table = json::array();
@@ -246,7 +273,12 @@ void saveDatabase(const std::string& path, const Database& db) {
       break;
     }
   }
+  return headerText;
+}
 
+/// The whole file: prefix, header, then each block at its offset.
+std::string databaseFileBytes(const std::string& headerText, const std::vector<BlockData>& blocks,
+                              const std::vector<std::size_t>& offsets) {
   std::string bytes;
   bytes.append(kMagic, sizeof(kMagic));
   const std::uint32_t version = Database::kFormatVersion;
@@ -260,7 +292,21 @@ void saveDatabase(const std::string& path, const Database& db) {
     bytes.resize(offsets[i], '\0');
     bytes.append(static_cast<const char*>(blocks[i].data), blocks[i].bytes);
   }
-  writeFileAtomically(path, bytes);
+  return bytes;
+}
+
+}  // namespace
+
+void saveDatabase(const std::string& path, const Database& db) {
+  if (!isLittleEndian()) {
+    DS_THROW(kInternal, "database files are little-endian; big-endian hosts are not supported");
+  }
+  const FlatDatabaseArrays flat(db);
+  const std::vector<BlockData> blocks = databaseBlocks(db, flat);
+  json header = databaseHeader(db);
+  std::vector<std::size_t> offsets;
+  const std::string headerText = layOutBlocks(header, blocks, offsets);
+  writeFileAtomically(path, databaseFileBytes(headerText, blocks, offsets));
 }
 
 bool isDatabaseFile(const std::string& path) {

@@ -478,23 +478,12 @@ PosePredictor::Prediction PosePredictor::predict(const double* features) const {
   return p;
 }
 
-PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,
-                       const float* drivenFrames, const std::vector<int>& frames,
-                       const std::vector<SurfaceHit>& restHits, const PoseModelOptions& options,
-                       std::ostream* log, const EarlierFrames& history) {
-  const int t = static_cast<int>(frames.size());
-  if (t < 10) {
-    DS_THROW(kInput, "the pose model needs at least 10 reference frames (got ", t,
-             "); give `db build` a longer reference clip or build with --model none");
-  }
-  const int threads = resolveThreads(options.threads);
-  const std::size_t dv = static_cast<std::size_t>(driver.vertexCount()) * 3;
-  const std::size_t dd = static_cast<std::size_t>(driven.vertexCount()) * 3;
-  PoseModel model;
-  model.up = options.up;
-  model.velocityLag = options.velocityLag;
-  model.historyFrames = options.historyFrames;
-  model.frames = frames;
+namespace {
+
+/// The model's rigid parts: the rig's (options.partOf) or those found from the clip's `t`
+/// driver frames; each needs 3 vertices for its rotation.
+void setRigidParts(PoseModel& model, const Mesh& driver, const float* driverFrames, int t,
+                   const PoseModelOptions& options, int threads, std::ostream* log) {
   if (!options.partOf.empty()) {
     if (options.partOf.size() != static_cast<std::size_t>(driver.vertexCount())) {
       DS_THROW(kInput, "the rig's parts name ", options.partOf.size(),
@@ -520,17 +509,15 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
     }
     *log << ")\n";
   }
+}
 
-  // Features of every reference frame.
-  model.lengthScale = 1.0;  // placeholder until chosen; the predictor below needs a valid model
-  const PosePredictor shapeOnly(model, driver);
-  const int d = model.featureCount();
-  // Rounded to the float the database stores, so that the fit and the evaluation compare the
-  // same numbers.
-  const MatrixXd x =
-      shapeOnly.blockFeatures(driverFrames, frames, history, threads).cast<float>().cast<double>();
-
-  // Targets: the local offsets of every reference frame minus the rest offsets.
+/// The regression targets, T x 3Vd: the local offsets of every reference frame minus the
+/// rest offsets.
+MatrixXd localOffsetTargets(const Mesh& driver, const Mesh& driven, const float* driverFrames,
+                            const float* drivenFrames, int t,
+                            const std::vector<SurfaceHit>& restHits) {
+  const std::size_t dv = static_cast<std::size_t>(driver.vertexCount()) * 3;
+  const std::size_t dd = static_cast<std::size_t>(driven.vertexCount()) * 3;
   std::vector<float> restLocal(dd), local(dd);
   encodeLocal(driver, driver.positions.data(), driven.vertexCount(), driven.positions.data(),
               restHits.data(), restLocal.data());
@@ -542,47 +529,104 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
       y(f, static_cast<Eigen::Index>(i)) = static_cast<double>(local[i]) - restLocal[i];
     }
   }
-  // Principal components of the targets: the regression runs on the T coordinates (the same
-  // squared error as on every vertex), the basis keeps the first `rank`.
+  return y;
+}
+
+/// The principal components of the targets (those of eigenvalue above 1e-12 of the largest):
+/// the regression runs on the T coordinates, the same squared error as on every vertex.
+struct OffsetBasis {
+  int rank = 0;
+  MatrixXd components;  ///< rank x 3Vd
+  MatrixXd coords;      ///< T x rank, the targets in the basis
+};
+
+OffsetBasis offsetBasis(const MatrixXd& y) {
+  const int t = static_cast<int>(y.rows());
   const Eigen::SelfAdjointEigenSolver<MatrixXd> eig(y * y.transpose());
-  const int keep = std::min(t, std::max(1, options.rank));
   std::vector<int> order(static_cast<std::size_t>(t));
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(),
             [&](int a, int b) { return eig.eigenvalues()[a] > eig.eigenvalues()[b]; });
-  int rank = 0;
-  MatrixXd u(t, t), components(t, static_cast<Eigen::Index>(dd));
+  OffsetBasis basis;
+  MatrixXd u(t, t), components(t, y.cols());
   for (int j = 0; j < t; ++j) {
     const double lambda = eig.eigenvalues()[order[j]];
     if (lambda <= 1e-12 * std::max(1e-300, eig.eigenvalues().maxCoeff())) {
       break;
     }
-    u.col(rank) = eig.eigenvectors().col(order[j]);
-    components.row(rank) = (y.transpose() * u.col(rank)).transpose() / std::sqrt(lambda);
-    ++rank;
+    u.col(basis.rank) = eig.eigenvectors().col(order[j]);
+    components.row(basis.rank) =
+        (y.transpose() * u.col(basis.rank)).transpose() / std::sqrt(lambda);
+    ++basis.rank;
   }
-  u.conservativeResize(t, rank);
-  components.conservativeResize(rank, components.cols());
-  const MatrixXd coords = y * components.transpose();  // T x rank
+  components.conservativeResize(basis.rank, components.cols());
+  basis.coords = y * components.transpose();
+  basis.components = std::move(components);
+  return basis;
+}
 
-  // Hyper-parameters by cross-validation on 5 contiguous blocks of the clip.
-  double median = 0.0;
-  {
-    std::vector<double> distances;
-    for (int a = 0; a < t; ++a) {
-      for (int b = a + 1; b < t; ++b) {
-        distances.push_back((x.row(a) - x.row(b)).norm());
-      }
+/// Hyper-parameters of the kernel ridge regression and their cross-validated squared error.
+struct KernelFit {
+  double lengthScale, linearWeight, ridge, error;
+};
+
+/// The median distance between the feature rows of two reference frames (at least 1e-9):
+/// the unit of the length scales tried.
+double medianFeatureDistance(const MatrixXd& x) {
+  const int t = static_cast<int>(x.rows());
+  std::vector<double> distances;
+  for (int a = 0; a < t; ++a) {
+    for (int b = a + 1; b < t; ++b) {
+      distances.push_back((x.row(a) - x.row(b)).norm());
     }
-    std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
-    median = std::max(1e-9, distances[distances.size() / 2]);
   }
+  std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
+  return std::max(1e-9, distances[distances.size() / 2]);
+}
+
+/// Cross-validation on 5 contiguous blocks of the clip: the prediction (T x rank) and the
+/// posterior deviation (T) of every reference frame by the fit `c` on the other blocks.
+void crossValidate(const MatrixXd& x, const MatrixXd& coords, const KernelFit& c,
+                   MatrixXd& predicted, VectorXd& sigma) {
+  const int t = static_cast<int>(x.rows());
+  const int rank = static_cast<int>(coords.cols());
   const int blocks = 5;
   const auto blockOf = [&](int f) { return std::min(blocks - 1, f * blocks / t); };
-  struct Candidate {
-    double lengthScale, linearWeight, ridge, error;
-  };
-  std::vector<Candidate> candidates;
+  predicted.resize(t, rank);
+  sigma.resize(t);
+  const MatrixXd kAll = kernelMatrix(x, x, c.lengthScale, c.linearWeight);
+  for (int b = 0; b < blocks; ++b) {
+    std::vector<int> train, test;
+    for (int f = 0; f < t; ++f) {
+      (blockOf(f) == b ? test : train).push_back(f);
+    }
+    MatrixXd k(train.size(), train.size()), ks(test.size(), train.size());
+    MatrixXd yt(train.size(), rank);
+    for (std::size_t i = 0; i < train.size(); ++i) {
+      for (std::size_t j = 0; j < train.size(); ++j) {
+        k(i, j) = kAll(train[i], train[j]);
+      }
+      k(i, i) += c.ridge;
+      yt.row(i) = coords.row(train[i]);
+      for (std::size_t j = 0; j < test.size(); ++j) {
+        ks(j, i) = kAll(test[j], train[i]);
+      }
+    }
+    const Eigen::LLT<MatrixXd> llt(k);
+    const MatrixXd p = ks * llt.solve(yt);
+    const MatrixXd v = llt.solve(ks.transpose());
+    for (std::size_t j = 0; j < test.size(); ++j) {
+      predicted.row(test[j]) = p.row(j);
+      sigma[test[j]] = std::sqrt(std::max(0.0, kAll(test[j], test[j]) - ks.row(j).dot(v.col(j))));
+    }
+  }
+}
+
+/// The hyper-parameters of the grid (length scales in units of the median feature distance,
+/// linear weights, ridges) with the smallest cross-validated error.
+KernelFit chooseKernel(const MatrixXd& x, const MatrixXd& coords, int threads) {
+  const double median = medianFeatureDistance(x);
+  std::vector<KernelFit> candidates;
   for (double ls : {0.25, 0.5, 1.0}) {
     for (double lw : {1.0, 3.0, 10.0}) {
       for (double ridge : {0.03, 0.1, 0.3, 1.0}) {
@@ -590,71 +634,44 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
       }
     }
   }
-  const auto foldPredictions = [&](const Candidate& c, MatrixXd& predicted, VectorXd& sigma) {
-    predicted.resize(t, rank);
-    sigma.resize(t);
-    const MatrixXd kAll = kernelMatrix(x, x, c.lengthScale, c.linearWeight);
-    for (int b = 0; b < blocks; ++b) {
-      std::vector<int> train, test;
-      for (int f = 0; f < t; ++f) {
-        (blockOf(f) == b ? test : train).push_back(f);
-      }
-      MatrixXd k(train.size(), train.size()), ks(test.size(), train.size());
-      MatrixXd yt(train.size(), rank);
-      for (std::size_t i = 0; i < train.size(); ++i) {
-        for (std::size_t j = 0; j < train.size(); ++j) {
-          k(i, j) = kAll(train[i], train[j]);
-        }
-        k(i, i) += c.ridge;
-        yt.row(i) = coords.row(train[i]);
-        for (std::size_t j = 0; j < test.size(); ++j) {
-          ks(j, i) = kAll(test[j], train[i]);
-        }
-      }
-      const Eigen::LLT<MatrixXd> llt(k);
-      const MatrixXd p = ks * llt.solve(yt);
-      const MatrixXd v = llt.solve(ks.transpose());
-      for (std::size_t j = 0; j < test.size(); ++j) {
-        predicted.row(test[j]) = p.row(j);
-        sigma[test[j]] = std::sqrt(std::max(0.0, kAll(test[j], test[j]) - ks.row(j).dot(v.col(j))));
-      }
-    }
-  };
   parallelFor(static_cast<int>(candidates.size()), threads, [&](int i) {
     MatrixXd predicted;
     VectorXd sigma;
-    foldPredictions(candidates[i], predicted, sigma);
+    crossValidate(x, coords, candidates[i], predicted, sigma);
     candidates[i].error = (predicted - coords).squaredNorm();
   });
-  const Candidate best =
-      *std::min_element(candidates.begin(), candidates.end(),
-                        [](const Candidate& a, const Candidate& b) { return a.error < b.error; });
-  model.lengthScale = best.lengthScale;
-  model.linearWeight = best.linearWeight;
-  model.ridge = best.ridge;
+  return *std::min_element(
+      candidates.begin(), candidates.end(),
+      [](const KernelFit& a, const KernelFit& b) { return a.error < b.error; });
+}
 
-  // The error predictor: the cross-validated mean vertex error of each frame against the
-  // posterior deviation, least squares.
+/// The error predictor: the cross-validated mean vertex error of each frame against the
+/// posterior deviation, least squares; also the mean errors of the fit and of the binding.
+void fitErrorPredictor(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis,
+                       const KernelFit& best) {
   MatrixXd predicted;
   VectorXd sigma;
-  foldPredictions(best, predicted, sigma);
-  const VectorXd error = meanVertexError(predicted, coords, components);
-  const VectorXd bindingError = meanVertexError(MatrixXd::Zero(t, rank), coords, components);
+  crossValidate(x, basis.coords, best, predicted, sigma);
+  const VectorXd error = meanVertexError(predicted, basis.coords, basis.components);
+  const VectorXd bindingError =
+      meanVertexError(MatrixXd::Zero(x.rows(), basis.rank), basis.coords, basis.components);
   model.crossValidationError = error.mean();
   model.bindingError = bindingError.mean();
-  {
-    const std::array<double, 2> line = fitErrorLine(sigma, error);
-    model.errorBias = line[0];
-    model.errorScale = line[1];
-  }
+  const std::array<double, 2> line = fitErrorLine(sigma, error);
+  model.errorBias = line[0];
+  model.errorScale = line[1];
   model.frameErrors.assign(error.data(), error.data() + error.size());
+}
 
-  // The full fit and its low-rank basis: c(x) = S_r U_r^T (K + lambda I)^-1 k(x) weighs the
-  // first `keep` components.
-  const int r = std::min(keep, rank);
+/// The full fit and its low-rank basis: c(x) = S_r U_r^T (K + lambda I)^-1 k(x) weighs the
+/// first `r` components. Stores the coefficients, the basis and the features as floats.
+void storeFit(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis, int r) {
+  const int t = static_cast<int>(x.rows());
+  const int d = model.featureCount();
+  const std::size_t dd = static_cast<std::size_t>(basis.components.cols());
   MatrixXd k = kernelMatrix(x, x, model.lengthScale, model.linearWeight);
   k.diagonal().array() += model.ridge;
-  const MatrixXd coefficients = k.llt().solve(coords.leftCols(r)).transpose();  // r x T
+  const MatrixXd coefficients = k.llt().solve(basis.coords.leftCols(r)).transpose();  // r x T
   model.coefficients.resize(static_cast<std::size_t>(r) * t);
   model.basis.resize(static_cast<std::size_t>(r) * dd);
   for (int j = 0; j < r; ++j) {
@@ -663,7 +680,8 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
           static_cast<float>(coefficients(j, f));
     }
     for (std::size_t i = 0; i < dd; ++i) {
-      model.basis[j * dd + i] = static_cast<float>(components(j, static_cast<Eigen::Index>(i)));
+      model.basis[j * dd + i] =
+          static_cast<float>(basis.components(j, static_cast<Eigen::Index>(i)));
     }
   }
   model.features.resize(static_cast<std::size_t>(t) * d);
@@ -672,6 +690,46 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
       model.features[static_cast<std::size_t>(f) * d + c] = static_cast<float>(x(f, c));
     }
   }
+}
+
+}  // namespace
+
+PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,
+                       const float* drivenFrames, const std::vector<int>& frames,
+                       const std::vector<SurfaceHit>& restHits, const PoseModelOptions& options,
+                       std::ostream* log, const EarlierFrames& history) {
+  const int t = static_cast<int>(frames.size());
+  if (t < 10) {
+    DS_THROW(kInput, "the pose model needs at least 10 reference frames (got ", t,
+             "); give `db build` a longer reference clip or build with --model none");
+  }
+  const int threads = resolveThreads(options.threads);
+  PoseModel model;
+  model.up = options.up;
+  model.velocityLag = options.velocityLag;
+  model.historyFrames = options.historyFrames;
+  model.frames = frames;
+  setRigidParts(model, driver, driverFrames, t, options, threads, log);
+
+  // Features of every reference frame.
+  model.lengthScale = 1.0;  // placeholder until chosen; the predictor below needs a valid model
+  const PosePredictor shapeOnly(model, driver);
+  const int d = model.featureCount();
+  // Rounded to the float the database stores, so that the fit and the evaluation compare the
+  // same numbers.
+  const MatrixXd x =
+      shapeOnly.blockFeatures(driverFrames, frames, history, threads).cast<float>().cast<double>();
+  const OffsetBasis basis =
+      offsetBasis(localOffsetTargets(driver, driven, driverFrames, drivenFrames, t, restHits));
+
+  const KernelFit best = chooseKernel(x, basis.coords, threads);
+  model.lengthScale = best.lengthScale;
+  model.linearWeight = best.linearWeight;
+  model.ridge = best.ridge;
+  fitErrorPredictor(model, x, basis, best);
+  // The basis keeps the first `rank` components.
+  const int r = std::min(std::min(t, std::max(1, options.rank)), basis.rank);
+  storeFit(model, x, basis, r);
   if (log != nullptr) {
     *log << "  pose model: " << t << " frames, " << d << " features, rank " << r
          << ", length scale " << model.lengthScale << ", linear " << model.linearWeight

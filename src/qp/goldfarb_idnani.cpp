@@ -119,6 +119,18 @@ class DualActiveSet {
     return mRa.topLeftCorner(mQ, mQ).triangularView<Eigen::Upper>().solve(d.head(mQ));
   }
 
+  /// Error(kInternal) for inconsistent sizes, Error(kNumerical) for a non-finite entry or a
+  /// zero on the diagonal of R.
+  void checkProblem() const;
+  /// J = R^{-1}, no constraint active, x at the unconstrained minimum -G^{-1} a.
+  void startUnconstrained();
+  /// Makes every equality active (skipping redundant ones); false when they are inconsistent.
+  bool addEqualities();
+  /// The inactive inequality violated the most, or -1 when x satisfies them all.
+  int mostViolatedInequality(const Eigen::VectorXd& normNormals) const;
+  /// Adds inequality `chosen`, dropping active ones whose multipliers reach zero first; false
+  /// when no multiplier can absorb its normal (the problem is infeasible).
+  bool addInequality(int chosen, double normalNorm);
   void addConstraint(Eigen::VectorXd d, int id, double sign, double multiplier);
   void dropConstraint(int position);
   void countIteration();
@@ -262,10 +274,7 @@ QpResult DualActiveSet::result(bool feasible) const {
   return out;
 }
 
-QpResult DualActiveSet::solve() {
-  mN = static_cast<int>(mR.rows());
-  mMe = static_cast<int>(mE.cols());
-  mMi = static_cast<int>(mC.cols());
+void DualActiveSet::checkProblem() const {
   if (mR.cols() != mN || mA.size() != mN || (mMe > 0 && mE.rows() != mN) || mEb.size() != mMe ||
       (mMi > 0 && mC.rows() != mN) || mCb.size() != mMi) {
     DS_THROW(kInternal, "Goldfarb-Idnani QP: inconsistent sizes: R ", mR.rows(), "x", mR.cols(),
@@ -284,8 +293,10 @@ QpResult DualActiveSet::solve() {
                ") is zero; G = R^T R must be positive definite");
     }
   }
-  mIterationCap = 10 * (mN + mMe + mMi) + 50;
+}
 
+void DualActiveSet::startUnconstrained() {
+  mIterationCap = 10 * (mN + mMe + mMi) + 50;
   mJ = mR.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(mN, mN));
   mJNorm = mJ.norm();
   if (!std::isfinite(mJNorm)) {
@@ -295,9 +306,11 @@ QpResult DualActiveSet::solve() {
   mU = Eigen::VectorXd::Zero(mN);
   mIsActive.assign(mMi, 0);
   mX = -(mJ * (mJ.transpose() * mA));
+}
 
-  // Equalities first. Each is oriented so that it is a violated (or tight) ">=" constraint;
-  // no inequality is active yet, so every step is a full step.
+// Equalities first. Each is oriented so that it is a violated (or tight) ">=" constraint;
+// no inequality is active yet, so every step is a full step.
+bool DualActiveSet::addEqualities() {
   for (int j = 0; j < mMe; ++j) {
     const double residual = mE.col(j).dot(mX) - mEb(j);
     const double sign = residual > 0.0 ? -1.0 : 1.0;
@@ -310,7 +323,7 @@ QpResult DualActiveSet::solve() {
       if (std::abs(residual) <= feasibilityTol(mEb(j), normalNorm, mX.norm())) {
         continue;
       }
-      return result(false);
+      return false;
     }
     countIteration();
     const double t = std::abs(residual) / (d2Norm * d2Norm);
@@ -319,77 +332,96 @@ QpResult DualActiveSet::solve() {
     addConstraint(d, j, sign, t);
     refineUntilSettled();
   }
+  return true;
+}
 
+int DualActiveSet::mostViolatedInequality(const Eigen::VectorXd& normNormals) const {
+  // Measured as a distance (residual / |normal|).
+  int chosen = -1;
+  double worst = 0.0;
+  const Eigen::VectorXd slack = mC.transpose() * mX - mCb;
+  const double xNorm = mX.norm();
+  for (int i = 0; i < mMi; ++i) {
+    if (mIsActive[i] || slack(i) >= -feasibilityTol(mCb(i), normNormals(i), xNorm)) {
+      continue;
+    }
+    const double distance = normNormals(i) > 0.0 ? slack(i) / normNormals(i) : -kInf;
+    if (chosen < 0 || distance < worst) {
+      chosen = i;
+      worst = distance;
+    }
+  }
+  return chosen;
+}
+
+bool DualActiveSet::addInequality(int chosen, double normalNorm) {
+  const int id = mMe + chosen;
+  const Eigen::VectorXd n = mC.col(chosen);
+  double multiplier = 0.0;  // of the constraint being added
+  for (;;) {
+    const Eigen::VectorXd d = mJ.transpose() * n;
+    const double d2Norm = d.tail(mN - mQ).norm();
+    const bool dependent = d2Norm <= dependenceTol(normalNorm);
+    const Eigen::VectorXd r = dualDirection(d);
+
+    // Partial step: the largest dual step that keeps the active inequality multipliers
+    // >= 0; the one that reaches zero first is dropped.
+    double partial = kInf;
+    int drop = -1;
+    for (int j = 0; j < mQ; ++j) {
+      if (mActive[j] >= mMe && r(j) > 0.0) {
+        const double ratio = mU(j) / r(j);
+        if (ratio < partial) {
+          partial = ratio;
+          drop = j;
+        }
+      }
+    }
+    // Full step: the primal step that makes the new constraint tight.
+    double full = kInf;
+    if (!dependent) {
+      full = std::max(-(n.dot(mX) - mCb(chosen)), 0.0) / (d2Norm * d2Norm);
+    }
+    const double t = std::min(partial, full);
+    if (t == kInf) {
+      return false;  // no multiplier can absorb the new normal: infeasible
+    }
+    countIteration();
+    if (!dependent) {
+      mX.noalias() += t * (mJ.rightCols(mN - mQ) * d.tail(mN - mQ));
+    }
+    mU.head(mQ) -= t * r;
+    multiplier += t;
+    if (!dependent && full <= partial) {
+      addConstraint(d, id, 1.0, multiplier);
+      refineUntilSettled();
+      return true;
+    }
+    mU(drop) = 0.0;
+    dropConstraint(drop);
+  }
+}
+
+QpResult DualActiveSet::solve() {
+  mN = static_cast<int>(mR.rows());
+  mMe = static_cast<int>(mE.cols());
+  mMi = static_cast<int>(mC.cols());
+  checkProblem();
+  startUnconstrained();
+  if (!addEqualities()) {
+    return result(false);
+  }
   Eigen::VectorXd normNormals(mMi);
   for (int i = 0; i < mMi; ++i) {
     normNormals(i) = mC.col(i).norm();
   }
-
   for (;;) {
-    // The most violated inactive inequality, measured as a distance (residual / |normal|).
-    int chosen = -1;
-    double worst = 0.0;
-    const Eigen::VectorXd slack = mC.transpose() * mX - mCb;
-    const double xNorm = mX.norm();
-    for (int i = 0; i < mMi; ++i) {
-      if (mIsActive[i] || slack(i) >= -feasibilityTol(mCb(i), normNormals(i), xNorm)) {
-        continue;
-      }
-      const double distance = normNormals(i) > 0.0 ? slack(i) / normNormals(i) : -kInf;
-      if (chosen < 0 || distance < worst) {
-        chosen = i;
-        worst = distance;
-      }
-    }
+    const int chosen = mostViolatedInequality(normNormals);
     if (chosen < 0) {
       return result(true);
     }
-
-    const int id = mMe + chosen;
-    const Eigen::VectorXd n = mC.col(chosen);
-    const double normalNorm = normNormals(chosen);
-    double multiplier = 0.0;  // of the constraint being added
-    for (;;) {
-      const Eigen::VectorXd d = mJ.transpose() * n;
-      const double d2Norm = d.tail(mN - mQ).norm();
-      const bool dependent = d2Norm <= dependenceTol(normalNorm);
-      const Eigen::VectorXd r = dualDirection(d);
-
-      // Partial step: the largest dual step that keeps the active inequality multipliers
-      // >= 0; the one that reaches zero first is dropped.
-      double partial = kInf;
-      int drop = -1;
-      for (int j = 0; j < mQ; ++j) {
-        if (mActive[j] >= mMe && r(j) > 0.0) {
-          const double ratio = mU(j) / r(j);
-          if (ratio < partial) {
-            partial = ratio;
-            drop = j;
-          }
-        }
-      }
-      // Full step: the primal step that makes the new constraint tight.
-      double full = kInf;
-      if (!dependent) {
-        full = std::max(-(n.dot(mX) - mCb(chosen)), 0.0) / (d2Norm * d2Norm);
-      }
-      const double t = std::min(partial, full);
-      if (t == kInf) {
-        return result(false);  // no multiplier can absorb the new normal: infeasible
-      }
-      countIteration();
-      if (!dependent) {
-        mX.noalias() += t * (mJ.rightCols(mN - mQ) * d.tail(mN - mQ));
-      }
-      mU.head(mQ) -= t * r;
-      multiplier += t;
-      if (!dependent && full <= partial) {
-        addConstraint(d, id, 1.0, multiplier);
-        refineUntilSettled();
-        break;
-      }
-      mU(drop) = 0.0;
-      dropConstraint(drop);
+    if (!addInequality(chosen, normNormals(chosen))) {
+      return result(false);
     }
   }
 }

@@ -237,6 +237,10 @@ TEST(CoverageCheck, MatchesFramesAndSummarisesTheVerdict) {
               referencePearson(countedRanks({0.4, 0.1, 0.9, 0.2, 0.3, 0.6}),
                                countedRanks({0.45, 0.05, 0.8, 0.6, 0.2, 0.7})),
               kRankCorrelationTol);
+  // What `eval --report` prints of the prediction: its mean and its largest frame.
+  EXPECT_DOUBLE_EQ(c.predictedMean, (0.4 + 0.1 + 0.9 + 0.2 + 0.3 + 0.6) / 6.0);
+  EXPECT_EQ(c.predictedMax, 0.9);
+  EXPECT_EQ(c.predictedMaxFrame, 13);
 
   // Over the tolerance: the verdict fails.
   report.tolerance = 0.3;

@@ -201,6 +201,160 @@ bool openNode(const Eigen::Vector3d& p, const float* box, const DsCertCone& cone
   return !(std::isfinite(spread) && front >= 0.0 && front * front >= spread * spread * far2);
 }
 
+/// What the walks of one frame read: the tree with its boxes and cones refitted on the pose,
+/// the posed triangles, and the distance in front of the surface a point must prove.
+struct CertWalk {
+  const BvhTables& bvh;
+  const std::int32_t* triangles;      ///< T x 3
+  const std::int32_t* nodeTriangles;  ///< N, nodeTriangles()
+  const float* pose;                  ///< 3Vp
+  const std::vector<float>& boxes;    ///< N x 6
+  const std::vector<DsCertCone>& cones;
+  double margin;
+  double target;  ///< clearance + margin
+
+  Eigen::Vector3d corner(int t, int k) const {
+    return loadPoint(pose,
+                     triangles[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)]);
+  }
+  const DsBvhNode& node(int n) const { return bvh.nodes[static_cast<std::size_t>(n)]; }
+  /// A leaf triangle: its three vertices, then its index.
+  const std::int32_t* slot(int k) const {
+    return &bvh.leafTriangles[4 * static_cast<std::size_t>(k)];
+  }
+};
+
+/// The first upper bound U^2 of p's distance to the surface: the smallest squared distance to
+/// the seed triangle and to the triangles of the leaf that a greedy descent (nearer box first)
+/// reaches. `witness`, the seed on entry, becomes the nearest of them.
+double upperBound2(const CertWalk& w, const Eigen::Vector3d& p, int& witness) {
+  double u = 0.0;
+  double v = 0.0;
+  double core2 =
+      triangleDistance2(p, w.corner(witness, 0), w.corner(witness, 1), w.corner(witness, 2), u, v);
+  int node = 0;
+  while (w.node(node).count == 0) {
+    const DsBvhNode& current = w.node(node);
+    node = boxDistance2(p, &w.boxes[6 * static_cast<std::size_t>(current.left)]) <=
+                   boxDistance2(p, &w.boxes[6 * static_cast<std::size_t>(current.right)])
+               ? current.left
+               : current.right;
+  }
+  const DsBvhNode& probe = w.node(node);
+  for (int k = probe.first; k < probe.first + probe.count; ++k) {
+    const std::int32_t* slot = w.slot(k);
+    const double d2 = triangleDistance2(p, loadPoint(w.pose, slot[0]), loadPoint(w.pose, slot[1]),
+                                        loadPoint(w.pose, slot[2]), u, v);
+    if (d2 < core2) {
+      core2 = d2;
+      witness = slot[3];
+    }
+  }
+  return core2;
+}
+
+/// A leaf of the walk: whether p is the target in front of each of its triangles whose box
+/// lies within `limit`.
+bool leafInFront(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& leaf, double limit) {
+  bool pass = true;
+  for (int k = leaf.first; k < leaf.first + leaf.count && pass; ++k) {
+    const std::int32_t* slot = w.slot(k);
+    const Eigen::Vector3d a = loadPoint(w.pose, slot[0]);
+    const Eigen::Vector3d b = loadPoint(w.pose, slot[1]);
+    const Eigen::Vector3d c = loadPoint(w.pose, slot[2]);
+    const Eigen::Vector3d e =
+        (a.cwiseMin(b).cwiseMin(c) - p).cwiseMax(p - a.cwiseMax(b).cwiseMax(c)).cwiseMax(0.0);
+    const double d2 = e.dot(e);
+    if (d2 > limit * limit) {
+      continue;
+    }
+    pass = inFront(p, a, b, c, w.target);
+  }
+  return pass;
+}
+
+/// An inner node of the walk: opens both children for p (openNode) and returns the nearer
+/// open one within `limit` (-1 when none), pushing the farther onto `stack` when both are.
+int openChildren(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& inner, double& limit,
+                 double& core2, int& witness, std::vector<std::pair<int, double>>& stack) {
+  const int child[2] = {inner.left, inner.right};
+  double distances[2];
+  bool opened[2];
+  for (int side = 0; side < 2; ++side) {
+    const std::size_t c = static_cast<std::size_t>(child[side]);
+    opened[side] = openNode(p, &w.boxes[6 * c], w.cones[c], w.nodeTriangles[c], w.target, w.margin,
+                            limit, core2, witness, distances[side]);
+  }
+  const int nearSide = distances[0] <= distances[1] ? 0 : 1;
+  const double limit2 = limit * limit;
+  int next = -1;
+  if (opened[nearSide] && distances[nearSide] <= limit2) {
+    next = child[nearSide];
+  }
+  if (opened[1 - nearSide] && distances[1 - nearSide] <= limit2) {
+    if (next < 0) {
+      next = child[1 - nearSide];
+    } else {
+      stack.emplace_back(child[1 - nearSide], distances[1 - nearSide]);
+    }
+  }
+  return next;
+}
+
+/// dsCertCheck's walk from the root, with the bound U^2 = core2 of upperBound2: false as soon
+/// as a triangle within reach does not have p the target in front of it. Opening nodes can
+/// lower the bound and move the witness.
+bool walkClears(const CertWalk& w, const Eigen::Vector3d& p, double& core2, int& witness,
+                std::vector<std::pair<int, double>>& stack) {
+  double limit = std::sqrt(core2) + w.margin;
+  double distance = 0.0;
+  bool pass = true;
+  int node = openNode(p, w.boxes.data(), w.cones[0], w.nodeTriangles[0], w.target, w.margin, limit,
+                      core2, witness, distance)
+                 ? 0
+                 : -1;
+  stack.clear();
+  while (node >= 0 && pass) {
+    const DsBvhNode& current = w.node(node);
+    int next = -1;
+    if (current.count > 0) {
+      pass = leafInFront(w, p, current, limit);
+    } else {
+      next = openChildren(w, p, current, limit, core2, witness, stack);
+    }
+    while (next < 0 && !stack.empty()) {
+      if (stack.back().second <= limit * limit) {
+        next = stack.back().first;
+      }
+      stack.pop_back();
+    }
+    node = next;
+  }
+  return pass;
+}
+
+/// The certificate of point p, starting from triangle `seed`: true when p is proven the target
+/// in front of the surface, with `hit` the witness triangle at its centroid.
+bool certifyPoint(const CertWalk& w, const Eigen::Vector3d& p, int seed,
+                  std::vector<std::pair<int, double>>& stack, SurfaceHit& hit) {
+  int witness = seed;
+  double core2 = upperBound2(w, p, witness);
+  const bool pass =
+      walkClears(w, p, core2, witness, stack) &&
+      inFront(p, w.corner(witness, 0), w.corner(witness, 1), w.corner(witness, 2), w.target);
+  if (!pass) {
+    return false;
+  }
+  hit.triangle = witness;
+  hit.u = DS_CERT_THIRD;
+  hit.v = DS_CERT_THIRD;
+  const Eigen::Vector3d a = w.corner(witness, 0);
+  const Eigen::Vector3d centroid = a + static_cast<double>(hit.u) * (w.corner(witness, 1) - a) +
+                                   static_cast<double>(hit.v) * (w.corner(witness, 2) - a);
+  hit.distance2 = static_cast<float>((p - centroid).squaredNorm());
+  return true;
+}
+
 }  // namespace
 
 void HostCertificate::setSurface(const Mesh& driver, const BindingMask& mask, double sceneScale) {
@@ -241,17 +395,13 @@ void HostCertificate::clear(int frameCount, const float* poses, const float* poi
   // The kernel's parameters are floats.
   const double margin = static_cast<double>(static_cast<float>(mMargin));
   const double target = static_cast<double>(clearance) + margin;
-  const std::int32_t* triangles = mTriangles.data();
-  auto corner = [&](const float* pose, int t, int k) {
-    return loadPoint(pose,
-                     triangles[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)]);
-  };
-
   parallelFor(frameCount, threads, [&](int f) {
     const float* pose = poses + static_cast<std::size_t>(f) * poseValues;
     std::vector<float> boxes;
     std::vector<DsCertCone> cones;
     refit(mBvh, pose, boxes, cones);
+    const CertWalk walk{mBvh,  mTriangles.data(), mNodeTriangles.data(), pose, boxes, cones, margin,
+                        target};
     std::vector<std::pair<int, double>> stack;
     int count = 0;
     for (int i = 0; i < mPointCount; ++i) {
@@ -260,102 +410,10 @@ void HostCertificate::clear(int frameCount, const float* poses, const float* poi
         continue;
       }
       const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
-      // The upper bound U: the smallest distance to the seed triangle and to the triangles of
-      // the leaf that a greedy descent (nearer box first) reaches; the nearest is the first
-      // witness.
-      int witness = mSeeds[static_cast<std::size_t>(i)];
-      double u = 0.0;
-      double v = 0.0;
-      double core2 = triangleDistance2(p, corner(pose, witness, 0), corner(pose, witness, 1),
-                                       corner(pose, witness, 2), u, v);
-      int node = 0;
-      while (mBvh.nodes[static_cast<std::size_t>(node)].count == 0) {
-        const DsBvhNode& current = mBvh.nodes[static_cast<std::size_t>(node)];
-        node = boxDistance2(p, &boxes[6 * static_cast<std::size_t>(current.left)]) <=
-                       boxDistance2(p, &boxes[6 * static_cast<std::size_t>(current.right)])
-                   ? current.left
-                   : current.right;
-      }
-      const DsBvhNode& probe = mBvh.nodes[static_cast<std::size_t>(node)];
-      for (int k = probe.first; k < probe.first + probe.count; ++k) {
-        const std::int32_t* slot = &mBvh.leafTriangles[4 * static_cast<std::size_t>(k)];
-        const double d2 = triangleDistance2(p, loadPoint(pose, slot[0]), loadPoint(pose, slot[1]),
-                                            loadPoint(pose, slot[2]), u, v);
-        if (d2 < core2) {
-          core2 = d2;
-          witness = slot[3];
-        }
-      }
-      double limit = std::sqrt(core2) + margin;
-      double distance = 0.0;
-      bool pass = true;
-      node = openNode(p, boxes.data(), cones[0], mNodeTriangles[0], target, margin, limit, core2,
-                      witness, distance)
-                 ? 0
-                 : -1;
-      stack.clear();
-      while (node >= 0 && pass) {
-        const DsBvhNode& current = mBvh.nodes[static_cast<std::size_t>(node)];
-        int next = -1;
-        if (current.count > 0) {
-          for (int k = current.first; k < current.first + current.count && pass; ++k) {
-            const std::int32_t* slot = &mBvh.leafTriangles[4 * static_cast<std::size_t>(k)];
-            const Eigen::Vector3d a = loadPoint(pose, slot[0]);
-            const Eigen::Vector3d b = loadPoint(pose, slot[1]);
-            const Eigen::Vector3d c = loadPoint(pose, slot[2]);
-            const Eigen::Vector3d e = (a.cwiseMin(b).cwiseMin(c) - p)
-                                          .cwiseMax(p - a.cwiseMax(b).cwiseMax(c))
-                                          .cwiseMax(0.0);
-            const double d2 = e.dot(e);
-            if (d2 > limit * limit) {
-              continue;
-            }
-            pass = inFront(p, a, b, c, target);
-          }
-        } else {
-          const int child[2] = {current.left, current.right};
-          double distances[2];
-          bool opened[2];
-          for (int side = 0; side < 2; ++side) {
-            const std::size_t c = static_cast<std::size_t>(child[side]);
-            opened[side] = openNode(p, &boxes[6 * c], cones[c], mNodeTriangles[c], target, margin,
-                                    limit, core2, witness, distances[side]);
-          }
-          const int nearSide = distances[0] <= distances[1] ? 0 : 1;
-          const double limit2 = limit * limit;
-          if (opened[nearSide] && distances[nearSide] <= limit2) {
-            next = child[nearSide];
-          }
-          if (opened[1 - nearSide] && distances[1 - nearSide] <= limit2) {
-            if (next < 0) {
-              next = child[1 - nearSide];
-            } else {
-              stack.emplace_back(child[1 - nearSide], distances[1 - nearSide]);
-            }
-          }
-        }
-        while (next < 0 && !stack.empty()) {
-          if (stack.back().second <= limit * limit) {
-            next = stack.back().first;
-          }
-          stack.pop_back();
-        }
-        node = next;
-      }
-      pass = pass && inFront(p, corner(pose, witness, 0), corner(pose, witness, 1),
-                             corner(pose, witness, 2), target);
-      if (!pass) {
+      SurfaceHit hit;
+      if (!certifyPoint(walk, p, mSeeds[static_cast<std::size_t>(i)], stack, hit)) {
         continue;
       }
-      SurfaceHit hit;
-      hit.triangle = witness;
-      hit.u = DS_CERT_THIRD;
-      hit.v = DS_CERT_THIRD;
-      const Eigen::Vector3d a = corner(pose, witness, 0);
-      const Eigen::Vector3d centroid = a +
-                                       static_cast<double>(hit.u) * (corner(pose, witness, 1) - a) +
-                                       static_cast<double>(hit.v) * (corner(pose, witness, 2) - a);
-      hit.distance2 = static_cast<float>((p - centroid).squaredNorm());
       hits[item] = hit;
       active[item] = 0;
       ++count;

@@ -63,6 +63,9 @@ struct CoverageCheck {
   int missed = 0;                          ///< enough frames whose true error is over tolerance
   std::optional<bool> verdictHolds;        ///< enoughTrueError <= tolerance; none without
                                            ///< enough frames (the verdict claims nothing)
+  double predictedMean = 0.0;              ///< mean of the frames' predicted errors (scene units)
+  double predictedMax = 0.0;               ///< the largest predicted error
+  int predictedMaxFrame = 0;               ///< the first of `frames` with it
 };
 
 /// Matches the report to the bake's evaluation (its per-frame mean error). Error(kInput)
