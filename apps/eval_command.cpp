@@ -450,7 +450,8 @@ void printEvaluation(const ShotEvaluation& result, const std::optional<CoverageC
     std::cout << "; driver " << result.driverVertexCount << " vertices; closest triangles on "
               << deviceName;
   }
-  std::cout << "\n";
+  std::cout << "\nlengths (errors, depths, jumps) in scene units, the caches' own (metres in a "
+               "Blender scene with its default units); counts in cloth vertices\n";
   std::cout << std::setprecision(6);
   if (perFrame) {
     printPerFrame(result, coverage, std::cout);

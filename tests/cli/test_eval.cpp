@@ -440,7 +440,8 @@ TEST(EvalCommand, CubeTableAndJsonMatchTheAnalyticTruth) {
                    "--per-frame", "--json", dir.file("eval.json")});
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* row : {"error mean", "inside driver / frame", "deepest penetration",
-                          "largest frame jump", "baseline", "overall over 6 frames x 240"}) {
+                          "largest frame jump", "baseline", "overall over 6 frames x 240",
+                          "lengths (errors, depths, jumps) in scene units"}) {
     EXPECT_NE(r.out.find(row), std::string::npos) << row << "\n" << r.out;
   }
   const nlohmann::json j = readJson(dir.file("eval.json"));
