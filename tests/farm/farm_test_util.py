@@ -93,7 +93,7 @@ def frame_name(frame):
 
 
 def temp_files(folder):
-    """Temporary files of atomic writes (`.NAME.tmp-PID-N`) left in `folder`."""
+    """Temporary files of atomic writes (`.NAME.tmp-` and 16 random hex digits) left in `folder`."""
     return sorted(p.name for p in Path(folder).iterdir() if ".tmp-" in p.name)
 
 

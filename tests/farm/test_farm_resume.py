@@ -6,9 +6,10 @@ SIGKILL (no clean-up possible: a temporary file may remain); each time a rerun w
 uninterrupted bake. A truncated EXR and an EXR of another frame planted in the output folder are
 detected and baked again.
 
-Stale temporary files (`.c.NNNN.exr.tmp-PID-N`, left by SIGKILL) are not removed by the rerun:
-PIDs are only meaningful on the host that wrote them, and farm output folders are shared between
-hosts. They are hidden names that no reader or --skip-existing ever takes for an output."""
+Stale temporary files (`.c.NNNN.exr.tmp-` and random digits, left by SIGKILL) are never taken
+for an output, and the rerun removes those of its own frames (docs/commands.md: only its own,
+since another chunk's task may be writing beside it); a temporary file of a frame outside the
+rerun's frames stays."""
 
 import re
 import signal
@@ -51,12 +52,14 @@ def interrupt(farm, out, signum, while_writing=False):
 
 
 def resume(farm, out, expect_kept):
+    """Reruns the whole bake with --skip-existing; returns its result."""
     result = farm.run(*farm.bake_args(out), "--skip-existing")
     kept, baked = kept_and_baked(result.stdout)
     check(kept == expect_kept and kept + baked == len(FRAMES),
           f"the rerun kept {kept} and baked {baked} frames; expected to keep the {expect_kept} "
           f"finished ones and bake the other {len(FRAMES) - expect_kept}")
     compare_with_reference(farm, out)
+    return result
 
 
 def sigterm_then_resume(farm):
@@ -88,11 +91,18 @@ def sigkill_then_resume(farm):
     stale = out / f".{frame_name(40)}.tmp-999999-0"
     data = farm.ref_frame(40).read_bytes()
     stale.write_bytes(data[: len(data) // 2])
+    # A leftover of a frame this bake does not own (another chunk's, say) must stay.
+    foreign = out / f".{frame_name(99)}.tmp-0123456789abcdef"
+    foreign.write_bytes(b"another task's half-written frame")
     left = temp_files(out)
     print(f"SIGKILL after {finished} frames; temporary files present: {left}", flush=True)
-    resume(farm, out, finished)
-    check(set(temp_files(out)) <= set(left),
-          f"the rerun left new temporary files: {sorted(set(temp_files(out)) - set(left))}")
+    result = resume(farm, out, finished)
+    check(temp_files(out) == [foreign.name],
+          f"the rerun should remove its own frames' temporary files and keep the other's: "
+          f"before {left}, after {temp_files(out)}")
+    removed = len(left) - 1
+    check(f"removed {removed} temporary files" in result.stderr,
+          f"the rerun should say it removed {removed} temporary files:\n{result.stderr[-1000:]}")
 
 
 def truncated_and_foreign_outputs_rebaked(farm):
