@@ -431,15 +431,21 @@ int runBake(const std::vector<std::string>& args) {
 
 namespace {
 
-/// Refuses a bake whose outputs (frames, report, position maps) name the same file, or would
-/// overwrite one of its inputs.
-void checkBakePaths(const ArgParser& parser, const BakeOptions& options,
-                    const std::string& posmapPattern) {
+/// The files a bake writes, as the options name them: the frames, the report, the position maps.
+std::vector<NamedPath> bakeOutputs(const BakeOptions& options, const std::string& posmapPattern) {
   std::vector<NamedPath> outputs = {{"-o", options.outputPattern, true},
                                     {"--report", options.reportPath, false}};
   if (!posmapPattern.empty()) {
     outputs.push_back({"--posmap-out", posmapPattern, true});
   }
+  return outputs;
+}
+
+/// Refuses a bake whose outputs (frames, report, position maps) name the same file, or would
+/// overwrite one of its inputs.
+void checkBakePaths(const ArgParser& parser, const BakeOptions& options,
+                    const std::string& posmapPattern) {
+  const std::vector<NamedPath> outputs = bakeOutputs(options, posmapPattern);
   std::vector<NamedPath> inputs = givenPaths(parser, {"--db", "--bind", "--regions"});
   const std::vector<NamedPath> driver = givenPaths(parser, {"--driver"}, true);
   inputs.insert(inputs.end(), driver.begin(), driver.end());
@@ -448,13 +454,12 @@ void checkBakePaths(const ArgParser& parser, const BakeOptions& options,
 
 /// Creates the missing folders of the bake's outputs (frames, report, position maps).
 void createBakeFolders(const BakeOptions& options, const std::string& posmapPattern, bool quiet) {
-  std::vector<std::string> paths = {
-      expandFramePattern(options.outputPattern, options.frames.front())};
-  if (!options.reportPath.empty()) {
-    paths.push_back(options.reportPath);
-  }
-  if (!posmapPattern.empty()) {
-    paths.push_back(expandFramePattern(posmapPattern, options.frames.front()));
+  std::vector<std::string> paths;
+  for (const NamedPath& output : bakeOutputs(options, posmapPattern)) {
+    if (!output.path.empty()) {
+      paths.push_back(output.sequence ? expandFramePattern(output.path, options.frames.front())
+                                      : output.path);
+    }
   }
   createOutputFoldersFor(paths, quiet);
 }
@@ -600,12 +605,10 @@ void printBakeSummary(const BakeResult& result, const BakeOptions& options,
 void printSettings(const BakeOptions& options) {
   std::cerr << "settings:\n";
   for (const Setting& setting : settingsTable()) {
-    if (setting.flag == nullptr || !(hasEvaluatorValue(setting) || hasBakeValue(setting))) {
+    if (setting.flag == nullptr || !hasBakeValue(setting)) {
       continue;
     }
-    const SettingValue value = hasEvaluatorValue(setting) ? settingValue(setting, options.evaluator)
-                                                          : settingValue(setting, options);
-    const std::string text = formatSettingValue(value);
+    const std::string text = formatSettingValue(settingValue(setting, options));
     const std::string fallback = formatSettingValue(defaultSettingValue(setting));
     std::string unit = *setting.unit != '\0' ? std::string(" ") + setting.unit : "";
     if (text == "0" && *setting.zero != '\0') {

@@ -33,6 +33,15 @@ std::string shown(const std::string& path) {
   return printableText(path, kPathInMessage);
 }
 
+/// Throws Error(kOutput) when `path` is past the system's PATH_MAX.
+void checkPathLength(const std::string& path) {
+  if (path.size() >= PATH_MAX) {
+    DS_THROW(kOutput, "output path '", shown(path), "' is ", path.size(),
+             " bytes; the system allows at most ", PATH_MAX - 1,
+             " bytes per path (PATH_MAX): choose a shorter path");
+  }
+}
+
 std::string folderOf(const std::string& path) {
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();
   return parent.empty() ? std::string(".") : parent.string();
@@ -121,11 +130,7 @@ class AtomicFile::Buffer : public std::streambuf {
 
 void checkOutputFolderWritable(const std::string& path) {
   const std::string folder = folderOf(path);
-  if (path.size() >= PATH_MAX) {
-    DS_THROW(kOutput, "output path '", shown(path), "' is ", path.size(),
-             " bytes; the system allows at most ", PATH_MAX - 1,
-             " bytes per path (PATH_MAX): choose a shorter path");
-  }
+  checkPathLength(path);
   struct stat status {};
   if (::stat(folder.c_str(), &status) != 0) {
     const int error = errno;
@@ -161,9 +166,7 @@ std::vector<std::string> missingOutputFolders(const std::string& path) {
   }
   // The nearest folder that exists must take the new ones (checked with a file name in it).
   checkOutputFolderWritable((folder / "x").string());
-  if (path.size() >= PATH_MAX) {
-    checkOutputFolderWritable(path);  // throws: the path is past PATH_MAX
-  }
+  checkPathLength(path);
   return missing;
 }
 
