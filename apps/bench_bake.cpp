@@ -27,6 +27,7 @@
 
 #include "json_text.h"
 
+#include "bench_floor.h"
 #include "cli_args.h"
 #include "device_choice.h"
 #include "host_staging.h"
@@ -189,7 +190,11 @@ void declareOptions(ds::cli::ArgParser& parser) {
       .flag("--no-host", "skip the host reference bake")
       .flag("--full-search",
             "also bake each path with the clearance certificate off (every closest point "
-            "searched), first, and check that both bakes wrote the same files byte for byte");
+            "searched), first, and check that both bakes wrote the same files byte for byte")
+      .flag("--floor",
+            "last, time the resolution's closest-point search on the shot's cloth three ways, "
+            "block by block: the full search, the clearance certificate, and a run told in "
+            "advance which points need a search (the floor)");
 }
 
 /// Writes the reference clip and the shot of `w` (a bending tube in a looser one) under
@@ -336,6 +341,10 @@ void runBakes(const ds::cli::ArgParser& parser, Bench& bench) {
   if (!parser.has("--no-host")) {
     bakeHost(bench, cl, fullSearch);
   }
+  if (parser.has("--floor")) {
+    bench.report["resolution_floor"] = ds::bench::measureResolutionFloor(
+        bench.db, bench.shot, bench.device, bench.options, bench.root / "floor");
+  }
 }
 
 int runBench(const std::vector<std::string>& args) {
@@ -356,7 +365,7 @@ int runBench(const std::vector<std::string>& args) {
           ? fs::path(parser.get("--keep"))
           : fs::temp_directory_path() / ("drivenshape-bench-" + std::to_string(::getpid()));
   for (const char* folder :
-       {"host", "cl", "cl-host-staging", "cl-full-search", "host-full-search"}) {
+       {"host", "cl", "cl-host-staging", "cl-full-search", "host-full-search", "floor"}) {
     fs::create_directories(root / folder);
   }
   const ds::Database db = makeWorkload(w, root);

@@ -3,14 +3,47 @@
 
 #include <drivenshape/device_array.h>
 
+#include <atomic>
+#include <utility>
+
 #include <drivenshape/error.h>
 
 namespace drivenshape {
+namespace {
 
-DeviceArray::DeviceArray(std::unique_ptr<DeviceStorage> storage) : mStorage(std::move(storage)) {}
+/// DeviceArray::version(): one counter for every array, so no two arrays share a version.
+std::uint64_t nextVersion() {
+  static std::atomic<std::uint64_t> counter{0};
+  return ++counter;
+}
+
+}  // namespace
+
+DeviceArray::DeviceArray(std::unique_ptr<DeviceStorage> storage)
+    : mStorage(std::move(storage)), mVersion(nextVersion()) {}
 DeviceArray::~DeviceArray() = default;
-DeviceArray::DeviceArray(DeviceArray&&) noexcept = default;
-DeviceArray& DeviceArray::operator=(DeviceArray&&) noexcept = default;
+
+DeviceArray::DeviceArray(DeviceArray&& other) noexcept
+    : mStorage(std::move(other.mStorage)),
+      mOwn(std::move(other.mOwn)),
+      mView(std::exchange(other.mView, nullptr)),
+      mReadOnly(other.mReadOnly),
+      mBytes(std::exchange(other.mBytes, 0)),
+      mHostCurrent(other.mHostCurrent),
+      mDeviceCurrent(other.mDeviceCurrent),
+      mVersion(std::exchange(other.mVersion, nextVersion())) {}
+
+DeviceArray& DeviceArray::operator=(DeviceArray&& other) noexcept {
+  mStorage = std::move(other.mStorage);
+  mOwn = std::move(other.mOwn);
+  mView = std::exchange(other.mView, nullptr);
+  mReadOnly = other.mReadOnly;
+  mBytes = std::exchange(other.mBytes, 0);
+  mHostCurrent = other.mHostCurrent;
+  mDeviceCurrent = other.mDeviceCurrent;
+  mVersion = std::exchange(other.mVersion, nextVersion());
+  return *this;
+}
 
 void DeviceArray::resizeBytes(std::size_t bytes) {
   mView = nullptr;
@@ -19,6 +52,7 @@ void DeviceArray::resizeBytes(std::size_t bytes) {
     mOwn.resize(bytes);
   }
   mBytes = bytes;
+  mVersion = nextVersion();
   // Nothing holds values yet: whichever side writes first becomes current.
   mHostCurrent = true;
   mDeviceCurrent = false;
@@ -28,6 +62,7 @@ void DeviceArray::viewBytes(void* data, std::size_t bytes, bool readOnly) {
   mView = data;
   mReadOnly = readOnly;
   mBytes = bytes;
+  mVersion = nextVersion();
   mHostCurrent = true;
   mDeviceCurrent = false;
 }
@@ -57,6 +92,7 @@ void* DeviceArray::hostForWrite(bool keep) {
     hostForRead();
   }
   void* data = hostMutable();
+  mVersion = nextVersion();
   mHostCurrent = true;
   mDeviceCurrent = false;
   return data;
@@ -84,6 +120,7 @@ DeviceStorage* DeviceArray::deviceForWrite() {
     DS_THROW(kInternal, "a read-only array view was written on the device");
   }
   mStorage->reserve(mBytes);
+  mVersion = nextVersion();
   mDeviceCurrent = true;
   mHostCurrent = false;
   return mStorage.get();
@@ -95,6 +132,7 @@ DeviceStorage* DeviceArray::deviceForModify() {
     if (mReadOnly) {
       DS_THROW(kInternal, "a read-only array view was written on the device");
     }
+    mVersion = nextVersion();
     mHostCurrent = false;
   }
   return storage;

@@ -417,5 +417,67 @@ TEST_F(CorrectionClTest, CertificateRecountAfterTheResolutionKeepsItsAnswers) {
   }
 }
 
+TEST_F(CorrectionClTest, CertificateFollowsPosesRewrittenInPlace) {
+  // The OpenCL backend keeps a block's refitted boxes and cones while the pose array keeps its
+  // version (DeviceArray::version): the same array rewritten in place with other frames must
+  // give the verdicts of those frames, not of the first ones.
+  const PosedScene first = sleeveScene(4);
+  // The same frames in the other order, the body 1 cm aside: other boxes, other verdicts.
+  PosedScene second = first;
+  const std::size_t poseValues = second.poses.size() / static_cast<std::size_t>(first.frameCount);
+  const std::size_t pointValues = second.points.size() / static_cast<std::size_t>(first.frameCount);
+  for (int f = 0; f < first.frameCount; ++f) {
+    const std::size_t from = static_cast<std::size_t>(first.frameCount - 1 - f);
+    const std::size_t to = static_cast<std::size_t>(f);
+    for (std::size_t k = 0; k < poseValues; ++k) {
+      second.poses[to * poseValues + k] =
+          first.poses[from * poseValues + k] + (k % 3 == 0 ? 0.01f : 0.0f);
+    }
+    std::copy_n(&first.points[from * pointValues], pointValues, &second.points[to * pointValues]);
+  }
+  std::unique_ptr<Device> cl = makeOpenClDevice(context(), device(), queue());
+  std::unique_ptr<ClosestBackend> backend = cl->makeClosest(ClosestOptions());
+  backend->setSurface(first.mesh, BindingMask::all(first.pointCount));
+  const std::size_t items = static_cast<std::size_t>(first.frameCount) * first.pointCount;
+  DeviceArray poses = cl->makeArray();
+  DeviceArray points = cl->makeArray();
+  DeviceArray hits = cl->makeArray();
+  poses.resize<float>(first.poses.size());
+  points.resize<float>(first.points.size());
+  hits.resize<SurfaceHit>(items);
+  std::vector<int> cleared(static_cast<std::size_t>(first.frameCount));
+  for (const PosedScene* scene : {&first, static_cast<const PosedScene*>(&second)}) {
+    std::copy(scene->poses.begin(), scene->poses.end(), poses.write<float>());
+    std::copy(scene->points.begin(), scene->points.end(), points.write<float>());
+    backend->closestOrClearBlock(scene->frameCount, poses, points, kSkinOffset, hits,
+                                 cleared.data());
+    const std::vector<SurfaceHit> exact =
+        closestHits(*hostBackend(), scene->mesh, BindingMask::all(scene->pointCount),
+                    scene->frameCount, scene->poses.data(), scene->points.data());
+    hostBackend()->setSurface(scene->mesh, BindingMask::all(scene->pointCount));
+    const SurfaceHit* got = hits.read<SurfaceHit>();
+    std::vector<float> exactDistance(items);
+    std::vector<float> gotDistance(items);
+    const InsideAudit audit(scene->mesh);
+    const int vp = scene->mesh.vertexCount();
+    for (int f = 0; f < scene->frameCount; ++f) {
+      const std::size_t at = static_cast<std::size_t>(f) * scene->pointCount;
+      const float* pose = &scene->poses[static_cast<std::size_t>(f) * 3 * vp];
+      audit.signedDistances(pose, scene->pointCount, &scene->points[3 * at], &exact[at],
+                            &exactDistance[at]);
+      audit.signedDistances(pose, scene->pointCount, &scene->points[3 * at], &got[at],
+                            &gotDistance[at]);
+    }
+    for (std::size_t i = 0; i < items; ++i) {
+      // A witness stands for a point at least the offset clear; any other hit is the exact one.
+      if (gotDistance[i] != exactDistance[i]) {
+        ASSERT_GE(exactDistance[i], kSkinOffset) << "item " << i;
+        ASSERT_GE(gotDistance[i], kSkinOffset) << "item " << i;
+      }
+    }
+    EXPECT_GT(std::accumulate(cleared.begin(), cleared.end(), 0LL), 0);
+  }
+}
+
 }  // namespace
 }  // namespace drivenshape::testing

@@ -2,8 +2,11 @@
 // DeviceArray on a real OpenCL device (PoCL in CI) and on the host device: which copy is
 // current after each access, and exactly which accesses copy (counted by the device).
 
+#include <algorithm>
+#include <cstdint>
 #include <cstring>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -88,6 +91,40 @@ TEST_F(DeviceArrayTest, ViewsUseTheCallersMemory) {
   EXPECT_THROW(readOnly.write<float>(), Error);
   EXPECT_THROW(readOnly.deviceForWrite(), Error);
   EXPECT_NE(readOnly.deviceForRead(), nullptr);
+}
+
+TEST_F(DeviceArrayTest, TheVersionChangesExactlyWhenTheValuesMay) {
+  DeviceArray array = mDevice->makeArray();
+  DeviceArray other = mDevice->makeArray();
+  EXPECT_NE(array.version(), other.version());
+  std::vector<std::uint64_t> seen{array.version(), other.version()};
+  const auto changed = [&](const char* what) {
+    SCOPED_TRACE(what);
+    EXPECT_EQ(std::count(seen.begin(), seen.end(), array.version()), 0);
+    seen.push_back(array.version());
+  };
+  array.resize<int>(8);
+  changed("resize");
+  array.write<int>()[0] = 1;
+  changed("write");
+  const std::uint64_t written = array.version();
+  array.read<int>();
+  array.deviceForRead();
+  EXPECT_EQ(array.version(), written) << "reads and uploads keep the version";
+  array.deviceForModify();
+  changed("deviceForModify");
+  array.read<int>();
+  EXPECT_EQ(array.version(), seen.back()) << "a download keeps the version";
+  array.modify<int>()[1] = 2;
+  changed("modify");
+  array.deviceForWrite();
+  changed("deviceForWrite");
+  std::vector<int> memory(8, 3);
+  array.view(memory.data(), memory.size());
+  changed("view");
+  DeviceArray moved = std::move(array);
+  EXPECT_EQ(moved.version(), seen.back()) << "a move carries the version";
+  changed("the moved-from array");
 }
 
 TEST_F(DeviceArrayTest, HostDeviceArraysHaveNoDeviceSide) {

@@ -119,6 +119,7 @@ class ClClosest final : public ClosestBackend {
       mSided = false;
       mCertifiable = correction::certifiable(mBvh, mSearch.triangleCount());
       mNodeTriangle = upload(correction::nodeTriangles(mBvh));
+      mBoxesOf = mConesOf = Refit{};
     });
   }
 
@@ -439,12 +440,19 @@ class ClClosest final : public ClosestBackend {
     mSeeded = true;
   }
 
-  /// Every node's box on every frame of `poses` (dsBvhRefit, one launch per depth) into mBoxes.
-  cl::Buffer& refitBoxes(int frameCount, const cl::Buffer& posesBuffer) {
+  /// Every node's box on every frame of `poses` (dsBvhRefit, one launch per depth) into mBoxes;
+  /// kept while the poses keep their version (the resolution, its exit fade and the audit's
+  /// recount read the boxes of one block).
+  cl::Buffer& refitBoxes(int frameCount, DeviceArray& poses) {
+    const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
     const int nodeCount = static_cast<int>(mBvh.nodes.size());
     const std::size_t boxBytes = static_cast<std::size_t>(frameCount) *
                                  static_cast<std::size_t>(nodeCount) * 6 * sizeof(float);
     cl::Buffer& boxBuffer = mBoxes.reserve(mContext, boxBytes);
+    if (mBoxesOf == Refit{poses.version(), frameCount}) {
+      return boxBuffer;
+    }
+    mBoxesOf = Refit{poses.version(), frameCount};
     DsBvhRefitParams refit{};
     refit.frameCount = frameCount;
     refit.vertexCount = mSearch.vertexCount();
@@ -461,6 +469,30 @@ class ClClosest final : public ClosestBackend {
     return boxBuffer;
   }
 
+  /// Every node's cone on every frame of `poses` (dsCertRefitCones after the boxes, one launch
+  /// per depth) into mCones; kept, as the boxes, while the poses keep their version.
+  cl::Buffer& refitCones(int frameCount, DeviceArray& poses, const cl::Buffer& boxBuffer,
+                         DsCertParams params) {
+    cl::Buffer& coneBuffer = mCones.reserve(
+        mContext, static_cast<std::size_t>(frameCount) * params.nodeCount * sizeof(DsCertCone));
+    if (mConesOf == Refit{poses.version(), frameCount}) {
+      return coneBuffer;
+    }
+    mConesOf = Refit{poses.version(), frameCount};
+    const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
+    // Arguments 0-4 stay; the level's range (in argument 5) changes per launch.
+    cl_util::setArgs(mConeKernel, posesBuffer, mNodes, mLeafTriangles, boxBuffer, coneBuffer,
+                     params);
+    for (int level = mBvh.depth() - 1; level >= 0; --level) {
+      params.levelFirst = mBvh.levelStart[static_cast<std::size_t>(level)];
+      params.levelCount = mBvh.levelStart[static_cast<std::size_t>(level) + 1] - params.levelFirst;
+      mConeKernel.setArg(5, params);
+      cl_util::enqueue1d(mQueue, mConeKernel,
+                         static_cast<std::size_t>(frameCount) * params.levelCount, DS_LOCAL_SIZE);
+    }
+    return coneBuffer;
+  }
+
   /// ClosestBackend::closest through the BVH (see src/correction/bvh.cpp and kernels/bvh.cl)
   /// on arrays of this context; `hits` sized F x Vd.
   void closestBvh(int frameCount, DeviceArray& poses, DeviceArray& points, DeviceArray& hits) {
@@ -475,7 +507,7 @@ class ClClosest final : public ClosestBackend {
       const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
       const cl::Buffer& pointsBuffer = cl_util::readBuffer(points);
       cl::Buffer& hitBuffer = cl_util::writeBuffer(hits);
-      cl::Buffer& boxBuffer = refitBoxes(frameCount, posesBuffer);
+      cl::Buffer& boxBuffer = refitBoxes(frameCount, poses);
       cl_util::setArgs(mBvhKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles, boxBuffer,
                        pointsBuffer, mPointRoot, mSeeds, hitBuffer, params);
       cl_util::enqueue1d(mQueue, mBvhKernel, items, DS_LOCAL_SIZE);
@@ -512,20 +544,8 @@ class ClClosest final : public ClosestBackend {
           answered == nullptr
               ? mAnswered.reserve(mContext, items * sizeof(cl_int))
               : (keep ? cl_util::modifyBuffer(*answered) : cl_util::writeBuffer(*answered));
-      cl::Buffer& boxBuffer = refitBoxes(frameCount, posesBuffer);
-      cl::Buffer& coneBuffer = mCones.reserve(
-          mContext, static_cast<std::size_t>(frameCount) * query.nodeCount * sizeof(DsCertCone));
-      // Arguments 0-4 stay; the level's range (in argument 5) changes per launch.
-      cl_util::setArgs(mConeKernel, posesBuffer, mNodes, mLeafTriangles, boxBuffer, coneBuffer,
-                       params);
-      for (int level = mBvh.depth() - 1; level >= 0; --level) {
-        params.levelFirst = mBvh.levelStart[static_cast<std::size_t>(level)];
-        params.levelCount =
-            mBvh.levelStart[static_cast<std::size_t>(level) + 1] - params.levelFirst;
-        mConeKernel.setArg(5, params);
-        cl_util::enqueue1d(mQueue, mConeKernel,
-                           static_cast<std::size_t>(frameCount) * params.levelCount, DS_LOCAL_SIZE);
-      }
+      cl::Buffer& boxBuffer = refitBoxes(frameCount, poses);
+      cl::Buffer& coneBuffer = refitCones(frameCount, poses, boxBuffer, params);
       const std::size_t countBytes = static_cast<std::size_t>(frameCount) * sizeof(cl_int);
       cl::Buffer& clearedBuffer = mCounts.reserve(mContext, countBytes);
       cl::Buffer& searchBuffer = mSearchList.reserve(mContext, items * sizeof(cl_int));
@@ -598,8 +618,7 @@ class ClClosest final : public ClosestBackend {
     if (mSearch.pointCount() > 0) {
       cl_util::guard("refitting the BVH for the exit fade", [&] {
         // The boxes are read only with the fade on; any buffer stands in for them otherwise.
-        const cl::Buffer& boxes =
-            mFade > 0.0f ? refitBoxes(frameCount, cl_util::readBuffer(poses)) : mNodes;
+        const cl::Buffer& boxes = mFade > 0.0f ? refitBoxes(frameCount, poses) : mNodes;
         mResolveKernel.setArg(11, mNodes);
         mResolveKernel.setArg(12, mLeafTriangles);
         mResolveKernel.setArg(13, boxes);
@@ -698,6 +717,16 @@ class ClClosest final : public ClosestBackend {
   float mFade = 0.0f;  ///< setExitFade()
   bool mCertifiable = false;
   cl::Buffer mNodeTriangle;
+  /// Which poses the boxes and cones were refitted on: DeviceArray::version() and the frames.
+  struct Refit {
+    std::uint64_t version = 0;
+    int frames = 0;
+    bool operator==(const Refit& other) const {
+      return version == other.version && frames == other.frames;
+    }
+  };
+  Refit mBoxesOf;
+  Refit mConesOf;
   cl_util::GrowingBuffer mCones{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mSearchList{CL_MEM_READ_WRITE};
   cl_util::GrowingBuffer mAnswered{CL_MEM_READ_WRITE};

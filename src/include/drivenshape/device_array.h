@@ -14,6 +14,7 @@
 //   const float* xyz = cloth.read<float>();                  // one download, here
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -103,6 +104,12 @@ class DeviceArray {
   DeviceStorage* deviceForModify();
   DeviceStorage* storage() { return mStorage.get(); }
 
+  /// A number that changes whenever the values may change: on resize(), view(), write(),
+  /// modify(), deviceForWrite() and deviceForModify(). Unique across arrays, never 0: two calls
+  /// that see the same version see the same values, so a backend may keep what it derived from
+  /// them (the OpenCL closest-point search keeps the refitted tree of a pose block).
+  std::uint64_t version() const { return mVersion; }
+
  private:
   void resizeBytes(std::size_t bytes);
   void viewBytes(void* data, std::size_t bytes, bool readOnly);
@@ -118,6 +125,7 @@ class DeviceArray {
   std::size_t mBytes = 0;
   bool mHostCurrent = true;
   bool mDeviceCurrent = false;
+  std::uint64_t mVersion;
 };
 
 }  // namespace drivenshape
