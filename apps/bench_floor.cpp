@@ -13,17 +13,11 @@
 
 #include <drivenshape/correction.h>
 #include <drivenshape/device_array.h>
+#include <drivenshape/evaluator.h>
+#include <drivenshape/shot_plan.h>
 
 namespace drivenshape::bench {
 namespace {
-
-/// Frames per block: the bake's batch, fewer when a block's points, hits and marks would pass
-/// 256 MiB.
-int blockFrames(const BakeOptions& options, int points) {
-  const std::size_t perFrame = static_cast<std::size_t>(std::max(points, 1)) * 32;
-  const int fit = static_cast<int>(std::max<std::size_t>(1, (std::size_t{256} << 20) / perFrame));
-  return std::max(1, std::min(options.chunkSize, fit));
-}
 
 /// Seconds `body` takes, the device's queue drained by the read-back inside it.
 double seconds(const std::function<void()>& body) {
@@ -114,7 +108,12 @@ nlohmann::json measureResolutionFloor(const Database& db, const PointCacheReader
   DeviceArray poseArray = device.makeArray(), pointArray = device.makeArray(),
               hits = device.makeArray(), answered = device.makeArray();
   Run runs[3];
-  const int block = blockFrames(options, vd);
+  // The bake's own batches (lowered for large meshes, shotPlanSettings).
+  EvaluatorSettings settings = options.evaluator;
+  settings.threads = options.threads;
+  const int block =
+      shotPlanSettings(Evaluator(db, settings, device), options.chunkSize, options.temporalWarmup)
+          .batch;
   const std::vector<int>& frames = options.frames;
   for (std::size_t first = 0; first < frames.size(); first += static_cast<std::size_t>(block)) {
     const int count = static_cast<int>(std::min<std::size_t>(block, frames.size() - first));

@@ -18,7 +18,7 @@ namespace drivenshape::bench {
 
 /// Bakes the shot once without the resolution and the audit into `folder` (the cloth the
 /// resolution would receive), then times three answers to the resolution's question on those
-/// frames, block by block on `device` (blocks of options.chunkSize frames): the full exact
+/// frames, block by block on `device` (the bake's batches): the full exact
 /// search (ClosestBackend::closestBlock), the clearance certificate with the skin offset
 /// (closestOrClearBlock, the default bake's), and a run told in advance which points need a
 /// search, the floor: the points whose exact signed distance is below the offset are searched,
