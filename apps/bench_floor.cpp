@@ -11,10 +11,10 @@
 #include <functional>
 #include <vector>
 
-#include <drivenshape/correction.h>
-#include <drivenshape/device_array.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/shot_plan.h>
+#include "closest.h"
+#include "device_array.h"
 
 namespace drivenshape::bench {
 namespace {

@@ -15,15 +15,15 @@
 #include <tuple>
 
 #include <drivenshape/bake.h>
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>
 #include <drivenshape/frames.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/position_map.h>
 #include <drivenshape/settings_table.h>
 #include "atomic_file.h"
+#include "hash.h"
 #include "parallel.h"
 #include "progress.h"
 

@@ -10,7 +10,6 @@
 #include <optional>
 #include <sstream>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/coverage_check.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
@@ -18,6 +17,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include "atomic_file.h"
+#include "closest.h"
 
 #include "json_text.h"
 

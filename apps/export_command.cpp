@@ -9,8 +9,8 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
-#include <drivenshape/up_axis.h>
 #include "atomic_file.h"
+#include "up_axis.h"
 
 #include "cli_args.h"
 

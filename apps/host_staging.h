@@ -13,6 +13,9 @@
 
 #include <drivenshape/device.h>
 
+#include "closest.h"
+#include "stages.h"
+
 namespace drivenshape::cli {
 
 /// A closest-point backend reached only through its host-memory calls: the block calls run

@@ -9,9 +9,9 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/position_map.h>
 #include "atomic_file.h"
+#include "hash.h"
 #include "progress.h"
 
 #include "cli_args.h"

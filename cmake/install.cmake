@@ -8,9 +8,7 @@ include(CMakePackageConfigHelpers)
 
 set(DS_INSTALL_CMAKEDIR "${CMAKE_INSTALL_LIBDIR}/cmake/drivenshape")
 
-install(TARGETS drivenshape drivenshape_core drivenshape_io drivenshape_qp drivenshape_devices
-                drivenshape_pipeline drivenshape_correction drivenshape_bake drivenshape_posmap
-                drivenshape_layers
+install(TARGETS drivenshape
         EXPORT drivenshapeTargets
         ARCHIVE DESTINATION "${CMAKE_INSTALL_LIBDIR}"
         INCLUDES DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}")
@@ -20,6 +18,8 @@ if(TARGET drivenshape_cli)
 endif()
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/src/include/drivenshape"
         DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}" FILES_MATCHING PATTERN "*.h")
+install(FILES "${PROJECT_BINARY_DIR}/include/drivenshape/version.h"
+        DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/drivenshape")
 install(EXPORT drivenshapeTargets NAMESPACE drivenshape:: DESTINATION "${DS_INSTALL_CMAKEDIR}")
 
 configure_package_config_file("${PROJECT_SOURCE_DIR}/cmake/drivenshapeConfig.cmake.in"

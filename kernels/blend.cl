@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Blend of database shapes with per-frame weights (contract: src/include/drivenshape/stages.h):
+// Blend of database shapes with per-frame weights (contract: src/devices/stages.h):
 //
 //   out[f] = sum_i w[f][i] S_i
 //

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Exact closest triangle by a walk of refitted bounding-volume hierarchies (contract:
-// ClosestBackend::closest in src/include/drivenshape/correction.h; host reference:
+// ClosestBackend::closest in src/devices/closest.h; host reference:
 // src/devices/host/host_closest.cpp; the scheme and its exactness argument:
-// src/correction/bvh.cpp). Requires closest.cl before it (dsLoad3, dsTriangleDistance2,
+// src/database/bvh.cpp). Requires closest.cl before it (dsLoad3, dsTriangleDistance2,
 // dsCandidateDistance2).
 //
 //   poses          F x 3Vp float    vertex v of frame f at [f * 3Vp + 3v]

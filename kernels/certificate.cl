@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The clearance certificate (contract: ClosestBackend::closestOrClearBlock in
-// src/include/drivenshape/correction.h; host reference: src/devices/host/host_certificate.cpp;
-// the scheme and why a cleared point is safe: src/correction/certificate.cpp). Requires
+// src/devices/closest.h; host reference: src/devices/host/host_certificate.cpp;
+// the scheme and why a cleared point is safe: src/devices/certificate.cpp). Requires
 // closest.cl (dsLoad3, dsTriangleDistance2, dsCandidateDistance2) and bvh.cl (dsBoxDistance2)
 // before it.
 //
@@ -171,7 +171,7 @@ inline int dsCertOpen(ds_real3 p, __global const float* box, const DsCertCone co
 }
 
 // dsCertCheck: one item per (frame f, point i), item id f * Vd + i, 1-D, local size
-// DS_LOCAL_SIZE. The walk of src/correction/certificate.cpp: `limit` starts at the smallest
+// DS_LOCAL_SIZE. The walk of src/devices/certificate.cpp: `limit` starts at the smallest
 // distance from p to its seed triangle and to the triangles of the leaf a greedy descent reaches,
 // plus the margin, and shrinks to the farthest point of any box seen (an upper bound too); nodes
 // farther than `limit` are skipped, nodes whose cone covers them too, the others opened nearer

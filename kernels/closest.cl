@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Exact closest triangle among candidates (contract: ClosestBackend::closest in
-// src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp).
+// src/devices/closest.h; host reference: src/devices/host/host_closest.cpp).
 //
-// The host (src/correction/candidates.cpp) lists, for every point of every frame, the triangles
+// The host (src/database/candidates.cpp) lists, for every point of every frame, the triangles
 // that can be closest (a superset of the true answer, with a proof there). This kernel computes
 // the exact point-triangle distance to each candidate and keeps the smallest; distances within
 // the tie band of the smallest go to the smaller triangle index.

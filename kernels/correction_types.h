@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Types and constants of the correction stage (closest triangle, local-frame transfer), shared
-// by the host (C++, src/correction, src/devices) and the device (kernels/closest.cl,
+// by the host (C++, src/database, src/devices) and the device (kernels/closest.cl,
 // kernels/transfer.cl, kernels/resolve.cl). The OpenCL programs get this text as their first
 // source, so both sides see one layout; the host checks the sizes with static_assert.
 #ifndef DRIVENSHAPE_CORRECTION_TYPES_H
@@ -62,7 +62,7 @@ typedef struct DsResolveParams {
 } DsResolveParams;
 
 // One node of a bounding-volume hierarchy over driver triangles (kernels/bvh.cl, built by
-// src/correction/bvh.cpp). A leaf (count > 0) holds leafTriangles[first .. first + count - 1];
+// src/database/bvh.cpp). A leaf (count > 0) holds leafTriangles[first .. first + count - 1];
 // an inner node (count == 0) has two children, node ids `left` and `right`.
 typedef struct DsBvhNode {
   ds_int left;
@@ -117,7 +117,7 @@ typedef struct DsBvhQueryParams {
 
 // A closest point (u, v) counts as on an edge when one of its barycentric weights
 // (1 - u - v, u, v) is at most DS_FEATURE_TOL, on a vertex when two are (pseudo-normals of the
-// inside audit and of the penetration resolution; see src/correction/surface_features.h).
+// inside audit and of the penetration resolution; see src/database/surface_features.h).
 #define DS_FEATURE_TOL 1e-6
 
 // A triangle is treated as a segment/point set (no face region) when
@@ -135,7 +135,7 @@ typedef struct DsBvhQueryParams {
 #define DS_FRAME_SIN2_DOUBLE 1e-20
 #define DS_FRAME_SIN2_SINGLE 1e-10
 
-// The clearance certificate (kernels/certificate.cl, src/correction/certificate.cpp): per frame,
+// The clearance certificate (kernels/certificate.cl, src/devices/certificate.cpp): per frame,
 // every BVH node gets a cone of its triangles' unit normals (axis, and a bound on how far any of
 // them lies from it); a walk of the tree proves a point clear where every triangle that could be
 // nearest lies behind it by the clearance.

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Position maps (contract: PositionMapBackend in src/include/drivenshape/position_map.h; host
-// reference: src/devices/host/host_position_maps.cpp). Two kernels per chunk of F frames:
+// reference: src/devices/host/host_posmap.cpp). Two kernels per chunk of F frames:
 //
 //   dsPosmapVertexNormals  area-weighted vertex normals of every frame (only with normals)
 //   dsPosmapGather         one work item per active texel, looping over the chunk's frames

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Projection of driver frames onto the QP basis (contract: src/include/drivenshape/stages.h):
+// Projection of driver frames onto the QP basis (contract: src/devices/stages.h):
 //
 //   out[f] = { M^T (b_f - m)  (rowCount values),  ||b_f - m||^2,  ||b_f||^2 }
 //

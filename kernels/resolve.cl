@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Penetration resolution (contract: ClosestBackend::resolve in
-// src/include/drivenshape/correction.h; host reference: src/devices/host/host_closest.cpp with
-// src/correction/surface_features.cpp, whose pseudoNormal() this file repeats in OpenCL C).
+// src/devices/closest.h; host reference: src/devices/host/host_closest.cpp with
+// src/database/surface_features.cpp, whose pseudoNormal() this file repeats in OpenCL C).
 //
 // Point p has its exact closest point q = a + u (b - a) + v (c - a) on triangle t. Its signed
 // distance is s = |p - q|, negated when (p - q) . N < 0, with N the angle-weighted
@@ -207,7 +207,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
 }
 
 // Wrong-side counts (contract: ClosestBackend::countInside; host reference: InsideAudit in
-// src/correction/inside_audit.cpp): inside[f] counts the points of frame f on the wrong side
+// src/pipeline/inside_audit.cpp): inside[f] counts the points of frame f on the wrong side
 // of the skin: whose signed distance, rounded to float as the host rounds it, is negative for
 // an outside point (cloth inside the body) or positive for an inside point (a muscle through
 // the skin). Same mapping and arguments as dsResolve, with `points` read only and `inside` in

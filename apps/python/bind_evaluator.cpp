@@ -6,7 +6,7 @@
 #include <mutex>
 #include <sstream>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/database.h>
 #include <drivenshape/device.h>
 #include <drivenshape/evaluator.h>

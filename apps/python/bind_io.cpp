@@ -13,7 +13,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
-#include <drivenshape/up_axis.h>
+#include "up_axis.h"
 
 namespace drivenshape::python {
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // DeviceArray: a host copy and an optional device copy, each marked current or stale.
 
-#include <drivenshape/device_array.h>
+#include "device_array.h"
 
 #include <atomic>
 #include <utility>

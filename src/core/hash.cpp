@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <drivenshape/hash.h>
+#include "hash.h"
 
 #include <cstdio>
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Argument checks shared by the two LayerBackend implementations, so both refuse the same
-// calls with the same messages. Private to src/layers.
+// calls with the same messages. Private to src/devices.
 
 #pragma once
 

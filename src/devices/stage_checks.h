@@ -6,7 +6,7 @@
 #include <cstddef>
 
 #include <drivenshape/error.h>
-#include <drivenshape/stages.h>
+#include "stages.h"
 
 namespace drivenshape::stage_checks {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The scalars of one wind launch, made the same way for both backends. Private to src/layers.
+// The scalars of one wind launch, made the same way for both backends. Private to src/devices.
 
 #pragma once
 

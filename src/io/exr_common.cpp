@@ -20,9 +20,9 @@
 #include <vector>
 
 #include <drivenshape/error.h>
-#include <drivenshape/hash.h>
 #include "atomic_file.h"
 #include "exr_zip_writer.h"
+#include "hash.h"
 
 namespace drivenshape::exr_detail {
 namespace {

@@ -21,8 +21,8 @@
 #include <sstream>
 
 #include <drivenshape/error.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/version.h>
+#include "hash.h"
 
 #include "exr_common.h"
 

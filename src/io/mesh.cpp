@@ -6,7 +6,7 @@
 #include <limits>
 
 #include <drivenshape/error.h>
-#include <drivenshape/hash.h>
+#include "hash.h"
 
 #include "byte_order.h"
 

@@ -9,7 +9,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
-#include <drivenshape/hash.h>
+#include "hash.h"
 
 #include "finite.h"
 #include "frame_token.h"

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <drivenshape/up_axis.h>
+#include "up_axis.h"
 
 #include <drivenshape/error.h>
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <drivenshape/align.h>
+#include "align.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>

@@ -6,9 +6,9 @@
 #include <cstdint>
 #include <thread>
 
-#include <drivenshape/align.h>
 #include <drivenshape/error.h>
 #include <drivenshape/settings_table.h>
+#include "align.h"
 #include "parallel.h"
 #include "text.h"
 

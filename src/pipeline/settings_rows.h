@@ -9,8 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/hash.h>
 #include <drivenshape/settings_table.h>
+#include "hash.h"
 
 namespace drivenshape::pipeline {
 

@@ -16,10 +16,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/align.h>
 #include <drivenshape/evaluator.h>
-#include <drivenshape/hash.h>
-#include <drivenshape/qp.h>
+#include "align.h"
+#include "closest.h"
+#include "hash.h"
+#include "qp.h"
+#include "stages.h"
 
 namespace drivenshape::pipeline {
 

@@ -9,12 +9,13 @@
 #include <vector>
 
 #include <drivenshape/bake.h>
-#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/device.h>
 #include <drivenshape/device_cl.h>
 #include <drivenshape/point_cache.h>
+#include "closest.h"
 
+#include "stages.h"
 #include "test_support.h"
 
 namespace drivenshape::testing {

@@ -10,7 +10,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>

@@ -18,11 +18,11 @@
 #include <queue>
 #include <random>
 
-#include <drivenshape/align.h>
-#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/regions.h>
+#include "align.h"
+#include "closest.h"
 
 #include "bake_test_util.h"
 #include "test_support.h"

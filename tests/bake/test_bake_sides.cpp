@@ -16,11 +16,11 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/point_cache.h>
+#include "closest.h"
 
 #include "bake_test_util.h"
 #include "test_support.h"

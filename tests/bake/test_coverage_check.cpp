@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The coverage check of `drivenshape eval --report` (src/bake/coverage_check.cpp): average ranks
+// The coverage check of `drivenshape eval --report` (src/shot/coverage_check.cpp): average ranks
 // and Spearman's correlation against a brute-force reference (ties included), the bake report
 // reader on hand-written reports, and the matching of predictions to measured errors.
 

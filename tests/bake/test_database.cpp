@@ -15,8 +15,8 @@
 #include <random>
 
 #include <drivenshape/error.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/point_cache.h>
+#include "hash.h"
 
 #include "test_support.h"
 

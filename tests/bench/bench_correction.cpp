@@ -20,7 +20,7 @@
 // with the answer handed over. The OpenCL backend runs twice: with its default BVH search and with
 // the host candidate lists (DeviceSearch::kCandidates), to compare the schemes in one run.
 // "clear" is closestOrClearBlock with a 2 mm clearance: the clearance certificate, then the
-// search of the points it leaves (src/correction/certificate.cpp).
+// search of the points it leaves (src/devices/certificate.cpp).
 
 #include <algorithm>
 #include <chrono>
@@ -35,8 +35,8 @@
 
 #include <sys/resource.h>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "closest.h"
 
 #include "parallel.h"
 

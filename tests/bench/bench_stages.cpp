@@ -12,8 +12,8 @@
 // cpu < wall x cores shows the run was starved) and frames per second from the median.
 
 #include <drivenshape/error.h>
-#include <drivenshape/stages.h>
 #include "cl_backends.h"
+#include "stages.h"
 
 #include <algorithm>
 #include <chrono>

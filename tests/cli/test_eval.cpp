@@ -22,12 +22,12 @@
 
 #include <Eigen/Geometry>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 #include "atomic_file.h"
+#include "closest.h"
 
 #include "cl_backends.h"
 

@@ -16,10 +16,10 @@
 #include <thread>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+#include "closest.h"
 
 #include "cl_backends.h"
 

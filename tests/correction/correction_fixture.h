@@ -6,7 +6,7 @@
 #include <memory>
 #include <vector>
 
-#include <drivenshape/correction.h>
+#include "closest.h"
 
 #include "correction_test_util.h"
 #include "test_support.h"

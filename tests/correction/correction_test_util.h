@@ -10,8 +10,8 @@
 
 #include <Eigen/Core>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/mesh.h>
+#include "closest.h"
 
 #include "test_support.h"
 

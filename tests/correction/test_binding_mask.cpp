@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "closest.h"
 
 #include "correction_fixture.h"
 #include "correction_test_util.h"

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The OpenCL backend's BVH search (src/correction/bvh.cpp, kernels/bvh.cl): the trees' shape,
+// The OpenCL backend's BVH search (src/database/bvh.cpp, kernels/bvh.cl): the trees' shape,
 // and that the answer depends neither on the chunking nor on the warm start (it must equal the
 // candidate-list kernel's and brute force's).
 
@@ -13,7 +13,7 @@
 #include <random>
 #include <vector>
 
-#include <drivenshape/correction.h>
+#include "closest.h"
 
 #include "cl_backends.h"
 

@@ -19,9 +19,9 @@
 
 #include <Eigen/Geometry>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/device.h>
 #include <drivenshape/device_cl.h>
+#include "closest.h"
 
 #include <correction_types.h>
 

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "closest.h"
 
 #include "cl_backends.h"
 

@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include <drivenshape/correction.h>
+#include "closest.h"
 
 #include "correction_fixture.h"
 #include "correction_test_util.h"

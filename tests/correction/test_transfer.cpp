@@ -10,8 +10,8 @@
 
 #include <Eigen/Geometry>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "closest.h"
 
 #include "correction_fixture.h"
 #include "correction_test_util.h"

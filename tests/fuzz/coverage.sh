@@ -17,9 +17,9 @@ cov=$(command -v llvm-cov-14 || command -v llvm-cov)
 targets=(obj mesh_check pc2 point_cache_exr position_map_exr database binding_mask regions weight_map
   bake_report frames rig)
 readers=(src/io/obj.cpp src/io/mesh.cpp src/io/mesh_check.cpp src/io/pc2.cpp src/io/point_cache.cpp
-  src/io/exr_point_cache.cpp src/io/exr_common.cpp src/io/frames.cpp src/posmap/posmap_exr.cpp
-  src/bake/database.cpp src/pipeline/regions.cpp src/correction/binding_mask.cpp
-  src/layers/weight_map.cpp src/bake/coverage_check.cpp src/bake/rig.cpp)
+  src/io/exr_point_cache.cpp src/io/exr_common.cpp src/io/frames.cpp src/io/posmap_exr.cpp
+  src/database/database.cpp src/database/regions.cpp src/database/binding_mask.cpp
+  src/io/weight_map.cpp src/shot/coverage_check.cpp src/database/rig.cpp)
 
 cmake -S "$here/project" -B "$build" -DCMAKE_CXX_COMPILER="$cxx" \
   -DDRIVENSHAPE_FUZZ_INSTRUMENT=coverage >/dev/null

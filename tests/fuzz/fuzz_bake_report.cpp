@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The coverage part of a bake report (src/bake/coverage_check.cpp, `eval --report`): a report
+// The coverage part of a bake report (src/shot/coverage_check.cpp, `eval --report`): a report
 // that parses holds finite predictions >= 0 on distinct frames and a tolerance >= 0 when it
 // predicts; matched to a fixed evaluation of frames 1-6, every evaluated frame is predicted,
 // missing or unpredicted, and the statistics stay in their ranges.

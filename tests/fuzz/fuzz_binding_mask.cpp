@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-// Binding-mask JSON (src/correction/binding_mask.cpp) against the fixed driver and driven
+// Binding-mask JSON (src/database/binding_mask.cpp) against the fixed driver and driven
 // meshes of fuzz_support.h; a mask that parses must match the BindingMask contract.
 
 #include <algorithm>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 
 #include "fuzz_support.h"
 

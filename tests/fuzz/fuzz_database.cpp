@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Database reader (src/bake/database.cpp): loadDatabase on the input as it is, then (when its
+// Database reader (src/database/database.cpp): loadDatabase on the input as it is, then (when its
 // header parses) on the input with every block checksum recomputed, so that mutated block data
 // gets past the checksum test to the code that trusts it. A database that loads is checked
 // (meshes, shape blocks, the bake's driver mesh check) and must survive saveDatabase and
@@ -11,10 +11,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/database.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/mesh_check.h>
+#include "hash.h"
 
 #include "fuzz_support.h"
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Position-map EXR reader (src/posmap/posmap_exr.cpp): the header reader behind
+// Position-map EXR reader (src/io/posmap_exr.cpp): the header reader behind
 // `drivenshape info` (with the channel naming it tells from the channels: R G B or the legacy
 // P.X P.Y P.Z), the kind test, and the completeness check.
 

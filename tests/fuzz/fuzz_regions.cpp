@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Region JSON (src/bake/regions.cpp) against the fixed driver and driven meshes of
+// Region JSON (src/database/regions.cpp) against the fixed driver and driven meshes of
 // fuzz_support.h; the mixing weights of a region set that parses must be a partition of unity.
 
 #include <cmath>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Rig JSON for the pose model's parts (src/bake/rig.cpp) against the fixed driver of
+// Rig JSON for the pose model's parts (src/database/rig.cpp) against the fixed driver of
 // fuzz_support.h: a rig that parses gives every driver vertex a part and every part a parent
 // that is another part or none, without cycles.
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Weight maps (src/layers/weight_map.cpp) for the fixed driven mesh of fuzz_support.h: an input
+// Weight maps (src/io/weight_map.cpp) for the fixed driven mesh of fuzz_support.h: an input
 // that starts with the EXR magic number is read as NAME.exr, one that starts with "group:" is the
 // spec itself, anything else is NAME.json. A map that reads must hold one value in [0, 1] per
 // vertex, and so must the map softened across a few edge rings.

@@ -20,12 +20,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/database.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/position_map.h>
+#include "hash.h"
 
 #include "fuzz_support.h"
 

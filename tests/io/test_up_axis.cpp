@@ -3,7 +3,7 @@
 // bit, on every kind of float (signed zeros, denormals, infinities, NaN payloads), and the flag
 // parser names the flag it was given.
 
-#include <drivenshape/up_axis.h>
+#include "up_axis.h"
 
 #include <cmath>
 #include <cstdint>

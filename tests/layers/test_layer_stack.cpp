@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The LayerStack the bake runs (src/layers/layer_stack.cpp) and the mix layer on both backends
+// The LayerStack the bake runs (src/pipeline/layer_stack.cpp) and the mix layer on both backends
 // (kernels/mix.cl vs src/devices/host/host_layers.cpp): weight 1 reproduces DrivenShape and weight
 // 0 the other cache bitwise, the band in between is the float mix; bad inputs give clear errors.
 
@@ -15,6 +15,7 @@
 #include <functional>
 #include <limits>
 
+#include "hash.h"
 #include "io_test_util.h"
 #include "layers_test_util.h"
 #include "test_support.h"

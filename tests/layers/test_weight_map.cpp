@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Weight maps (src/layers/weight_map.cpp): the three forms, their errors, and the edge-ring
+// Weight maps (src/io/weight_map.cpp): the three forms, their errors, and the edge-ring
 // falloff (monotone across a boundary, exact far from it).
 
 #include <drivenshape/error.h>

@@ -20,6 +20,21 @@ if grep -l "CL/opencl.hpp" "$work/prefix/include/drivenshape/"*.h | grep -v devi
   exit 1
 fi
 
+# Every installed header stands on its own: it compiles alone against the prefix (and Eigen and
+# OpenCL's headers), so none reaches a private header of the library or a build-tree path. The
+# library's utilities (src/core) and backend interfaces are not installed at all.
+for header in "$work/prefix/include/drivenshape/"*.h; do
+  printf '#include <drivenshape/%s>\n' "$(basename "$header")" |
+    c++ -std=c++17 -fsyntax-only -I"$work/prefix/include" -isystem /usr/include/eigen3 -x c++ - ||
+    { echo "FAIL: $header does not compile alone against the installed headers" >&2; exit 1; }
+done
+for private in parallel.h progress.h atomic_file.h json_text.h hash.h device_array.h stages.h closest.h; do
+  if [[ -e "$work/prefix/include/drivenshape/$private" ]]; then
+    echo "FAIL: private header $private was installed" >&2
+    exit 1
+  fi
+done
+
 cp -r "$source/tests/package/consumer" "$work/consumer"
 cmake -S "$work/consumer" -B "$work/consumer-build" -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF > "$work/configure.log"

@@ -12,9 +12,9 @@
 #include <gtest/gtest.h>
 
 #include <drivenshape/device.h>
-#include <drivenshape/device_array.h>
 #include <drivenshape/device_cl.h>
 #include <drivenshape/error.h>
+#include "device_array.h"
 
 #include "test_support.h"
 

@@ -20,16 +20,16 @@
 
 #include <gtest/gtest.h>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/database.h>
 #include <drivenshape/device.h>
 #include <drivenshape/evaluator.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/regions.h>
 #include <drivenshape/settings_table.h>
+#include "hash.h"
 
 #include "test_support.h"
 

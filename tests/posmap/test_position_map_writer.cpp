@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Tests for src/posmap/position_map_writer.cpp: batching, the sequence loop over a cache and
+// Tests for src/io/position_map_writer.cpp: batching, the sequence loop over a cache and
 // its refusals (vertex count, missing frames, output folder).
 
 #include <drivenshape/position_map.h>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Tests for src/posmap/posmap_exr.cpp and posmap_preview.cpp: the EXR layout read back with
+// Tests for src/io/posmap_exr.cpp and posmap_preview.cpp: the EXR layout read back with
 // plain OpenEXR, the same files through the real readers (exrheader, oiiotool), PNG previews.
 
 #include <drivenshape/position_map.h>
@@ -24,9 +24,9 @@
 #include <fstream>
 #include <memory>
 
-#include <drivenshape/hash.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/version.h>
+#include "hash.h"
 
 #include "posmap_test_util.h"
 #include "test_support.h"

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// Tests for the position-map gather: the host reference (src/devices/host/host_position_maps.cpp)
+// Tests for the position-map gather: the host reference (src/devices/host/host_posmap.cpp)
 // against independent double computations, and the OpenCL kernels (kernels/posmap.cl,
-// src/posmap/posmap_cl.cpp) against the host reference.
+// src/devices/cl/cl_posmap.cpp) against the host reference.
 
 #include <drivenshape/position_map.h>
 

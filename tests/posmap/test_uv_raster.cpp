@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Tests for src/posmap/uv_raster.cpp: the UV-to-row convention, exact coverage of shared
+// Tests for src/database/uv_raster.cpp: the UV-to-row convention, exact coverage of shared
 // edges, overlapping islands, padding and the refusal of bad layouts and sizes.
 
 #include <drivenshape/position_map.h>

@@ -4,8 +4,8 @@
 // src/devices/host/host_stages.cpp).
 
 #include <drivenshape/error.h>
-#include <drivenshape/stages.h>
 #include "cl_backends.h"
+#include "stages.h"
 
 #include <Eigen/Dense>
 

@@ -186,7 +186,7 @@ void expectThrows(const std::function<void()>& call, ErrorCode code, const std::
 /// mean vertex error of `a` against `b`.
 double meanVertexDistance(const std::vector<float>& a, const std::vector<float>& b);
 
-// ---- Rank correlation, computed apart from src/bake/coverage_check.cpp ----
+// ---- Rank correlation, computed apart from src/shot/coverage_check.cpp ----
 
 /// Average ranks by counting (O(n^2), no sorting): 1 + the values below + half the other values
 /// equal to it, i.e. the mean of the positions its tie group occupies.

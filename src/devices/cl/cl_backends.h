@@ -12,11 +12,11 @@
 
 #include <CL/opencl.hpp>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/device.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/position_map.h>
-#include <drivenshape/stages.h>
+#include "closest.h"
+#include "stages.h"
 
 #include "cl_program.h"
 

@@ -11,7 +11,6 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
 #include <drivenshape_kernels/bvh_cl.h>
 #include <drivenshape_kernels/certificate_cl.h>
@@ -19,6 +18,7 @@
 #include <drivenshape_kernels/correction_types_cl.h>
 #include <drivenshape_kernels/resolve_cl.h>
 #include <drivenshape_kernels/transfer_cl.h>
+#include "closest.h"
 
 #include <correction_types.h>
 #include <shared_types.h>
@@ -493,7 +493,7 @@ class ClClosest final : public ClosestBackend {
     return coneBuffer;
   }
 
-  /// ClosestBackend::closest through the BVH (see src/correction/bvh.cpp and kernels/bvh.cl)
+  /// ClosestBackend::closest through the BVH (see src/database/bvh.cpp and kernels/bvh.cl)
   /// on arrays of this context; `hits` sized F x Vd.
   void closestBvh(int frameCount, DeviceArray& poses, DeviceArray& points, DeviceArray& hits) {
     const int pointCount = mSearch.pointCount();
@@ -517,7 +517,7 @@ class ClClosest final : public ClosestBackend {
     });
   }
 
-  /// closestOrClearBlock on arrays of this context (src/correction/certificate.cpp): the
+  /// closestOrClearBlock on arrays of this context (src/devices/certificate.cpp): the
   /// boxes and cones of every frame, the check of every point, then one BVH search over the
   /// points left. `answered` (F x Vd, or null: scratch) as for closestOrClearBlock; cleared F.
   void clearOrSearch(int frameCount, DeviceArray& poses, DeviceArray& points, float clearance,

@@ -12,7 +12,7 @@
 
 #include <CL/opencl.hpp>
 
-#include <drivenshape/device_array.h>
+#include "device_array.h"
 
 namespace drivenshape::cl_util {
 

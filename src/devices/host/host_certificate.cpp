@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // The host reference of kernels/certificate.cl: per frame the boxes (as dsBvhRefit) and the
-// cones (dsCertRefitCones), then the walk of every point (dsCertCheck); src/correction/
+// cones (dsCertRefitCones), then the walk of every point (dsCertCheck); src/devices/
 // certificate.cpp has the scheme and why it is sound. Same tree, same order, same comparisons,
 // in double.
 

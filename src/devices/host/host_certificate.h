@@ -2,14 +2,14 @@
 #pragma once
 
 // The host reference of kernels/certificate.cl (the clearance certificate of
-// ClosestBackend::closestOrClearBlock; the scheme and its proof: src/correction/certificate.cpp):
+// ClosestBackend::closestOrClearBlock; the scheme and its proof: src/devices/certificate.cpp):
 // the same tree, cones, walk and comparisons, in double, frames in parallel on host threads.
 
 #include <cstdint>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/mesh.h>
+#include "closest.h"
 
 #include "bvh.h"
 

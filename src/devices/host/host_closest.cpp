@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "closest.h"
 #include "parallel.h"
 
 #include "candidates.h"

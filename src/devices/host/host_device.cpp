@@ -3,6 +3,9 @@
 
 #include <drivenshape/device.h>
 
+#include "closest.h"
+#include "stages.h"
+
 namespace drivenshape {
 namespace {
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
-#include <drivenshape/stages.h>
+#include "stages.h"
 
 #include "stage_checks.h"
 

@@ -14,7 +14,6 @@
 #include <drivenshape/layers.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/shot_plan.h>
-#include <drivenshape/stages.h>
 
 namespace drivenshape {
 
@@ -125,8 +124,5 @@ std::string admitDriverMesh(const Database& database, const std::string& source,
 /// The evaluator settings of a bake: the options' values, with the binding mask, the regions
 /// and the layers loaded from the files they name (Error(kInput) naming the file).
 EvaluatorSettings evaluatorSettings(const Database& database, const BakeOptions& options);
-
-/// Flat tables for the stage backends, built from a database (projection basis, shapes).
-ShapeTables makeShapeTables(const Database& database);
 
 }  // namespace drivenshape

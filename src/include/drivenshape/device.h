@@ -12,13 +12,19 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
-#include <drivenshape/device_array.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/position_map.h>
-#include <drivenshape/stages.h>
 
 namespace drivenshape {
+
+// The backends a device makes and the arrays they share are private to the library
+// (src/devices/stages.h, src/devices/closest.h, src/core/device_array.h): an application holds
+// a Device and hands it to the Evaluator, the bake or the position maps.
+class StageBackend;
+class ClosestBackend;
+struct ClosestOptions;
+class DeviceArray;
 
 /// Host<->device copies made by a device's backends since it was created (zero on the host).
 struct TransferCounts {
@@ -51,7 +57,7 @@ class Device {
 
   /// An empty array whose device side (if this device has one) the backends made here read
   /// and write in place: the evaluator keeps a block of frames in such arrays between stages.
-  virtual DeviceArray makeArray() { return DeviceArray(); }
+  virtual DeviceArray makeArray();
 
   /// Copies between host and device so far (benchmarks show them per batch).
   virtual TransferCounts transfers() const { return {}; }

@@ -4,11 +4,13 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
 namespace drivenshape {
+
+class ClosestBackend;  // src/devices/closest.h, private
 
 /// Per-vertex position error of a bake against a truth cache (metres, or the caches' unit).
 struct FrameError {

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/database.h>
 #include <drivenshape/device.h>
 #include <drivenshape/layers.h>

@@ -12,11 +12,12 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/hash.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
 namespace drivenshape {
+
+class Hasher;  // src/core/hash.h, private
 
 // ---- Weight maps: one number in [0, 1] per driven vertex. ----
 

@@ -24,7 +24,7 @@
 
 #include <Eigen/Core>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/mesh.h>
 
 namespace drivenshape {

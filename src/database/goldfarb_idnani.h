@@ -4,7 +4,7 @@
 // solve many problems with the same matrices (SimplexLeastSquares, one problem per frame) do
 // not copy them into a QpProblem each time.
 
-#include <drivenshape/qp.h>
+#include "qp.h"
 
 #include <Eigen/Core>
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <drivenshape/qp.h>
+#include "qp.h"
 
 #include <drivenshape/error.h>
 

@@ -9,8 +9,8 @@
 #include <cstdint>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/mesh.h>
+#include "closest.h"
 
 namespace drivenshape::correction {
 

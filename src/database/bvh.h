@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/mesh.h>
 
 #include <correction_types.h>

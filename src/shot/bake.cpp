@@ -6,7 +6,7 @@
 
 #include <drivenshape/bake.h>
 
-#include <drivenshape/driver_check.h>
+#include "driver_check.h"
 
 #include <algorithm>
 #include <array>
@@ -20,16 +20,16 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/mesh_check.h>
 #include <drivenshape/regions.h>
 #include <drivenshape/settings_table.h>
 #include <drivenshape/shot_plan.h>
 #include <drivenshape/version.h>
 #include "atomic_file.h"
+#include "hash.h"
 #include "parallel.h"
 
 #include "json_text.h"

@@ -22,8 +22,8 @@
 #include <vector>
 
 #include <drivenshape/error.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/version.h>
+#include "hash.h"
 
 #include "exr_common.h"
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Scale and correspondence checks of a shot's driver against a database (driver_check.h).
 
-#include <drivenshape/driver_check.h>
+#include "driver_check.h"
 
 #include <algorithm>
 #include <cmath>

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <cstddef>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "closest.h"
 
 #include "candidates.h"
 #include "triangle_distance.h"

@@ -2,7 +2,7 @@
 #pragma once
 
 // Angle-weighted pseudo-normals (Baerentzen & Aanaes 2005) of a triangle mesh, shared by the
-// inside audit (src/correction/inside_audit.cpp), the host penetration resolution
+// inside audit (src/pipeline/inside_audit.cpp), the host penetration resolution
 // (src/devices/host/host_closest.cpp) and, through the same tables uploaded to the device, by
 // kernels/resolve.cl, which repeats pseudoNormal() in OpenCL C.
 

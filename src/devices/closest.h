@@ -3,9 +3,9 @@
 
 // Collision correction (DESIGN.md §1 "Collision / correction", §3 steps 5-6): for every point d
 // of the blended cloth D~, the exact closest triangle of the blended driver P~, and the
-// local-frame transfer of d from P~ to the shot's pose P_new. Binding masks restrict which
-// driver triangles a driven vertex may bind to; InsideAudit tells which points lie inside the
-// driver, and the side table of the resolution and the audit which side each point lives on.
+// local-frame transfer of d from P~ to the shot's pose P_new (ClosestBackend, one per device:
+// src/devices/host/host_closest.cpp, src/devices/cl/cl_closest.cpp); InsideAudit tells which
+// points lie inside the driver.
 
 #include <algorithm>
 #include <cstdint>
@@ -13,89 +13,12 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/device_array.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/mesh.h>
 
+#include "device_array.h"
+
 namespace drivenshape {
-
-/// The closest point of a driver triangle to a point:
-///   q = a + u (b - a) + v (c - a),  (a, b, c) = the vertices of mesh.triangles row `triangle`,
-/// with u >= 0, v >= 0, u + v <= 1, at squared distance `distance2` (squared scene units).
-/// Bit-compatible with DsSurfaceHit in kernels/correction_types.h.
-struct SurfaceHit {
-  std::int32_t triangle = -1;
-  float u = 0.0f;
-  float v = 0.0f;
-  float distance2 = 0.0f;
-};
-
-/// Which driver triangles each driven vertex may bind to.
-///
-///   vertexClass    Vd ints: -1 = any triangle, else an index into the classes
-///   classTriangles C sorted, duplicate-free, non-empty lists of driver triangle ids
-///
-/// Vertices that share a class share the allowed set, so the candidate search builds one tree
-/// per class.
-class BindingMask {
- public:
-  /// Every vertex of a driven mesh with `drivenVertexCount` vertices binds to every triangle.
-  static BindingMask all(int drivenVertexCount);
-
-  /// A mask from its tables. Throws Error(kInput) on a class index out of range or an empty
-  /// class; sorts the class lists and drops duplicates.
-  BindingMask(std::vector<int> vertexClass, std::vector<std::vector<int>> classTriangles);
-
-  int drivenVertexCount() const { return static_cast<int>(mVertexClass.size()); }
-  int classCount() const { return static_cast<int>(mClassTriangles.size()); }
-  /// -1 (any triangle) or the class of driven vertex `vertex`.
-  int vertexClass(int vertex) const { return mVertexClass[vertex]; }
-  const std::vector<int>& vertexClasses() const { return mVertexClass; }
-  /// The sorted driver triangle ids of class `c`.
-  const std::vector<int>& classTriangles(int c) const { return mClassTriangles[c]; }
-  /// Whether driven vertex `vertex` may bind to driver triangle `triangle`.
-  bool allows(int vertex, int triangle) const;
-  /// True when no vertex is restricted.
-  bool isAll() const;
-
- private:
-  std::vector<int> mVertexClass;
-  std::vector<std::vector<int>> mClassTriangles;
-};
-
-/// Reads a binding-mask file (JSON). The format:
-///
-///   {
-///     "version": 1,                                  (optional; 1 is the only version)
-///     "bindings": [
-///       {"driven": "left_leg", "driver": ["left_leg", "pelvis"]},
-///       {"name": "cuff",                             (optional label for messages)
-///        "driven": {"groups": ["cuff"], "vertices": [0, 1, "5-9"]},
-///        "driver": {"faces": [12, "40-47"]}}
-///     ]
-///   }
-///
-/// "driven" names driven-mesh vertices: a group name, a list of group names, or an object with
-/// "groups" (names) and/or "vertices" (indices). A group is the set of vertices of the faces of
-/// that `g` (or `o`) group of the driven OBJ. "driver" names driver faces: a group name, a list
-/// of names, or an object with "groups" and/or "faces" (OBJ face indices); a face stands for
-/// all of its fan triangles (Mesh::triangleFace). Indices are 0-based, in file order; a string
-/// "a-b" is the inclusive range a..b. Keys "comment" (anywhere) are ignored; other keys are
-/// errors. Vertices named in no entry bind to every driver triangle.
-///
-/// Throws Error(kInput) naming the file and the entry ("bindings[2]") for: a file that cannot
-/// be read, malformed JSON, an unknown key, an unknown group (the message lists the known
-/// names), a group or list that names nothing, an index out of range, a bad range, and a
-/// driven vertex named by two entries.
-BindingMask readBindingMask(const std::string& path, const Mesh& driver, const Mesh& driven);
-
-/// The same from JSON text; `source` names the text in messages (a file path, "--bind").
-BindingMask parseBindingMask(const std::string& jsonText, const std::string& source,
-                             const Mesh& driver, const Mesh& driven);
-
-/// The side of the driver's skin a driven point lives on (ClosestBackend::setSides): cloth over
-/// the body lives outside, a muscle or fat layer under the skin inside.
-inline constexpr std::int8_t kSideOutside = 1;
-inline constexpr std::int8_t kSideInside = -1;
 
 /// Settings shared by both backends.
 struct ClosestOptions {
@@ -108,8 +31,8 @@ struct ClosestOptions {
   bool forceSinglePrecision = false;
   /// OpenCL only: how the device finds the exact closest triangle. kBvh (the default) refits a
   /// bounding-volume hierarchy per frame on the device and walks it from a FLANN warm start
-  /// (src/correction/bvh.cpp); kCandidates reduces the host FLANN candidate lists of the host
-  /// backend (src/correction/candidates.cpp) on the device. Both are exact; kBvh is faster.
+  /// (src/database/bvh.cpp); kCandidates reduces the host FLANN candidate lists of the host
+  /// backend (src/database/candidates.cpp) on the device. Both are exact; kBvh is faster.
   enum class DeviceSearch { kBvh, kCandidates };
   DeviceSearch deviceSearch = DeviceSearch::kBvh;
 };
@@ -117,9 +40,9 @@ struct ClosestOptions {
 /// The correction stage for chunks of F frames. Two implementations share this contract:
 /// OpenCL kernels (makeClClosest) and the plain C++ host reference (makeHostClosest). Both
 /// get their candidates from FLANN: the host backend from KD-trees over triangle centroids with
-/// a bound that provably keeps the closest triangle (src/correction/candidates.cpp); the OpenCL
+/// a bound that provably keeps the closest triangle (src/database/candidates.cpp); the OpenCL
 /// backend from a FLANN warm start refined by a walk of per-frame refitted bounding-volume
-/// hierarchies (src/correction/bvh.cpp). Frame blocks are frame-major, float32:
+/// hierarchies (src/database/bvh.cpp). Frame blocks are frame-major, float32:
 ///
 ///   poses   F x 3Vp   driver vertex v of frame f, axis a at [f * 3Vp + 3v + a]
 ///   points  F x 3Vd   driven point i of frame f at [f * 3Vd + 3i]
@@ -225,7 +148,7 @@ class ClosestBackend {
   /// closestBlock() searched only where it can matter: the penetration resolution and the
   /// inside count need of a point only whether its signed distance (InsideAudit's sign) is
   /// below the offset or below 0. A point proven at signed distance >= `clearance` on its
-  /// frame (src/correction/certificate.cpp: normal cones on the BVH) is not searched: its hit
+  /// frame (src/devices/certificate.cpp: normal cones on the BVH) is not searched: its hit
   /// is a witness, the centroid (t, 1/3, 1/3) of a triangle whose face it lies at least
   /// `clearance` in front of. Every other point gets its exact hit, as closestBlock() finds
   /// it. So resolveBlock() with an offset <= `clearance` and countInside() give bitwise the

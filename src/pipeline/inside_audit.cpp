@@ -3,7 +3,7 @@
 // closed, consistently oriented mesh, the sign of (p - q) . N at the closest point q is the
 // side of p when N is the pseudo-normal of the feature (face, edge, vertex) that holds q. The
 // pseudo-normals and their adjacency tables are shared with the penetration resolution
-// (src/correction/surface_features.h). Counts are of points on the wrong side of the skin for
+// (src/database/surface_features.h). Counts are of points on the wrong side of the skin for
 // the side each lives on (ClosestBackend::setSides; outside for cloth).
 
 #include <algorithm>
@@ -12,8 +12,8 @@
 #include <utility>
 #include <vector>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/error.h>
+#include "closest.h"
 
 #include "parallel.h"
 

@@ -23,11 +23,11 @@
 #include <nlohmann/json.hpp>
 #include <string_view>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/error.h>
-#include <drivenshape/hash.h>
 #include <drivenshape/version.h>
 #include "atomic_file.h"
+#include "hash.h"
 
 #include "json_text.h"
 

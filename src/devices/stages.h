@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/device_array.h>
+#include "device_array.h"
 
 namespace drivenshape {
 
@@ -80,5 +80,9 @@ class StageBackend {
 
 /// The host reference implementation (plain C++, no OpenCL).
 std::unique_ptr<StageBackend> makeHostStages();
+
+struct Database;
+/// Flat tables for the stage backends, built from a database (projection basis, shapes).
+ShapeTables makeShapeTables(const Database& database);
 
 }  // namespace drivenshape

@@ -14,7 +14,7 @@
 // distance ever getting small. The certificate therefore proves the side too, from the normals.
 //
 // Scheme, per chunk of F frames (on the device; host reference in
-// src/devices/host/host_certificate.cpp), on the BVH of the search (src/correction/bvh.cpp):
+// src/devices/host/host_certificate.cpp), on the BVH of the search (src/database/bvh.cpp):
 //   1. Cones (dsCertRefitCones, one launch per depth after dsBvhRefit): every node on every
 //      frame gets an axis a_n, a spread e_n >= |n_t - a_n| for the unit normal n_t of every
 //      triangle t under it and an offset o_n >= a_n . x for every point x of those triangles

@@ -9,13 +9,13 @@
 #include <ostream>
 #include <set>
 
-#include <drivenshape/correction.h>
 #include <drivenshape/database.h>
 #include <drivenshape/device.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/version.h>
+#include "closest.h"
 #include "reference_frames.h"
 
 namespace drivenshape {

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/correction.h>
+#include <drivenshape/binding.h>
 #include <drivenshape/error.h>
 #include "atomic_file.h"
 

@@ -7,6 +7,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh_check.h>
+#include "closest.h"
 #include "parallel.h"
 
 namespace drivenshape {

@@ -8,8 +8,8 @@
 #include <queue>
 #include <sstream>
 
-#include <drivenshape/align.h>
 #include <drivenshape/error.h>
+#include "align.h"
 #include "atomic_file.h"
 
 #include "json_text.h"
