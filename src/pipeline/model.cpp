@@ -303,6 +303,70 @@ void describeSides(Model& model, nlohmann::json& settings) {
   }
 }
 
+const char* arrayName(Array array) {
+  switch (array) {
+    case Array::Frames:
+      return "frames";
+    case Array::Driver:
+      return "driver";
+    case Array::Shot:
+      return "shot";
+    case Array::Aligned:
+      return "aligned";
+    case Array::Records:
+      return "records";
+    case Array::Motions:
+      return "motions";
+    case Array::Projections:
+      return "projections";
+    case Array::Norms:
+      return "norms";
+    case Array::HostProjections:
+      return "host_projections";
+    case Array::Solutions:
+      return "solutions";
+    case Array::Weights:
+      return "weights";
+    case Array::Driven:
+      return "driven";
+    case Array::BlendedDriver:
+      return "blended_driver";
+    case Array::Hits:
+      return "hits";
+    case Array::AuditHits:
+      return "audit_hits";
+    case Array::AuditAnswered:
+      return "audit_answered";
+    case Array::Counts:
+      return "counts";
+    case Array::Moved:
+      return "moved";
+    case Array::Cloth:
+      return "cloth";
+    case Array::LayersApplied:
+      return "layers_applied";
+  }
+  return "?";
+}
+
+std::vector<Array> Arrays::list() const {
+  std::vector<Array> arrays;
+  for (int i = 0; i < kArrayCount; ++i) {
+    if (has(static_cast<Array>(i))) {
+      arrays.push_back(static_cast<Array>(i));
+    }
+  }
+  return arrays;
+}
+
+std::string Arrays::names() const {
+  std::string text;
+  for (const Array array : list()) {
+    text += (text.empty() ? "" : ", ") + std::string(arrayName(array));
+  }
+  return text;
+}
+
 Batch::Batch(Device& device)
     : driverFrames(device.makeArray()),
       shotFrames(device.makeArray()),

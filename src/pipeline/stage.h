@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
 #include <optional>
 #include <string>
@@ -102,6 +103,75 @@ class Model {
   int mInsideVertices = 0;
 };
 
+/// The arrays a Batch carries. The inputs come first: the executor sets them from the call
+/// before the first stage runs; every other array is written by a stage.
+enum class Array : std::uint8_t {
+  // Inputs.
+  Frames,   ///< n frame numbers (n = warm + count)
+  Driver,   ///< n x 3Vp driver frames, world space (the caller's memory)
+  Shot,     ///< count x 3Vp: the shot's frames of Driver (a DeviceArray)
+  Aligned,  ///< n x 3Vp in the database's frame: Driver until the align stage writes its own
+  Records,  ///< count FrameRecords, frame numbers set; the stages fill in the rest
+  // Written by the stages.
+  Motions,          ///< n RigidTransforms: the alignment of each frame
+  Projections,      ///< n x (k-1) floats: the device projection
+  Norms,            ///< n x 2 floats: the norms beside it
+  HostProjections,  ///< n x regions x (k+1) doubles: region projections (empty without regions)
+  Solutions,        ///< n x regions SimplexSolutions
+  Weights,          ///< count x regions x k floats (the pose model's: count x (1 + rank))
+  Driven,           ///< count x 3Vd blended cloth (world, or local offsets)
+  BlendedDriver,    ///< count x 3Vp blended driver (world blending)
+  Hits,             ///< count x Vd binding hits (world blending)
+  AuditHits,        ///< count x Vd closest points over every triangle
+  AuditAnswered,    ///< count x Vd ints: the audit hits answered without a search
+  Counts,           ///< count per-frame counters read back from the device
+  Moved,            ///< count: the vertices the resolution moved
+  Cloth,            ///< count x 3Vd, the result: a view of the caller's memory
+  LayersApplied,    ///< bool: the layers changed the cloth
+};
+inline constexpr int kArrayCount = static_cast<int>(Array::LayersApplied) + 1;
+
+/// The array's name in messages ("blended_driver").
+const char* arrayName(Array array);
+
+/// A set of arrays: what a stage reads, or writes.
+class Arrays {
+ public:
+  constexpr Arrays() = default;
+  constexpr Arrays(std::initializer_list<Array> arrays) {
+    for (const Array array : arrays) {
+      mBits |= bit(array);
+    }
+  }
+  /// This set, and `array` when `when`.
+  constexpr Arrays with(Array array, bool when = true) const {
+    Arrays out = *this;
+    out.mBits |= when ? bit(array) : 0u;
+    return out;
+  }
+  constexpr Arrays operator|(Arrays other) const {
+    Arrays out = *this;
+    out.mBits |= other.mBits;
+    return out;
+  }
+  constexpr bool has(Array array) const { return (mBits & bit(array)) != 0; }
+  /// The arrays in Array's order.
+  std::vector<Array> list() const;
+  /// Their names, ", "-separated.
+  std::string names() const;
+
+ private:
+  static constexpr std::uint32_t bit(Array array) { return 1u << static_cast<unsigned>(array); }
+  std::uint32_t mBits = 0;
+};
+
+/// The arrays the executor sets before the first stage.
+inline constexpr Arrays kInputArrays{Array::Frames, Array::Driver, Array::Shot, Array::Aligned,
+                                     Array::Records};
+/// The arrays auditClosest() and countInside() write (with `keep`, they read them too).
+inline constexpr Arrays kAuditArrays{Array::AuditHits, Array::AuditAnswered, Array::Counts,
+                                     Array::Records};
+
 /// One block of frames on its way through the pipeline. The first `warm` frames are solved
 /// (align, project, weights) to settle the temporal bound, then dropped; the other `count`
 /// frames go all the way. Frame blocks are frame-major. The blocks of frames the stages hand to
@@ -166,6 +236,10 @@ class Stage {
   virtual ~Stage() = default;
   /// The timer (and report) name: stages sharing a name share a timer.
   virtual const char* name() const = 0;
+  /// The arrays run() reads, each an input or written by an earlier stage, and those it
+  /// writes; it may read what it writes.
+  Arrays reads() const { return mReads; }
+  Arrays writes() const { return mWrites; }
   /// Adds every setting and table that changes this stage's result.
   virtual void addToHash(Hasher& /*hasher*/) const {}
   /// Adds this stage's entries to the report's "settings" object.
@@ -173,6 +247,18 @@ class Stage {
   /// Forgets the previous frame (temporal state); `all` also forgets audit references.
   virtual void reset(bool /*all*/) {}
   virtual void run(Batch& batch) = 0;
+
+ protected:
+  /// Declares what run() reads and writes (in the constructor: it may depend on the settings).
+  /// A read is of values from before run(): an array run() writes first and then reads needs no
+  /// read entry.
+  void declare(Arrays reads, Arrays writes) {
+    mReads = reads;
+    mWrites = writes;
+  }
+
+ private:
+  Arrays mReads, mWrites;
 };
 
 /// Makes a stage for these settings, or null when the settings leave it out.

@@ -13,6 +13,7 @@ namespace {
 class AlignStage final : public Stage {
  public:
   explicit AlignStage(Model& model) : mModel(model) {
+    declare({Array::Driver}, {Array::Aligned, Array::Motions, Array::Records});
     const Database& db = model.db;
     const EvaluatorSettings& settings = model.settings;
     const std::string source =

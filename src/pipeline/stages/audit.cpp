@@ -14,7 +14,21 @@ namespace {
 
 class AuditStage final : public Stage {
  public:
-  explicit AuditStage(Model& model) : mModel(model) { model.sides(); }
+  explicit AuditStage(Model& model)
+      : mModel(model),
+        mSwitches(model.settings.correct && !model.local),
+        mLayers(!model.settings.layers.empty()) {
+    // The resolution's hits are kept for the points it proved clear (countAfter).
+    const bool resolve = model.settings.resolve;
+    declare(Arrays{Array::Shot, Array::Cloth, Array::Records}
+                .with(Array::Moved, resolve)
+                .with(Array::AuditHits, resolve)
+                .with(Array::AuditAnswered, resolve)
+                .with(Array::LayersApplied, mLayers)
+                .with(Array::Hits, mSwitches),
+            kAuditArrays);
+    model.sides();
+  }
 
   const char* name() const override { return "audit"; }
 
@@ -29,7 +43,7 @@ class AuditStage final : public Stage {
 
   void run(Batch& batch) override {
     countAfter(batch);
-    const bool switches = mModel.settings.correct && !mModel.local;
+    const bool switches = mSwitches;
     const std::size_t dd = mModel.drivenValues;
     const int vd = mModel.vd;
     // The cloth's one trip back from the device (into the caller's memory).
@@ -98,7 +112,9 @@ class AuditStage final : public Stage {
   }
 
   Model& mModel;
-  std::vector<float> mPreviousOutput;     ///< the previous frame's cloth, 3Vd
+  const bool mSwitches;                ///< binding switches: the correction's hits (world blending)
+  const bool mLayers;                  ///< layers run before (they may have changed the cloth)
+  std::vector<float> mPreviousOutput;  ///< the previous frame's cloth, 3Vd
   std::vector<SurfaceHit> mPreviousHits;  ///< its binding hits (world blending), Vd
 };
 

@@ -16,6 +16,8 @@ namespace {
 class BlendStage final : public Stage {
  public:
   explicit BlendStage(Model& model) : mModel(model) {
+    declare(Arrays().with(Array::Weights, model.settings.weightMode != WeightMode::kBind),
+            {Array::Driven, Array::BlendedDriver});
     const Database& db = model.db;
     std::vector<float> localShapes;
     if (model.local) {

@@ -10,7 +10,10 @@ namespace {
 
 class BlendAuditStage final : public Stage {
  public:
-  explicit BlendAuditStage(Model& model) : mModel(model) { model.sides(); }
+  explicit BlendAuditStage(Model& model) : mModel(model) {
+    declare({Array::Aligned, Array::Driven}, kAuditArrays);
+    model.sides();
+  }
 
   const char* name() const override { return "audit"; }
 

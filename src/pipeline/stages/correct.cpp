@@ -17,6 +17,13 @@ namespace {
 class CorrectStage final : public Stage {
  public:
   explicit CorrectStage(Model& model) : mModel(model) {
+    if (model.local) {
+      declare({Array::Shot, Array::Driven}, {Array::Cloth});
+    } else if (model.settings.correct) {
+      declare({Array::Shot, Array::Driven, Array::BlendedDriver}, {Array::Hits, Array::Cloth});
+    } else {
+      declare(Arrays{Array::Driven}.with(Array::Motions, model.aligner != nullptr), {Array::Cloth});
+    }
     if (model.settings.correct) {
       model.binding();
     }

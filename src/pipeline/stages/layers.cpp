@@ -14,6 +14,9 @@ namespace {
 class LayersStage final : public Stage {
  public:
   explicit LayersStage(Model& model) : mModel(model) {
+    const bool wind = model.settings.layers.hasWind();
+    declare(Arrays{Array::Frames, Array::Cloth}.with(Array::Shot, wind),
+            Arrays{Array::Cloth, Array::LayersApplied}.with(Array::AuditHits, wind));
     model.layerStack.emplace(model.settings.layers, model.db.drivenMesh, model.layers());
     if (model.settings.layers.hasWind()) {
       model.audit();  // the wind's clearance

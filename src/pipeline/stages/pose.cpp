@@ -20,7 +20,9 @@ namespace {
 class PoseStage final : public Stage {
  public:
   explicit PoseStage(Model& model)
-      : mModel(model), mPose(model.db.poseModel), mPredictor(mPose, model.db.driverMesh) {}
+      : mModel(model), mPose(model.db.poseModel), mPredictor(mPose, model.db.driverMesh) {
+    declare({Array::Frames, Array::Driver}, {Array::Weights, Array::Records});
+  }
 
   const char* name() const override { return "weights"; }
 

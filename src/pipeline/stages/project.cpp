@@ -11,7 +11,10 @@ namespace {
 
 class ProjectStage final : public Stage {
  public:
-  explicit ProjectStage(Model& model) : mModel(model) { model.problems(); }
+  explicit ProjectStage(Model& model) : mModel(model) {
+    declare({Array::Aligned}, {Array::Projections, Array::Norms, Array::HostProjections});
+    model.problems();
+  }
 
   const char* name() const override { return "project"; }
 

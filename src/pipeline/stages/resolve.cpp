@@ -15,6 +15,7 @@ namespace {
 class ResolveStage final : public Stage {
  public:
   explicit ResolveStage(Model& model) : mModel(model) {
+    declare({Array::Shot, Array::Cloth}, kAuditArrays | Arrays{Array::Cloth, Array::Moved});
     model.sides();
     model.audit().setExitFade(static_cast<float>(model.settings.exitFade));
   }

@@ -17,6 +17,13 @@ namespace {
 class WeightsStage final : public Stage {
  public:
   explicit WeightsStage(Model& model) : mModel(model) {
+    const bool qp = model.settings.weightMode == WeightMode::kQp;
+    declare(Arrays{Array::Aligned}
+                .with(Array::Frames, qp)
+                .with(Array::Projections, qp)
+                .with(Array::Norms, qp)
+                .with(Array::HostProjections, qp),
+            Arrays{Array::Weights, Array::Records}.with(Array::Solutions, qp));
     if (model.settings.weightMode == WeightMode::kNearest) {
       mShapes = driverMatrix(model.driverShapes, model.k, model.vp, {});
     }
