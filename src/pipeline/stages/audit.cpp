@@ -46,11 +46,13 @@ class AuditStage final : public Stage {
     const bool switches = mSwitches;
     const std::size_t dd = mModel.drivenValues;
     const int vd = mModel.vd;
+    const int count = batch.count();
     // The cloth's one trip back from the device (into the caller's memory).
-    const float* cloth = batch.cloth.read<float>();
-    const SurfaceHit* hits = switches ? batch.hits.read<SurfaceHit>() : nullptr;
-    for (int i = 0; i < batch.count; ++i) {
-      FrameRecord& record = batch.records[i];
+    const float* cloth = batch.in<Array::Cloth>().read<float>();
+    const SurfaceHit* hits = switches ? batch.in<Array::Hits>().read<SurfaceHit>() : nullptr;
+    FrameRecord* records = batch.out<Array::Records>();
+    for (int i = 0; i < count; ++i) {
+      FrameRecord& record = records[i];
       const float* now = cloth + i * dd;
       const float* before = i > 0                     ? cloth + (i - 1) * dd
                             : mPreviousOutput.empty() ? nullptr
@@ -80,9 +82,9 @@ class AuditStage final : public Stage {
         }
       }
     }
-    mPreviousOutput.assign(cloth + (batch.count - 1) * dd, cloth + batch.count * dd);
+    mPreviousOutput.assign(cloth + (count - 1) * dd, cloth + count * dd);
     if (switches) {
-      const std::size_t last = static_cast<std::size_t>(batch.count - 1) * vd;
+      const std::size_t last = static_cast<std::size_t>(count - 1) * vd;
       mPreviousHits.assign(hits + last, hits + last + vd);
     }
   }
@@ -93,15 +95,19 @@ class AuditStage final : public Stage {
   /// for the points it proved clear (it left them where they were).
   void countAfter(Batch& batch) {
     const bool resolve = mModel.settings.resolve;
-    const bool anyMoved = (resolve && std::any_of(batch.moved.begin(), batch.moved.end(),
-                                                  [](int moved) { return moved > 0; })) ||
-                          batch.layersApplied;
+    const bool layersApplied = mLayers && batch.in<Array::LayersApplied>();
+    const auto resolveMoved = [&batch] {
+      const std::vector<int>& moved = batch.in<Array::Moved>();
+      return std::any_of(moved.begin(), moved.end(), [](int m) { return m > 0; });
+    };
+    const bool anyMoved = (resolve && resolveMoved()) || layersApplied;
     if (!resolve || anyMoved) {
-      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideAfter, 0.0f,
-                  resolve && !batch.layersApplied);
+      countInside(mModel, batch, batch.in<Array::Shot>(), batch.in<Array::Cloth>(),
+                  &FrameRecord::insideAfter, 0.0f, resolve && !layersApplied);
     }
-    for (int i = 0; i < batch.count; ++i) {
-      FrameRecord& record = batch.records[i];
+    FrameRecord* records = batch.out<Array::Records>();
+    for (int i = 0; i < batch.count(); ++i) {
+      FrameRecord& record = records[i];
       if (resolve && !anyMoved) {
         record.insideAfter = record.insideCorrected;
       }

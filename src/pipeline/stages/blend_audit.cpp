@@ -18,7 +18,7 @@ class BlendAuditStage final : public Stage {
   const char* name() const override { return "audit"; }
 
   void run(Batch& batch) override {
-    countInside(mModel, batch, batch.alignedShot(mModel.driverValues), batch.driven,
+    countInside(mModel, batch, batch.alignedShot(mModel.driverValues), batch.in<Array::Driven>(),
                 &FrameRecord::insideBefore);
   }
 
