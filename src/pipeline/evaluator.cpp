@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-// The Evaluator: configures the registered stages once, then runs them in order on every block
-// of frames, timing each by its name.
+// The Evaluator: configures the registered stages once (their executor checks how they are
+// wired), then has the executor run them in order on every block of frames.
 
 #include <drivenshape/evaluator.h>
 
-#include <chrono>
 #include <cmath>
 
 #include <drivenshape/error.h>
 
+#include "executor.h"
 #include "finite.h"
 #include "json_text.h"
 #include "settings_rows.h"
@@ -120,13 +120,14 @@ namespace {
 
 /// The evaluator's output check: a non-finite position is an error naming the frame and the
 /// vertex, never a silent output (blocks computed on the device skip the backends' checks).
-void checkCloth(const pipeline::Model& model, const pipeline::Batch& batch, const float* cloth) {
+///   cloth count x 3Vd, frames count
+void checkCloth(const pipeline::Model& model, int count, const int* frames, const float* cloth) {
   const std::size_t dd = model.drivenValues;
-  for (int i = 0; i < batch.count; ++i) {
+  for (int i = 0; i < count; ++i) {
     const float* frame = cloth + static_cast<std::size_t>(i) * dd;
     const std::size_t bad = firstNonFinite(frame, dd);
     if (bad < dd) {
-      DS_THROW(kNumerical, "frame ", batch.frames[batch.warm + i], ": cloth vertex ", bad / 3,
+      DS_THROW(kNumerical, "frame ", frames[i], ": cloth vertex ", bad / 3,
                " came out of the pipeline as ", std::isnan(frame[bad]) ? "NaN" : "infinity",
                "; the database or the settings give non-finite positions for this pose");
     }
@@ -137,13 +138,7 @@ void checkCloth(const pipeline::Model& model, const pipeline::Batch& batch, cons
 
 struct Evaluator::Impl {
   Impl(const Database& database, EvaluatorSettings settings, Device& device)
-      : model(database, std::move(settings), device), batch(device) {
-    for (pipeline::StageFactory factory : pipeline::stageFactories()) {
-      if (std::unique_ptr<pipeline::Stage> stage = factory(model)) {
-        stages.push_back(std::move(stage));
-      }
-    }
-  }
+      : model(database, std::move(settings), device), executor(model) {}
 
   /// The settings hash in the layout the bake's EXR headers have had since version 0.1 (a
   /// file-format contract: a resume compares it): the settings table's rows in their order
@@ -152,15 +147,12 @@ struct Evaluator::Impl {
     // Of the built-in stages, the resolution appends its side table, only when some driven
     // vertex lives inside (never for cloth).
     Hasher tail(pipeline::hashSettings(model, output));
-    for (const auto& stage : stages) {
-      stage->addToHash(tail);
-    }
+    executor.addToHash(tail);
     return tail.value();
   }
 
   pipeline::Model model;
-  std::vector<std::unique_ptr<pipeline::Stage>> stages;
-  pipeline::Batch batch;  ///< reused: its buffers keep their capacity between calls
+  pipeline::Executor executor;  ///< the stages and their batch (reused: it keeps its buffers)
 };
 
 Evaluator::Evaluator(const Database& database, EvaluatorSettings settings, Device& device)
@@ -201,32 +193,17 @@ StageSeconds Evaluator::evaluate(int frameCount, const int* frames, const float*
                " is not a finite number; fix the driver or leave the frame out");
     }
   }
-  pipeline::Batch& batch = mImpl->batch;
-  batch.solveCount = frameCount;
-  batch.warm = warmup;
-  batch.count = frameCount - warmup;
-  batch.frames = frames;
-  batch.driver = driver;
-  batch.aligned = driver;
-  batch.records = records;
-  batch.layersApplied = false;
-  const std::size_t dv = model.driverValues;
-  const std::size_t shotValues = static_cast<std::size_t>(batch.count) * dv;
-  batch.driverFrames.view(driver, static_cast<std::size_t>(frameCount) * dv);
-  batch.shotFrames.view(batch.driverBlock(dv), shotValues);
-  batch.cloth.view(cloth, static_cast<std::size_t>(batch.count) * model.drivenValues);
-  for (int i = 0; i < batch.count; ++i) {
-    records[i].frame = frames[warmup + i];
-  }
-  for (const auto& stage : mImpl->stages) {
-    const auto start = std::chrono::steady_clock::now();
-    stage->run(batch);
-    seconds[stage->name()] +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  }
-  // The cloth comes back from the device here unless a stage (the audit) read it already.
-  const float* result = batch.cloth.read<float>();
-  checkCloth(model, batch, result);
+  pipeline::BatchInput input;
+  input.solveCount = frameCount;
+  input.warm = warmup;
+  input.frames = frames;
+  input.driver = driver;
+  input.cloth = cloth;
+  input.records = records;
+  input.driverValues = model.driverValues;
+  input.drivenValues = model.drivenValues;
+  const float* result = mImpl->executor.run(input, seconds);
+  checkCloth(model, frameCount - warmup, frames + warmup, result);
   return seconds;
 }
 
@@ -246,15 +223,11 @@ void Evaluator::checkFrames(const std::vector<int>& frames) const {
 }
 
 void Evaluator::resetTemporalBound() {
-  for (const auto& stage : mImpl->stages) {
-    stage->reset(false);
-  }
+  mImpl->executor.reset(false);
 }
 
 void Evaluator::resetHistory() {
-  for (const auto& stage : mImpl->stages) {
-    stage->reset(true);
-  }
+  mImpl->executor.reset(true);
 }
 
 std::uint64_t Evaluator::settingsHash() const {
@@ -269,9 +242,7 @@ std::string Evaluator::describeSettings() const {
   nlohmann::json json = nlohmann::json::object();
   pipeline::describeSettings(mImpl->model, json);
   json["stages"] = stageNames();
-  for (const auto& stage : mImpl->stages) {
-    stage->describe(json);
-  }
+  mImpl->executor.describe(json);
   return jsonText(json);
 }
 
@@ -285,7 +256,7 @@ std::string Evaluator::describeLayers() const {
 
 std::vector<std::string> Evaluator::stageNames() const {
   std::vector<std::string> names;
-  for (const auto& stage : mImpl->stages) {
+  for (const auto& stage : mImpl->executor.stages()) {
     names.emplace_back(stage->name());
   }
   return names;

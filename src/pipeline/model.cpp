@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
+#include <string>
 #include <thread>
 
 #include <drivenshape/error.h>
@@ -264,36 +266,44 @@ double coverageTolerance(const Model& model) {
 
 void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                   float clearance, bool keep) {
-  const std::size_t items = static_cast<std::size_t>(batch.count) * model.vd;
+  const int count = batch.count();
+  const std::size_t items = static_cast<std::size_t>(count) * model.vd;
   // The certificate proves points outside by the clearance: it is used only when every driven
   // vertex lives outside (cloth); a database with vertices under the skin searches every point.
   const bool certify = model.settings.clearanceCertificate && model.insideVertices() == 0;
   keep = keep && certify;
+  DeviceArray& hits = batch.out<Array::AuditHits>();
+  DeviceArray& answered = batch.out<Array::AuditAnswered>();
+  std::vector<int>& counts = batch.out<Array::Counts>();
   if (!keep) {
     // (A resize forgets the values: kept hits and marks must not be resized.)
-    batch.auditHits.resize<SurfaceHit>(items);
-    batch.auditAnswered.resize<std::int32_t>(items);
+    hits.resize<SurfaceHit>(items);
+    answered.resize<std::int32_t>(items);
   }
-  batch.counts.assign(static_cast<std::size_t>(batch.count), 0);
+  counts.assign(static_cast<std::size_t>(count), 0);
   if (certify) {
-    model.audit().closestOrClearBlock(batch.count, poses, cloth, clearance, batch.auditHits,
-                                      batch.counts.data(), &batch.auditAnswered, keep);
+    model.audit().closestOrClearBlock(count, poses, cloth, clearance, hits, counts.data(),
+                                      &answered, keep);
   } else {
-    model.audit().closestBlock(batch.count, poses, cloth, batch.auditHits);
+    model.audit().closestBlock(count, poses, cloth, hits);
   }
-  for (int i = 0; i < batch.count; ++i) {
-    batch.records[i].closestQueries += model.vd;
-    batch.records[i].closestCleared += batch.counts[static_cast<std::size_t>(i)];
+  FrameRecord* records = batch.out<Array::Records>();
+  for (int i = 0; i < count; ++i) {
+    records[i].closestQueries += model.vd;
+    records[i].closestCleared += counts[static_cast<std::size_t>(i)];
   }
 }
 
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                  int FrameRecord::*field, float clearance, bool keep) {
   auditClosest(model, batch, poses, cloth, clearance, keep);
-  batch.counts.assign(static_cast<std::size_t>(batch.count), 0);
-  model.audit().countInside(batch.count, poses, batch.auditHits, cloth, batch.counts.data());
-  for (int i = 0; i < batch.count; ++i) {
-    batch.records[i].*field = batch.counts[static_cast<std::size_t>(i)];
+  std::vector<int>& counts = batch.out<Array::Counts>();
+  counts.assign(static_cast<std::size_t>(batch.count()), 0);
+  model.audit().countInside(batch.count(), poses, batch.out<Array::AuditHits>(), cloth,
+                            counts.data());
+  FrameRecord* records = batch.out<Array::Records>();
+  for (int i = 0; i < batch.count(); ++i) {
+    records[i].*field = counts[static_cast<std::size_t>(i)];
   }
 }
 
@@ -303,25 +313,114 @@ void describeSides(Model& model, nlohmann::json& settings) {
   }
 }
 
+const char* arrayName(Array array) {
+  switch (array) {
+    case Array::Frames:
+      return "frames";
+    case Array::Driver:
+      return "driver";
+    case Array::Shot:
+      return "shot";
+    case Array::Aligned:
+      return "aligned";
+    case Array::Records:
+      return "records";
+    case Array::Motions:
+      return "motions";
+    case Array::Projections:
+      return "projections";
+    case Array::Norms:
+      return "norms";
+    case Array::HostProjections:
+      return "host_projections";
+    case Array::Solutions:
+      return "solutions";
+    case Array::Weights:
+      return "weights";
+    case Array::Driven:
+      return "driven";
+    case Array::BlendedDriver:
+      return "blended_driver";
+    case Array::Hits:
+      return "hits";
+    case Array::AuditHits:
+      return "audit_hits";
+    case Array::AuditAnswered:
+      return "audit_answered";
+    case Array::Counts:
+      return "counts";
+    case Array::Moved:
+      return "moved";
+    case Array::Cloth:
+      return "cloth";
+    case Array::LayersApplied:
+      return "layers_applied";
+  }
+  return "?";
+}
+
+std::vector<Array> Arrays::list() const {
+  std::vector<Array> arrays;
+  for (int i = 0; i < kArrayCount; ++i) {
+    if (has(static_cast<Array>(i))) {
+      arrays.push_back(static_cast<Array>(i));
+    }
+  }
+  return arrays;
+}
+
+std::string Arrays::names() const {
+  std::string text;
+  for (const Array array : list()) {
+    text += (text.empty() ? "" : ", ") + std::string(arrayName(array));
+  }
+  return text;
+}
+
 Batch::Batch(Device& device)
-    : driverFrames(device.makeArray()),
-      shotFrames(device.makeArray()),
-      cloth(device.makeArray()),
-      alignedFrames(device.makeArray()),
-      alignedShotFrames(device.makeArray()),
-      driven(device.makeArray()),
-      blendedDriver(device.makeArray()),
-      hits(device.makeArray()),
-      auditHits(device.makeArray()),
-      auditAnswered(device.makeArray()) {}
+    : mDriverFrames(device.makeArray()),
+      mShotFrames(device.makeArray()),
+      mAlignedFrames(device.makeArray()),
+      mAlignedShotFrames(device.makeArray()),
+      mDriven(device.makeArray()),
+      mBlendedDriver(device.makeArray()),
+      mHits(device.makeArray()),
+      mAuditHits(device.makeArray()),
+      mAuditAnswered(device.makeArray()),
+      mCloth(device.makeArray()) {}
+
+DeviceArray& Batch::alignedAll() {
+  return in<Array::Aligned>() == mDriver ? mDriverFrames : mAlignedFrames;
+}
 
 DeviceArray& Batch::alignedShot(std::size_t driverValues) {
-  if (warm == 0) {
+  if (mWarm == 0) {
     return alignedAll();
   }
-  alignedShotFrames.view(alignedBlock(driverValues),
-                         static_cast<std::size_t>(count) * driverValues);
-  return alignedShotFrames;
+  mAlignedShotFrames.view(alignedBlock(driverValues),
+                          static_cast<std::size_t>(mCount) * driverValues);
+  return mAlignedShotFrames;
+}
+
+const float* Batch::alignedBlock(std::size_t driverValues) {
+  return in<Array::Aligned>() + static_cast<std::size_t>(mWarm) * driverValues;
+}
+
+float* Batch::writeAligned(std::size_t values) {
+  const float*& aligned = out<Array::Aligned>();
+  mAlignedFrames.resize<float>(values);
+  float* frames = mAlignedFrames.write<float>();
+  aligned = frames;
+  return frames;
+}
+
+void Batch::refuse(Array array, const char* access) const {
+  if (mStage == nullptr) {
+    throw std::logic_error(std::string("the batch's array '") + arrayName(array) +
+                           "' is reached outside of a stage");
+  }
+  throw std::logic_error(std::string("stage '") + mStage + "' " + access + " '" + arrayName(array) +
+                         "' without declaring it");
 }
 
 }  // namespace drivenshape::pipeline

@@ -3,15 +3,20 @@
 
 // The evaluator's pipeline (DESIGN.md §3): each step of a frame is one Stage, in one file under
 // src/pipeline/stages/, registered by one line in stage_list.h. A stage is configured once (its
-// constructor, from the Model the stages share), adds what changes its result to the settings
-// hash and the report, and runs on a Batch of frames. The runner (evaluator.cpp) times every
-// stage by its name.
+// constructor, from the Model the stages share), where it also declares which arrays of the
+// Batch (Array) it reads and which it writes; it adds what changes its result to the settings
+// hash and the report, and runs on a Batch of frames. The Executor (executor.h) checks the
+// wiring once (every array a stage reads is an input of the call or written by an earlier
+// stage), then runs the stages in order and times each by its name; the Batch hands a running
+// stage only the arrays it declared.
 
 #include <cstddef>
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -24,6 +29,8 @@
 #include "stages.h"
 
 namespace drivenshape::pipeline {
+
+class Stage;
 
 /// One weight problem: the QP on the driver rows of a region (or all rows).
 struct WeightProblem {
@@ -104,61 +111,181 @@ class Model {
   int mInsideVertices = 0;
 };
 
+/// The arrays a Batch carries. The inputs come first: the executor sets them from the call
+/// before the first stage runs; every other array is written by a stage.
+enum class Array : std::uint8_t {
+  // Inputs.
+  Frames,   ///< n frame numbers (n = warm + count)
+  Driver,   ///< n x 3Vp driver frames, world space (the caller's memory)
+  Shot,     ///< count x 3Vp: the shot's frames of Driver (a DeviceArray)
+  Aligned,  ///< n x 3Vp in the database's frame: Driver until the align stage writes its own
+  Records,  ///< count FrameRecords, frame numbers set; the stages fill in the rest
+  // Written by the stages.
+  Motions,          ///< n RigidTransforms: the alignment of each frame
+  Projections,      ///< n x (k-1) floats: the device projection
+  Norms,            ///< n x 2 floats: the norms beside it
+  HostProjections,  ///< n x regions x (k+1) doubles: region projections (empty without regions)
+  Solutions,        ///< n x regions SimplexSolutions
+  Weights,          ///< count x regions x k floats (the pose model's: count x (1 + rank))
+  Driven,           ///< count x 3Vd blended cloth (world, or local offsets)
+  BlendedDriver,    ///< count x 3Vp blended driver (world blending)
+  Hits,             ///< count x Vd binding hits (world blending)
+  AuditHits,        ///< count x Vd closest points over every triangle
+  AuditAnswered,    ///< count x Vd ints: the audit hits answered without a search
+  Counts,           ///< count per-frame counters read back from the device
+  Moved,            ///< count: the vertices the resolution moved
+  Cloth,            ///< count x 3Vd, the result: a view of the caller's memory
+  LayersApplied,    ///< bool: the layers changed the cloth
+};
+inline constexpr int kArrayCount = static_cast<int>(Array::LayersApplied) + 1;
+
+/// The array's name in messages ("blended_driver").
+const char* arrayName(Array array);
+
+/// A set of arrays: what a stage reads, or writes.
+class Arrays {
+ public:
+  constexpr Arrays() = default;
+  constexpr Arrays(std::initializer_list<Array> arrays) {
+    for (const Array array : arrays) {
+      mBits |= bit(array);
+    }
+  }
+  /// This set, and `array` when `when`.
+  constexpr Arrays with(Array array, bool when = true) const {
+    Arrays out = *this;
+    out.mBits |= when ? bit(array) : 0u;
+    return out;
+  }
+  constexpr Arrays operator|(Arrays other) const {
+    Arrays out = *this;
+    out.mBits |= other.mBits;
+    return out;
+  }
+  constexpr bool has(Array array) const { return (mBits & bit(array)) != 0; }
+  /// The arrays in Array's order.
+  std::vector<Array> list() const;
+  /// Their names, ", "-separated.
+  std::string names() const;
+
+ private:
+  static constexpr std::uint32_t bit(Array array) { return 1u << static_cast<unsigned>(array); }
+  std::uint32_t mBits = 0;
+};
+
+/// The arrays the executor sets before the first stage.
+inline constexpr Arrays kInputArrays{Array::Frames, Array::Driver, Array::Shot, Array::Aligned,
+                                     Array::Records};
+/// The arrays auditClosest() and countInside() write (with `keep`, they read them too).
+inline constexpr Arrays kAuditArrays{Array::AuditHits, Array::AuditAnswered, Array::Counts,
+                                     Array::Records};
+
 /// One block of frames on its way through the pipeline. The first `warm` frames are solved
 /// (align, project, weights) to settle the temporal bound, then dropped; the other `count`
 /// frames go all the way. Frame blocks are frame-major. The blocks of frames the stages hand to
 /// each other are DeviceArrays of the model's device: each stays where the last stage wrote it
 /// (device memory on OpenCL), so that the shot's driver goes to the device once and the cloth
 /// comes back once, when the audit or the caller reads it.
-struct Batch {
-  explicit Batch(Device& device);
+///
+/// The arrays are the executor's: a running stage reaches one only through in() and out(),
+/// which check its declaration (Stage::declare) and throw std::logic_error naming the stage and
+/// the array when it lacks the array.
+class Batch {
+ public:
+  int solveCount() const { return mSolveCount; }  ///< n = warm + count
+  int warm() const { return mWarm; }
+  int count() const { return mCount; }
 
-  int solveCount = 0;  ///< n = warm + count
-  int warm = 0;
-  int count = 0;
-  const int* frames = nullptr;     ///< n frame numbers
-  const float* driver = nullptr;   ///< n x 3Vp, world space (the caller's memory)
-  FrameRecord* records = nullptr;  ///< count
+  /// Array A, for the running stage to read: it declared that it reads or writes A. Host values
+  /// come const (pointers to const); a DeviceArray as itself, since reading it may download it.
+  template <Array A>
+  decltype(auto) in() {
+    check(A, mReadable, "reads");
+    return readable(slot<A>());
+  }
+  /// Array A, for the running stage to write: it declared that it writes A.
+  template <Array A>
+  auto& out() {
+    check(A, mWritable, "writes");
+    return slot<A>();
+  }
 
-  /// n x 3Vp: a view of `driver`.
-  DeviceArray driverFrames;
-  /// count x 3Vp: a view of the shot's frames in `driver` when there are warm-up frames.
-  DeviceArray shotFrames;
-  /// count x 3Vd: a view of the caller's cloth memory, the result.
-  DeviceArray cloth;
-
-  // Filled by the stages, in order.
-  const float* aligned = nullptr;          ///< n x 3Vp in the database's frame (or = driver)
-  DeviceArray alignedFrames;               ///< backs `aligned` when the align stage runs
-  DeviceArray alignedShotFrames;           ///< its last count frames, with warm-up frames
-  std::vector<RigidTransform> motions;     ///< n, when the align stage runs
-  std::vector<float> projections, norms;   ///< device projection: n x (k-1), n x 2
-  std::vector<double> hostProjections;     ///< region projections: n x regions x (k+1)
-  std::vector<SimplexSolution> solutions;  ///< n x regions
-  std::vector<float> weights;              ///< count x regions x k
-  DeviceArray driven;                      ///< count x 3Vd blended cloth (world or local offsets)
-  DeviceArray blendedDriver;               ///< count x 3Vp blended driver (world blending)
-  DeviceArray hits;                        ///< count x Vd binding hits (world blending)
-  DeviceArray auditHits;                   ///< count x Vd closest points over every triangle
-  /// count x Vd ints: the auditHits answered without a search (closestOrClearBlock)
-  DeviceArray auditAnswered;
-  std::vector<int> counts;  ///< count, per-frame counters read back from the device
-  std::vector<int> moved;   ///< count, by the resolution
-  bool layersApplied = false;
-
-  /// The shot's driver, world space: count x 3Vp.
-  DeviceArray& shot() { return warm == 0 ? driverFrames : shotFrames; }
-  /// Every frame in the database's frame: n x 3Vp (the projection's input).
-  DeviceArray& alignedAll() { return aligned == driver ? driverFrames : alignedFrames; }
-  /// The shot's frames in the database's frame: count x 3Vp.
+  /// Aligned as a DeviceArray: every frame, n x 3Vp.
+  DeviceArray& alignedAll();
+  /// Aligned: the shot's frames, count x 3Vp.
   DeviceArray& alignedShot(std::size_t driverValues);
+  /// Aligned: the shot's frames on the host, count x 3Vp.
+  const float* alignedBlock(std::size_t driverValues);
+  /// Writes Aligned (the align stage): `values` floats of the batch's own, on the host.
+  float* writeAligned(std::size_t values);
 
-  const float* driverBlock(std::size_t driverValues) const {
-    return driver + static_cast<std::size_t>(warm) * driverValues;
+ private:
+  friend class Executor;
+  explicit Batch(Device& device);
+  /// Opens the batch to `stage`'s declared arrays (the executor, before its run()); null
+  /// closes it.
+  void open(const Stage* stage);
+
+  /// Throws std::logic_error unless `declared` holds `array` (see in(), out()).
+  void check(Array array, Arrays declared, const char* access) const {
+    if (!declared.has(array)) {
+      refuse(array, access);
+    }
   }
-  const float* alignedBlock(std::size_t driverValues) const {
-    return aligned + static_cast<std::size_t>(warm) * driverValues;
+  [[noreturn]] void refuse(Array array, const char* access) const;
+
+  /// Every array's value, in Array's order.
+  auto slots() {
+    return std::tie(mFrames, mDriver, shot(), mAligned, mRecords, mMotions, mProjections, mNorms,
+                    mHostProjections, mSolutions, mWeights, mDriven, mBlendedDriver, mHits,
+                    mAuditHits, mAuditAnswered, mCounts, mMoved, mCloth, mLayersApplied);
   }
+  template <Array A>
+  auto& slot() {
+    static_assert(std::tuple_size_v<decltype(slots())> == kArrayCount);
+    return std::get<static_cast<std::size_t>(A)>(slots());
+  }
+  DeviceArray& shot() { return mWarm == 0 ? mDriverFrames : mShotFrames; }
+
+  template <typename T>
+  static const T& readable(const T& value) {
+    return value;
+  }
+  template <typename T>
+  static const T* readable(T* pointer) {
+    return pointer;
+  }
+  static DeviceArray& readable(DeviceArray& array) { return array; }
+
+  // The running stage (set by the executor): its name and what it may read and write.
+  const char* mStage = nullptr;
+  Arrays mReadable, mWritable;
+
+  int mSolveCount = 0;
+  int mWarm = 0;
+  int mCount = 0;
+  const int* mFrames = nullptr;
+  const float* mDriver = nullptr;
+  DeviceArray mDriverFrames;  ///< n x 3Vp: a view of Driver (the executor's)
+  DeviceArray mShotFrames;    ///< count x 3Vp: a view of its shot frames, with warm-up frames
+  const float* mAligned = nullptr;
+  DeviceArray mAlignedFrames;      ///< backs Aligned when the align stage runs
+  DeviceArray mAlignedShotFrames;  ///< its last count frames, with warm-up frames
+  FrameRecord* mRecords = nullptr;
+  std::vector<RigidTransform> mMotions;
+  std::vector<float> mProjections, mNorms;
+  std::vector<double> mHostProjections;
+  std::vector<SimplexSolution> mSolutions;
+  std::vector<float> mWeights;
+  DeviceArray mDriven;
+  DeviceArray mBlendedDriver;
+  DeviceArray mHits;
+  DeviceArray mAuditHits;
+  DeviceArray mAuditAnswered;
+  std::vector<int> mCounts;
+  std::vector<int> mMoved;
+  DeviceArray mCloth;
+  bool mLayersApplied = false;
 };
 
 /// One step of a frame. Configure in the constructor (from the Model; throw Error naming the
@@ -168,6 +295,10 @@ class Stage {
   virtual ~Stage() = default;
   /// The timer (and report) name: stages sharing a name share a timer.
   virtual const char* name() const = 0;
+  /// The arrays run() reads, each an input or written by an earlier stage (the executor checks),
+  /// and those it writes; it may read what it writes.
+  Arrays reads() const { return mReads; }
+  Arrays writes() const { return mWrites; }
   /// Adds every setting and table that changes this stage's result.
   virtual void addToHash(Hasher& /*hasher*/) const {}
   /// Adds this stage's entries to the report's "settings" object.
@@ -175,6 +306,18 @@ class Stage {
   /// Forgets the previous frame (temporal state); `all` also forgets audit references.
   virtual void reset(bool /*all*/) {}
   virtual void run(Batch& batch) = 0;
+
+ protected:
+  /// Declares what run() reads and writes (in the constructor: it may depend on the settings).
+  /// A read is of values from before run(): an array run() writes first and then reads needs no
+  /// read entry.
+  void declare(Arrays reads, Arrays writes) {
+    mReads = reads;
+    mWrites = writes;
+  }
+
+ private:
+  Arrays mReads, mWrites;
 };
 
 /// Makes a stage for these settings, or null when the settings leave it out.

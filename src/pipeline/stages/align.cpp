@@ -13,6 +13,7 @@ namespace {
 class AlignStage final : public Stage {
  public:
   explicit AlignStage(Model& model) : mModel(model) {
+    declare({Array::Driver}, {Array::Aligned, Array::Motions, Array::Records});
     const Database& db = model.db;
     const EvaluatorSettings& settings = model.settings;
     const std::string source =
@@ -47,17 +48,18 @@ class AlignStage final : public Stage {
 
   void run(Batch& batch) override {
     const std::size_t dv = mModel.driverValues;
-    batch.alignedFrames.resize<float>(static_cast<std::size_t>(batch.solveCount) * dv);
-    float* aligned = batch.alignedFrames.write<float>();
-    batch.motions.resize(batch.solveCount);
-    parallelFor(batch.solveCount, mModel.threads, [&](int i) {
-      batch.motions[i] = mModel.aligner->fit(&batch.driver[i * dv]);
-      batch.motions[i].apply(&batch.driver[i * dv], mModel.vp, &aligned[i * dv]);
+    const float* driver = batch.in<Array::Driver>();
+    float* aligned = batch.writeAligned(static_cast<std::size_t>(batch.solveCount()) * dv);
+    std::vector<RigidTransform>& motions = batch.out<Array::Motions>();
+    motions.resize(batch.solveCount());
+    parallelFor(batch.solveCount(), mModel.threads, [&](int i) {
+      motions[i] = mModel.aligner->fit(&driver[i * dv]);
+      motions[i].apply(&driver[i * dv], mModel.vp, &aligned[i * dv]);
     });
-    batch.aligned = aligned;
-    for (int i = 0; i < batch.count; ++i) {
-      const RigidTransform& motion = batch.motions[batch.warm + i];
-      FrameRecord& record = batch.records[i];
+    FrameRecord* records = batch.out<Array::Records>();
+    for (int i = 0; i < batch.count(); ++i) {
+      const RigidTransform& motion = motions[batch.warm() + i];
+      FrameRecord& record = records[i];
       record.alignRotation.clear();
       for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {

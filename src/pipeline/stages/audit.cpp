@@ -14,7 +14,21 @@ namespace {
 
 class AuditStage final : public Stage {
  public:
-  explicit AuditStage(Model& model) : mModel(model) { model.sides(); }
+  explicit AuditStage(Model& model)
+      : mModel(model),
+        mSwitches(model.settings.correct && !model.local),
+        mLayers(!model.settings.layers.empty()) {
+    // The resolution's hits are kept for the points it proved clear (countAfter).
+    const bool resolve = model.settings.resolve;
+    declare(Arrays{Array::Shot, Array::Cloth, Array::Records}
+                .with(Array::Moved, resolve)
+                .with(Array::AuditHits, resolve)
+                .with(Array::AuditAnswered, resolve)
+                .with(Array::LayersApplied, mLayers)
+                .with(Array::Hits, mSwitches),
+            kAuditArrays);
+    model.sides();
+  }
 
   const char* name() const override { return "audit"; }
 
@@ -29,14 +43,16 @@ class AuditStage final : public Stage {
 
   void run(Batch& batch) override {
     countAfter(batch);
-    const bool switches = mModel.settings.correct && !mModel.local;
+    const bool switches = mSwitches;
     const std::size_t dd = mModel.drivenValues;
     const int vd = mModel.vd;
+    const int count = batch.count();
     // The cloth's one trip back from the device (into the caller's memory).
-    const float* cloth = batch.cloth.read<float>();
-    const SurfaceHit* hits = switches ? batch.hits.read<SurfaceHit>() : nullptr;
-    for (int i = 0; i < batch.count; ++i) {
-      FrameRecord& record = batch.records[i];
+    const float* cloth = batch.in<Array::Cloth>().read<float>();
+    const SurfaceHit* hits = switches ? batch.in<Array::Hits>().read<SurfaceHit>() : nullptr;
+    FrameRecord* records = batch.out<Array::Records>();
+    for (int i = 0; i < count; ++i) {
+      FrameRecord& record = records[i];
       const float* now = cloth + i * dd;
       const float* before = i > 0                     ? cloth + (i - 1) * dd
                             : mPreviousOutput.empty() ? nullptr
@@ -66,9 +82,9 @@ class AuditStage final : public Stage {
         }
       }
     }
-    mPreviousOutput.assign(cloth + (batch.count - 1) * dd, cloth + batch.count * dd);
+    mPreviousOutput.assign(cloth + (count - 1) * dd, cloth + count * dd);
     if (switches) {
-      const std::size_t last = static_cast<std::size_t>(batch.count - 1) * vd;
+      const std::size_t last = static_cast<std::size_t>(count - 1) * vd;
       mPreviousHits.assign(hits + last, hits + last + vd);
     }
   }
@@ -79,15 +95,19 @@ class AuditStage final : public Stage {
   /// for the points it proved clear (it left them where they were).
   void countAfter(Batch& batch) {
     const bool resolve = mModel.settings.resolve;
-    const bool anyMoved = (resolve && std::any_of(batch.moved.begin(), batch.moved.end(),
-                                                  [](int moved) { return moved > 0; })) ||
-                          batch.layersApplied;
+    const bool layersApplied = mLayers && batch.in<Array::LayersApplied>();
+    const auto resolveMoved = [&batch] {
+      const std::vector<int>& moved = batch.in<Array::Moved>();
+      return std::any_of(moved.begin(), moved.end(), [](int m) { return m > 0; });
+    };
+    const bool anyMoved = (resolve && resolveMoved()) || layersApplied;
     if (!resolve || anyMoved) {
-      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideAfter, 0.0f,
-                  resolve && !batch.layersApplied);
+      countInside(mModel, batch, batch.in<Array::Shot>(), batch.in<Array::Cloth>(),
+                  &FrameRecord::insideAfter, 0.0f, resolve && !layersApplied);
     }
-    for (int i = 0; i < batch.count; ++i) {
-      FrameRecord& record = batch.records[i];
+    FrameRecord* records = batch.out<Array::Records>();
+    for (int i = 0; i < batch.count(); ++i) {
+      FrameRecord& record = records[i];
       if (resolve && !anyMoved) {
         record.insideAfter = record.insideCorrected;
       }
@@ -98,7 +118,9 @@ class AuditStage final : public Stage {
   }
 
   Model& mModel;
-  std::vector<float> mPreviousOutput;     ///< the previous frame's cloth, 3Vd
+  const bool mSwitches;                ///< binding switches: the correction's hits (world blending)
+  const bool mLayers;                  ///< layers run before (they may have changed the cloth)
+  std::vector<float> mPreviousOutput;  ///< the previous frame's cloth, 3Vd
   std::vector<SurfaceHit> mPreviousHits;  ///< its binding hits (world blending), Vd
 };
 

@@ -16,6 +16,8 @@ namespace {
 class BlendStage final : public Stage {
  public:
   explicit BlendStage(Model& model) : mModel(model) {
+    declare(Arrays().with(Array::Weights, model.settings.weightMode != WeightMode::kBind),
+            {Array::Driven, Array::BlendedDriver});
     const Database& db = model.db;
     std::vector<float> localShapes;
     if (model.local) {
@@ -54,21 +56,23 @@ class BlendStage final : public Stage {
   const char* name() const override { return "blend"; }
 
   void run(Batch& batch) override {
-    const int count = batch.count;
+    const int count = batch.count();
     const std::size_t dv = mModel.driverValues, dd = mModel.drivenValues;
     const bool needDriver = !mModel.local && mModel.settings.correct;
-    batch.driven.resize<float>(count * dd);
-    batch.blendedDriver.resize<float>(needDriver ? count * dv : 0);
+    DeviceArray& blended = batch.out<Array::Driven>();
+    DeviceArray& blendedDriver = batch.out<Array::BlendedDriver>();
+    blended.resize<float>(count * dd);
+    blendedDriver.resize<float>(needDriver ? count * dv : 0);
     if (mModel.settings.weightMode == WeightMode::kModel) {
       // The rest offsets (weight 1) plus the basis shapes weighted by the pose stage.
-      mModel.stages().blendBlock(count, batch.weights.data(), batch.driven, nullptr);
+      mModel.stages().blendBlock(count, batch.in<Array::Weights>().data(), blended, nullptr);
       return;
     }
     if (mModel.settings.weightMode == WeightMode::kBind) {
       // The rest shapes stand in for the blend: every frame binds the rest cloth to the rest
       // driver and carries it to the shot's pose.
-      float* driven = batch.driven.write<float>();
-      float* driver = needDriver ? batch.blendedDriver.write<float>() : nullptr;
+      float* driven = blended.write<float>();
+      float* driver = needDriver ? blendedDriver.write<float>() : nullptr;
       for (int i = 0; i < count; ++i) {
         std::copy_n(mModel.db.drivenMesh.positions.data(), dd, &driven[i * dd]);
         if (driver != nullptr) {
@@ -78,19 +82,19 @@ class BlendStage final : public Stage {
       return;
     }
     const int regionCount = mModel.regionCount();
+    const float* weights = batch.in<Array::Weights>().data();
     if (regionCount == 1) {
-      mModel.stages().blendBlock(count, batch.weights.data(), batch.driven,
-                                 needDriver ? &batch.blendedDriver : nullptr);
+      mModel.stages().blendBlock(count, weights, blended, needDriver ? &blendedDriver : nullptr);
       return;
     }
     mDrivenRegions.resize(static_cast<std::size_t>(count) * regionCount * dd);
     mDriverRegions.resize(needDriver ? mDrivenRegions.size() / dd * dv : 0);
-    mModel.stages().blend(count * regionCount, batch.weights.data(), mDrivenRegions.data(),
+    mModel.stages().blend(count * regionCount, weights, mDrivenRegions.data(),
                           needDriver ? mDriverRegions.data() : nullptr);
     const RegionSet& regions = *mModel.settings.regions;
-    mix(count, mDrivenRegions, regions.drivenMix, mModel.vd, batch.driven.write<float>());
+    mix(count, mDrivenRegions, regions.drivenMix, mModel.vd, blended.write<float>());
     if (needDriver) {
-      mix(count, mDriverRegions, regions.driverMix, mModel.vp, batch.blendedDriver.write<float>());
+      mix(count, mDriverRegions, regions.driverMix, mModel.vp, blendedDriver.write<float>());
     }
   }
 

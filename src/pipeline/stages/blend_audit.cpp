@@ -10,12 +10,15 @@ namespace {
 
 class BlendAuditStage final : public Stage {
  public:
-  explicit BlendAuditStage(Model& model) : mModel(model) { model.sides(); }
+  explicit BlendAuditStage(Model& model) : mModel(model) {
+    declare({Array::Aligned, Array::Driven}, kAuditArrays);
+    model.sides();
+  }
 
   const char* name() const override { return "audit"; }
 
   void run(Batch& batch) override {
-    countInside(mModel, batch, batch.alignedShot(mModel.driverValues), batch.driven,
+    countInside(mModel, batch, batch.alignedShot(mModel.driverValues), batch.in<Array::Driven>(),
                 &FrameRecord::insideBefore);
   }
 

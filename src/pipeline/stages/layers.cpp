@@ -14,6 +14,9 @@ namespace {
 class LayersStage final : public Stage {
  public:
   explicit LayersStage(Model& model) : mModel(model) {
+    const bool wind = model.settings.layers.hasWind();
+    declare(Arrays{Array::Frames, Array::Cloth}.with(Array::Shot, wind),
+            Arrays{Array::Cloth, Array::LayersApplied}.with(Array::AuditHits, wind));
     model.layerStack.emplace(model.settings.layers, model.db.drivenMesh, model.layers());
     if (model.settings.layers.hasWind()) {
       model.audit();  // the wind's clearance
@@ -27,21 +30,24 @@ class LayersStage final : public Stage {
   }
 
   void run(Batch& batch) override {
-    const std::size_t points = static_cast<std::size_t>(batch.count) * mModel.vd;
+    const std::size_t points = static_cast<std::size_t>(batch.count()) * mModel.vd;
+    DeviceArray& cloth = batch.out<Array::Cloth>();
     mClearance.clear();
     if (mModel.settings.layers.hasWind()) {
-      batch.auditHits.resize<SurfaceHit>(points);
-      mModel.audit().closestBlock(batch.count, batch.shot(), batch.cloth, batch.auditHits);
-      const SurfaceHit* hits = batch.auditHits.read<SurfaceHit>();
+      DeviceArray& auditHits = batch.out<Array::AuditHits>();
+      auditHits.resize<SurfaceHit>(points);
+      mModel.audit().closestBlock(batch.count(), batch.in<Array::Shot>(), cloth, auditHits);
+      const SurfaceHit* hits = auditHits.read<SurfaceHit>();
       mClearance.resize(points);
       for (std::size_t i = 0; i < points; ++i) {
         mClearance[i] = std::sqrt(hits[i].distance2);
       }
     }
     // The layers run on the host copy (their backend takes host memory).
-    mModel.layerStack->apply(batch.count, batch.frames + batch.warm, batch.cloth.modify<float>(),
+    mModel.layerStack->apply(batch.count(), batch.in<Array::Frames>() + batch.warm(),
+                             cloth.modify<float>(),
                              mClearance.empty() ? nullptr : mClearance.data());
-    batch.layersApplied = true;
+    batch.out<Array::LayersApplied>() = true;
   }
 
  private:

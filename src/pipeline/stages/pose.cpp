@@ -20,7 +20,9 @@ namespace {
 class PoseStage final : public Stage {
  public:
   explicit PoseStage(Model& model)
-      : mModel(model), mPose(model.db.poseModel), mPredictor(mPose, model.db.driverMesh) {}
+      : mModel(model), mPose(model.db.poseModel), mPredictor(mPose, model.db.driverMesh) {
+    declare({Array::Frames, Array::Driver}, {Array::Weights, Array::Records});
+  }
 
   const char* name() const override { return "weights"; }
 
@@ -38,7 +40,7 @@ class PoseStage final : public Stage {
   void reset(bool /*all*/) override { mHistory.clear(); }
 
   void run(Batch& batch) override {
-    const int n = batch.solveCount, pf = mPose.poseFeatureCount(), d = mPose.featureCount();
+    const int n = batch.solveCount(), pf = mPose.poseFeatureCount(), d = mPose.featureCount();
     // The remembered frames in front of the block, then the block's own.
     const int kept = static_cast<int>(mHistory.size());
     const int total = kept + n;
@@ -48,25 +50,28 @@ class PoseStage final : public Stage {
       mFrames[h] = mHistory[h].first;
       std::copy(mHistory[h].second.begin(), mHistory[h].second.end(), &mPoseFeatures[h * pf]);
     }
-    std::copy_n(batch.frames, n, mFrames.begin() + kept);
+    std::copy_n(batch.in<Array::Frames>(), n, mFrames.begin() + kept);
+    const float* driver = batch.in<Array::Driver>();
     parallelFor(n, mModel.threads, [&](int i) {
-      mPredictor.poseFeatures(batch.driver + i * mModel.driverValues,
+      mPredictor.poseFeatures(driver + i * mModel.driverValues,
                               &mPoseFeatures[static_cast<std::size_t>(kept + i) * pf]);
     });
     const int rank = mPose.rank();
     const double tolerance = coverageTolerance(mModel);
-    batch.weights.assign(static_cast<std::size_t>(batch.count) * (rank + 1), 0.0f);
-    parallelFor(batch.count, mModel.threads, [&](int i) {
+    std::vector<float>& weights = batch.out<Array::Weights>();
+    weights.assign(static_cast<std::size_t>(batch.count()) * (rank + 1), 0.0f);
+    FrameRecord* records = batch.out<Array::Records>();
+    parallelFor(batch.count(), mModel.threads, [&](int i) {
       std::vector<double> x(static_cast<std::size_t>(d));
-      mPredictor.features(mPoseFeatures.data(), mFrames.data(), total, kept + batch.warm + i,
+      mPredictor.features(mPoseFeatures.data(), mFrames.data(), total, kept + batch.warm() + i,
                           x.data());
       const PosePredictor::Prediction p = mPredictor.predict(x.data());
-      float* w = &batch.weights[static_cast<std::size_t>(i) * (rank + 1)];
+      float* w = &weights[static_cast<std::size_t>(i) * (rank + 1)];
       w[0] = 1.0f;
       for (int j = 0; j < rank; ++j) {
         w[1 + j] = static_cast<float>(p.weights[j]);
       }
-      FrameRecord& record = batch.records[i];
+      FrameRecord& record = records[i];
       record.weights.clear();
       record.atZero.clear();
       record.atOne.clear();

@@ -11,26 +11,32 @@ namespace {
 
 class ProjectStage final : public Stage {
  public:
-  explicit ProjectStage(Model& model) : mModel(model) { model.problems(); }
+  explicit ProjectStage(Model& model) : mModel(model) {
+    declare({Array::Aligned}, {Array::Projections, Array::Norms, Array::HostProjections});
+    model.problems();
+  }
 
   const char* name() const override { return "project"; }
 
   void run(Batch& batch) override {
-    const int n = batch.solveCount, k = mModel.k;
+    const int n = batch.solveCount(), k = mModel.k;
     const int regionCount = mModel.regionCount();
-    batch.projections.assign(static_cast<std::size_t>(n) * regionCount * (k - 1), 0.0f);
-    batch.norms.assign(static_cast<std::size_t>(n) * regionCount * 2, 0.0f);
-    batch.hostProjections.clear();
+    std::vector<float>& projections = batch.out<Array::Projections>();
+    std::vector<float>& norms = batch.out<Array::Norms>();
+    std::vector<double>& hostProjections = batch.out<Array::HostProjections>();
+    projections.assign(static_cast<std::size_t>(n) * regionCount * (k - 1), 0.0f);
+    norms.assign(static_cast<std::size_t>(n) * regionCount * 2, 0.0f);
+    hostProjections.clear();
     if (!mModel.settings.regions) {
-      mModel.stages().projectBlock(n, batch.alignedAll(), batch.projections.data(),
-                                   batch.norms.data());
+      mModel.stages().projectBlock(n, batch.alignedAll(), projections.data(), norms.data());
       return;
     }
-    batch.hostProjections.assign(static_cast<std::size_t>(n) * regionCount * (k + 1), 0.0);
+    hostProjections.assign(static_cast<std::size_t>(n) * regionCount * (k + 1), 0.0);
+    const float* aligned = batch.in<Array::Aligned>();
     parallelFor(n * regionCount, mModel.threads, [&](int item) {
       const int i = item / regionCount, r = item % regionCount;
       const WeightProblem& problem = mModel.problems()[r];
-      const float* frame = batch.aligned + i * mModel.driverValues;
+      const float* frame = aligned + i * mModel.driverValues;
       Eigen::VectorXd b(static_cast<Eigen::Index>(problem.rows.size()) * 3);
       for (std::size_t j = 0; j < problem.rows.size(); ++j) {
         for (int c = 0; c < 3; ++c) {
@@ -38,7 +44,7 @@ class ProjectStage final : public Stage {
         }
       }
       const Eigen::VectorXd d = b - problem.solver->center();
-      double* out = &batch.hostProjections[static_cast<std::size_t>(item) * (k + 1)];
+      double* out = &hostProjections[static_cast<std::size_t>(item) * (k + 1)];
       Eigen::Map<Eigen::VectorXd>(out, k - 1) = problem.solver->basis().transpose() * d;
       out[k - 1] = d.squaredNorm();
       out[k] = b.squaredNorm();

@@ -15,6 +15,7 @@ namespace {
 class ResolveStage final : public Stage {
  public:
   explicit ResolveStage(Model& model) : mModel(model) {
+    declare({Array::Shot, Array::Cloth}, kAuditArrays | Arrays{Array::Cloth, Array::Moved});
     model.sides();
     model.audit().setExitFade(static_cast<float>(model.settings.exitFade));
   }
@@ -35,16 +36,20 @@ class ResolveStage final : public Stage {
     // The hits serve the resolution with this offset and the inside count only, so points
     // proven at least the offset clear of the driver need no search.
     const float offset = static_cast<float>(mModel.settings.skinOffset);
+    DeviceArray& shot = batch.in<Array::Shot>();
+    DeviceArray& cloth = batch.out<Array::Cloth>();
     if (mModel.settings.audit) {
-      countInside(mModel, batch, batch.shot(), batch.cloth, &FrameRecord::insideCorrected, offset);
+      countInside(mModel, batch, shot, cloth, &FrameRecord::insideCorrected, offset);
     } else {
-      auditClosest(mModel, batch, batch.shot(), batch.cloth, offset);
+      auditClosest(mModel, batch, shot, cloth, offset);
     }
-    batch.moved.assign(batch.count, 0);
-    mModel.audit().resolveBlock(batch.count, batch.shot(), batch.auditHits, offset, batch.cloth,
-                                batch.moved.data());
-    for (int i = 0; i < batch.count; ++i) {
-      batch.records[i].resolved = batch.moved[i];
+    std::vector<int>& moved = batch.out<Array::Moved>();
+    moved.assign(batch.count(), 0);
+    mModel.audit().resolveBlock(batch.count(), shot, batch.out<Array::AuditHits>(), offset, cloth,
+                                moved.data());
+    FrameRecord* records = batch.out<Array::Records>();
+    for (int i = 0; i < batch.count(); ++i) {
+      records[i].resolved = moved[i];
     }
   }
 

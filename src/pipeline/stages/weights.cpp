@@ -17,6 +17,13 @@ namespace {
 class WeightsStage final : public Stage {
  public:
   explicit WeightsStage(Model& model) : mModel(model) {
+    const bool qp = model.settings.weightMode == WeightMode::kQp;
+    declare(Arrays{Array::Aligned}
+                .with(Array::Frames, qp)
+                .with(Array::Projections, qp)
+                .with(Array::Norms, qp)
+                .with(Array::HostProjections, qp),
+            Arrays{Array::Weights, Array::Records}.with(Array::Solutions, qp));
     if (model.settings.weightMode == WeightMode::kNearest) {
       mShapes = driverMatrix(model.driverShapes, model.k, model.vp, {});
     }
@@ -45,10 +52,13 @@ class WeightsStage final : public Stage {
       solve(batch);
     }
     const int k = mModel.k, regionCount = mModel.regionCount();
-    batch.weights.assign(static_cast<std::size_t>(batch.count) * regionCount * k, 0.0f);
-    parallelFor(batch.count, mModel.threads, [&](int i) {
-      FrameRecord& record = batch.records[i];
-      const float* frame = batch.alignedBlock(mModel.driverValues) + i * mModel.driverValues;
+    std::vector<float>& weights = batch.out<Array::Weights>();
+    weights.assign(static_cast<std::size_t>(batch.count()) * regionCount * k, 0.0f);
+    FrameRecord* records = batch.out<Array::Records>();
+    const float* aligned = batch.alignedBlock(mModel.driverValues);
+    parallelFor(batch.count(), mModel.threads, [&](int i) {
+      FrameRecord& record = records[i];
+      const float* frame = aligned + i * mModel.driverValues;
       if (mModel.settings.weightMode == WeightMode::kQp) {
         recordSolutions(batch, i, record);
         record.directResidual = directResidual(frame, record.weights);
@@ -57,7 +67,7 @@ class WeightsStage final : public Stage {
         record.directResidual = record.relativeResidual;  // computed directly there
       }
       for (std::size_t s = 0; s < record.weights.size(); ++s) {
-        batch.weights[i * regionCount * k + s] = static_cast<float>(record.weights[s]);
+        weights[i * regionCount * k + s] = static_cast<float>(record.weights[s]);
       }
     });
   }
@@ -67,15 +77,16 @@ class WeightsStage final : public Stage {
   /// order, each bounded by the one before it (the first by the previous call's last frame,
   /// unless the state was reset).
   void solve(Batch& batch) {
-    const int n = batch.solveCount, regionCount = mModel.regionCount();
+    const int n = batch.solveCount(), regionCount = mModel.regionCount();
     const bool temporal = mModel.settings.maxWeightChange > 0;
-    batch.solutions.assign(static_cast<std::size_t>(n) * regionCount, SimplexSolution{});
+    std::vector<SimplexSolution>& solutions = batch.out<Array::Solutions>();
+    solutions.assign(static_cast<std::size_t>(n) * regionCount, SimplexSolution{});
     if (temporal) {
       for (int i = 0; i < n; ++i) {
         parallelFor(regionCount, std::min(mModel.threads, regionCount),
                     [&](int r) { solveOne(batch, i, r); });
       }
-      mPrevious.assign(batch.solutions.end() - regionCount, batch.solutions.end());
+      mPrevious.assign(solutions.end() - regionCount, solutions.end());
     } else {
       parallelFor(n * regionCount, mModel.threads,
                   [&](int item) { solveOne(batch, item / regionCount, item % regionCount); });
@@ -87,39 +98,43 @@ class WeightsStage final : public Stage {
     const int item = i * regionCount + r;
     Eigen::VectorXd p(k - 1);
     double rr = 0, bb = 0;
-    if (batch.hostProjections.empty()) {
-      p = Eigen::Map<const Eigen::VectorXf>(&batch.projections[i * (k - 1)], k - 1).cast<double>();
-      rr = batch.norms[2 * i];
-      bb = batch.norms[2 * i + 1];
+    const std::vector<double>& hostProjections = batch.in<Array::HostProjections>();
+    if (hostProjections.empty()) {
+      const std::vector<float>& projections = batch.in<Array::Projections>();
+      const std::vector<float>& norms = batch.in<Array::Norms>();
+      p = Eigen::Map<const Eigen::VectorXf>(&projections[i * (k - 1)], k - 1).cast<double>();
+      rr = norms[2 * i];
+      bb = norms[2 * i + 1];
     } else {
-      const double* in = &batch.hostProjections[static_cast<std::size_t>(item) * (k + 1)];
+      const double* in = &hostProjections[static_cast<std::size_t>(item) * (k + 1)];
       p = Eigen::Map<const Eigen::VectorXd>(in, k - 1);
       rr = in[k - 1];
       bb = in[k];
     }
     const WeightProblem& problem = mModel.problems()[r];
     const double tau = mModel.settings.maxWeightChange;
+    std::vector<SimplexSolution>& solutions = batch.out<Array::Solutions>();
     const SimplexSolution* previous = nullptr;
     if (tau > 0) {
-      previous = i > 0 ? &batch.solutions[item - regionCount]
-                       : (mPrevious.empty() ? nullptr : &mPrevious[r]);
+      previous =
+          i > 0 ? &solutions[item - regionCount] : (mPrevious.empty() ? nullptr : &mPrevious[r]);
     }
     try {
       if (previous != nullptr) {
         const Eigen::VectorXd lower = (previous->weights.array() - tau).cwiseMax(0.0).matrix();
         const Eigen::VectorXd upper = (previous->weights.array() + tau).cwiseMin(1.0).matrix();
-        batch.solutions[item] = problem.solver->solveProjected(p, rr, bb, lower, upper);
+        solutions[item] = problem.solver->solveProjected(p, rr, bb, lower, upper);
       } else {
-        batch.solutions[item] = problem.solver->solveProjected(p, rr, bb);
+        solutions[item] = problem.solver->solveProjected(p, rr, bb);
       }
     } catch (const Error& error) {
-      DS_THROW(kNumerical, "frame ", batch.frames[i],
+      DS_THROW(kNumerical, "frame ", batch.in<Array::Frames>()[i],
                regionCount > 1 ? " region '" + problem.name + "'" : std::string(), ": ",
                error.what());
     }
   }
 
-  void recordSolutions(const Batch& batch, int i, FrameRecord& record) {
+  void recordSolutions(Batch& batch, int i, FrameRecord& record) {
     const int k = mModel.k, regionCount = mModel.regionCount();
     record.weights.clear();
     record.atZero.clear();
@@ -127,7 +142,7 @@ class WeightsStage final : public Stage {
     record.relativeResidual = record.kktResidual = 0.0;
     record.iterations = 0;
     for (int r = 0; r < regionCount; ++r) {
-      const SimplexSolution& s = batch.solutions[(batch.warm + i) * regionCount + r];
+      const SimplexSolution& s = batch.in<Array::Solutions>()[(batch.warm() + i) * regionCount + r];
       record.weights.insert(record.weights.end(), s.weights.data(), s.weights.data() + k);
       for (int z : s.atZero) {
         record.atZero.push_back(r * k + z);
