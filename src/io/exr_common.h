@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // OpenEXR helpers shared by point-cache EXRs (io/exr_point_cache.cpp) and position-map EXRs
-// (posmap/posmap_exr.cpp). Private to the libraries in src/; not installed.
+// (io/posmap_exr.cpp). Private to the library; not installed.
 
 #pragma once
 
