@@ -3,10 +3,14 @@
 """The module's types under mypy (the CTest python_typing; test_wheel.sh runs it on the installed
 package too):
 
-1. `mypy --strict` accepts typing_example.py, which uses the main API;
-2. mypy rejects typing_wrong.py with an error on exactly the lines marked `# wrong: CODE`, each
+1. `mypy --strict` accepts the package's own modules (`-p drivenshape`: __init__.py, usd.py,
+   qc.py, with the stubs _drivenshape.pyi), with no error at all;
+2. `mypy --strict` accepts typing_example.py, which uses the main API;
+3. mypy rejects typing_wrong.py with an error on exactly the lines marked `# wrong: CODE`, each
    with that error code, and on no other line (so a stub that says `typing.Any` fails here);
-3. typing_example.py runs on the sleeve sample (the types describe working code).
+4. typing_example.py runs on the sleeve sample (the types describe working code).
+
+Every mypy run reads the repository's pyproject.toml ([tool.mypy]: usd-core's `pxr` is untyped).
 
   check_typing.py --data tests/data/sleeve --work FOLDER [--mypy-path build/python]
 
@@ -24,20 +28,33 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 EXAMPLE = HERE / "typing_example.py"
 WRONG = HERE / "typing_wrong.py"
+CONFIG = HERE.parents[1] / "pyproject.toml"
 ERROR_LINE = re.compile(r"^(?P<file>[^:]+):(?P<line>\d+): error: .*\[(?P<code>[a-z-]+)\]$")
 
 
-def mypy(files, work, mypy_path, strict):
+def mypy(targets, work, mypy_path, strict):
+    """mypy's exit status and output on `targets` (files, or `-p PACKAGE`)."""
     env = dict(os.environ)
     env.pop("MYPYPATH", None)
     if mypy_path:
         env["MYPYPATH"] = str(mypy_path)
-    command = [sys.executable, "-m", "mypy", "--cache-dir", str(work / "mypy_cache"),
-               "--no-error-summary", "--show-error-codes", "--no-pretty"]
+    command = [sys.executable, "-m", "mypy", "--config-file", str(CONFIG), "--cache-dir",
+               str(work / "mypy_cache"), "--no-error-summary", "--show-error-codes",
+               "--no-pretty"]
     command += ["--strict"] if strict else []
-    result = subprocess.run(command + [str(f) for f in files], capture_output=True, text=True,
-                            env=env, cwd=work)
+    result = subprocess.run(command + [str(t) for t in targets], capture_output=True,
+                            text=True, env=env, cwd=work)
     return result.returncode, result.stdout + result.stderr
+
+
+def check_package(work, mypy_path):
+    """The package's own Python (evaluate_cache, drivenshape.usd, drivenshape.qc) is annotated
+    and checks under --strict against the stubs: any error fails."""
+    status, output = mypy(["-p", "drivenshape"], work, mypy_path, strict=True)
+    if status != 0 or output.strip():
+        sys.exit(f"check_typing: mypy --strict rejects the package drivenshape ({status}):\n"
+                 f"{output}")
+    print("check_typing: mypy --strict accepts the package drivenshape (__init__, usd, qc)")
 
 
 def check_example(work, mypy_path):
@@ -90,6 +107,7 @@ def main():
     args = parser.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     work = args.work.resolve()
+    check_package(work, args.mypy_path and args.mypy_path.resolve())
     check_example(work, args.mypy_path and args.mypy_path.resolve())
     check_wrong(work, args.mypy_path and args.mypy_path.resolve())
     run_example(args.data.resolve(), work)

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """The module's main API as a typed program: `mypy --strict` must accept it against the shipped
-stubs (the CTest python_typing, and python_wheel against the installed package), and it runs on
-the bundled sleeve sample, so the types describe code that works.
+stubs and the annotations of drivenshape.usd (the CTest python_typing, and python_wheel against
+the installed package), and it runs on the bundled sleeve sample, so the types describe code
+that works.
 
   python tests/python/typing_example.py tests/data/sleeve OUT_FOLDER
 """
@@ -15,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 import drivenshape as ds
+from drivenshape import usd
 
 
 def build(data: Path, out: Path) -> ds.Database:
@@ -77,10 +79,22 @@ def write_and_read(database: ds.Database, cloth: npt.NDArray[np.float32], frames
     assert positions.shape == cloth.shape and triangles.shape[1] == 3
 
 
+def usd_round_trip(database: ds.Database, cloth: npt.NDArray[np.float32], frames: list[int],
+                   out: Path) -> None:
+    """The cloth as a USD mesh (drivenshape.usd), read back exactly."""
+    usd.write_mesh_usd(out / "cloth.usda", database.driven_mesh, frames, cloth, fps=24.0,
+                       provenance={"tool_version": ds.__version__})
+    shot: usd.MeshAnimation = usd.read_mesh_animation(out / "cloth.usda", "/Garment/Mesh")
+    usd.check_driver(shot, database.driven_mesh)  # the driven mesh's faces, as written
+    assert shot.frames == frames and np.array_equal(shot.positions, cloth)
+    assert shot.cache().read_frames(frames).shape == cloth.shape
+
+
 def main(data: Path, out: Path) -> None:
     database = build(data, out)
     cloth, frames = evaluate(database, data)
     write_and_read(database, cloth, frames, out)
+    usd_round_trip(database, cloth, frames, out)
     print(f"typing_example: {len(frames)} frames of {database.driven_vertex_count} vertices")
 
 

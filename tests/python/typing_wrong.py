@@ -3,7 +3,8 @@
 this file and passes only when mypy reports an error on exactly the lines marked
 `# wrong: CODE` (CODE being mypy's error code), and on no other line. Never run.
 
-Without the stubs (every binding `typing.Any`) none of these would be seen.
+Without the stubs (every binding `typing.Any`) none of these would be seen, nor the wrong uses
+of drivenshape.usd and drivenshape.qc without their annotations.
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import drivenshape as ds
+from drivenshape import qc, usd
 
 
 def wrong(data: Path) -> None:
@@ -33,3 +35,17 @@ def wrong(data: Path) -> None:
     ds.read_point_cache_exr(data / "out.exr")[1].shape  # wrong: attr-defined
     frames: list[int] = ds.open_point_cache(data / "x.pc2").frame  # wrong: attr-defined
     np.float32(start + rate)
+
+
+def wrong_usd_qc(data: Path, database: ds.Database) -> None:
+    shot = usd.read_mesh_animation(data / "shot.usda", "/Arm", frames="1-10")  # wrong: arg-type
+    count: str = shot.vertex_count  # wrong: assignment
+    usd.write_mesh_usd(data / "cloth.usda", database.driven_mesh, shot.frames, shot.positions,
+                       fps="24")  # wrong: arg-type
+    no_indices = {"counts": [3]}
+    usd.write_mesh_usd(data / "cloth.usda", no_indices, [1], shot.positions)  # wrong: arg-type
+    summary = usd.bake(database, shot, data / "cloth.usdc", device=0)  # wrong: arg-type
+    summary["record"]  # wrong: typeddict-item
+    usd.export(database.driven_mesh, data / "cloth.usda", pc2=data / "x.pc2",
+               fps="24")  # wrong: arg-type
+    status: str = qc.main(["--report", "cloth.report.json", "-o", "qc"])  # wrong: assignment

@@ -27,6 +27,8 @@ existing DIR is replaced only if it holds an earlier QC page. Needs numpy and ma
 (scripts/requirements.txt). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
 """
 
+from __future__ import annotations
+
 import argparse
 import datetime
 import html
@@ -35,21 +37,48 @@ import os
 import shutil
 import sys
 import tempfile
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Optional, TypedDict
 
 import numpy as np
+import numpy.typing as npt
 
-from . import Error, format_frame_range, open_point_cache, read_obj
+from . import Error, Mesh, PointCache, format_frame_range, open_point_cache, read_obj
 
-EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 2, 3, 4
-GENERATOR = "drivenshape qc"
-WORST_FRAMES = 5
-FRAMES_PER_READ = 32
+if TYPE_CHECKING:  # matplotlib is imported where the plots are drawn, not with the module
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+EXIT_USAGE: int = 2
+EXIT_INPUT: int = 3
+EXIT_OUTPUT: int = 4
+GENERATOR: str = "drivenshape qc"
+WORST_FRAMES: int = 5
+FRAMES_PER_READ: int = 32
 # Relative tolerance of the per-frame mean error computed here against the eval JSON's (both
 # are means of float32 distances; a larger gap means the caches are not the ones eval compared).
-EVAL_MATCH_TOLERANCE = 1e-3
+EVAL_MATCH_TOLERANCE: float = 1e-3
+
+# The types of the signatures below.
+_Json = dict[str, Any]  # a JSON object: a bake report, an eval JSON, one of their records
+_ErrorFrames = dict[int, tuple[float, float]]  # {frame: (mean, max)} distance to the truth
+_Float64Array = npt.NDArray[np.float64]
+_FrameArray = npt.NDArray[Any]  # frame numbers: integers (float64 when empty)
+
+
+class _VertexErrors(TypedDict):
+    """vertex_errors(): the caches' distance per vertex and per frame."""
+
+    mesh: Mesh
+    mean: _Float64Array  # (V,) mean over the frames
+    per_frame: dict[int, tuple[float, float, int]]  # {frame: (mean, max, argmax)}
+    truth: str
+    bake: str
+    frames: list[int]
+
 
 # What each value of the report's settings.weights means, for the page's first lines.
-MODELS = {
+MODELS: dict[str, tuple[str, str]] = {
     "model": ("the pose model",
               "the rest binding plus the pose model's learned correction (the default, "
               "<code>--weights auto</code> on a database with a pose model)"),
@@ -63,11 +92,12 @@ MODELS = {
              "a baseline: the rest cloth bound to the rest driver and carried along, like "
              "Point Deform; nothing is solved (<code>--weights bind</code>)"),
 }
-SOLVING_MODELS = ("qp", "nearest")  # the models with weights and a residual per frame
+# The models with weights and a residual per frame.
+SOLVING_MODELS: tuple[str, ...] = ("qp", "nearest")
 
 
 class QcError(Exception):
-    def __init__(self, code, message):
+    def __init__(self, code: int, message: str) -> None:
         super().__init__(message)
         self.code = code
 
@@ -76,42 +106,42 @@ class Units:
     """Lengths as the page shows them: mm with one decimal (the truth's own spread is several
     mm), or scene units with 4 significant digits (--units scene)."""
 
-    SCALES = {"m": 1000.0, "cm": 10.0, "mm": 1.0}
+    SCALES: ClassVar[dict[str, float]] = {"m": 1000.0, "cm": 10.0, "mm": 1.0}
 
-    def __init__(self, name):
+    def __init__(self, name: str) -> None:
         self.scale = self.SCALES.get(name, 1.0)
         self.unit = "mm" if name in self.SCALES else "scene units"
 
-    def value(self, length):
+    def value(self, length: Optional[float]) -> Optional[float]:
         return None if length is None else length * self.scale
 
-    def text(self, length):
+    def text(self, length: Optional[float]) -> str:
         if length is None:
             return "-"
         if self.unit == "mm":
             return f"{length * self.scale:.1f}"
         return f"{length:.4g}"
 
-    def with_unit(self, length):
+    def with_unit(self, length: Optional[float]) -> str:
         return f"{self.text(length)} {self.unit}"
 
 
-def ratio_text(value):
+def ratio_text(value: Optional[float]) -> str:
     """A relative figure (residual, weight ratio): 3 significant digits."""
     return "-" if value is None else f"{value:.3g}"
 
 
-def count_text(value):
+def count_text(value: Optional[float]) -> str:
     return "-" if value is None else str(int(value))
 
 
-def percent_text(fraction):
+def percent_text(fraction: float) -> str:
     return f"{100.0 * fraction:.0f}%"
 
 
 # ---- inputs ----------------------------------------------------------------------------------
 
-def load_json(path, what):
+def load_json(path: str, what: str) -> Any:
     try:
         with open(path, encoding="utf-8") as stream:
             return json.load(stream)
@@ -125,18 +155,18 @@ def load_json(path, what):
         raise QcError(EXIT_INPUT, f"{what} '{path}' is not valid JSON: {error}")
 
 
-def require(condition, path, message):
+def require(condition: object, path: str, message: str) -> None:
     if not condition:
         raise QcError(EXIT_INPUT, f"'{path}': {message}")
 
 
-def is_number(value):
+def is_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def load_report(path):
+def load_report(path: str) -> _Json:
     """A bake report (docs/schemas/bake_report.schema.json), checked for what the page reads."""
-    report = load_json(path, "bake report")
+    report: _Json = load_json(path, "bake report")  # checked next
     require(isinstance(report, dict) and isinstance(report.get("frames"), list), path,
             "not a drivenshape bake report (no 'frames' list)")
     for key in ("database", "settings"):
@@ -167,7 +197,7 @@ def load_report(path):
     return report
 
 
-def check_weights(record, shape_count, path):
+def check_weights(record: _Json, shape_count: object, path: str) -> None:
     """A frame's weights: k numbers, or one list of k per region."""
     weights = record["weights"]
     rows = weights if weights and isinstance(weights[0], list) else [weights]
@@ -178,11 +208,11 @@ def check_weights(record, shape_count, path):
                 "database's shape_count) per region")
 
 
-def merge_reports(paths):
+def merge_reports(paths: Sequence[str]) -> _Json:
     """One report from farm chunks: the same database and settings, frames in order."""
     reports = [load_report(path) for path in paths]
     first = reports[0]
-    frames = {}
+    frames: dict[int, _Json] = {}
     for path, report in zip(paths, reports):
         require(report.get("settings_hash") == first.get("settings_hash"), path,
                 f"settings_hash {report.get('settings_hash')} differs from "
@@ -205,8 +235,8 @@ def merge_reports(paths):
     return merged
 
 
-def load_eval(path):
-    data = load_json(path, "eval JSON")
+def load_eval(path: str) -> _Json:
+    data: _Json = load_json(path, "eval JSON")  # checked next
     require(isinstance(data, dict) and isinstance(data.get("frames"), list), path,
             "not the JSON of `drivenshape eval --json` (no 'frames' list)")
     for index, record in enumerate(data["frames"]):
@@ -224,10 +254,12 @@ class Coverage:
     """The pose model's prediction per baked frame and the shot's verdict, from the frames
     (so merged farm chunks get one verdict over all of them)."""
 
-    def __init__(self, report):
-        self.tolerance = report["settings"].get("coverage_tolerance")
-        self.predicted = {}  # frame -> predicted mean vertex error (scene units)
-        self.flagged = []
+    def __init__(self, report: _Json) -> None:
+        # A number when any frame was predicted (load_report checks it): read only then.
+        self.tolerance: float = report["settings"].get("coverage_tolerance")
+        # frame -> predicted mean vertex error (scene units)
+        self.predicted: dict[int, float] = {}
+        self.flagged: list[int] = []
         for record in report["frames"]:
             if record.get("skipped") or not is_number(record.get("predicted_error")):
                 continue
@@ -235,18 +267,19 @@ class Coverage:
             if record["coverage"]["flagged"]:
                 self.flagged.append(record["frame"])
 
-    def __bool__(self):
+    def __bool__(self) -> bool:
         return bool(self.predicted)
 
     @property
-    def covered_fraction(self):
+    def covered_fraction(self) -> float:
         return 1.0 - len(self.flagged) / len(self.predicted)
 
     @property
-    def enough(self):
+    def enough(self) -> bool:
         return not self.flagged
 
-    def against_truth(self, error_frames):
+    def against_truth(self, error_frames: _ErrorFrames
+                      ) -> Optional[tuple[float, list[int]]]:
         """(true mean error of the frames judged enough, [enough frames whose true mean error
         is over the tolerance]) from the eval's per-frame errors; None without them."""
         enough = [f for f in sorted(self.predicted) if f not in self.flagged and f in error_frames]
@@ -255,7 +288,7 @@ class Coverage:
         true_error = mean_of([error_frames[f][0] for f in enough])
         return true_error, [f for f in enough if error_frames[f][0] > self.tolerance]
 
-    def verdict(self, units):
+    def verdict(self, units: Units) -> str:
         tolerance = units.with_unit(self.tolerance)
         if self.enough:
             return (f"DrivenShape is enough: all {len(self.predicted)} frames are predicted "
@@ -264,7 +297,7 @@ class Coverage:
                 f"{len(self.predicted)} frames are predicted over the {tolerance} tolerance")
 
 
-def open_cache(candidates, what, option):
+def open_cache(candidates: Iterable[str], what: str, option: str) -> tuple[PointCache, str]:
     """The first candidate path that opens as a point cache; an input error naming them all."""
     errors = []
     for path in dict.fromkeys(candidates):
@@ -276,7 +309,7 @@ def open_cache(candidates, what, option):
                               f"{option}")
 
 
-def beside(path, json_path):
+def beside(path: str, json_path: str) -> list[str]:
     """Candidates for a path a JSON names: as given, then its file name beside the JSON."""
     candidates = [path]
     if not os.path.isabs(path):
@@ -285,7 +318,8 @@ def beside(path, json_path):
     return candidates
 
 
-def vertex_errors(args, report, evaluation, frames):
+def vertex_errors(args: argparse.Namespace, report: _Json, evaluation: Optional[_Json],
+                  frames: list[int]) -> _VertexErrors:
     """Per-vertex mean error over `frames` and the per-frame mean/max/argmax, from the caches
     (read with the module's point-cache readers)."""
     if args.truth:
@@ -313,7 +347,7 @@ def vertex_errors(args, report, evaluation, frames):
             raise QcError(EXIT_INPUT, f"'{path}' holds {cache.vertex_count} vertices but the "
                                       f"mesh '{args.mesh}' has {mesh.vertex_count}")
     total = np.zeros(mesh.vertex_count)
-    per_frame = {}
+    per_frame: dict[int, tuple[float, float, int]] = {}
     for start in range(0, len(frames), FRAMES_PER_READ):
         chunk = frames[start:start + FRAMES_PER_READ]
         try:
@@ -329,7 +363,7 @@ def vertex_errors(args, report, evaluation, frames):
             "truth": truth_path, "bake": bake_path, "frames": frames}
 
 
-def check_against_eval(errors, evaluation, eval_path):
+def check_against_eval(errors: _VertexErrors, evaluation: _Json, eval_path: str) -> None:
     for record in evaluation["frames"]:
         mine = errors["per_frame"].get(record["frame"])
         if mine is None:
@@ -347,20 +381,21 @@ def check_against_eval(errors, evaluation, eval_path):
 
 # Every plot over time has the same width, axes margins (room on the right for the legend) and
 # frame range, so a frame sits at the same place in every plot down the page.
-FIGURE_WIDTH = 11.0
-MARGINS = {"left": 0.07, "right": 0.79}
-SHAPE_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
-                 "tab:pink", "tab:olive", "tab:cyan", "#393b79")
-OTHERS_COLOUR = "0.82"
-FLAG_COLOUR = "tab:red"
-MIN_SHOWN_WEIGHT = 0.01  # shapes whose weight never reaches it are summed into "others"
+FIGURE_WIDTH: float = 11.0
+MARGINS: dict[str, float] = {"left": 0.07, "right": 0.79}
+SHAPE_COLOURS: tuple[str, ...] = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple",
+                                  "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "#393b79")
+OTHERS_COLOUR: str = "0.82"
+FLAG_COLOUR: str = "tab:red"
+MIN_SHOWN_WEIGHT: float = 0.01  # shapes whose weight never reaches it are summed into "others"
 
 
 class Plots:
     """Writes the PNGs into one folder; each method returns the file name, or None when the
     inputs hold nothing to draw."""
 
-    def __init__(self, folder, frames, flagged, units):
+    def __init__(self, folder: str, frames: Sequence[int], flagged: list[int],
+                 units: Units) -> None:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
@@ -372,14 +407,14 @@ class Plots:
         self.flagged = flagged
         self.units = units
 
-    def figure(self, height, rows=1):
+    def figure(self, height: float, rows: int = 1) -> tuple[Figure, list[Axes]]:
         fig, axes = self.plt.subplots(rows, 1, figsize=(FIGURE_WIDTH, height), sharex=True,
                                       squeeze=False)
         top = 1.0 - 0.4 / height
         fig.subplots_adjust(bottom=0.5 / height, top=top, hspace=0.35, **MARGINS)
         return fig, list(axes[:, 0])
 
-    def dress(self, axes, ylabel, title):
+    def dress(self, axes: Axes, ylabel: str, title: str) -> None:
         """The common dressing of a plot over frames; frames over the coverage tolerance are
         shaded."""
         for frame in self.flagged:
@@ -390,13 +425,14 @@ class Plots:
         if axes.get_legend_handles_labels()[0]:
             axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
 
-    def save(self, fig, axes, name):
+    def save(self, fig: Figure, axes: Axes, name: str) -> str:
         axes.set_xlabel("frame")
         fig.savefig(os.path.join(self.folder, name), dpi=100)
         self.plt.close(fig)
         return name
 
-    def coverage(self, coverage, error_frames):
+    def coverage(self, coverage: Optional[Coverage],
+                 error_frames: _ErrorFrames) -> Optional[str]:
         """The pose model's predicted error per frame, the tolerance as a line, the frames over
         it circled in red, and the true mean error when an eval gives it."""
         if not coverage:
@@ -425,7 +461,7 @@ class Plots:
                    "tolerance")
         return self.save(fig, axes, "coverage.png")
 
-    def weights(self, report, model):
+    def weights(self, report: _Json, model: str) -> Optional[str]:
         blocks = weight_blocks(report)
         if not blocks:
             return None
@@ -461,7 +497,7 @@ class Plots:
                        + (f"; {len(shown)} shown, the others summed)" if rest else ")"))
         return self.save(fig, axes_list[-1], "weights.png")
 
-    def residual(self, report, model):
+    def residual(self, report: _Json, model: str) -> Optional[str]:
         frames, values = records_series(report, "relative_residual_direct")
         if len(frames) == 0:
             return None
@@ -479,7 +515,7 @@ class Plots:
         self.dress(axes, "relative residual", title)
         return self.save(fig, axes, "residual.png")
 
-    def audit(self, report):
+    def audit(self, report: _Json) -> Optional[str]:
         fig, (axes,) = self.figure(3.2)
         drawn = False
         for key, label, colour, style in AUDIT_SERIES:
@@ -501,7 +537,7 @@ class Plots:
         self.dress(axes, "vertices", "Cloth vertices inside the driver, and vertices resolved")
         return self.save(fig, axes, "audit.png")
 
-    def jump(self, report, evaluation):
+    def jump(self, report: _Json, evaluation: Optional[_Json]) -> Optional[str]:
         frames, values = records_series(report, "max_jump")
         if len(frames) == 0:
             return None
@@ -520,7 +556,7 @@ class Plots:
                    "Largest vertex move from the previous frame (popping shows as spikes)")
         return self.save(fig, axes, "jump.png")
 
-    def error(self, error_frames, baseline):
+    def error(self, error_frames: _ErrorFrames, baseline: dict[int, float]) -> Optional[str]:
         if not error_frames:
             return None
         scale, unit = self.units.scale, self.units.unit
@@ -539,7 +575,7 @@ class Plots:
         self.dress(axes, f"error ({unit})", "Distance to the truth per frame")
         return self.save(fig, axes, "error.png")
 
-    def heat_map(self, errors, up_axis):
+    def heat_map(self, errors: _VertexErrors, up_axis: str) -> str:
         from matplotlib.colors import Normalize
         mesh = errors["mesh"]
         positions = np.asarray(mesh.positions, dtype=np.float64)
@@ -574,13 +610,14 @@ class Plots:
         fig.suptitle(f"Mean distance to the truth per vertex over {len(errors['frames'])} "
                      "frames, on the rest mesh", x=0.02, ha="left")
         bar_axes = fig.add_axes((0.89, 0.1, 0.016, 0.75))
+        assert image is not None  # drawn in both views
         fig.colorbar(image, cax=bar_axes).set_label(f"mean error ({self.units.unit})")
         fig.savefig(os.path.join(self.folder, "heatmap.png"), dpi=100)
         self.plt.close(fig)
         return "heatmap.png"
 
 
-def weight_blocks(report):
+def weight_blocks(report: _Json) -> list[tuple[str, _FrameArray, _Float64Array]]:
     """[(title, frames, weights F x k)]: one block per region (one when no regions)."""
     records = [r for r in report["frames"] if not r.get("skipped") and r.get("weights")]
     if not records:
@@ -599,7 +636,7 @@ def weight_blocks(report):
     return [("", frames, np.array([r["weights"] for r in records], dtype=float))]
 
 
-def records_series(report, key):
+def records_series(report: _Json, key: str) -> tuple[_FrameArray, _Float64Array]:
     frames, values = [], []
     for record in report["frames"]:
         if not record.get("skipped") and is_number(record.get(key)):
@@ -608,12 +645,15 @@ def records_series(report, key):
     return np.array(frames), np.array(values, dtype=float)
 
 
-AUDIT_SERIES = (("inside_before", "inside before the correction", "tab:gray", "--"),
-                ("inside_corrected", "inside after the correction", "tab:orange", "-"),
-                ("inside_after", "inside after the resolution", "tab:red", "-"))
+# (report key, label, colour, line style) of the audit plot's series.
+AUDIT_SERIES: tuple[tuple[str, str, str, str], ...] = (
+    ("inside_before", "inside before the correction", "tab:gray", "--"),
+    ("inside_corrected", "inside after the correction", "tab:orange", "-"),
+    ("inside_after", "inside after the resolution", "tab:red", "-"))
 
 
-def view_axes(positions, up_axis):
+def view_axes(positions: _Float64Array, up_axis: str
+              ) -> list[tuple[str, _Float64Array, _Float64Array, _Float64Array]]:
     """Two opposite views along the thinner horizontal axis: [(label, right, up, toward)]."""
     up = "XYZ".index(up_axis)
     horizontal = [a for a in range(3) if a != up]
@@ -630,7 +670,7 @@ def view_axes(positions, up_axis):
 
 # ---- page ------------------------------------------------------------------------------------
 
-CSS = """
+CSS: str = """
 body { font-family: "DejaVu Sans", Arial, sans-serif; margin: 24px auto; max-width: 1180px;
        color: #222; background: #fff; line-height: 1.4; }
 h1 { font-size: 24px; margin-bottom: 4px; }
@@ -654,20 +694,20 @@ code { background: #f4f4f4; padding: 0 3px; }
 """
 
 
-def frame_link(frame):
+def frame_link(frame: Optional[int]) -> str:
     return f'<a href="#frame-{frame}">{frame}</a>' if frame is not None else "-"
 
 
 class Summary:
     """Rows of the summary table: a stable key (data-key, for tools), label, value, detail."""
 
-    def __init__(self):
-        self.rows = []
+    def __init__(self) -> None:
+        self.rows: list[tuple[str, str, str, str]] = []
 
-    def add(self, key, label, value, detail=""):
+    def add(self, key: str, label: str, value: str, detail: str = "") -> None:
         self.rows.append((key, label, value, detail))
 
-    def html(self):
+    def html(self) -> str:
         lines = ["<table id=\"summary\"><tr><th>figure</th><th>value</th><th>where</th></tr>"]
         for key, label, value, detail in self.rows:
             lines.append(f'<tr><td>{html.escape(label)}</td><td class="num" data-key="{key}">'
@@ -676,20 +716,22 @@ class Summary:
         return "\n".join(lines)
 
 
-def worst(pairs):
+def worst(pairs: Iterable[tuple[int, float]]) -> tuple[Optional[float], Optional[int]]:
     """(value, frame) of the largest value, the earliest frame on ties; (None, None) if none."""
-    best = (None, None)
+    best: tuple[Optional[float], Optional[int]] = (None, None)
     for frame, value in pairs:
         if best[0] is None or value > best[0]:
             best = (value, frame)
     return best
 
 
-def mean_of(values):
+def mean_of(values: Sequence[float]) -> float:
     return sum(values) / len(values)
 
 
-def summary_rows(report, model, coverage, evaluation, errors, error_frames, units):
+def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
+                 evaluation: Optional[_Json], errors: Optional[_VertexErrors],
+                 error_frames: _ErrorFrames, units: Units) -> Summary:
     unit = units.unit
     summary = Summary()
     summary.add("model", "made by", MODELS[model][0], f"<code>--weights {model}</code>")
@@ -706,7 +748,7 @@ def summary_rows(report, model, coverage, evaluation, errors, error_frames, unit
         summary.add("seconds", "bake seconds", f"{total:.3g}",
                     f"{len(baked) / total:.3g} frames/s")
 
-    def series(key):
+    def series(key: str) -> list[tuple[int, Any]]:
         return [(r["frame"], r[key]) for r in baked if is_number(r.get(key))]
 
     if coverage:
@@ -797,10 +839,11 @@ def summary_rows(report, model, coverage, evaluation, errors, error_frames, unit
     return summary
 
 
-def worst_frames(report, model, coverage, error_frames):
+def worst_frames(report: _Json, model: str, coverage: Optional[Coverage],
+                 error_frames: _ErrorFrames) -> tuple[str, list[int]]:
     """The frames to look at first: by max error when known, else by the model's own measure
     (predicted error, residual), else by the largest jump."""
-    def ranked(pairs):
+    def ranked(pairs: Iterable[tuple[int, float]]) -> list[int]:
         return [f for f, _ in sorted(pairs, key=lambda p: (-p[1], p[0]))[:WORST_FRAMES]]
 
     if error_frames:
@@ -814,7 +857,7 @@ def worst_frames(report, model, coverage, error_frames):
     return "largest jump", ranked(zip(frames.tolist(), values.tolist()))
 
 
-def top_weights(record, db_frames):
+def top_weights(record: _Json, db_frames: Sequence[object]) -> str:
     weights = record.get("weights") or []
     if weights and isinstance(weights[0], list):
         return f"{len(weights)} regions"
@@ -828,13 +871,15 @@ def top_weights(record, db_frames):
     return ", ".join(parts)
 
 
-def frame_table(report, model, coverage, error_frames, units):
+def frame_table(report: _Json, model: str, coverage: Optional[Coverage],
+                error_frames: _ErrorFrames, units: Units) -> str:
     """One row per frame of the report (id frame-N, the target of the links above); each
     column's <th> has a data-key naming what it holds."""
     unit = units.unit
     db_frames = report["database"].get("frames") or []
     baked = [r for r in report["frames"] if not r.get("skipped")]
-    columns = []  # (key, header, cell(record) -> (class, html))
+    # (key, header, cell(record) -> (class, html)); the count columns' cells also take their key
+    columns: list[tuple[str, str, Callable[..., tuple[str, str]]]] = []
     if model in SOLVING_MODELS:
         columns.append(("weights", "largest weights (db frame: weight)",
                         lambda r: ("weights", html.escape(top_weights(r, db_frames)))))
@@ -874,11 +919,11 @@ def frame_table(report, model, coverage, error_frames, units):
     return "\n".join(lines)
 
 
-def on_off(value):
+def on_off(value: object) -> str:
     return "on" if value else "off"
 
 
-def settings_text(settings, units):
+def settings_text(settings: _Json, units: Units) -> str:
     """The settings a supervisor asks about, lengths in the page's unit."""
     parts = [f"weights {settings.get('weights')}"]
     if "align" in settings:
@@ -914,14 +959,14 @@ def settings_text(settings, units):
     return "; ".join(parts)
 
 
-def pose_model_text(pose, units):
+def pose_model_text(pose: _Json, units: Units) -> str:
     return (f"{pose.get('parts')} rigid parts, {pose.get('reference_frames')} reference frames, "
             f"rank {pose.get('rank')}; cross-validated mean vertex error over the reference "
             f"clip {units.with_unit(pose.get('cross_validation_error'))} (the rest binding "
             f"alone: {units.with_unit(pose.get('binding_error'))})")
 
 
-def shot_name(report):
+def shot_name(report: _Json) -> str:
     output = report.get("output") or ""
     name = os.path.basename(output)
     for token in ("####", "%04d", "$F4"):
@@ -929,7 +974,9 @@ def shot_name(report):
     return os.path.splitext(name)[0] or "bake"
 
 
-def header_html(args, report, evaluation, title, model, coverage, error_frames, units):
+def header_html(args: argparse.Namespace, report: _Json, evaluation: Optional[_Json], title: str,
+                model: str, coverage: Optional[Coverage], error_frames: _ErrorFrames,
+                units: Units) -> str:
     db = report["database"]
     settings = report["settings"]
     rows = [("shot", f"{report.get('output', '-')} (driver {report.get('driver_cache', '-')})"),
@@ -976,15 +1023,17 @@ def header_html(args, report, evaluation, title, model, coverage, error_frames, 
     return "\n".join(parts)
 
 
-def figure(name, alt, missing):
+def figure(name: Optional[str], alt: str, missing: str) -> str:
     if name is None:
         return f'<p class="sub">{html.escape(missing)}</p>'
     return f'<img src="{html.escape(name)}" alt="{html.escape(alt)}">'
 
 
-def error_frames_of(evaluation, errors):
+def error_frames_of(evaluation: Optional[_Json], errors: Optional[_VertexErrors]
+                    ) -> tuple[_ErrorFrames, dict[int, float]]:
     """{frame: (mean, max)} to the truth, and {frame: baseline mean}."""
-    error_frames, baseline = {}, {}
+    error_frames: _ErrorFrames = {}
+    baseline: dict[int, float] = {}
     if evaluation:
         for record in evaluation["frames"]:
             error_frames[record["frame"]] = (record["mean"], record["max"])
@@ -996,7 +1045,8 @@ def error_frames_of(evaluation, errors):
     return error_frames, baseline
 
 
-def coverage_section(parts, plots, model, coverage, error_frames, units):
+def coverage_section(parts: list[str], plots: Plots, model: str, coverage: Optional[Coverage],
+                     error_frames: _ErrorFrames, units: Units) -> None:
     parts.append('<h2 id="coverage">Coverage</h2>')
     if model != "model":
         parts.append(f'<p class="sub">No coverage verdict: {html.escape(MODELS[model][0])} '
@@ -1023,7 +1073,7 @@ def coverage_section(parts, plots, model, coverage, error_frames, units):
                         "predicted error per frame against the tolerance", ""))
 
 
-def solve_sections(parts, plots, report, model):
+def solve_sections(parts: list[str], plots: Plots, report: _Json, model: str) -> None:
     """Weights and residual: only where the model solves for them."""
     parts.append("<h2>Weights</h2>")
     if model not in SOLVING_MODELS:
@@ -1037,7 +1087,8 @@ def solve_sections(parts, plots, report, model):
                             "No frame was baked in this run."))
 
 
-def build_page(args, report, evaluation, errors, folder):
+def build_page(args: argparse.Namespace, report: _Json, evaluation: Optional[_Json],
+               errors: Optional[_VertexErrors], folder: str) -> None:
     units = Units(args.units)
     model = report["settings"]["weights"]
     coverage = Coverage(report) if model == "model" else None
@@ -1058,8 +1109,11 @@ def build_page(args, report, evaluation, errors, folder):
     coverage_section(parts, plots, model, coverage, error_frames, units)
     if args.eval or errors:
         parts.append("<h2>Error to the truth</h2>")
-        source = (f"from {args.eval}" if evaluation
-                  else f"computed from {errors['truth']} and {errors['bake']}")
+        if evaluation:
+            source = f"from {args.eval}"
+        else:
+            assert errors is not None  # without --eval, the caches gave the errors
+            source = f"computed from {errors['truth']} and {errors['bake']}"
         parts.append(f'<p class="sub">Per-vertex distance to the truth, {html.escape(source)}.'
                      "</p>")
         parts.append(figure(plots.error(error_frames, baseline),
@@ -1094,7 +1148,7 @@ def build_page(args, report, evaluation, errors, folder):
 
 # ---- output ----------------------------------------------------------------------------------
 
-def is_qc_report(folder):
+def is_qc_report(folder: str) -> bool:
     try:
         with open(os.path.join(folder, "index.html"), encoding="utf-8") as stream:
             head = stream.read(4096)
@@ -1104,7 +1158,8 @@ def is_qc_report(folder):
     return f'content="{GENERATOR}"' in head or 'content="drivenshape qc_report"' in head
 
 
-def write_report(args, report, evaluation, errors):
+def write_report(args: argparse.Namespace, report: _Json, evaluation: Optional[_Json],
+                 errors: Optional[_VertexErrors]) -> str:
     out = os.path.abspath(args.output)
     parent = os.path.dirname(out)
     if not os.path.isdir(parent):
@@ -1135,7 +1190,7 @@ def write_report(args, report, evaluation, errors):
     return os.path.join(out, "index.html")
 
 
-def parse_args(argv):
+def parse_args(argv: Optional[Sequence[str]]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="python -m drivenshape.qc",
         description="Write a QC page (DIR/index.html and PNG plots) for a drivenshape bake: "
@@ -1169,7 +1224,7 @@ def parse_args(argv):
     return args
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parse_args(argv)
     try:
         try:

@@ -35,32 +35,82 @@ points' own rotates them about X (Z up -> Y up: (x, y, z) -> (x, z, -y)), which 
 line).
 """
 
+from __future__ import annotations
+
 import argparse
 import os
 import re
 import sys
 import tempfile
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any, Optional, SupportsFloat, SupportsIndex, TypedDict, Union
 
 import numpy as np
+import numpy.typing as npt
 
-from . import Error, Mesh, PointCache, convert_up_axis
+from . import (Database, Device, Error, EvaluatorSettings, FrameRecord, Mesh, PointCache,
+               convert_up_axis)
 
-EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT = 0, 2, 3, 4
-_CODES = {"usage": EXIT_USAGE, "input": EXIT_INPUT, "output": EXIT_OUTPUT}
+EXIT_OK: int = 0
+EXIT_USAGE: int = 2
+EXIT_INPUT: int = 3
+EXIT_OUTPUT: int = 4
+_CODES: dict[str, int] = {"usage": EXIT_USAGE, "input": EXIT_INPUT, "output": EXIT_OUTPUT}
 
 #: Scene conventions of drivenshape's data (Blender: Z up, metres) when a stage says nothing.
-DEFAULT_UP_AXIS = "Z"
-DEFAULT_METERS_PER_UNIT = 1.0
+DEFAULT_UP_AXIS: str = "Z"
+DEFAULT_METERS_PER_UNIT: float = 1.0
+
+# The types of the signatures below. usd-core's `pxr` ships no type information (no stubs, no
+# py.typed marker): its modules and the objects they return are Any here.
+_Path = Union[str, "os.PathLike[str]"]
+_TimeCode = Union[SupportsFloat, SupportsIndex]  # a USD time code: a frame number, maybe fractional
+_Float32Array = npt.NDArray[np.float32]
+_Int32Array = npt.NDArray[np.int32]
+_UVs = tuple[npt.ArrayLike, npt.ArrayLike]  # (uv values (U, 2), one uv id per face corner)
+_Pxr = tuple[Any, Any, Any, Any]  # (Sdf, Usd, UsdGeom, Vt)
 
 
-def _error(kind, message):
+class _MeshTopology(TypedDict):
+    counts: npt.ArrayLike  # vertices per face
+    indices: npt.ArrayLike  # the faces' vertex ids, concatenated
+
+
+class MeshArrays(_MeshTopology, total=False):
+    """write_mesh_usd's mesh as plain arrays: `counts` and `indices` (required), `uvs` (a pair
+    of uv values and uv ids per face corner, or None) and `groups` ({name: face ids})."""
+
+    uvs: Optional[_UVs]
+    groups: Mapping[str, Iterable[int]]
+
+
+class ExportSummary(TypedDict):
+    """What export() returns."""
+
+    frames: list[SupportsIndex]
+    vertices: int
+    fps: float
+
+
+class BakeSummary(TypedDict):
+    """What bake() returns."""
+
+    frames: list[int]
+    device: str
+    seconds: dict[str, float]
+    records: list[FrameRecord]
+    note: str
+
+
+def _error(kind: str, message: str) -> Error:
     error = Error(message)
-    error.kind = kind
-    error.code = _CODES[kind]
+    # The stubs declare kind and code as the class's defaults (ClassVar); an instance gets its own.
+    error.kind = kind  # type: ignore[misc]
+    error.code = _CODES[kind]  # type: ignore[misc]
     return error
 
 
-def _pxr():
+def _pxr() -> _Pxr:
     try:
         from pxr import Sdf, Usd, UsdGeom, Vt
     except ImportError as error:
@@ -79,8 +129,9 @@ class MeshAnimation:
     time_codes_per_second: the stage's.
     """
 
-    def __init__(self, path, prim_path, frames, positions, face_counts, face_indices, up_axis,
-                 meters_per_unit, time_codes_per_second):
+    def __init__(self, path: str, prim_path: str, frames: list[int], positions: _Float32Array,
+                 face_counts: _Int32Array, face_indices: _Int32Array, up_axis: Optional[str],
+                 meters_per_unit: Optional[float], time_codes_per_second: float) -> None:
         self.path = path
         self.prim_path = prim_path
         self.frames = frames
@@ -92,19 +143,21 @@ class MeshAnimation:
         self.time_codes_per_second = time_codes_per_second
 
     @property
-    def vertex_count(self):
-        return self.positions.shape[1]
+    def vertex_count(self) -> int:
+        return int(self.positions.shape[1])
 
-    def cache(self):
+    def cache(self) -> PointCache:
         """A drivenshape.PointCache over the positions (no copy)."""
         return PointCache.from_array(self.positions, frames=self.frames)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f"<MeshAnimation {self.path}:{self.prim_path}, {self.vertex_count} points, "
                 f"{len(self.frames)} frames>")
 
 
-def read_mesh_animation(path, prim_path, frames=None, space="local"):
+def read_mesh_animation(path: _Path, prim_path: str,
+                        frames: Optional[Iterable[SupportsIndex]] = None,
+                        space: str = "local") -> MeshAnimation:
     """Reads the points of the UsdGeomMesh at `prim_path` at every whole-frame time sample (or
     at `frames`, each of which must be a time sample: nothing is interpolated). space 'local'
     reads the points as authored; 'world' applies the prim's local-to-world transform per frame
@@ -142,38 +195,39 @@ def read_mesh_animation(path, prim_path, frames=None, space="local"):
             raise _error("input", f"{path}: {prim_path}.points has no time samples at whole "
                                   f"frames ({len(samples)} samples); drivenshape needs one per "
                                   "frame")
-        frames = whole
+        read = whole
     else:
-        frames = [int(f) for f in frames]
+        read = [int(f) for f in frames]
         have = set(whole)
-        missing = [f for f in frames if f not in have]
+        missing = [f for f in read if f not in have]
         if missing:
             raise _error("input", f"{path}: {prim_path}.points has no time sample at frame "
-                                  f"{missing[0]} ({len(missing)} of the {len(frames)} frames "
+                                  f"{missing[0]} ({len(missing)} of the {len(read)} frames "
                                   f"asked are missing; the samples cover "
                                   f"{_frame_text(whole)}); nothing is interpolated")
-    if not frames:
+    if not read:
         raise _error("usage", "no frames to read")
     counts = mesh.GetFaceVertexCountsAttr().Get()
     indices = mesh.GetFaceVertexIndicesAttr().Get()
     counts = np.asarray(counts if counts is not None else [], dtype=np.int32)
     indices = np.asarray(indices if indices is not None else [], dtype=np.int32)
-    positions = None
+    positions: Optional[_Float32Array] = None
     cache = UsdGeom.XformCache()
-    for index, frame in enumerate(frames):
+    for index, frame in enumerate(read):
         value = points.Get(float(frame))
         xyz = np.asarray(value if value is not None else [], dtype=np.float32).reshape(-1, 3)
         if positions is None:
-            positions = np.empty((len(frames), len(xyz), 3), dtype=np.float32)
+            positions = np.empty((len(read), len(xyz), 3), dtype=np.float32)
         elif len(xyz) != positions.shape[1]:
             raise _error("input", f"{path}: {prim_path}.points has {len(xyz)} points at frame "
-                                  f"{frame} but {positions.shape[1]} at frame {frames[0]}; the "
+                                  f"{frame} but {positions.shape[1]} at frame {read[0]}; the "
                                   "topology must not change over the shot")
         if space == "world":
             cache.SetTime(float(frame))
             matrix = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)
             xyz = (xyz.astype(np.float64) @ matrix[:3, :3] + matrix[3, :3]).astype(np.float32)
         positions[index] = xyz
+    assert positions is not None  # `read` is not empty
     if positions.shape[1] == 0:
         raise _error("input", f"{path}: {prim_path} has no points")
     up_axis = None
@@ -182,11 +236,11 @@ def read_mesh_animation(path, prim_path, frames=None, space="local"):
     meters = None
     if stage.HasAuthoredMetadata("metersPerUnit"):
         meters = float(UsdGeom.GetStageMetersPerUnit(stage))
-    return MeshAnimation(path, prim_path, frames, positions, counts, indices, up_axis, meters,
+    return MeshAnimation(path, prim_path, read, positions, counts, indices, up_axis, meters,
                          float(stage.GetTimeCodesPerSecond()))
 
 
-def check_driver(animation, mesh):
+def check_driver(animation: MeshAnimation, mesh: Mesh) -> None:
     """Raises drivenshape.Error (kind 'input') unless the animation's prim has the vertex count
     and the faces of `mesh` (the database's driver mesh), saying what differs."""
     where = f"{animation.path}: {animation.prim_path}"
@@ -213,7 +267,7 @@ def check_driver(animation, mesh):
                               f"{mesh.face_vertices[corner]}); the vertex order differs")
 
 
-def _frame_text(frames):
+def _frame_text(frames: list[int]) -> str:
     if not frames:
         return "no frames"
     return f"{frames[0]}-{frames[-1]} ({len(frames)} frames)"
@@ -221,7 +275,8 @@ def _frame_text(frames):
 
 # ---- Writing -------------------------------------------------------------------------------
 
-def _mesh_arrays(mesh):
+def _mesh_arrays(mesh: Union[Mesh, MeshArrays]
+                 ) -> tuple[_Int32Array, _Int32Array, Optional[_UVs], Mapping[str, Iterable[int]]]:
     """(face counts, face indices, (uv values, uv indices) or None, {group: [faces]})."""
     if isinstance(mesh, Mesh):
         counts = np.diff(mesh.face_start).astype(np.int32)
@@ -229,7 +284,7 @@ def _mesh_arrays(mesh):
         uvs = None
         if mesh.has_uvs and len(mesh.face_uvs) and mesh.face_uvs.min() >= 0:
             uvs = (np.ascontiguousarray(mesh.uvs), np.ascontiguousarray(mesh.face_uvs))
-        groups = {}
+        groups: dict[str, list[int]] = {}
         for face, group in enumerate(mesh.face_groups.tolist()):
             groups.setdefault(mesh.group_names[group], []).append(face)
         return counts, indices, uvs, groups
@@ -238,13 +293,13 @@ def _mesh_arrays(mesh):
             mesh.get("uvs"), mesh.get("groups", {}))
 
 
-def _check_prim_path(prim_path):
+def _check_prim_path(prim_path: str) -> None:
     Sdf = _pxr()[0]
     if not prim_path.startswith("/") or not Sdf.Path.IsValidPathString(prim_path):
         raise _error("usage", f"'{prim_path}' is not an absolute prim path")
 
 
-def _check_output(path):
+def _check_output(path: _Path) -> tuple[str, str]:
     """(extension, folder) of an output stage; Error unless both are usable."""
     path = os.fspath(path)
     extension = os.path.splitext(path)[1].lower()
@@ -256,7 +311,8 @@ def _check_output(path):
     return extension, folder
 
 
-def vertex_normals(positions, counts, indices):
+def vertex_normals(positions: npt.ArrayLike, counts: npt.ArrayLike,
+                   indices: npt.ArrayLike) -> _Float32Array:
     """Unit vertex normals (F, V, 3) float32 of points (F, V, 3) on polygons (`counts` vertices
     each, `indices` flattened): the area-weighted sum of the normals of the fan triangles
     around each vertex, right-handed (counter-clockwise faces point at the viewer). A vertex no
@@ -279,11 +335,13 @@ def vertex_normals(positions, counts, indices):
                 np.bincount(triangles[:, corner], weights=face[:, axis], minlength=vertex_count)
                 for corner in range(3))
     length = np.linalg.norm(normals, axis=2, keepdims=True)
-    return np.divide(normals, length, out=np.zeros_like(normals),
-                     where=length > 0).astype(np.float32)
+    unit: _Float32Array = np.divide(normals, length, out=np.zeros_like(normals),
+                                    where=length > 0).astype(np.float32)
+    return unit
 
 
-def point_velocities(positions, frames, fps):
+def point_velocities(positions: npt.ArrayLike, frames: npt.ArrayLike,
+                     fps: float) -> _Float32Array:
     """Velocities (F, V, 3) float32 in stage units per second of points (F, V, 3) at time codes
     `frames` (timeCodesPerSecond `fps`): central differences between the neighbouring samples,
     one-sided at the first and last; zero for a single sample. What renderers use for motion
@@ -295,12 +353,17 @@ def point_velocities(positions, frames, fps):
     after = np.minimum(np.arange(len(positions)) + 1, len(positions) - 1)
     before = np.maximum(np.arange(len(positions)) - 1, 0)
     step = (seconds[after] - seconds[before])[:, np.newaxis, np.newaxis]
-    return ((positions[after] - positions[before]) / step).astype(np.float32)
+    velocities: _Float32Array = ((positions[after] - positions[before]) / step).astype(np.float32)
+    return velocities
 
 
-def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", fps=24.0,
-                   up_axis=DEFAULT_UP_AXIS, meters_per_unit=DEFAULT_METERS_PER_UNIT,
-                   points_up_axis=None, normals=True, velocities=True, provenance=None):
+def write_mesh_usd(path: _Path, mesh: Union[Mesh, MeshArrays], frames: Iterable[_TimeCode],
+                   positions: npt.ArrayLike, *, prim_path: str = "/Garment/Mesh",
+                   fps: float = 24.0, up_axis: str = DEFAULT_UP_AXIS,
+                   meters_per_unit: float = DEFAULT_METERS_PER_UNIT,
+                   points_up_axis: Optional[str] = None, normals: bool = True,
+                   velocities: bool = True,
+                   provenance: Optional[Mapping[str, str]] = None) -> None:
     """Writes a UsdGeomMesh at `prim_path` (its parent an Xform, the root the default prim)
     with points (F, V, 3) at time codes `frames` and their extent per sample, faces, UVs
     (primvars:st, face-varying) and face groups (UsdGeomSubsets, when there are several) of
@@ -324,19 +387,19 @@ def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", 
     positions = np.asarray(positions, dtype=np.float32)
     if positions.ndim == 2:
         positions = positions[np.newaxis]
-    frames = [float(f) for f in frames]
+    times = [float(f) for f in frames]
     vertex_count = int(indices.max()) + 1 if len(indices) else 0
-    if positions.ndim != 3 or positions.shape[2] != 3 or len(frames) != len(positions):
-        raise _error("usage", f"positions {positions.shape} do not match {len(frames)} frames "
+    if positions.ndim != 3 or positions.shape[2] != 3 or len(times) != len(positions):
+        raise _error("usage", f"positions {positions.shape} do not match {len(times)} frames "
                               "of (vertices, 3)")
     if positions.shape[1] < vertex_count:
         raise _error("input", f"positions hold {positions.shape[1]} points but the faces use "
                               f"{vertex_count} vertices")
-    if not frames:
+    if not times:
         raise _error("usage", "no frames to write")
     if not np.isfinite(positions).all():
         frame, vertex = np.argwhere(~np.isfinite(positions))[0][:2]
-        raise _error("input", f"the positions of frame {frames[frame]:g} vertex {vertex} are "
+        raise _error("input", f"the positions of frame {times[frame]:g} vertex {vertex} are "
                               "not finite")
     if up_axis not in ("Y", "Z"):
         raise _error("usage", f"up axis '{up_axis}' is not Y or Z")
@@ -359,8 +422,8 @@ def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", 
         stage = Usd.Stage.CreateNew(temp)
         UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
         UsdGeom.SetStageMetersPerUnit(stage, float(meters_per_unit))
-        stage.SetStartTimeCode(min(frames))
-        stage.SetEndTimeCode(max(frames))
+        stage.SetStartTimeCode(min(times))
+        stage.SetEndTimeCode(max(times))
         stage.SetTimeCodesPerSecond(float(fps))
         stage.SetFramesPerSecond(float(fps))
         names = prim_path.strip("/").split("/")
@@ -375,11 +438,11 @@ def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", 
         Usd.ModelAPI(stage.GetPrimAtPath("/" + names[0])).SetKind("component")
         points = geom.CreatePointsAttr()
         extent = geom.CreateExtentAttr()
-        for frame, xyz in zip(frames, positions):
+        for frame, xyz in zip(times, positions):
             points.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(xyz)), frame)
             bounds = np.stack([xyz.min(axis=0), xyz.max(axis=0)])
             extent.Set(Vt.Vec3fArray.FromNumpy(bounds), frame)
-        _write_motion(geom, Vt, frames, positions, counts, indices, fps, normals, velocities)
+        _write_motion(geom, Vt, times, positions, counts, indices, fps, normals, velocities)
         if provenance:
             geom.GetPrim().SetCustomDataByKey(
                 "drivenshape", {str(k): str(v) for k, v in provenance.items()})
@@ -408,7 +471,9 @@ def write_mesh_usd(path, mesh, frames, positions, *, prim_path="/Garment/Mesh", 
             os.remove(temp)
 
 
-def _write_motion(geom, Vt, frames, positions, counts, indices, fps, normals, velocities):
+def _write_motion(geom: Any, Vt: Any, frames: list[float], positions: _Float32Array,
+                  counts: _Int32Array, indices: _Int32Array, fps: float, normals: bool,
+                  velocities: bool) -> None:
     """The per-sample normals and velocities write_mesh_usd adds to `geom`."""
     if normals:
         attribute = geom.CreateNormalsAttr()
@@ -423,8 +488,10 @@ def _write_motion(geom, Vt, frames, positions, counts, indices, fps, normals, ve
 
 # ---- The export command --------------------------------------------------------------------
 
-def export(mesh, out_path, *, exr=None, frames=None, pc2=None, fps=None,
-           prim_path="/Garment/Mesh", up_axis=DEFAULT_UP_AXIS):
+def export(mesh: Union[Mesh, _Path], out_path: _Path, *, exr: Optional[str] = None,
+           frames: Union[str, Iterable[SupportsIndex], None] = None,
+           pc2: Optional[_Path] = None, fps: Optional[float] = None,
+           prim_path: str = "/Garment/Mesh", up_axis: str = DEFAULT_UP_AXIS) -> ExportSummary:
     """A drivenshape result on disk to USD: the faces, UVs and groups of `mesh` (the driven rest
     OBJ's path, or a drivenshape.Mesh) with the points of a point-cache EXR sequence `exr`
     (a pattern: ####, %04d, $F4; `frames` a range text or a list) or of a PC2 file `pc2` (every
@@ -449,6 +516,7 @@ def export(mesh, out_path, *, exr=None, frames=None, pc2=None, fps=None,
         if frames is None:
             raise _error("usage", "an EXR sequence needs its frames (a range such as 1001-1100)")
         frames = ds.parse_frame_range(frames) if isinstance(frames, str) else list(frames)
+        assert exr is not None  # one of exr and pc2 (checked above)
         cache = ds.open_point_cache(exr)
         if fps is None and frames:
             fps = ds.read_point_cache_exr_info(ds.expand_frame_pattern(exr, frames[0])).get(
@@ -467,9 +535,13 @@ def export(mesh, out_path, *, exr=None, frames=None, pc2=None, fps=None,
 
 # ---- The bake command ----------------------------------------------------------------------
 
-def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto",
-         settings=None, out_prim="/Garment/Mesh", up_axis=None, meters_per_unit=None, fps=None,
-         space="local", check_topology=True, batch=64, temporal_warmup=8, database_path=None):
+def bake(database: Union[Database, _Path], shot: Union[MeshAnimation, _Path], out_path: _Path,
+         *, prim_path: Optional[str] = None, frames: Optional[Iterable[SupportsIndex]] = None,
+         device: Union[Device, str] = "auto", settings: Optional[EvaluatorSettings] = None,
+         out_prim: str = "/Garment/Mesh", up_axis: Optional[str] = None,
+         meters_per_unit: Optional[float] = None, fps: Optional[float] = None,
+         space: str = "local", check_topology: bool = True, batch: int = 64,
+         temporal_warmup: int = 8, database_path: Optional[_Path] = None) -> BakeSummary:
     """The shot from a USD driver to a USD cloth: reads the driver prim's points (`shot` is a
     MeshAnimation, or a USD path with `prim_path`), checks them against the database's driver
     mesh, evaluates them as `drivenshape bake` does (evaluate_cache: batches of `batch` frames,
@@ -518,12 +590,12 @@ def bake(database, shot, out_path, *, prim_path=None, frames=None, device="auto"
             "records": records, "note": target.note}
 
 
-def _source_name(source):
+def _source_name(source: object) -> str:
     """An absolute file name for the provenance, or "(in memory)" for an object."""
     return os.path.abspath(source) if isinstance(source, (str, os.PathLike)) else "(in memory)"
 
 
-def _parser():
+def _parser() -> argparse.ArgumentParser:
     import drivenshape as ds
 
     parser = argparse.ArgumentParser(
@@ -616,7 +688,7 @@ def _parser():
     return parser
 
 
-def _export_main(args):
+def _export_main(args: argparse.Namespace) -> int:
     if args.exr and not args.frames:
         raise _error("usage", "--exr needs --frames RANGE")
     done = export(args.mesh, args.output, exr=args.exr, frames=args.frames, pc2=args.pc2,
@@ -628,12 +700,12 @@ def _export_main(args):
 
 
 # The bake settings that evaluate_cache's loop takes beside the evaluator's.
-_LOOP_SETTINGS = ("batch", "temporal_warmup")
+_LOOP_SETTINGS: tuple[str, ...] = ("batch", "temporal_warmup")
 # The settings loaded from the file an option names.
-_LOADERS = {"binding_mask": "load_binding_mask", "regions": "load_regions"}
+_LOADERS: dict[str, str] = {"binding_mask": "load_binding_mask", "regions": "load_regions"}
 
 
-def _setting_rows():
+def _setting_rows() -> list[dict[str, Any]]:
     """The settings table's rows this tool takes: `drivenshape bake`'s evaluator options, and
     the batch and warm-up of its loop."""
     import drivenshape as ds
@@ -642,7 +714,7 @@ def _setting_rows():
             (row["scope"] == "evaluator" or row["key"] in _LOOP_SETTINGS)]
 
 
-def _add_settings(add):
+def _add_settings(add: Callable[..., argparse.Action]) -> None:
     """The options, help and defaults of the settings table (docs/commands.md, Settings), as
     `drivenshape bake` has them."""
     for row in _setting_rows():
@@ -659,7 +731,7 @@ def _add_settings(add):
                 help=f"{help_text} [default: {row['default']}]")
 
 
-def _settings(args, db):
+def _settings(args: argparse.Namespace, db: Database) -> EvaluatorSettings:
     import drivenshape as ds
 
     try:
@@ -685,7 +757,7 @@ def _settings(args, db):
     return settings
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     import time
 
     import drivenshape as ds
