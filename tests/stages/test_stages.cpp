@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Per-frame stages: the host reference against Eigen in double, and the OpenCL kernels against
-// the host reference (kernels/project.cl, kernels/blend.cl, src/devices/cl/cl_stages.cpp,
-// src/devices/host/host_stages.cpp).
+// the host reference (kernels/project.cl, kernels/blend.cl; src/devices/cl/cl_project.cpp,
+// cl_blend.cpp and src/devices/host/host_project.cpp, host_blend.cpp).
 
 #include <drivenshape/error.h>
 #include "cl_backends.h"
