@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Per-vertex mix of the DrivenShape result with another cache (contract: LayerBackend::mix in
-// src/include/drivenshape/layers.h; host reference: src/devices/host/host_layers.cpp):
+// src/include/drivenshape/layers.h; host reference: src/devices/host/host_mix.cpp):
 //
 //   out = w * drivenshape + (1 - w) * other,   out = drivenshape where w = 1, other where w = 0
 //

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Procedural wind (contract: LayerBackend::wind in src/include/drivenshape/layers.h; host
-// reference: src/devices/host/host_layers.cpp). The noise and the clearance limit are the shared
+// reference: src/devices/host/host_wind.cpp). The noise and the clearance limit are the shared
 // functions of kernels/layer_types.h, so the arithmetic is the host's, operation for operation.
 //
 // Mapping: 2-D range, local size (DS_LOCAL_SIZE, 1); item (v, f) is vertex v of frame f.

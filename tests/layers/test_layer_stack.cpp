@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // The LayerStack the bake runs (src/pipeline/layer_stack.cpp) and the mix layer on both backends
-// (kernels/mix.cl vs src/devices/host/host_layers.cpp): weight 1 reproduces DrivenShape and weight
+// (kernels/mix.cl vs src/devices/host/host_mix.cpp): weight 1 reproduces DrivenShape and weight
 // 0 the other cache bitwise, the band in between is the float mix; bad inputs give clear errors.
 
 #include <drivenshape/error.h>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Procedural wind (kernels/wind.cl, kernels/layer_types.h, src/devices/host/host_layers.cpp):
+// Procedural wind (kernels/wind.cl, kernels/layer_types.h, src/devices/host/host_wind.cpp):
 // amplitude 0 changes nothing, OpenCL agrees with the host reference, runs and chunkings agree,
 // the motion is continuous in time within the analytic bound, and the clearance limit keeps
 // cloth out of the body.
