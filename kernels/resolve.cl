@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Penetration resolution (contract: ClosestBackend::resolve in
-// src/devices/closest.h; host reference: src/devices/host/host_closest.cpp with
+// src/devices/closest.h; host reference: src/devices/host/host_resolve.cpp with
 // src/database/surface_features.cpp, whose pseudoNormal() this file repeats in OpenCL C).
 //
 // Point p has its exact closest point q = a + u (b - a) + v (c - a) on triangle t. Its signed

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Local-frame transfer (contract: ClosestBackend::transfer in
-// src/devices/closest.h; host reference: src/devices/host/host_closest.cpp).
+// src/devices/closest.h; host reference: src/devices/host/host_transfer.cpp).
 //
 // Point p was found closest to triangle t of the `from` pose at q = a + u (b - a) + v (c - a).
 // The frame at q is

@@ -3,7 +3,7 @@
 
 // Angle-weighted pseudo-normals (Baerentzen & Aanaes 2005) of a triangle mesh, shared by the
 // inside audit (src/pipeline/inside_audit.cpp), the host penetration resolution
-// (src/devices/host/host_closest.cpp) and, through the same tables uploaded to the device, by
+// (src/devices/host/host_resolve.cpp) and, through the same tables uploaded to the device, by
 // kernels/resolve.cl, which repeats pseudoNormal() in OpenCL C.
 
 #include <cstdint>

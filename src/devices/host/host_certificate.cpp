@@ -2,7 +2,8 @@
 // The host reference of kernels/certificate.cl: per frame the boxes (as dsBvhRefit) and the
 // cones (dsCertRefitCones), then the walk of every point (dsCertCheck); src/devices/
 // certificate.cpp has the scheme and why it is sound. Same tree, same order, same comparisons,
-// in double.
+// in double. Also HostClosest::closestOrClearBlock (host_closest.h), which clears what the
+// certificate proves and runs the exact search (host_closest.cpp) on the rest.
 
 #include "host_certificate.h"
 
@@ -16,6 +17,7 @@
 #include "parallel.h"
 
 #include "certificate.h"
+#include "host_closest.h"
 #include "triangle_distance.h"
 
 namespace drivenshape::correction {
@@ -423,3 +425,50 @@ void HostCertificate::clear(int frameCount, const float* poses, const float* poi
 }
 
 }  // namespace drivenshape::correction
+
+namespace drivenshape {
+
+void HostClosest::closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
+                                      float clearance, DeviceArray& hits, int* cleared,
+                                      DeviceArray* answered, bool keep) {
+  mSearch.checkChunk("closest triangle", frameCount, true);
+  correction::checkOffset(clearance);
+  const float* posesIn = poses.read<float>();
+  const float* pointsIn = points.read<float>();
+  correction::checkFinite("closest triangle", "driver vertex", frameCount, mSearch.vertexCount(),
+                          posesIn);
+  correction::checkFinite("closest triangle", "driven point", frameCount, mSearch.pointCount(),
+                          pointsIn);
+  const int pointCount = mSearch.pointCount();
+  const std::size_t items = static_cast<std::size_t>(frameCount) * pointCount;
+  const bool kept = keep && answered != nullptr;
+  SurfaceHit* out = kept ? hits.modify<SurfaceHit>() : hits.write<SurfaceHit>();
+  mActive.assign(items, 1);
+  mCleared.assign(static_cast<std::size_t>(frameCount), 0);
+  if (kept) {
+    const std::int32_t* before = answered->read<std::int32_t>();
+    for (std::size_t k = 0; k < items; ++k) {
+      if (before[k] != 0) {
+        mActive[k] = 0;
+        ++mCleared[k / static_cast<std::size_t>(pointCount)];
+      }
+    }
+  }
+  mCertificate.clear(frameCount, posesIn, pointsIn, clearance, out, mActive.data(), mCleared.data(),
+                     mSearch.threads());
+  if (cleared != nullptr) {
+    std::copy(mCleared.begin(), mCleared.end(), cleared);
+  }
+  exact(frameCount, posesIn, pointsIn, out, mActive.data());
+  if (answered != nullptr) {
+    std::int32_t* after = answered->write<std::int32_t>();
+    for (std::size_t k = 0; k < items; ++k) {
+      after[k] = mActive[k] == 0 ? 1 : 0;
+    }
+  }
+  if (frameCount > 0) {
+    mCertificate.remember(out + static_cast<std::size_t>(frameCount - 1) * pointCount);
+  }
+}
+
+}  // namespace drivenshape
