@@ -22,15 +22,15 @@
 
 namespace drivenshape {
 
-/// Projection and blend (kernels/project.cl, kernels/blend.cl).
+/// Projection and blend (kernels/project.cl, kernels/blend.cl; cl_stages.h).
 std::unique_ptr<StageBackend> makeClStages(const cl_util::ClTarget& target);
-/// Closest triangles, transfer, rebuild, resolution (kernels/closest.cl, bvh.cl, transfer.cl,
-/// resolve.cl).
+/// Closest triangles, transfer, rebuild, the clearance certificate, resolution
+/// (kernels/closest.cl, bvh.cl, transfer.cl, certificate.cl, resolve.cl; cl_closest.h).
 std::unique_ptr<ClosestBackend> makeClClosest(const cl_util::ClTarget& target,
                                               const ClosestOptions& options = {});
-/// Mix and wind (kernels/mix.cl, kernels/wind.cl).
+/// Mix and wind (kernels/mix.cl, kernels/wind.cl; cl_layers.h).
 std::unique_ptr<LayerBackend> makeClLayers(const cl_util::ClTarget& target);
-/// Position maps (kernels/posmap.cl).
+/// Position maps (kernels/posmap.cl; cl_posmap.cpp).
 std::unique_ptr<PositionMapBackend> makeClPositionMaps(const cl_util::ClTarget& target);
 
 // The same on a bare context, device and queue (no program cache, no transfer counts): for
