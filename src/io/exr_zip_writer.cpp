@@ -82,52 +82,120 @@ libdeflate_compressor* threadCompressor(int level) {
   return compressor.get();
 }
 
-/// One chunk as OpenEXR's ZIP codec stores it (ImfZip.cpp, the file format's "ZIP
-/// compression"): the scan lines' bytes split into even and odd halves, a byte-delta predictor
-/// over the result, a zlib stream of that; the raw bytes instead when deflate does not make them
-/// smaller.
-std::string zipChunk(const std::vector<char>& raw, const ZipEncoding& encoding) {
-  const std::size_t size = raw.size();
-  const std::size_t half = (size + 1) / 2;
-  std::vector<unsigned char> split(size);
-  for (std::size_t i = 0; i < half; ++i) {
-    split[i] = static_cast<unsigned char>(raw[2 * i]);
+/// A chunk as the file stores it: the zlib stream, or the raw bytes when deflate does not make
+/// them smaller. The buffer is left uninitialised up to `size`: no page is touched for nothing.
+struct StoredChunk {
+  std::unique_ptr<char[]> bytes;
+  std::size_t size = 0;
+};
+
+/// One thread's scratch for its chunks, grown to the largest and kept for the next chunk: fresh
+/// buffers for every chunk cost a memset and a page fault per 4 KiB. Chunks larger than this
+/// (wider than 16,384 texels of R G B A and N, 16 rows) free it again rather than hold it for
+/// the thread's life.
+constexpr std::size_t kKeptScratchBytes = std::size_t{8} << 20;
+
+struct ChunkScratch {
+  std::vector<unsigned char> split;
+  std::vector<unsigned char> predicted;
+};
+
+ChunkScratch& threadScratch(std::size_t size) {
+  thread_local ChunkScratch scratch;
+  if (scratch.split.size() < size) {
+    scratch.split.resize(size);
+    scratch.predicted.resize(size);
   }
-  for (std::size_t i = 0; i + half < size; ++i) {
-    split[half + i] = static_cast<unsigned char>(raw[2 * i + 1]);
+  return scratch;
+}
+
+/// Splits one channel's row into the even-indexed bytes (at `even`) and the odd-indexed bytes
+/// (at `odd`) of the chunk. A row starts at an even offset of the chunk and holds an even number
+/// of bytes (values of 2 or 4 bytes), so each of its bytes keeps its parity in the chunk.
+template <std::size_t kValueBytes>
+void splitRow(const char* row, std::size_t xStride, std::size_t width, unsigned char* even,
+              unsigned char* odd) {
+  constexpr std::size_t kPairs = kValueBytes / 2;
+  for (std::size_t x = 0; x < width; ++x) {
+    const char* value = row + x * xStride;
+    for (std::size_t b = 0; b < kPairs; ++b) {
+      even[x * kPairs + b] = static_cast<unsigned char>(value[2 * b]);
+      odd[x * kPairs + b] = static_cast<unsigned char>(value[2 * b + 1]);
+    }
   }
-  // Each byte minus the one before, plus 128 (mod 256); the first byte as it is.
-  std::vector<unsigned char> shuffled(size);
+}
+
+/// The scan lines firstY..lastY as OpenEXR's ZIP codec prepares them for deflate (ImfZip.cpp,
+/// the file format's "ZIP compression"): the lines' bytes (each channel's row in turn, in the
+/// channel list's order) split into the even-indexed bytes, then the odd-indexed ones (into
+/// `split`), and a byte-delta predictor over the result: each byte minus the one before, plus
+/// 128 (mod 256), the first byte as it is (into `predicted`). `size` bytes each.
+void predictedChunk(const std::vector<ChannelSource>& sources, std::size_t width, int minX,
+                    int firstY, int lastY, std::size_t size, unsigned char* split,
+                    unsigned char* predicted) {
+  const std::size_t half = size / 2;  // even: every row is
+  std::size_t offset = 0;             // in the chunk's raw bytes
+  for (int y = firstY; y <= lastY; ++y) {
+    for (const ChannelSource& source : sources) {
+      const char* row = source.base + static_cast<std::ptrdiff_t>(source.yStride) * y +
+                        static_cast<std::ptrdiff_t>(source.xStride) * minX;
+      unsigned char* even = split + offset / 2;
+      unsigned char* odd = split + half + offset / 2;
+      if (source.valueBytes == 2) {
+        splitRow<2>(row, source.xStride, width, even, odd);
+      } else {
+        splitRow<4>(row, source.xStride, width, even, odd);
+      }
+      offset += width * source.valueBytes;
+    }
+  }
   if (size > 0) {
-    shuffled[0] = split[0];
+    predicted[0] = split[0];
   }
   for (std::size_t i = 1; i < size; ++i) {
-    shuffled[i] = static_cast<unsigned char>(split[i] - split[i - 1] + 128);
+    predicted[i] = static_cast<unsigned char>(split[i] - split[i - 1] + 128);
   }
-  std::string packed(size, '\0');  // a stream as long as the raw bytes is stored raw
-  std::size_t packedSize = 0;
+}
+
+/// One chunk as OpenEXR's ZIP codec stores it: a zlib stream of predictedChunk's bytes, or the
+/// raw bytes when deflate does not make them smaller (readers tell them apart by the size).
+StoredChunk zipChunk(const std::vector<ChannelSource>& sources, std::size_t width, int minX,
+                     int firstY, int lastY, std::size_t size, const ZipEncoding& encoding) {
+  ChunkScratch& scratch = threadScratch(size);
+  predictedChunk(sources, width, minX, firstY, lastY, size, scratch.split.data(),
+                 scratch.predicted.data());
+  StoredChunk chunk;
+  chunk.bytes.reset(new char[std::max<std::size_t>(size, 1)]);
   if (encoding.deflater == Deflater::kLibdeflate) {
-    packedSize = size < 2
-                     ? 0
-                     : libdeflate_zlib_compress(threadCompressor(encoding.level), shuffled.data(),
-                                                size, packed.data(), size - 1);
+    // A stream as long as the raw bytes is stored raw: room for one byte less.
+    chunk.size = size < 2 ? 0
+                          : libdeflate_zlib_compress(threadCompressor(encoding.level),
+                                                     scratch.predicted.data(), size,
+                                                     chunk.bytes.get(), size - 1);
   } else {
     std::vector<Bytef> out(compressBound(static_cast<uLong>(size)));
     uLongf outSize = static_cast<uLongf>(out.size());
-    if (compress2(out.data(), &outSize, shuffled.data(), static_cast<uLong>(size),
+    if (compress2(out.data(), &outSize, scratch.predicted.data(), static_cast<uLong>(size),
                   encoding.level) != Z_OK) {
       DS_THROW(kInternal, "zlib compress2 failed on a chunk of ", size, " bytes");
     }
     if (outSize < size) {
-      packedSize = outSize;
-      std::memcpy(packed.data(), out.data(), outSize);
+      chunk.size = outSize;
+      std::memcpy(chunk.bytes.get(), out.data(), outSize);
     }
   }
-  if (packedSize == 0) {
-    return std::string(raw.begin(), raw.end());
+  if (chunk.size == 0) {  // stored raw: the split halves interleaved again
+    const std::size_t half = size / 2;
+    for (std::size_t i = 0; i < half; ++i) {
+      chunk.bytes[2 * i] = static_cast<char>(scratch.split[i]);
+      chunk.bytes[2 * i + 1] = static_cast<char>(scratch.split[half + i]);
+    }
+    chunk.size = size;
   }
-  packed.resize(packedSize);
-  return packed;
+  if (size > kKeptScratchBytes) {
+    scratch = ChunkScratch();
+  }
+  return chunk;
 }
 
 }  // namespace
@@ -180,27 +248,13 @@ void writeZipExr(std::ostream& out, const Imf::Header& header, const Imf::FrameB
 
   const int linesPerChunk = zips ? 1 : 16;
   const int chunkCount = (height + linesPerChunk - 1) / linesPerChunk;
-  std::vector<std::string> chunks(static_cast<std::size_t>(chunkCount));
+  std::vector<StoredChunk> chunks(static_cast<std::size_t>(chunkCount));
   parallelFor(chunkCount, encoding.threads, [&](int c) {
     const int firstY = window.min.y + c * linesPerChunk;
     const int lastY = std::min(firstY + linesPerChunk - 1, window.max.y);
-    std::vector<char> raw(lineBytes * static_cast<std::size_t>(lastY - firstY + 1));
-    char* packed = raw.data();
-    for (int y = firstY; y <= lastY; ++y) {
-      for (const ChannelSource& source : sources) {
-        const char* row = source.base + static_cast<std::ptrdiff_t>(source.yStride) * y +
-                          static_cast<std::ptrdiff_t>(source.xStride) * window.min.x;
-        if (source.xStride == source.valueBytes) {
-          std::memcpy(packed, row, width * source.valueBytes);
-          packed += width * source.valueBytes;
-        } else {
-          for (std::size_t x = 0; x < width; ++x, packed += source.valueBytes) {
-            std::memcpy(packed, row + x * source.xStride, source.valueBytes);
-          }
-        }
-      }
-    }
-    chunks[static_cast<std::size_t>(c)] = zipChunk(raw, encoding);
+    chunks[static_cast<std::size_t>(c)] =
+        zipChunk(sources, width, window.min.x, firstY, lastY,
+                 lineBytes * static_cast<std::size_t>(lastY - firstY + 1), encoding);
   });
 
   // The layout of Imf::OutputFile: magic number, version field, header (Header::writeTo, the
@@ -218,17 +272,17 @@ void writeZipExr(std::ostream& out, const Imf::Header& header, const Imf::FrameB
   head.resize(head.size() + 8 * chunks.size());
   for (std::size_t c = 0; c < chunks.size(); ++c) {
     storeLe64(&head[head.size() - 8 * (chunks.size() - c)], offset);
-    offset += 8 + chunks[c].size();
+    offset += 8 + chunks[c].size;
   }
   out.write(head.data(), static_cast<std::streamsize>(head.size()));
   for (int c = 0; c < chunkCount; ++c) {
-    std::string& chunk = chunks[static_cast<std::size_t>(c)];
+    StoredChunk& chunk = chunks[static_cast<std::size_t>(c)];
     std::string prefix;
     appendLe32(prefix, static_cast<std::uint32_t>(window.min.y + c * linesPerChunk));
-    appendLe32(prefix, static_cast<std::uint32_t>(chunk.size()));
+    appendLe32(prefix, static_cast<std::uint32_t>(chunk.size));
     out.write(prefix.data(), static_cast<std::streamsize>(prefix.size()));
-    out.write(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-    std::string().swap(chunk);  // written: free it
+    out.write(chunk.bytes.get(), static_cast<std::streamsize>(chunk.size));
+    chunk.bytes.reset();  // written: free it
   }
 }
 

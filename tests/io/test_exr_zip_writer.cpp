@@ -160,6 +160,65 @@ TEST(ExrZipWriter, WithZlibAtOpenExrsLevelItWritesTheFileOpenExrWrites) {
   }
 }
 
+TEST(ExrZipWriter, InterleavedSlicesAndAnOffsetWindowWriteTheFileOpenExrWrites) {
+  // The position maps' layout: x, y, z of a FLOAT image interleaved (a stride of 12 bytes) and
+  // of a HALF one (6 bytes), beside a plain FLOAT plane; here in a data window that does not
+  // start at (0, 0), whose slices point at pixel (0, 0) outside the buffers.
+  TempDir dir;
+  const int width = 37;
+  const int height = 21;
+  const Imath::Box2i window(Imath::V2i(-5, 3), Imath::V2i(-5 + width - 1, 3 + height - 1));
+  const std::size_t pixels = static_cast<std::size_t>(width) * height;
+  std::mt19937 random(testSeed() + 11);
+  std::uniform_real_distribution<float> value(-3.0f, 3.0f);
+  std::vector<float> xyz(3 * pixels);
+  std::vector<half> normals(3 * pixels);
+  std::vector<float> alpha(pixels);
+  for (std::size_t i = 0; i < pixels; ++i) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      xyz[3 * i + k] = value(random);
+      normals[3 * i + k] = half(value(random));
+    }
+    alpha[i] = i % 5 == 0 ? 0.0f : 1.0f;
+  }
+  const auto origin = [&](auto* data, std::size_t xStride) {
+    const std::ptrdiff_t offset = window.min.x * static_cast<std::ptrdiff_t>(xStride) +
+                                  window.min.y * static_cast<std::ptrdiff_t>(xStride * width);
+    return reinterpret_cast<char*>(data) - offset;
+  };
+  const char* const xyzNames[3] = {"R", "G", "B"};
+  const char* const normalNames[3] = {"N.R", "N.G", "N.B"};
+  for (Imf::Compression compression : {Imf::ZIP_COMPRESSION, Imf::ZIPS_COMPRESSION}) {
+    SCOPED_TRACE(compression == Imf::ZIP_COMPRESSION ? "zip" : "zips");
+    TestImage image;
+    image.height = height;
+    image.header = Imf::Header(window, window);
+    image.header.compression() = compression;
+    image.header.channels().insert("A", Imf::Channel(Imf::FLOAT));
+    image.frameBuffer.insert("A", Imf::Slice(Imf::FLOAT, origin(alpha.data(), sizeof(float)),
+                                             sizeof(float), sizeof(float) * width));
+    for (int k = 0; k < 3; ++k) {
+      image.header.channels().insert(xyzNames[k], Imf::Channel(Imf::FLOAT));
+      image.header.channels().insert(normalNames[k], Imf::Channel(Imf::HALF));
+      image.frameBuffer.insert(xyzNames[k],
+                               Imf::Slice(Imf::FLOAT, origin(xyz.data(), 3 * sizeof(float)) + 4 * k,
+                                          3 * sizeof(float), 3 * sizeof(float) * width));
+      image.frameBuffer.insert(
+          normalNames[k], Imf::Slice(Imf::HALF, origin(normals.data(), 3 * sizeof(half)) + 2 * k,
+                                     3 * sizeof(half), 3 * sizeof(half) * width));
+    }
+    ZipEncoding zlib;
+    zlib.deflater = Deflater::kZlib;
+    zlib.level = 4;  // OpenEXR 3.1's default ZIP level
+    for (int threads : {1, 3}) {
+      zlib.threads = threads;
+      EXPECT_EQ(bytesOf(encodeZipExr(image.header, image.frameBuffer, zlib)),
+                openExrFile(image, dir.file("openexr.exr")))
+          << threads << " threads";
+    }
+  }
+}
+
 TEST(ExrZipWriter, LibdeflateFilesDecodeToTheWrittenBitsWithOpenExr) {
   TempDir dir;
   for (Imf::Compression compression : {Imf::ZIP_COMPRESSION, Imf::ZIPS_COMPRESSION}) {
