@@ -16,7 +16,7 @@ void checkWiring(const std::vector<std::unique_ptr<Stage>>& stages) {
       if (!written.has(array)) {
         throw std::logic_error(std::string("stage '") + stage->name() + "' reads '" +
                                arrayName(array) +
-                               "', which is no input and no earlier stage writes");
+                               "', which is not an input and no earlier stage writes");
       }
     }
     written = written | stage->writes();

@@ -339,13 +339,13 @@ TEST(StageArrays, AWiringWhereAStageReadsWhatNoOneWroteIsRefused) {
               Executor executor(*host, stages(TestStage("correct", {Array::Shot}, {Array::Cloth}),
                                               TestStage("audit", {Array::Hits}, {Array::Records})));
             }),
-            "stage 'audit' reads 'hits', which is no input and no earlier stage writes");
+            "stage 'audit' reads 'hits', which is not an input and no earlier stage writes");
   // Written, but only later.
   EXPECT_EQ(logicError([&] {
               Executor executor(*host, stages(TestStage("correct", {Array::Driven}, {Array::Cloth}),
                                               TestStage("blend", {}, {Array::Driven})));
             }),
-            "stage 'correct' reads 'driven', which is no input and no earlier stage writes");
+            "stage 'correct' reads 'driven', which is not an input and no earlier stage writes");
   // The cloth is the result: some stage must write it.
   EXPECT_EQ(logicError(
                 [&] { Executor executor(*host, stages(TestStage("blend", {}, {Array::Driven}))); }),
