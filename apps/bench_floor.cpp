@@ -13,6 +13,7 @@
 
 #include <drivenshape/evaluator.h>
 #include <drivenshape/shot_plan.h>
+
 #include "closest.h"
 #include "device_array.h"
 

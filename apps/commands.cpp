@@ -22,6 +22,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/position_map.h>
 #include <drivenshape/settings_table.h>
+
 #include "atomic_file.h"
 #include "hash.h"
 #include "parallel.h"

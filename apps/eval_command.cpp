@@ -16,9 +16,8 @@
 #include <drivenshape/evaluate.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
-#include "atomic_file.h"
-#include "closest.h"
 
+#include "atomic_file.h"
 #include "json_text.h"
 
 #include "cli_args.h"
@@ -385,8 +384,7 @@ struct EvalInputs {
   Mesh driverMesh;
   Mesh drivenMesh;
   std::optional<BindingMask> mask;
-  std::unique_ptr<Device> device;  // outlives `closest`
-  std::unique_ptr<ClosestBackend> closest;
+  std::unique_ptr<Device> device;  ///< the closest-triangle search's (host without --driver)
   std::string deviceName = "none";
   ShotEvaluationInput input;
 };
@@ -416,10 +414,7 @@ void openShotDriver(const ArgParser& parser, EvalInputs& in) {
     in.mask = readBindingMask(parser.get("--bind"), *in.input.driverMesh, *in.input.drivenMesh);
     in.input.mask = &*in.mask;
   }
-  ClosestOptions search;
-  search.threads = in.input.threads;
   in.device = openCliDevice(parser.get("--device"), std::cerr);
-  in.closest = in.device->makeClosest(search);
   in.deviceName = in.device->isOpenCl() ? in.device->description() : "host";
 }
 
@@ -435,7 +430,7 @@ void openEvalInputs(const ArgParser& parser, EvalInputs& in) {
   if (parser.has("--driver")) {
     openShotDriver(parser, in);
   } else {
-    in.closest = makeHostClosest();
+    in.device = makeHostDevice();
   }
 }
 
@@ -483,7 +478,7 @@ int runEval(const std::vector<std::string>& args) {
   EvalInputs in;
   openEvalInputs(parser, in);
 
-  const ShotEvaluation result = evaluateShot(in.input, frames, *in.closest);
+  const ShotEvaluation result = evaluateShot(in.input, frames, *in.device);
   if (!result.untrustedDriver.empty()) {
     std::cerr << "warning: " << result.untrustedDriver << "\n";
   }

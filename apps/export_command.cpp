@@ -9,6 +9,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+
 #include "atomic_file.h"
 #include "up_axis.h"
 

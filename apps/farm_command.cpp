@@ -9,6 +9,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+
 #include "atomic_file.h"
 #include "farm_job.h"
 

@@ -13,6 +13,7 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+
 #include "up_axis.h"
 
 namespace drivenshape::python {

@@ -12,6 +12,7 @@
 
 #include <drivenshape/binding.h>
 #include <drivenshape/error.h>
+
 #include "atomic_file.h"
 
 #include "json_text.h"

@@ -63,6 +63,7 @@
 #include <flann/flann.hpp>
 
 #include <drivenshape/error.h>
+
 #include "parallel.h"
 
 #include "triangle_distance.h"

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <drivenshape/mesh.h>
+
 #include "closest.h"
 
 namespace drivenshape::correction {

@@ -26,6 +26,7 @@
 #include <drivenshape/binding.h>
 #include <drivenshape/error.h>
 #include <drivenshape/version.h>
+
 #include "atomic_file.h"
 #include "hash.h"
 

@@ -15,6 +15,7 @@
 #include <drivenshape/evaluator.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/version.h>
+
 #include "closest.h"
 #include "reference_frames.h"
 

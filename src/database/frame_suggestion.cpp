@@ -24,6 +24,7 @@
 #include <Eigen/Cholesky>
 
 #include <drivenshape/error.h>
+
 #include "parallel.h"
 #include "pose_kernel.h"
 

@@ -15,6 +15,7 @@
 #include <Eigen/SVD>
 
 #include <drivenshape/error.h>
+
 #include "parallel.h"
 #include "pose_kernel.h"
 

@@ -8,6 +8,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+
 #include "reference_frames.h"
 
 namespace drivenshape {

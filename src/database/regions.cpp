@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include <drivenshape/error.h>
+
 #include "align.h"
 #include "atomic_file.h"
 

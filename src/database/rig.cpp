@@ -9,6 +9,7 @@
 #include <set>
 
 #include <drivenshape/error.h>
+
 #include "atomic_file.h"
 
 #include "json_text.h"

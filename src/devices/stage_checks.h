@@ -6,6 +6,7 @@
 #include <cstddef>
 
 #include <drivenshape/error.h>
+
 #include "stages.h"
 
 namespace drivenshape::stage_checks {

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
+
 #include "atomic_file.h"
 #include "exr_zip_writer.h"
 #include "hash.h"

@@ -22,6 +22,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/version.h>
+
 #include "hash.h"
 
 #include "exr_common.h"

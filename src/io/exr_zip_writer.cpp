@@ -17,6 +17,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
+
 #include "parallel.h"
 
 #if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include <drivenshape/error.h>
+
 #include "hash.h"
 
 #include "byte_order.h"

@@ -9,6 +9,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+
 #include "hash.h"
 
 #include "finite.h"

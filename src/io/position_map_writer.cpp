@@ -15,6 +15,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+
 #include "atomic_file.h"
 
 namespace drivenshape {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
+
 #include "atomic_file.h"
 
 namespace drivenshape {

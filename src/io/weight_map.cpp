@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include <drivenshape/error.h>
+
 #include "atomic_file.h"
 
 #include "json_text.h"

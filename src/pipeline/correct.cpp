@@ -7,6 +7,7 @@
 #include <cstddef>
 
 #include <drivenshape/error.h>
+
 #include "closest.h"
 
 #include "candidates.h"

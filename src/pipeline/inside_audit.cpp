@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
+
 #include "closest.h"
 
 #include "parallel.h"

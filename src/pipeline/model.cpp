@@ -10,6 +10,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/settings_table.h>
+
 #include "align.h"
 #include "parallel.h"
 #include "text.h"

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <drivenshape/settings_table.h>
+
 #include "hash.h"
 
 namespace drivenshape::pipeline {

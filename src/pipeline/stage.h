@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include <drivenshape/evaluator.h>
+
 #include "align.h"
 #include "closest.h"
 #include "hash.h"

@@ -28,6 +28,7 @@
 #include <drivenshape/settings_table.h>
 #include <drivenshape/shot_plan.h>
 #include <drivenshape/version.h>
+
 #include "atomic_file.h"
 #include "hash.h"
 #include "parallel.h"

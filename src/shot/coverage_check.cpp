@@ -12,6 +12,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+
 #include "atomic_file.h"
 
 #include "json_text.h"

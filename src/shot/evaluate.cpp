@@ -7,6 +7,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh_check.h>
+
 #include "closest.h"
 #include "parallel.h"
 
@@ -402,6 +403,14 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
     summarizeSequence(acc, layout.vd, frameCount, layout.penetrations);
   }
   return result;
+}
+
+ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
+                            Device& device) {
+  ClosestOptions search;
+  search.threads = input.threads;
+  const std::unique_ptr<ClosestBackend> closest = device.makeClosest(search);
+  return evaluateShot(input, frames, *closest);
 }
 
 }  // namespace drivenshape

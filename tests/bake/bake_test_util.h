@@ -13,6 +13,7 @@
 #include <drivenshape/device.h>
 #include <drivenshape/device_cl.h>
 #include <drivenshape/point_cache.h>
+
 #include "closest.h"
 
 #include "stages.h"

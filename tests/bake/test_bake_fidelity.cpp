@@ -21,6 +21,7 @@
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/regions.h>
+
 #include "align.h"
 #include "closest.h"
 

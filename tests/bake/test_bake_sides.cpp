@@ -20,6 +20,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/point_cache.h>
+
 #include "closest.h"
 
 #include "bake_test_util.h"

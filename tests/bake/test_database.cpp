@@ -16,6 +16,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/point_cache.h>
+
 #include "hash.h"
 
 #include "test_support.h"

@@ -36,6 +36,7 @@
 #include <sys/resource.h>
 
 #include <drivenshape/error.h>
+
 #include "closest.h"
 
 #include "parallel.h"

@@ -12,6 +12,7 @@
 // cpu < wall x cores shows the run was starved) and frames per second from the median.
 
 #include <drivenshape/error.h>
+
 #include "cl_backends.h"
 #include "stages.h"
 

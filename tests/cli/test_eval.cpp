@@ -26,6 +26,7 @@
 #include <drivenshape/evaluate.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+
 #include "atomic_file.h"
 #include "closest.h"
 

@@ -19,6 +19,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
+
 #include "closest.h"
 
 #include "cl_backends.h"

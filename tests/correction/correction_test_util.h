@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include <drivenshape/mesh.h>
+
 #include "closest.h"
 
 #include "test_support.h"

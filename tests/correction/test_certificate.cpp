@@ -21,6 +21,7 @@
 
 #include <drivenshape/device.h>
 #include <drivenshape/device_cl.h>
+
 #include "closest.h"
 
 #include <correction_types.h>

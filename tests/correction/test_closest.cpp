@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
+
 #include "closest.h"
 
 #include "cl_backends.h"

@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include <drivenshape/error.h>
+
 #include "closest.h"
 
 #include "correction_fixture.h"

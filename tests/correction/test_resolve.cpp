@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <drivenshape/error.h>
+
 #include "closest.h"
 
 #include "correction_fixture.h"

@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include <drivenshape/error.h>
+
 #include "closest.h"
 
 #include "correction_fixture.h"

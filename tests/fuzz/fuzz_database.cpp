@@ -14,6 +14,7 @@
 #include <drivenshape/binding.h>
 #include <drivenshape/database.h>
 #include <drivenshape/mesh_check.h>
+
 #include "hash.h"
 
 #include "fuzz_support.h"

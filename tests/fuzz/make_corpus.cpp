@@ -25,6 +25,7 @@
 #include <drivenshape/layers.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/position_map.h>
+
 #include "hash.h"
 
 #include "fuzz_support.h"

@@ -14,6 +14,7 @@
 #include <drivenshape/device.h>
 #include <drivenshape/device_cl.h>
 #include <drivenshape/error.h>
+
 #include "device_array.h"
 
 #include "test_support.h"

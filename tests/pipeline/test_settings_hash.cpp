@@ -29,6 +29,7 @@
 #include <drivenshape/point_cache.h>
 #include <drivenshape/regions.h>
 #include <drivenshape/settings_table.h>
+
 #include "hash.h"
 
 #include "test_support.h"

@@ -26,6 +26,7 @@
 
 #include <drivenshape/point_cache.h>
 #include <drivenshape/version.h>
+
 #include "hash.h"
 
 #include "posmap_test_util.h"

@@ -21,6 +21,7 @@
 // the statuses), 2 usage, 3 unreadable or malformed input, 4 output not written.
 
 #include <drivenshape/error.h>
+
 #include "qp.h"
 
 #include <Eigen/Core>

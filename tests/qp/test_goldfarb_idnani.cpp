@@ -3,6 +3,7 @@
 // strictly convex QPs compared with an independent reference that enumerates active sets.
 
 #include <drivenshape/error.h>
+
 #include "qp.h"
 
 #include <Eigen/Dense>

@@ -4,6 +4,7 @@
 // reference that enumerates which weights are free, at 0 or at 1.
 
 #include <drivenshape/error.h>
+
 #include "qp.h"
 
 #include <Eigen/Dense>

@@ -4,6 +4,7 @@
 // cl_blend.cpp and src/devices/host/host_project.cpp, host_blend.cpp).
 
 #include <drivenshape/error.h>
+
 #include "cl_backends.h"
 #include "stages.h"
 

@@ -15,6 +15,7 @@
 #include <drivenshape/device.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/position_map.h>
+
 #include "closest.h"
 #include "stages.h"
 

@@ -20,6 +20,7 @@
 
 #include <drivenshape/binding.h>
 #include <drivenshape/mesh.h>
+
 #include "closest.h"
 
 #include <correction_types.h>

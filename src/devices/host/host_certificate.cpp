@@ -14,6 +14,7 @@
 #include <utility>
 
 #include <drivenshape/error.h>
+
 #include "parallel.h"
 
 #include "certificate.h"

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <drivenshape/mesh.h>
+
 #include "closest.h"
 
 #include "bvh.h"

@@ -19,6 +19,7 @@
 
 #include <drivenshape/binding.h>
 #include <drivenshape/mesh.h>
+
 #include "closest.h"
 
 #include "candidates.h"

@@ -11,6 +11,7 @@
 namespace drivenshape {
 
 class ClosestBackend;  // src/devices/closest.h, private
+class Device;          // drivenshape/device.h
 
 /// Per-vertex position error of a bake against a truth cache (metres, or the caches' unit).
 struct FrameError {
@@ -112,5 +113,10 @@ struct ShotEvaluation {
 /// or a driver mesh checkDriverMesh refuses (see `untrustedDriver`).
 ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
                             ClosestBackend& closest);
+
+/// The same on `device` (host or OpenCL), with a closest-triangle search of its own on
+/// `input.threads` host threads: what `drivenshape eval` runs, and what an embedder calls.
+ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
+                            Device& device);
 
 }  // namespace drivenshape

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include <drivenshape/error.h>
+
 #include "parallel.h"
 
 #include "../stage.h"
