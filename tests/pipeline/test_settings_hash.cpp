@@ -44,14 +44,7 @@ std::string data(const std::string& name) {
 /// A 10-shape database of the bundled sleeve sample, built in process: without the pose model
 /// (the default weights resolve to the QP, as for every database before 0.2) or with it.
 Database buildSample(bool poseModel) {
-  const Mesh driver = readObj(data("sleeve/driver_rest.obj"));
-  const Mesh driven = readObj(data("sleeve/driven_rest.obj"));
-  const auto driverCache = openPointCache(data("sleeve/train.driver.pc2"));
-  const auto drivenCache = openPointCache(data("sleeve/train.driven.pc2"));
-  DatabaseBuildOptions options;
-  options.count = 10;
-  options.poseModel = poseModel;
-  return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
+  return testing::buildSleeveDatabase(poseModel);
 }
 
 struct Pinned {

@@ -36,16 +36,7 @@ std::string data(const std::string& name) {
 /// A 10-shape database of the bundled sleeve sample with its pose model (the default weights
 /// are the model's), built once.
 const Database& sampleDatabase() {
-  static const Database db = [] {
-    const Mesh driver = readObj(data("sleeve/driver_rest.obj"));
-    const Mesh driven = readObj(data("sleeve/driven_rest.obj"));
-    const auto driverCache = openPointCache(data("sleeve/train.driver.pc2"));
-    const auto drivenCache = openPointCache(data("sleeve/train.driven.pc2"));
-    DatabaseBuildOptions options;
-    options.count = 10;
-    options.poseModel = true;
-    return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
-  }();
+  static const Database db = testing::buildSleeveDatabase(true);
   return db;
 }
 

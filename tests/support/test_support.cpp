@@ -12,6 +12,9 @@
 #include <memory>
 #include <optional>
 
+#include <drivenshape/mesh.h>
+#include <drivenshape/point_cache.h>
+
 namespace drivenshape::testing {
 namespace {
 
@@ -48,6 +51,18 @@ std::uint32_t testSeed(std::uint32_t fallback) {
 
 std::string dataDir() {
   return DS_TEST_DATA_DIR;
+}
+
+Database buildSleeveDatabase(bool poseModel, int count) {
+  const std::string sleeve = dataDir() + "/sleeve/";
+  const Mesh driver = readObj(sleeve + "driver_rest.obj");
+  const Mesh driven = readObj(sleeve + "driven_rest.obj");
+  const auto driverCache = openPointCache(sleeve + "train.driver.pc2");
+  const auto drivenCache = openPointCache(sleeve + "train.driven.pc2");
+  DatabaseBuildOptions options;
+  options.count = count;
+  options.poseModel = poseModel;
+  return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
 }
 
 TempDir::TempDir() {

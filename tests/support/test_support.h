@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/database.h>
 #include <drivenshape/error.h>
 
 namespace drivenshape::testing {
@@ -162,6 +163,10 @@ std::uint32_t testSeed(std::uint32_t fallback = 20081112u);
 
 /// Folder with the bundled test data (tests/data).
 std::string dataDir();
+/// A `count`-shape database of the bundled sleeve sample (tests/data/sleeve), built in process
+/// from its `train` clip, with or without the pose model.
+Database buildSleeveDatabase(bool poseModel, int count = 10);
+
 /// A fresh empty folder under the build tree for the calling test, removed on destruction.
 class TempDir {
  public:
