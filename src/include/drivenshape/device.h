@@ -12,7 +12,6 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/binding.h>
 #include <drivenshape/layers.h>
 #include <drivenshape/position_map.h>
 
