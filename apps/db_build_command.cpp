@@ -122,6 +122,15 @@ ArgParser dbBuildParser() {
       .option("--model-history", "N",
               "frames the pose model's history feature averages (0 = no history)", "15")
       .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
+      .option("--verdict-level", "P",
+              "share of frames the coverage verdict's error bound is calibrated to hold for "
+              "(split-conformal on the model's cross-validation; bake --coverage-tolerance "
+              "flags a frame whose bound is over it)",
+              "0.9")
+      .option("--model-json", "PATH",
+              "also write the pose model's fit as JSON: kernel settings, the error line and "
+              "the verdict's calibration, every reference frame's cross-validated error, and "
+              "with --also what each clip adds")
       .option("--rig", "RIG.json",
               "take the parts from a rig instead: bone_names, bones (name, parent) and "
               "driver_weights (one row per driver vertex); each vertex goes to its heaviest "
@@ -175,6 +184,11 @@ DatabaseBuildOptions buildOptionsFrom(const ArgParser& parser) {
     DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",
              options.model.velocityLag, " and ", options.model.historyFrames, ")");
   }
+  options.model.verdictLevel = parser.getDouble("--verdict-level", 0.5);
+  if (options.model.verdictLevel >= 1.0) {
+    DS_THROW(kUsage, "--verdict-level takes a share of frames from 0.5 to below 1, e.g. 0.9 (got ",
+             options.model.verdictLevel, ")");
+  }
   return options;
 }
 
@@ -213,6 +227,7 @@ struct DbBuildRequest {
   int suggestCount = 0;                                 ///< 0 without --suggest
   std::string output;                                   ///< -o, empty when not given
   std::string jsonPath;                                 ///< --suggest-json, empty when not given
+  std::string modelJsonPath;                            ///< --model-json, empty when not given
   std::vector<std::pair<std::string, CacheSpec>> also;  ///< --also DRIVER DRIVEN[:FRAMES]
   CacheSpec candidate;
   std::vector<CacheSpec> shots;
@@ -233,8 +248,15 @@ DbBuildRequest dbBuildRequestFrom(const ArgParser& parser) {
   if (!request.jsonPath.empty()) {
     checkOutputFolderWritable(request.jsonPath);
   }
+  request.modelJsonPath = parser.has("--model-json") ? parser.get("--model-json") : "";
+  if (!request.modelJsonPath.empty()) {
+    if (!request.options.poseModel) {
+      DS_THROW(kUsage, "--model-json writes the pose model's fit; drop --model none");
+    }
+    checkOutputFolderWritable(request.modelJsonPath);
+  }
   checkDistinctPaths(
-      givenPaths(parser, {"-o", "--suggest-json"}), {},
+      givenPaths(parser, {"-o", "--suggest-json", "--model-json"}), {},
       givenPaths(parser, {"--driver-mesh", "--driven-mesh", "--driver", "--driven", "--rig"}));
   for (const std::vector<std::string>& words : parser.all("--also")) {
     request.also.emplace_back(words[0], parseCacheSpec(words[1]));
@@ -295,6 +317,51 @@ DbBuildInputs openDbBuildInputs(const ArgParser& parser, DbBuildRequest& request
   return in;
 }
 
+/// --model-json: the pose model's fit (PoseModel's diagnostics, which the file does not keep).
+void writeModelJson(const std::string& path, const Database& db) {
+  const PoseModel& m = db.poseModel;
+  nlohmann::json clips = nlohmann::json::array();
+  std::vector<int> clipOfFrame;
+  const std::size_t clipCount = std::max<std::size_t>(1, m.clipErrors.size());
+  for (std::size_t c = 0; c < clipCount; ++c) {
+    const bool main = c == 0;
+    const int frames = m.clipErrors.empty() ? m.frameCount() : m.clipErrors[c].frames;
+    clipOfFrame.insert(clipOfFrame.end(), static_cast<std::size_t>(frames), static_cast<int>(c));
+    nlohmann::json clip{
+        {"driver", main ? db.driverSource : db.extraClips[c - 1].driverSource},
+        {"driven", main ? db.drivenSource : db.extraClips[c - 1].drivenSource},
+        {"frames", frames},
+        {"cross_validation_error",
+         m.clipErrors.empty() ? m.crossValidationError : m.clipErrors[c].withAll[c]}};
+    if (!m.clipErrors.empty()) {
+      clip["errors_without_it"] = m.clipErrors[c].without;
+    }
+    clips.push_back(std::move(clip));
+  }
+  nlohmann::json frames = nlohmann::json::array();
+  for (std::size_t i = 0; i < m.frameErrors.size() && i < m.frameSigmas.size(); ++i) {
+    frames.push_back({{"frame", m.frames[i]},
+                      {"clip", clipOfFrame[i]},
+                      {"sigma", m.frameSigmas[i]},
+                      {"error", m.frameErrors[i]},
+                      {"predicted_error", m.predictedError(m.frameSigmas[i])},
+                      {"error_bound", m.errorBound(m.frameSigmas[i])}});
+  }
+  const nlohmann::json report{
+      {"units", "scene units (mean vertex distance)"},
+      {"reference_frames", m.frameCount()},
+      {"kernel",
+       {{"length_scale", m.lengthScale}, {"linear_weight", m.linearWeight}, {"ridge", m.ridge}}},
+      {"rank", m.rank()},
+      {"cross_validation_error", m.crossValidationError},
+      {"binding_error", m.bindingError},
+      {"error_line", {{"bias", m.errorBias}, {"scale", m.errorScale}}},
+      {"verdict", {{"level", m.verdictLevel}, {"scale", m.verdictScale}}},
+      {"clips", clips},
+      {"frames", frames}};
+  writeFileAtomically(path, jsonText(report, 1) + "\n");
+}
+
 void saveAndDescribe(const std::string& output, const Database& db) {
   saveDatabase(output, db);
   std::cout << "database: " << absolute(output) << " (" << db.shapeCount() << " shapes, driver "
@@ -342,6 +409,9 @@ int runDbBuild(const std::vector<std::string>& args) {
                                     request.options, log);
   if (!request.output.empty()) {
     saveAndDescribe(request.output, db);
+  }
+  if (!request.modelJsonPath.empty() && !db.poseModel.empty()) {
+    writeModelJson(request.modelJsonPath, db);
   }
   if (request.suggestCount > 0) {
     runSuggest(db, request, in, log);

@@ -210,11 +210,18 @@ void printCoverage(const CoverageCheck& c, const std::string& reportPath, std::o
     out << "  predicted mean vertex error: mean " << withMm(c.predictedMean) << ", max "
         << withMm(c.predictedMax) << " at frame " << c.predictedMaxFrame << "\n";
   }
-  out << "  verdict "
-      << (!c.verdictHolds   ? "not tested: no frame is predicted enough"
-          : *c.verdictHolds ? "holds: the enough frames' true mean error is within the tolerance"
+  out << "  verdict ";
+  if (!c.verdictHolds) {
+    out << "not tested: no frame is predicted enough\n";
+  } else if (c.level > 0.0) {
+    out << (*c.verdictHolds ? "holds" : "fails") << ": " << cell(100.0 * *c.withinShare, true, 3)
+        << "% of the enough frames are within the "
+        << "tolerance (the report's level " << cell(100.0 * c.level, true, 3) << "%)\n";
+  } else {
+    out << (*c.verdictHolds ? "holds: the enough frames' true mean error is within the tolerance"
                             : "fails: the enough frames' true mean error is over the tolerance")
-      << "\n";
+        << " (a report without a level)\n";
+  }
   out << "  (mm: scene units x 1000, for a scene in metres)\n";
 }
 
@@ -236,6 +243,8 @@ nlohmann::json coverageJson(const CoverageCheck& c, const std::string& reportPat
                         {"enough_true_error", optionalJson(c.enoughTrueError)},
                         {"flagged_true_error", optionalJson(c.flaggedTrueError)},
                         {"missed", c.missed},
+                        {"level", c.level},
+                        {"within_share", optionalJson(c.withinShare)},
                         {"verdict_holds", optionalJson(c.verdictHolds)}};
 }
 

@@ -99,6 +99,7 @@ types::JsonDict recordDict(const FrameRecord& record) {
   out["max_jump_vertex"] = record.maxJumpVertex;
   out["pose_distance"] = record.poseDistance;
   out["predicted_error"] = record.predictedError;
+  out["error_bound"] = record.errorBound;
   out["flagged"] = record.flagged;
   return types::JsonDict(out);
 }
@@ -758,8 +759,11 @@ void bindFrameRecord(py::module_& module) {
                     "pose model: how new the pose is (posterior deviation); -1 otherwise")
       .def_readonly("predicted_error", &FrameRecord::predictedError,
                     "pose model: predicted mean vertex error, scene units; -1 otherwise")
+      .def_readonly("error_bound", &FrameRecord::errorBound,
+                    "pose model: the verdict's bound on the mean vertex error (held at the "
+                    "model's verdict level), scene units; -1 otherwise")
       .def_readonly("flagged", &FrameRecord::flagged,
-                    "pose model: 1 when the predicted error exceeds the coverage tolerance")
+                    "pose model: 1 when the error bound exceeds the coverage tolerance")
       .def("to_dict", &recordDict)
       .def("__repr__", [](const FrameRecord& record) {
         std::ostringstream text;

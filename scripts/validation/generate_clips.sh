@@ -2,16 +2,24 @@
 # SPDX-License-Identifier: Apache-2.0
 # Generate the validation clips listed in clips.txt with the Blender cloth
 # generator (tools/blender of the shared data; Blender 3.4 headless).
-#   scripts/validation/generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]
+#   scripts/validation/generate_clips.sh [--list FILE] GENERATOR_DIR OUT_DIR [NAME...]
+# --list takes another list of the same form: references.txt (the TD's extra
+# reference clips, kept apart from the validation clips) or spread.txt (every
+# validation clip simulated again with a small change, the sim-to-sim spread).
 # Each clip lands in OUT_DIR/NAME/<scene>/<family>.{driver,driven}.pc2 (+ json,
 # rig.json, rest OBJs). Clips already generated are skipped.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
+list="$here/clips.txt"
+if [ "${1:-}" = "--list" ]; then
+  list="${2:?--list needs a file}"
+  shift 2
+fi
 gen="${1:?usage: generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]}"
 out="${2:?usage: generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]}"
 shift 2
 mkdir -p "$out/logs"
-grep -v '^#' "$here/clips.txt" | while read -r name scene family seed rest; do
+grep -v '^#' "$list" | while read -r name scene family seed rest; do
   [ -n "$name" ] || continue
   if [ $# -gt 0 ] && ! printf '%s\n' "$@" | grep -qx "$name"; then continue; fi
   if [ -f "$out/$name/$scene/$family.driven.pc2" ]; then

@@ -354,6 +354,28 @@ FitFrames gatherFitFrames(Database& db, const std::vector<int>& candidates,
   return fit;
 }
 
+/// The build log's table of what each reference clip added (PoseModel::clipErrors).
+void logClipContributions(const PoseModel& model, double mainAlone, std::ostream& log) {
+  log << "  pose model over " << model.clipErrors.size() << " clips: cross-validated mean error "
+      << model.crossValidationError
+      << "; fitted on the main clip alone (its own kernel settings): ";
+  if (mainAlone >= 0.0) {
+    log << mainAlone << "\n";
+  } else {
+    log << "too few frames\n";
+  }
+  log << "  what each clip adds: cross-validated mean error on each clip with every clip -> with "
+         "that clip left out (on its own row: its frames predicted by the others)\n";
+  for (std::size_t c = 0; c < model.clipErrors.size(); ++c) {
+    const ClipContribution& row = model.clipErrors[c];
+    log << "    without clip " << c + 1 << " (" << row.frames << " frames):";
+    for (std::size_t k = 0; k < row.without.size(); ++k) {
+      log << "  clip " << k + 1 << " " << row.withAll[k] << " -> " << row.without[k];
+    }
+    log << "\n";
+  }
+}
+
 /// Fits the pose model over every candidate frame (the whole reference clip by default) and
 /// every frame of the extra clips; with extra clips the log compares the fit on the main clip
 /// alone.
@@ -402,30 +424,16 @@ void fitModel(Database& db, const std::vector<int>& candidates, const std::vecto
     }
     *log << "\n";
   }
+  PoseModelOptions allClips = options;
+  for (std::size_t c = 0; c + 1 < fit.clipStart.size(); ++c) {
+    allClips.clipSizes.push_back(fit.clipStart[c + 1] - fit.clipStart[c]);
+  }
   db.poseModel = fitPoseModel(db.driverMesh, db.drivenMesh, fit.driver.data(), fit.driven.data(),
-                              fit.frames, restHits, options, log, earlierOf(fit.earlier.size()));
-  const PoseModel& model = db.poseModel;
+                              fit.frames, restHits, allClips, log, earlierOf(fit.earlier.size()));
   if (log != nullptr && !extraClips.empty()) {
-    *log << "  pose model over " << extraClips.size() + 1 << " clips: cross-validated mean error "
-         << model.crossValidationError << "; by clip:";
-    for (std::size_t c = 0; c + 1 < fit.clipStart.size(); ++c) {
-      const int begin = fit.clipStart[c], end = fit.clipStart[c + 1];
-      double sum = 0.0;
-      for (int f = begin; f < end && f < static_cast<int>(model.frameErrors.size()); ++f) {
-        sum += model.frameErrors[static_cast<std::size_t>(f)];
-      }
-      *log << " clip " << c + 1 << " " << sum / std::max(1, end - begin) << " (" << end - begin
-           << " frames)";
-    }
-    *log << "; fitted on the main clip alone: ";
-    if (mainAlone >= 0.0) {
-      *log << mainAlone << "\n";
-    } else {
-      *log << "too few frames\n";
-    }
+    logClipContributions(db.poseModel, mainAlone, *log);
   }
 }
-
 }  // namespace
 
 Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,

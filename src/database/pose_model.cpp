@@ -289,6 +289,29 @@ std::array<double, 2> fitErrorLine(const Eigen::Ref<const Eigen::VectorXd>& sigm
   return cost(scaleOnly[0], scaleOnly[1]) < cost(biasOnly[0], biasOnly[1]) ? scaleOnly : biasOnly;
 }
 
+double conformalScale(const std::vector<double>& error, const std::vector<double>& predicted,
+                      double level) {
+  if (error.size() != predicted.size() || error.empty()) {
+    DS_THROW(kInput,
+             "calibrating the coverage verdict needs as many predicted errors as errors, "
+             "at least 1 (got ",
+             predicted.size(), " and ", error.size(), ")");
+  }
+  if (!(level > 0.0 && level < 1.0)) {
+    DS_THROW(kInput, "the coverage verdict's level must be between 0 and 1 (got ", level, ")");
+  }
+  const std::size_t n = error.size();
+  const double mean = std::accumulate(error.begin(), error.end(), 0.0) / static_cast<double>(n);
+  const double floor = std::max(1e-300, 1e-9 * mean);
+  std::vector<double> ratios(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    ratios[i] = error[i] / std::max(predicted[i], floor);
+  }
+  std::sort(ratios.begin(), ratios.end());
+  const auto rank = static_cast<std::size_t>(std::ceil(static_cast<double>(n + 1) * level));
+  return std::max(1.0, ratios[std::min(n, std::max<std::size_t>(1, rank)) - 1]);
+}
+
 MatrixXd poseKernel(const MatrixXd& a, const MatrixXd& b, double lengthScale, double linearWeight) {
   return kernelMatrix(a, b, lengthScale, linearWeight);
 }
@@ -586,21 +609,20 @@ double medianFeatureDistance(const MatrixXd& x) {
 }
 
 /// Cross-validation on 5 contiguous blocks of the clip: the prediction (T x rank) and the
-/// posterior deviation (T) of every reference frame by the fit `c` on the other blocks.
+/// posterior deviation (T) of every reference frame by the fit `c` on the other blocks. Frames
+/// in [leftBegin, leftEnd) (a clip left out; empty by default) are in no block's training set:
+/// they are predicted by the fit on every frame outside the range instead.
 void crossValidate(const MatrixXd& x, const MatrixXd& coords, const KernelFit& c,
-                   MatrixXd& predicted, VectorXd& sigma) {
+                   MatrixXd& predicted, VectorXd& sigma, int leftBegin = 0, int leftEnd = 0) {
   const int t = static_cast<int>(x.rows());
   const int rank = static_cast<int>(coords.cols());
   const int blocks = 5;
   const auto blockOf = [&](int f) { return std::min(blocks - 1, f * blocks / t); };
+  const auto left = [&](int f) { return f >= leftBegin && f < leftEnd; };
   predicted.resize(t, rank);
   sigma.resize(t);
   const MatrixXd kAll = kernelMatrix(x, x, c.lengthScale, c.linearWeight);
-  for (int b = 0; b < blocks; ++b) {
-    std::vector<int> train, test;
-    for (int f = 0; f < t; ++f) {
-      (blockOf(f) == b ? test : train).push_back(f);
-    }
+  const auto fold = [&](const std::vector<int>& train, const std::vector<int>& test) {
     MatrixXd k(train.size(), train.size()), ks(test.size(), train.size());
     MatrixXd yt(train.size(), rank);
     for (std::size_t i = 0; i < train.size(); ++i) {
@@ -620,6 +642,22 @@ void crossValidate(const MatrixXd& x, const MatrixXd& coords, const KernelFit& c
       predicted.row(test[j]) = p.row(j);
       sigma[test[j]] = std::sqrt(std::max(0.0, kAll(test[j], test[j]) - ks.row(j).dot(v.col(j))));
     }
+  };
+  for (int b = 0; b < blocks; ++b) {
+    std::vector<int> train, test;
+    for (int f = 0; f < t; ++f) {
+      if (!left(f)) {
+        (blockOf(f) == b ? test : train).push_back(f);
+      }
+    }
+    fold(train, test);
+  }
+  if (leftEnd > leftBegin) {
+    std::vector<int> train, test;
+    for (int f = 0; f < t; ++f) {
+      (left(f) ? test : train).push_back(f);
+    }
+    fold(train, test);
   }
 }
 
@@ -647,9 +685,10 @@ KernelFit chooseKernel(const MatrixXd& x, const MatrixXd& coords, int threads) {
 }
 
 /// The error predictor: the cross-validated mean vertex error of each frame against the
-/// posterior deviation, least squares; also the mean errors of the fit and of the binding.
+/// posterior deviation, least squares, and the verdict's conformal scale at `level`; also the
+/// mean errors of the fit and of the binding.
 void fitErrorPredictor(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis,
-                       const KernelFit& best) {
+                       const KernelFit& best, double level) {
   MatrixXd predicted;
   VectorXd sigma;
   crossValidate(x, basis.coords, best, predicted, sigma);
@@ -662,6 +701,44 @@ void fitErrorPredictor(PoseModel& model, const MatrixXd& x, const OffsetBasis& b
   model.errorBias = line[0];
   model.errorScale = line[1];
   model.frameErrors.assign(error.data(), error.data() + error.size());
+  model.frameSigmas.assign(sigma.data(), sigma.data() + sigma.size());
+  std::vector<double> predictedErrors;
+  for (double s : model.frameSigmas) {
+    predictedErrors.push_back(model.predictedError(s));
+  }
+  model.verdictLevel = level;
+  model.verdictScale = conformalScale(model.frameErrors, predictedErrors, level);
+}
+
+/// What each reference clip adds (PoseModel::clipErrors): the cross-validation again with each
+/// clip left out in turn, the kernel settings kept.
+std::vector<ClipContribution> clipContributions(const PoseModel& model, const MatrixXd& x,
+                                                const OffsetBasis& basis, const KernelFit& best,
+                                                const std::vector<int>& clipSizes, int threads) {
+  const std::size_t clips = clipSizes.size();
+  std::vector<int> start = {0};
+  for (int size : clipSizes) {
+    start.push_back(start.back() + size);
+  }
+  const auto clipMeans = [&](const VectorXd& error) {
+    std::vector<double> means;
+    for (std::size_t k = 0; k < clips; ++k) {
+      means.push_back(error.segment(start[k], clipSizes[k]).mean());
+    }
+    return means;
+  };
+  const std::vector<double> withAll =
+      clipMeans(Eigen::Map<const VectorXd>(model.frameErrors.data(), x.rows()));
+  std::vector<ClipContribution> out(clips);
+  parallelFor(static_cast<int>(clips), threads, [&](int c) {
+    MatrixXd predicted;
+    VectorXd sigma;
+    crossValidate(x, basis.coords, best, predicted, sigma, start[c], start[c + 1]);
+    out[c].frames = clipSizes[c];
+    out[c].withAll = withAll;
+    out[c].without = clipMeans(meanVertexError(predicted, basis.coords, basis.components));
+  });
+  return out;
 }
 
 /// The full fit and its low-rank basis: c(x) = S_r U_r^T (K + lambda I)^-1 k(x) weighs the
@@ -727,7 +804,15 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
   model.lengthScale = best.lengthScale;
   model.linearWeight = best.linearWeight;
   model.ridge = best.ridge;
-  fitErrorPredictor(model, x, basis, best);
+  fitErrorPredictor(model, x, basis, best, options.verdictLevel);
+  if (options.clipSizes.size() > 1) {
+    if (std::accumulate(options.clipSizes.begin(), options.clipSizes.end(), 0) != t ||
+        *std::min_element(options.clipSizes.begin(), options.clipSizes.end()) < 1) {
+      DS_THROW(kInput, "the reference clips' frame counts do not add up to the ", t,
+               " frames given");
+    }
+    model.clipErrors = clipContributions(model, x, basis, best, options.clipSizes, threads);
+  }
   // The basis keeps the first `rank` components.
   const int r = std::min(std::min(t, std::max(1, options.rank)), basis.rank);
   storeFit(model, x, basis, r);

@@ -317,18 +317,49 @@ nlohmann::json frameJson(const FrameRecord& record, int shapeCount) {
   if (record.predictedError >= 0) {
     entry["pose_distance"] = record.poseDistance;
     entry["predicted_error"] = record.predictedError;
-    entry["coverage"] = {{"flagged", record.flagged == 1}, {"score", record.predictedError}};
+    entry["error_bound"] = record.errorBound;
+    entry["coverage"] = {{"flagged", record.flagged == 1}, {"score", record.errorBound}};
   }
   return entry;
 }
 
-/// The shot's coverage verdict from the frames' predicted errors: the fraction of frames the
-/// pose model covers and the frame ranges to simulate; null without a pose model.
-nlohmann::json coverageJson(const std::vector<FrameRecord>& records, double tolerance) {
+/// Frames a cloth simulation runs before the first frame it is wanted for, so that the cloth
+/// has settled from its start state (the reference generator's preroll is 20 frames).
+constexpr int kSimulationRunUp = 20;
+
+/// The flagged frames as runs to simulate: each run of flagged frames starts kSimulationRunUp
+/// frames earlier (not before `first`, the shot's first checked frame), and runs that then
+/// overlap or touch are merged. [{from, to, wanted}] with `wanted` the flagged frames inside.
+nlohmann::json simulationRuns(const std::vector<int>& flagged, int first) {
+  nlohmann::json runs = nlohmann::json::array();
+  std::size_t i = 0;
+  while (i < flagged.size()) {
+    std::size_t j = i;
+    while (j + 1 < flagged.size() && flagged[j + 1] == flagged[j] + 1) {
+      ++j;
+    }
+    const int from = std::max(first, flagged[i] - kSimulationRunUp);
+    if (!runs.empty() && from <= runs.back()["to"].get<int>() + 1) {
+      runs.back()["to"] = flagged[j];
+      runs.back()["wanted"] = runs.back()["wanted"].get<int>() + static_cast<int>(j - i + 1);
+    } else {
+      runs.push_back({{"from", from}, {"to", flagged[j]}, {"wanted", static_cast<int>(j - i + 1)}});
+    }
+    i = j + 1;
+  }
+  return runs;
+}
+
+/// The shot's coverage verdict from the frames' error bounds: the fraction of frames the
+/// pose model covers, the frames to simulate and the runs a simulation of them needs; null
+/// without a pose model.
+nlohmann::json coverageJson(const std::vector<FrameRecord>& records, double tolerance,
+                            double level) {
   std::vector<int> flagged;
-  int checked = 0;
+  int checked = 0, first = 0;
   for (const FrameRecord& record : records) {
     if (!record.skipped && record.flagged >= 0) {
+      first = checked == 0 ? record.frame : std::min(first, record.frame);
       ++checked;
       if (record.flagged == 1) {
         flagged.push_back(record.frame);
@@ -338,11 +369,15 @@ nlohmann::json coverageJson(const std::vector<FrameRecord>& records, double tole
   if (checked == 0) {
     return nullptr;
   }
+  std::sort(flagged.begin(), flagged.end());
   const double covered = 1.0 - static_cast<double>(flagged.size()) / checked;
   return {{"tolerance", tolerance},
+          {"level", level},
           {"frames_checked", checked},
           {"covered_fraction", covered},
           {"simulate_frames", flagged.empty() ? std::string() : formatFrameRange(flagged)},
+          {"simulate_runs", simulationRuns(flagged, first)},
+          {"run_up", kSimulationRunUp},
           {"verdict",
            flagged.empty() ? "DrivenShape is enough" : "simulate " + formatFrameRange(flagged)}};
 }
@@ -391,7 +426,8 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   if (!result.warnings.empty()) {
     report["warnings"] = result.warnings;
   }
-  const json coverage = coverageJson(result.frames, evaluator.coverageTolerance());
+  const json coverage =
+      coverageJson(result.frames, evaluator.coverageTolerance(), db.poseModel.verdictLevel);
   if (!coverage.is_null()) {
     report["coverage"] = coverage;
   }

@@ -105,6 +105,15 @@ BakeReportCoverage parseBakeReportCoverage(const std::string& text, const std::s
                "; expected a finite number >= 0");
     }
     out.tolerance = tolerance->get<double>();
+    const nlohmann::json& coverage = report.at("coverage");
+    if (coverage.contains("level")) {
+      const nlohmann::json& level = coverage.at("level");
+      if (!level.is_number() || !(level.get<double>() >= 0.0 && level.get<double>() < 1.0)) {
+        DS_THROW(kInput, source, ": coverage.level is ", jsonText(level),
+                 "; expected a number from 0 to below 1");
+      }
+      out.level = level.get<double>();
+    }
   }
   return out;
 }
@@ -132,6 +141,7 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
   const std::set<int> unpredicted(report.unpredicted.begin(), report.unpredicted.end());
   CoverageCheck check;
   check.tolerance = report.tolerance;
+  check.level = report.level;
   for (const ClothFrameMetrics& m : evaluation.bake.frames) {
     const auto found = byFrame.find(m.frame);
     if (found == byFrame.end()) {
@@ -174,7 +184,9 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
       static_cast<double>(enough.size()) / static_cast<double>(check.frames.size());
   if (!enough.empty()) {
     check.enoughTrueError = meanOf(enough);
-    check.verdictHolds = *check.enoughTrueError <= check.tolerance;
+    check.withinShare = static_cast<double>(check.enough - check.missed) / check.enough;
+    check.verdictHolds = check.level > 0.0 ? *check.withinShare >= check.level
+                                           : *check.enoughTrueError <= check.tolerance;
   }
   if (!flagged.empty()) {
     check.flaggedTrueError = meanOf(flagged);

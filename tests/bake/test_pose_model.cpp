@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 #include <set>
 #include <vector>
@@ -241,6 +243,115 @@ TEST(PoseModel, TheErrorLineIsTheBestNonNegativeLine) {
   EXPECT_THROW(fitErrorLine(sigma, Eigen::VectorXd::Zero(3)), Error);
 }
 
+TEST(PoseModel, TheVerdictScaleIsTheConformalRankOfTheRatios) {
+  // Against counting: the scale is a ratio error / predicted of the calibration frames, at
+  // least ceil((n + 1) level) of the n ratios are within it and, when it is above 1, fewer
+  // are strictly below it.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (int n : {1, 9, 10, 57, 400}) {
+    for (double level : {0.5, 0.8, 0.9, 0.95}) {
+      std::vector<double> error(n), predicted(n), ratio(n);
+      for (int i = 0; i < n; ++i) {
+        predicted[i] = 0.01 + 0.02 * unit(rng);
+        error[i] = predicted[i] * (0.2 + 2.5 * unit(rng));
+        ratio[i] = error[i] / predicted[i];
+      }
+      const double scale = conformalScale(error, predicted, level);
+      const long need = std::min<long>(n, static_cast<long>(std::ceil((n + 1) * level)));
+      const long within =
+          std::count_if(ratio.begin(), ratio.end(), [&](double r) { return r <= scale; });
+      const long below =
+          std::count_if(ratio.begin(), ratio.end(), [&](double r) { return r < scale; });
+      EXPECT_GE(within, need) << "n " << n << " level " << level;
+      EXPECT_GE(scale, 1.0);
+      if (scale > 1.0) {
+        EXPECT_LT(below, need) << "n " << n << " level " << level << ": not the smallest";
+        EXPECT_TRUE(std::find(ratio.begin(), ratio.end(), scale) != ratio.end());
+      }
+    }
+  }
+  // A frame predicted 0 with an error is the largest ratio, still finite.
+  EXPECT_TRUE(std::isfinite(conformalScale({0.01, 0.02}, {0.0, 0.02}, 0.9)));
+  EXPECT_THROW(conformalScale({0.01}, {0.01, 0.02}, 0.9), Error);
+  EXPECT_THROW(conformalScale({}, {}, 0.9), Error);
+  EXPECT_THROW(conformalScale({0.01}, {0.01}, 1.0), Error);
+}
+
+TEST_F(PoseModelClTest, AFrameIsFlaggedByItsBoundNotItsPrediction) {
+  // With the verdict's scale s, a frame whose predicted error p is under the tolerance but s p
+  // is over it is flagged; the bound is s p on every frame; a model from before the verdict
+  // was calibrated (level 0, scale 1) flags by its prediction.
+  const Database& db = sampleDatabase();
+  ASSERT_GT(db.poseModel.verdictLevel, 0.0) << "db build calibrates the verdict";
+  ASSERT_GE(db.poseModel.verdictScale, 1.0);
+  const auto driver = openPointCache(sample("test.driver.pc2"));
+  const std::vector<int> frames = driver->frames();
+  const std::vector<float> pose = readFrames(*driver, frames);
+  testing::Backends cl = clBackends();
+  Database scaled = db;
+  scaled.poseModel.verdictScale = 2.0;
+  Database old = db;
+  old.poseModel.verdictLevel = 0.0;
+  old.poseModel.verdictScale = 1.0;
+  // A tolerance between the frames' predictions, so some frames fall on each side.
+  const Evaluation probe = Evaluator(old, EvaluatorSettings(), cl.view()).evaluate(frames, pose);
+  std::vector<double> predicted;
+  for (const FrameRecord& record : probe.records) {
+    predicted.push_back(record.predictedError);
+  }
+  std::sort(predicted.begin(), predicted.end());
+  EvaluatorSettings settings;
+  settings.coverageTolerance = predicted[predicted.size() * 3 / 4];
+  const Evaluation a = Evaluator(scaled, settings, cl.view()).evaluate(frames, pose);
+  const Evaluation b = Evaluator(old, settings, cl.view()).evaluate(frames, pose);
+  int flaggedOnlyByBound = 0;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const FrameRecord& x = a.records[i];
+    EXPECT_DOUBLE_EQ(x.errorBound, 2.0 * x.predictedError) << "frame " << x.frame;
+    EXPECT_EQ(x.flagged, x.errorBound > settings.coverageTolerance ? 1 : 0) << "frame " << x.frame;
+    EXPECT_EQ(b.records[i].errorBound, b.records[i].predictedError) << "frame " << x.frame;
+    EXPECT_EQ(b.records[i].flagged, b.records[i].predictedError > settings.coverageTolerance);
+    flaggedOnlyByBound += x.flagged == 1 && b.records[i].flagged == 0;
+  }
+  EXPECT_GT(flaggedOnlyByBound, 0) << "the tolerance was chosen so the bound flags more frames";
+}
+
+TEST(PoseModel, EachClipsContributionIsMeasuredByLeavingItOut) {
+  // The sample's train clip given twice: left out, a clip is predicted by its identical twin
+  // far better than the clip alone cross-validates (its held-out blocks' poses are new to it);
+  // a clip of other poses (the test clip) is predicted by the train clip worse than it is
+  // cross-validated once it is in.
+  const Mesh driver = readObj(sample("driver_rest.obj"));
+  const Mesh driven = readObj(sample("driven_rest.obj"));
+  const auto trainDriver = openPointCache(sample("train.driver.pc2"));
+  const auto trainDriven = openPointCache(sample("train.driven.pc2"));
+  const auto testDriver = openPointCache(sample("test.driver.pc2"));
+  const auto testDriven = openPointCache(sample("test.driven.pc2"));
+  DatabaseBuildOptions options;
+  options.count = 10;
+  const Database twins = buildDatabase(driver, driven, *trainDriver, *trainDriven,
+                                       {{trainDriver.get(), trainDriven.get(), {}}}, options);
+  const std::vector<ClipContribution>& t = twins.poseModel.clipErrors;
+  ASSERT_EQ(t.size(), 2u);
+  for (int c = 0; c < 2; ++c) {
+    EXPECT_EQ(t[c].frames, static_cast<int>(trainDriver->frames().size()));
+    EXPECT_LT(t[c].without[c], 0.1 * sampleDatabase().poseModel.crossValidationError)
+        << "clip " << c + 1 << " predicted by its twin";
+  }
+  const Database other = buildDatabase(driver, driven, *trainDriver, *trainDriven,
+                                       {{testDriver.get(), testDriven.get(), {}}}, options);
+  const std::vector<ClipContribution>& o = other.poseModel.clipErrors;
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_GT(o[1].without[1], o[1].withAll[1]) << "the test clip's poses are new to the train clip";
+  // withAll is the mean of the model's own cross-validated frame errors over each clip.
+  const std::vector<double>& e = other.poseModel.frameErrors;
+  const int first = o[0].frames;
+  EXPECT_DOUBLE_EQ(o[0].withAll[0], std::accumulate(e.begin(), e.begin() + first, 0.0) / first);
+  EXPECT_NEAR(o[0].withAll[1], std::accumulate(e.begin() + first, e.end(), 0.0) / o[1].frames,
+              1e-12);
+}
+
 TEST_F(PoseModelClTest, HistoryReadsTheSameFramesInBlocksAsInOneCall) {
   const Database& db = sampleDatabase();
   const auto driver = openPointCache(sample("test.driver.pc2"));
@@ -296,7 +407,12 @@ TEST(PoseModel, TheDatabaseKeepsTheModel) {
   EXPECT_EQ(a.lengthScale, b.lengthScale);
   EXPECT_EQ(a.ridge, b.ridge);
   EXPECT_EQ(a.errorScale, b.errorScale);
+  EXPECT_EQ(a.verdictLevel, b.verdictLevel);
+  EXPECT_EQ(a.verdictScale, b.verdictScale);
   EXPECT_EQ(db.contentHash(), back.contentHash());
+  Database recalibrated = db;
+  recalibrated.poseModel.verdictScale += 0.5;
+  EXPECT_NE(recalibrated.contentHash(), db.contentHash()) << "the verdict is part of the content";
   Database without = db;
   without.poseModel = PoseModel();
   EXPECT_NE(without.contentHash(), db.contentHash()) << "the model is part of the content";

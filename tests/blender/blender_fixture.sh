@@ -42,9 +42,10 @@ bound=(--max-weight-change 0.02 --batch 64)
   -o "$work/sleeve_pose.dsdb"
 "$cli" bake --db "$work/sleeve_pose.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
   -o "$work/cli/pose/sleeve.####.exr"
-# The default tolerance flags no frame of the test clip; this one flags part of it. It is
-# 91/8192, a float32 exactly, as Blender's float properties hold it.
+# The default tolerance flags every frame of the test clip (the sample's 61 reference frames
+# bound each one's error at 14.7-20.5 mm); this one flags part of it. It is 145/8192, a float32
+# exactly, as Blender's float properties hold it, and 0.05 mm from the nearest bound.
 "$cli" bake --db "$work/sleeve_pose.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
-  --coverage-tolerance 0.0111083984375 -o "$work/cli/pose_tolerance/sleeve.####.exr"
+  --coverage-tolerance 0.0177001953125 -o "$work/cli/pose_tolerance/sleeve.####.exr"
 
 python3 "$source_dir/scripts/blender_package.py" -o "$work/drivenshape_blender.zip"

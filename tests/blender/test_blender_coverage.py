@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """The frames to simulate where an animator looks (issue 29): the timeline markers that Mark
 Frames to Simulate and the add-on's bake put on the frames the pose model flags, and the cloth
-coloured by the predicted error, against the report of `drivenshape bake` of the same shot and
-database (the fixture's cli/pose_tolerance bake: per frame its predicted_error and
+coloured by the error bound, against the report of `drivenshape bake` of the same shot and
+database (the fixture's cli/pose_tolerance bake: per frame its error_bound and
 coverage.flagged), a tool path that shares nothing with the add-on but the library.
 
 Also checked: a new marking removes the add-on's old markers and none of the user's (one of them
@@ -26,7 +26,7 @@ import blender_test_util as util  # noqa: E402
 GREEN, YELLOW, RED, GREY = (0.05, 0.60, 0.05), (0.90, 0.75, 0.02), (0.80, 0.03, 0.02), \
     (0.25, 0.25, 0.25)
 COLOR_TOLERANCE = 1e-6
-# A tolerance that flags nearly every frame of the test clip, for the first marking.
+# A tolerance that flags every frame of the test clip, for the first marking.
 LOOSE_TOLERANCE = 9.0 / 1024.0
 
 args = util.parse_args()
@@ -40,7 +40,7 @@ settings = scene.drivenshape
 with open(os.path.join(args.work, "cli", "pose_tolerance", "sleeve.report.json")) as file:
     report = json.load(file)
 tolerance = report["settings"]["coverage_tolerance"]
-cli = {f["frame"]: (f["predicted_error"], f["coverage"]["flagged"]) for f in report["frames"]}
+cli = {f["frame"]: (f["error_bound"], f["coverage"]["flagged"]) for f in report["frames"]}
 flagged = sorted(frame for frame, (_error, is_flagged) in cli.items() if is_flagged)
 checks.check(sorted(cli) == list(range(1, 49)) and 0 < len(flagged) < 48,
              f"the CLI's report has frames 1-48, {len(flagged)} flagged ({flagged}): the markers "
@@ -80,13 +80,13 @@ result = bpy.ops.drivenshape.mark_frames()
 want = expected_markers(flagged) | USER
 checks.check(result == {"FINISHED"} and markers() == want,
              "Mark Frames to Simulate: the markers are the CLI's flagged frames named with its "
-             "predicted errors, the user's markers kept and the earlier marking's gone "
+             "error bounds, the user's markers kept and the earlier marking's gone "
              f"(missing {sorted(want - markers())}, extra {sorted(markers() - want)})")
 checks.check(scene.frame_current == 7, "the marking puts the scene back on its frame")
 checks.check(not os.path.exists(out), f"the marking wrote no file ({out} does not exist)")
-stored = [(v.frame, v.predicted_error, v.flagged) for v in settings.verdicts]
+stored = [(v.frame, v.error_bound, v.flagged) for v in settings.verdicts]
 checks.check(stored == [(f, float(np.float32(cli[f][0])), cli[f][1]) for f in range(1, 49)],
-             "the scene stores each frame's predicted error and verdict as the CLI's report")
+             "the scene stores each frame's error bound and verdict as the CLI's report")
 lines = addon.ui.verdict_lines(settings, units)
 want_lines = [("Frames", "1-48", False), ("Simulate", f"{len(flagged)} of 48", True),
               ("Tolerance", f"{tolerance * 1000.0:.1f} mm", False)]
@@ -158,9 +158,9 @@ checks.check(ramp(cli[4][0])[1] > ramp(cli[4][0])[0] and ramp(cli[30][0])[0] > r
 
 scene.frame_set(25)
 bpy.ops.drivenshape.live_start()
-check_colors(ramp(addon.live.SESSION.last_record.predicted_error), "live mode on frame 25")
-checks.check(addon.live.SESSION.last_record.predicted_error == cli[25][0],
-             "live mode's prediction on frame 25 is the CLI's")
+check_colors(ramp(addon.live.SESSION.last_record.error_bound), "live mode on frame 25")
+checks.check(addon.live.SESSION.last_record.error_bound == cli[25][0],
+             "live mode's error bound on frame 25 is the CLI's")
 scene.frame_set(26)
 check_colors(ramp(cli[26][0]), "live mode, playing on to frame 26")
 bpy.ops.drivenshape.live_stop()

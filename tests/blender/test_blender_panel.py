@@ -1,12 +1,13 @@
 # SPDX-License-Identifier: Apache-2.0
 """The panel's coverage lines in a real (background) Blender: live mode with a pose-model
-database shows the live frame's predicted error and the verdict, in mm.
+database shows the live frame's predicted error, its error bound and the verdict, in mm.
 
 Blender cannot draw a panel in the background, so the check calls the function the panel draws
 from (ui.coverage_lines) with live mode's own record and Evaluator. The expected texts are made
 here: the tolerance from the cloth's rest bounding box (the default is 2% of its diagonal), the
-unit scale from the scene; the predicted error from a second Evaluator of the module run on the
-same driver frame outside Blender's handlers. With the QP there is nothing to show."""
+unit scale from the scene; the predicted error and the bound from a second Evaluator of the
+module run on the same driver frame outside Blender's handlers, the bound checked against the
+prediction times the database's verdict scale. With the QP there is nothing to show."""
 
 import os
 import sys
@@ -59,19 +60,27 @@ reference = ds.Evaluator(ds.load_database(database), None, addon.engine.CACHE.de
 driver_cache = ds.open_point_cache(os.path.join(data, "test.driver.pc2"))
 played = list(range(1, FRAME + 1))
 _, records = reference.evaluate(played, driver_cache.read_frames(played), warmup=FRAME - 1)
-predicted = records[0].predicted_error
-checks.check(record.predicted_error == predicted,
-             f"live mode's prediction {record.predicted_error!r} is the module's {predicted!r}")
+predicted, bound = records[0].predicted_error, records[0].error_bound
+checks.check(record.predicted_error == predicted and record.error_bound == bound,
+             f"live mode's prediction {record.predicted_error!r} and bound {record.error_bound!r}"
+             f" are the module's {predicted!r} and {bound!r}")
+scale = reference.describe_settings()["pose_model"]["verdict_scale"]
+checks.check(scale >= 1.0 and abs(bound - scale * predicted) <= 1e-12 * bound,
+             f"the bound {bound!r} is the prediction {predicted!r} times the verdict scale {scale!r}")
 
 units = scene.unit_settings
 checks.check(units.system == "METRIC" and units.scale_length == 1.0,
              "the factory scene is metric at scale 1 (a Blender unit is a metre)")
 lines = addon.ui.coverage_lines(record, evaluator.describe_settings(), units)
 print(lines)
+over = bound > tolerance
 expected = [("Predicted", f"{predicted * 1000.0:.1f} mm", False),
-            ("Simulate", f"No: ≤ {tolerance * 1000.0:.1f} mm", False)]
-checks.check(not record.flagged and predicted < tolerance,
-             f"frame {FRAME} is within the default tolerance {tolerance:.4g}")
+            ("Bound", f"{bound * 1000.0:.1f} mm", False),
+            ("Simulate", f"Yes: > {tolerance * 1000.0:.1f} mm" if over else
+             f"No: ≤ {tolerance * 1000.0:.1f} mm", over)]
+checks.check(record.flagged == (1 if over else 0),
+             f"frame {FRAME} is flagged exactly when its bound is over the default tolerance "
+             f"{tolerance:.4g}")
 checks.check(lines == expected, f"the panel says {lines}, expected {expected}")
 
 # A scene in centimetres (unit scale 0.01): a Blender unit is 10 mm.
@@ -84,10 +93,10 @@ checks.check(lines[0][1] == f"{predicted:.4g} BU", f"a scene without units: {lin
 units.system, units.scale_length = "METRIC", 1.0
 
 # A frame over the tolerance is an alert (the record's flag decides, as in the bake's report).
-over = types.SimpleNamespace(predicted_error=0.02, flagged=1)
+over = types.SimpleNamespace(predicted_error=0.01, error_bound=0.02, flagged=1)
 lines = addon.ui.coverage_lines(over, {"coverage_tolerance": 0.0125}, units)
-checks.check(lines[1] == ("Simulate", "Yes: > 12.5 mm", True),
-             f"a flagged frame: {lines[1]}")
+checks.check(lines[1:] == [("Bound", "20.0 mm", False), ("Simulate", "Yes: > 12.5 mm", True)],
+             f"a flagged frame: {lines[1:]}")
 
 # The QP predicts nothing: no coverage lines.
 settings.weight_mode = "qp"

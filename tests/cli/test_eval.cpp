@@ -617,13 +617,13 @@ TEST(EvalCommand, ReportCoverageAgainstTheTruth) {
   TempDir dir;
   const std::string db = buildPoseDb(dir);
   const std::string frames = "1-25x3";  // 9 frames
-  // A first bake gives the predicted errors; the second flags the upper half of them (its
+  // A first bake gives the error bounds; the second flags the upper half of them (its
   // tolerance is their median), so both the enough and the flagged frames are measured.
   const nlohmann::json first = readJson(bakeWithReport(dir, db, "first", frames));
   std::vector<double> firstPredicted;
   for (const nlohmann::json& f : first["frames"]) {
     ASSERT_TRUE(f.contains("predicted_error")) << "the pose model predicts every frame";
-    firstPredicted.push_back(f["predicted_error"].get<double>());
+    firstPredicted.push_back(f["error_bound"].get<double>());
   }
   ASSERT_EQ(firstPredicted.size(), 9u);
   std::vector<double> sorted = firstPredicted;
@@ -682,7 +682,7 @@ TEST(EvalCommand, ReportCoverageAgainstTheTruth) {
 
   std::vector<double> predicted, truth;
   double enoughSum = 0.0, flaggedSum = 0.0;
-  int enough = 0, flagged = 0;
+  int enough = 0, flagged = 0, missed = 0;
   for (const nlohmann::json& frame : j["frames"]) {
     const int number = frame["frame"].get<int>();
     ASSERT_EQ(predictions.count(number), 1u) << number;
@@ -695,6 +695,7 @@ TEST(EvalCommand, ReportCoverageAgainstTheTruth) {
     truth.push_back(frame["mean"].get<double>());
     (flag ? flaggedSum : enoughSum) += frame["mean"].get<double>();
     ++(flag ? flagged : enough);
+    missed += !flag && frame["mean"].get<double>() > tolerance;
   }
   ASSERT_GT(enough, 0);
   ASSERT_GT(flagged, 0);
@@ -705,7 +706,13 @@ TEST(EvalCommand, ReportCoverageAgainstTheTruth) {
             "enough frames' true error");
   expectRel(c["flagged_true_error"].get<double>(), flaggedSum / flagged, kEvalErrorRelTol,
             "flagged frames' true error");
-  EXPECT_EQ(c["verdict_holds"].get<bool>(), enoughSum / enough <= tolerance);
+  // The verdict holds when the report's level of the enough frames are truly within it.
+  const double level = report["coverage"]["level"].get<double>();
+  ASSERT_GT(level, 0.0) << "db build calibrates the verdict";
+  EXPECT_EQ(c["level"].get<double>(), level);
+  EXPECT_EQ(c["missed"].get<int>(), missed);
+  EXPECT_DOUBLE_EQ(c["within_share"].get<double>(), double(enough - missed) / enough);
+  EXPECT_EQ(c["verdict_holds"].get<bool>(), double(enough - missed) / enough >= level);
   EXPECT_NEAR(c["spearman"].get<double>(), referenceSpearman(predicted, truth),
               testing::kRankCorrelationTol);
   std::printf("[ measured ] sleeve %s: Spearman %.3f over 9 frames, covered %.3f\n", frames.c_str(),

@@ -11,10 +11,11 @@ import pytest
 
 FRAMES = "1-24"
 FRAME_COUNT = 24
-# A coverage tolerance below the sample's predicted errors (8.6-11.6 mm on frames 1-24), so the
+# A coverage tolerance among the sample's error bounds (14.7-19.8 mm on frames 1-24), so the
 # pose model's bake flags some frames; the default (2% of the cloth's diagonal, 12.5 mm) flags
-# none of them.
-LOW_TOLERANCE = "0.0105"
+# all of them, and HIGH_TOLERANCE none.
+LOW_TOLERANCE = "0.0175"
+HIGH_TOLERANCE = "0.025"
 
 
 def pytest_addoption(parser):

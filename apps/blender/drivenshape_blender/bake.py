@@ -102,7 +102,7 @@ class Bake:
         self.cloth_frames = np.empty((kept, database.driven_vertex_count, 3), dtype=np.float32)
         self.driver_batch = np.empty((longest, database.driver_vertex_count, 3), dtype=np.float32)
         self.cloth_matrices = [None] * len(self.frames)  # cloth to world, per frame (WORLD)
-        self.verdicts = []  # (frame, predicted error, flagged) of the frames with a prediction
+        self.verdicts = []  # (frame, error bound, flagged) of the frames with a prediction
         self.batch = 0  # the batch of the plan being read
         self.read = 0  # its driver frames read so far
         self.done = 0
@@ -146,7 +146,7 @@ class Bake:
                             f"{engine.describe_error(error)}") from None
         for record in records:
             if record.predicted_error >= 0:
-                self.verdicts.append((record.frame, record.predicted_error, record.flagged == 1))
+                self.verdicts.append((record.frame, record.error_bound, record.flagged == 1))
         if self.exr_pattern:
             for i, frame in enumerate(frames):
                 self.write_exr(frame, out[i])

@@ -49,7 +49,7 @@ def remove_markers(scene):
 
 
 def store(scene, verdicts, tolerance):
-    """Replaces the scene's verdicts with `verdicts`, [(frame, predicted error, flagged)] in scene
+    """Replaces the scene's verdicts with `verdicts`, [(frame, error bound, flagged)] in scene
     units (frames without a prediction left out), and the add-on's markers with one per flagged
     frame. `tolerance`: the coverage tolerance they were judged by (scene units). Returns the
     flagged frames."""
@@ -60,7 +60,7 @@ def store(scene, verdicts, tolerance):
     flagged = []
     for frame, error, is_flagged in verdicts:
         item = settings.verdicts.add()
-        item.frame, item.predicted_error, item.flagged = frame, error, is_flagged
+        item.frame, item.error_bound, item.flagged = frame, error, is_flagged
         if is_flagged:
             item.marker = marker_name(error, scene.unit_settings)
             scene.timeline_markers.new(item.marker, frame=frame)
@@ -106,7 +106,7 @@ def stored_verdict(settings, frame):
 
 
 def color(error, tolerance):
-    """The linear RGBA colour of a predicted error (scene units) on the scale of `tolerance`."""
+    """The linear RGBA colour of an error bound (scene units) on the scale of `tolerance`."""
     if error is None or error < 0 or tolerance is None or tolerance <= 0:
         return (*NO_PREDICTION, 1.0)
     x = min(max(error / tolerance, SCALE[0][0]), SCALE[-1][0])
@@ -153,7 +153,7 @@ def paint_stored(scene):
     if not settings.error_colors or cloth is None or SUSPENDED or live.is_live(scene):
         return
     verdict = stored_verdict(settings, scene.frame_current)
-    paint(cloth, verdict.predicted_error if verdict else None, settings.verdict_tolerance)
+    paint(cloth, verdict.error_bound if verdict else None, settings.verdict_tolerance)
 
 
 def error_colors_changed(context):

@@ -160,7 +160,7 @@ class LiveSession:
         if world:
             result = engine.to_space(result.copy(), cloth.matrix_world.inverted())
         if settings.error_colors:
-            coverage.paint(cloth, records[0].predicted_error if records else None,
+            coverage.paint(cloth, records[0].error_bound if records else None,
                            self.tolerance, tag=False)  # write_positions updates the mesh
         engine.write_positions(cloth, result)
         self.cloth_written = result

@@ -68,10 +68,12 @@ class DrivenShapeVerdict(bpy.types.PropertyGroup):
     """One evaluated frame's coverage verdict, from the last bake or Mark Frames to Simulate."""
 
     frame: IntProperty(name="Frame")
-    predicted_error: FloatProperty(name="Predicted Error", unit="LENGTH",
-                                   description="Predicted mean vertex error (scene units)")
+    error_bound: FloatProperty(name="Error Bound", unit="LENGTH",
+                               description="The verdict's bound on the mean vertex error (scene "
+                               "units), calibrated to hold on the database's verdict level of "
+                               "frames")
     flagged: BoolProperty(name="Simulate",
-                          description="The predicted error is over the coverage tolerance")
+                          description="The error bound is over the coverage tolerance")
     marker: StringProperty(name="Marker",
                            description="The timeline marker the add-on put on the frame, if any")
 

@@ -73,7 +73,8 @@ def coverage_lines(record, settings, unit_settings):
     predicted = length_text(record.predicted_error, unit_settings)
     tolerance = settings.get("coverage_tolerance")
     limit = "tolerance" if tolerance is None else length_text(tolerance, unit_settings)
-    lines = [("Predicted", predicted, False)]
+    bound = length_text(record.error_bound, unit_settings)
+    lines = [("Predicted", predicted, False), ("Bound", bound, False)]
     if record.flagged == 1:
         lines.append(("Simulate", f"Yes: > {limit}", True))
     else:

@@ -461,9 +461,14 @@ class FrameRecord:
     def binding_switches(self) -> int:
         ...
     @property
+    def error_bound(self) -> float:
+        """
+        pose model: the verdict's bound on the mean vertex error (held at the model's verdict level), scene units; -1 otherwise
+        """
+    @property
     def flagged(self) -> int:
         """
-        pose model: 1 when the predicted error exceeds the coverage tolerance
+        pose model: 1 when the error bound exceeds the coverage tolerance
         """
     @property
     def frame(self) -> int:

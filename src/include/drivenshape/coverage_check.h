@@ -24,8 +24,11 @@ struct BakeReportCoverage {
   std::vector<PredictedFrame> predicted;  ///< the entries with a prediction, in report order
   std::vector<int> unpredicted;           ///< the frames of the entries without one
   double tolerance = -1.0;  ///< `coverage.tolerance` (scene units); -1 when nothing is predicted
-  int clothVertices = -1;   ///< `database.driven_vertices`; -1 when the report states none
-  std::string weights;      ///< `settings.weights` when stated (for messages), else empty
+  /// `coverage.level`: the share of frames the bake's error bound was calibrated to hold for; 0
+  /// for a report without one (before 0.2.0).
+  double level = 0.0;
+  int clothVertices = -1;  ///< `database.driven_vertices`; -1 when the report states none
+  std::string weights;     ///< `settings.weights` when stated (for messages), else empty
 };
 
 /// Reads the coverage part of a bake report's JSON text. Entries of `frames` without a
@@ -46,8 +49,9 @@ struct CoverageFrame {
 };
 
 /// The prediction against the truth over the evaluated frames the report predicts. A frame
-/// is "enough" when the report does not flag it; the verdict holds when the true mean error
-/// of those frames is within the tolerance.
+/// is "enough" when the report does not flag it; the verdict holds when the share of those
+/// frames whose true error is within the tolerance is at least the report's level (for a report
+/// without a level, when their true mean error is within the tolerance).
 struct CoverageCheck {
   std::vector<CoverageFrame> frames;  ///< in the order of the evaluation
   int missing = 0;                    ///< evaluated frames the report does not list
@@ -61,8 +65,11 @@ struct CoverageCheck {
   std::optional<double> enoughTrueError;   ///< true mean error over the enough frames
   std::optional<double> flaggedTrueError;  ///< true mean error over the flagged frames
   int missed = 0;                          ///< enough frames whose true error is over tolerance
-  std::optional<bool> verdictHolds;        ///< enoughTrueError <= tolerance; none without
-                                           ///< enough frames (the verdict claims nothing)
+  double level = 0.0;                      ///< the report's
+  std::optional<double> withinShare;       ///< (enough - missed) / enough; none without enough
+  std::optional<bool> verdictHolds;        ///< withinShare >= level (level 0: enoughTrueError
+                                           ///< <= tolerance); none without enough frames (the
+                                           ///< verdict claims nothing)
   double predictedMean = 0.0;              ///< mean of the frames' predicted errors (scene units)
   double predictedMax = 0.0;               ///< the largest predicted error
   int predictedMaxFrame = 0;               ///< the first of `frames` with it

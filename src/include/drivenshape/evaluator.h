@@ -174,7 +174,11 @@ struct FrameRecord {
   // Coverage (pose model; -1 where not measured).
   double poseDistance = -1.0;    ///< the model's posterior deviation: how new the pose is
   double predictedError = -1.0;  ///< predicted mean vertex error (scene units)
-  int flagged = -1;              ///< 1: predicted error above the coverage tolerance (simulate)
+  /// The verdict's bound on the mean vertex error (scene units; PoseModel::errorBound): the
+  /// true error is within it on at least the model's verdict level of frames like its
+  /// held-out reference frames.
+  double errorBound = -1.0;
+  int flagged = -1;  ///< 1: the error bound is above the coverage tolerance (simulate)
 };
 
 /// Seconds per pipeline stage by name ("align", "project", "weights", "blend", "correct",

@@ -45,8 +45,27 @@ struct PoseModelOptions {
   int historyFrames = 15;
   /// Basis shapes kept (the rank of the correction; at most the clip's frame count).
   int rank = 64;
+  /// Frames of each reference clip in the order the frames are given (their sum is the frame
+  /// count; empty = one clip). With two or more the fit also measures what each clip adds
+  /// (PoseModel::clipErrors).
+  std::vector<int> clipSizes;
+  /// The share of frames the coverage verdict's bound is calibrated to hold for (PoseModel::
+  /// verdictScale), in (0, 1).
+  double verdictLevel = 0.9;
   /// Host threads (0 = all cores). The result does not depend on it.
   int threads = 0;
+};
+
+/// What one reference clip adds to a pose model fitted over several (PoseModelOptions::
+/// clipSizes): mean vertex errors (scene units) on every clip's frames, each clip in turn.
+struct ClipContribution {
+  int frames = 0;  ///< this clip's frame count
+  /// Per clip k: the cross-validated mean error on clip k's frames of the model over every
+  /// clip (the same for every row) and of the same model with this clip left out (for k this
+  /// clip: its frames predicted by the other clips alone). The kernel settings stay those
+  /// chosen over every clip.
+  std::vector<double> withAll;
+  std::vector<double> without;
 };
 
 /// A fitted pose model (see above). Stored in the database file (docs/formats.md).
@@ -70,13 +89,27 @@ struct PoseModel {
   /// bias, and predictedError() clamps at 0).
   double errorBias = 0.0;
   double errorScale = 0.0;
+  /// The coverage verdict's bound, split-conformal on the cross-validation: a frame is called
+  /// covered at tolerance tau when errorBound(sigma) = verdictScale * predictedError(sigma) <=
+  /// tau. verdictScale is the ceil((n + 1) verdictLevel)-th smallest of the n reference frames'
+  /// ratios of cross-validated error to predicted error (the largest when that is past n), so
+  /// that on frames like the held-out reference frames the true error is within the bound at
+  /// least verdictLevel of the time. Level 0 (databases written before 0.2.0): scale 1, the
+  /// bound is the predicted error itself.
+  double verdictLevel = 0.0;
+  double verdictScale = 1.0;
   /// Cross-validated mean vertex error over the reference clip (scene units) and, for scale,
   /// that of the plain binding.
   double crossValidationError = 0.0;
   double bindingError = 0.0;
   /// Per reference frame (in `frames` order), its cross-validated mean vertex error: what the
-  /// build log breaks down by clip. Not stored in the database file (empty once loaded).
+  /// build log breaks down by clip, and its posterior deviation in its fold. Not stored in the
+  /// database file (empty once loaded).
   std::vector<double> frameErrors;
+  std::vector<double> frameSigmas;
+  /// With several reference clips: what each added (ClipContribution, in clip order). Not
+  /// stored in the database file.
+  std::vector<ClipContribution> clipErrors;
 
   bool empty() const { return frames.empty(); }
   /// The predicted mean vertex error at posterior deviation `sigma`: errorBias + errorScale
@@ -84,6 +117,9 @@ struct PoseModel {
   double predictedError(double sigma) const {
     return std::max(0.0, errorBias + errorScale * sigma);
   }
+  /// The verdict's bound on the mean vertex error at posterior deviation `sigma`: verdictScale
+  /// times predictedError(sigma).
+  double errorBound(double sigma) const { return verdictScale * predictedError(sigma); }
   int partCount() const { return static_cast<int>(parent.size()); }
   /// Features of one pose: 9 per part with a parent (its rotation relative to the parent's,
   /// minus the identity), 3 per root (the up axis in the root's frame, minus up).
@@ -127,6 +163,15 @@ void readRigParts(const std::string& path, int driverVertexCount, std::vector<in
 /// differ or are below 2.
 std::array<double, 2> fitErrorLine(const Eigen::Ref<const Eigen::VectorXd>& sigma,
                                    const Eigen::Ref<const Eigen::VectorXd>& error);
+
+/// The split-conformal scale of the verdict's bound (PoseModel::verdictScale): over the
+/// reference frames' cross-validated errors and their predicted errors (same length, at least
+/// 1), the ceil((n + 1) level)-th smallest ratio error / predicted (the largest when that rank
+/// is past n), never below 1. A predicted error below 1e-9 of the mean error counts as that
+/// much, so the scale stays finite. Error(kInput) when the lengths differ or are 0, or the
+/// level is not in (0, 1).
+double conformalScale(const std::vector<double>& error, const std::vector<double>& predicted,
+                      double level);
 
 /// Finds `parts` rigid parts of the driver over `frameCount` frames (frame-major, V x 3 each):
 /// hard assignment of every vertex to the part whose per-frame rigid motions explain its

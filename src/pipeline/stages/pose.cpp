@@ -33,7 +33,9 @@ class PoseStage final : public Stage {
                               {"velocity_lag", mPose.velocityLag},
                               {"history_frames", mPose.historyFrames},
                               {"cross_validation_error", mPose.crossValidationError},
-                              {"binding_error", mPose.bindingError}};
+                              {"binding_error", mPose.bindingError},
+                              {"verdict_level", mPose.verdictLevel},
+                              {"verdict_scale", mPose.verdictScale}};
     settings["coverage_tolerance"] = coverageTolerance(mModel);
   }
 
@@ -77,7 +79,8 @@ class PoseStage final : public Stage {
       record.atOne.clear();
       record.poseDistance = p.sigma;
       record.predictedError = p.predictedError;
-      record.flagged = p.predictedError > tolerance ? 1 : 0;
+      record.errorBound = mPose.errorBound(p.sigma);
+      record.flagged = record.errorBound > tolerance ? 1 : 0;
     });
     // Remember the block's last frames for a call that continues it.
     const int need = mPose.historyNeeded();
