@@ -11,7 +11,7 @@ DRIVENSHAPE_PYTHONPATH must name the folder that holds the drivenshape module (b
 The add-on is loaded from the source tree (apps/blender). The database is built with the module
 from tests/data/sleeve's training clip (out/screenshot/sleeve.dsdb, with the pose model); the
 driver plays the test clip through a Mesh Cache modifier. The coverage tolerance is TOLERANCE
-(the default, 12.5 mm here, flags no frame of the test clip). Blender quits after writing the image (exit code 1 on a
+(the default, 12.5 mm here, flags every frame of the test clip). Blender quits after writing the image (exit code 1 on a
 failure).
 """
 
@@ -30,7 +30,7 @@ import drivenshape_blender  # noqa: E402
 
 DATA = os.path.join(ROOT, "tests", "data", "sleeve")
 FRAME = 33
-TOLERANCE = 0.011  # metres
+TOLERANCE = 0.0185  # metres
 
 
 def parse_args():

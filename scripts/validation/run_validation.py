@@ -132,6 +132,9 @@ def main():
                     "spread) beside the model's error")
     ap.add_argument("--bake-flags", default="",
                     help="extra `bake` flags of the defaults mode (e.g. --exit-fade 0.2)")
+    ap.add_argument("--baselines", metavar="TABLE.json",
+                    help="take the modes not run here (e.g. talk and bind, which the --also "
+                    "clips do not change) from an earlier run's table.json, clip by clip")
     ap.add_argument("--error-bar", type=float, default=0.8,
                     help="the defaults' largest ratio to the better of talk and bind (issue 30: "
                     "0.8 with one reference clip, 0.6 with three)")
@@ -217,6 +220,13 @@ def main():
                     row["pred"] = pred
             print(f"  {name} {mode}: {row[mode]['mean']:.2f} mm", file=sys.stderr)
         rows.append(row)
+    if a.baselines:
+        earlier = {r["clip"]: r for r in json.load(open(a.baselines))}
+        for row in rows:
+            for mode in MODES:
+                if mode not in row and mode in earlier.get(row["clip"], {}):
+                    row[mode] = earlier[row["clip"]][mode]
+        modes = [m for m in MODES if all(m in r for r in rows)]
     json.dump(rows, open(os.path.join(a.out, "table.json"), "w"), indent=1)
     print_table(rows, modes, a)
     print_summary(rows)

@@ -518,7 +518,8 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
       .field<&S::coverageTolerance>()
       .range(0, kNoLimit, "scene units", "2% of the cloth's rest bounding-box diagonal")
       .help(
-          "pose model: frames whose predicted mean vertex error exceeds D are flagged for "
+          "pose model: frames whose error bound (the predicted mean vertex error, scaled to "
+          "hold on the database's verdict level of frames) exceeds D are flagged for "
           "simulation")
       .usedWhen(&mayRunModel, "with the pose model (weights model)", WhenUnused::kWarn);
 }

@@ -464,8 +464,7 @@ class Plots:
         fig, (axes,) = self.figure(3.4)
         bound = np.array([coverage.bound[f] for f in frames]) * units.scale
         axes.plot(frames, predicted, ".-", color="tab:blue", label="predicted mean error")
-        level = (f"holds on {percent_text(coverage.level)} of frames" if coverage.level > 0
-                 else "the prediction")
+        level = percent_text(coverage.level) if coverage.level > 0 else "= prediction"
         axes.plot(frames, bound, "-", color="tab:orange", label=f"error bound ({level})")
         top = max(float(bound.max()), tolerance)
         if error_frames:
