@@ -346,6 +346,10 @@ void writeModelJson(const std::string& path, const Database& db) {
                       {"error", m.frameErrors[i]},
                       {"predicted_error", m.predictedError(m.frameSigmas[i])},
                       {"error_bound", m.errorBound(m.frameSigmas[i])}});
+    if (i < m.leftOutErrors.size()) {
+      frames.back()["left_out_error"] = m.leftOutErrors[i];
+      frames.back()["left_out_sigma"] = m.leftOutSigmas[i];
+    }
   }
   const nlohmann::json report{
       {"units", "scene units (mean vertex distance)"},

@@ -349,20 +349,27 @@ std::vector<int> findRigidParts(const Mesh& driver, const float* frames, int fra
   if (parts > 0) {
     clusterParts(driver, frames, frameCount, parts, partOf, threads);
   } else {
-    // More parts while each lowers the residual by at least a third.
+    // More parts while each count leaves at most two thirds of the residual of the count kept
+    // before it. A count that does not (a poor split, e.g. a thigh cut across) gets one more
+    // try: the next count is kept when it leaves at most a third (the limbs split at their
+    // joints); otherwise the search stops.
     double residual = clusterParts(driver, frames, frameCount, 2, partOf, threads);
+    int kept = 2;
     for (int count = 3; count <= 8; ++count) {
       std::vector<int> more;
       const double next = clusterParts(driver, frames, frameCount, count, more, threads);
       if (log != nullptr) {
         *log << "  rigid parts: " << count << " parts leave " << next / residual
-             << " of the residual of " << count - 1 << "\n";
+             << " of the residual of " << kept << "\n";
       }
-      if (next > residual * (2.0 / 3.0)) {
+      const bool lookahead = count == kept + 2;
+      if (next <= residual * (lookahead ? 1.0 / 3.0 : 2.0 / 3.0)) {
+        residual = next;
+        kept = count;
+        partOf = std::move(more);
+      } else if (lookahead) {
         break;
       }
-      residual = next;
-      partOf = std::move(more);
     }
   }
   const int count = 1 + *std::max_element(partOf.begin(), partOf.end());
@@ -685,10 +692,9 @@ KernelFit chooseKernel(const MatrixXd& x, const MatrixXd& coords, int threads) {
 }
 
 /// The error predictor: the cross-validated mean vertex error of each frame against the
-/// posterior deviation, least squares, and the verdict's conformal scale at `level`; also the
-/// mean errors of the fit and of the binding.
+/// posterior deviation, least squares; also the mean errors of the fit and of the binding.
 void fitErrorPredictor(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis,
-                       const KernelFit& best, double level) {
+                       const KernelFit& best) {
   MatrixXd predicted;
   VectorXd sigma;
   crossValidate(x, basis.coords, best, predicted, sigma);
@@ -702,17 +708,27 @@ void fitErrorPredictor(PoseModel& model, const MatrixXd& x, const OffsetBasis& b
   model.errorScale = line[1];
   model.frameErrors.assign(error.data(), error.data() + error.size());
   model.frameSigmas.assign(sigma.data(), sigma.data() + sigma.size());
+}
+
+/// The verdict's scale at `level` (PoseModel::verdictScale): over the frames' held-out errors
+/// with their clip left out when there are several clips (a whole clip held out is what a new
+/// shot is like), else over the cross-validation.
+void calibrateVerdict(PoseModel& model, double level) {
+  const bool clips = !model.leftOutErrors.empty();
+  const std::vector<double>& errors = clips ? model.leftOutErrors : model.frameErrors;
+  const std::vector<double>& sigmas = clips ? model.leftOutSigmas : model.frameSigmas;
   std::vector<double> predictedErrors;
-  for (double s : model.frameSigmas) {
+  for (double s : sigmas) {
     predictedErrors.push_back(model.predictedError(s));
   }
   model.verdictLevel = level;
-  model.verdictScale = conformalScale(model.frameErrors, predictedErrors, level);
+  model.verdictScale = conformalScale(errors, predictedErrors, level);
 }
 
 /// What each reference clip adds (PoseModel::clipErrors): the cross-validation again with each
-/// clip left out in turn, the kernel settings kept.
-std::vector<ClipContribution> clipContributions(const PoseModel& model, const MatrixXd& x,
+/// clip left out in turn, the kernel settings kept; also every frame's error and deviation
+/// when its clip was left out (PoseModel::leftOutErrors, leftOutSigmas).
+std::vector<ClipContribution> clipContributions(PoseModel& model, const MatrixXd& x,
                                                 const OffsetBasis& basis, const KernelFit& best,
                                                 const std::vector<int>& clipSizes, int threads) {
   const std::size_t clips = clipSizes.size();
@@ -730,13 +746,20 @@ std::vector<ClipContribution> clipContributions(const PoseModel& model, const Ma
   const std::vector<double> withAll =
       clipMeans(Eigen::Map<const VectorXd>(model.frameErrors.data(), x.rows()));
   std::vector<ClipContribution> out(clips);
+  model.leftOutErrors.assign(static_cast<std::size_t>(x.rows()), 0.0);
+  model.leftOutSigmas.assign(static_cast<std::size_t>(x.rows()), 0.0);
   parallelFor(static_cast<int>(clips), threads, [&](int c) {
     MatrixXd predicted;
     VectorXd sigma;
     crossValidate(x, basis.coords, best, predicted, sigma, start[c], start[c + 1]);
+    const VectorXd error = meanVertexError(predicted, basis.coords, basis.components);
     out[c].frames = clipSizes[c];
     out[c].withAll = withAll;
-    out[c].without = clipMeans(meanVertexError(predicted, basis.coords, basis.components));
+    out[c].without = clipMeans(error);
+    for (int f = start[c]; f < start[c + 1]; ++f) {  // this clip's frames, its own segment
+      model.leftOutErrors[static_cast<std::size_t>(f)] = error[f];
+      model.leftOutSigmas[static_cast<std::size_t>(f)] = sigma[f];
+    }
   });
   return out;
 }
@@ -804,7 +827,7 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
   model.lengthScale = best.lengthScale;
   model.linearWeight = best.linearWeight;
   model.ridge = best.ridge;
-  fitErrorPredictor(model, x, basis, best, options.verdictLevel);
+  fitErrorPredictor(model, x, basis, best);
   if (options.clipSizes.size() > 1) {
     if (std::accumulate(options.clipSizes.begin(), options.clipSizes.end(), 0) != t ||
         *std::min_element(options.clipSizes.begin(), options.clipSizes.end()) < 1) {
@@ -813,6 +836,7 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
     }
     model.clipErrors = clipContributions(model, x, basis, best, options.clipSizes, threads);
   }
+  calibrateVerdict(model, options.verdictLevel);
   // The basis keeps the first `rank` components.
   const int r = std::min(std::min(t, std::max(1, options.rank)), basis.rank);
   storeFit(model, x, basis, r);

@@ -350,6 +350,21 @@ TEST(PoseModel, EachClipsContributionIsMeasuredByLeavingItOut) {
   EXPECT_DOUBLE_EQ(o[0].withAll[0], std::accumulate(e.begin(), e.begin() + first, 0.0) / first);
   EXPECT_NEAR(o[0].withAll[1], std::accumulate(e.begin() + first, e.end(), 0.0) / o[1].frames,
               1e-12);
+  // Each frame's left-out error averages to its clip's "without" entry, and with several clips
+  // the verdict is calibrated on those left-out errors.
+  const PoseModel& m = other.poseModel;
+  ASSERT_EQ(m.leftOutErrors.size(), e.size());
+  EXPECT_NEAR(
+      std::accumulate(m.leftOutErrors.begin(), m.leftOutErrors.begin() + first, 0.0) / first,
+      o[0].without[0], 1e-12);
+  EXPECT_NEAR(
+      std::accumulate(m.leftOutErrors.begin() + first, m.leftOutErrors.end(), 0.0) / o[1].frames,
+      o[1].without[1], 1e-12);
+  std::vector<double> predicted;
+  for (double sigma : m.leftOutSigmas) {
+    predicted.push_back(m.predictedError(sigma));
+  }
+  EXPECT_EQ(m.verdictScale, conformalScale(m.leftOutErrors, predicted, m.verdictLevel));
 }
 
 TEST_F(PoseModelClTest, HistoryReadsTheSameFramesInBlocksAsInOneCall) {

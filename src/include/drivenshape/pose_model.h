@@ -30,7 +30,7 @@
 namespace drivenshape {
 
 struct PoseModelOptions {
-  /// Rigid parts of the driver to find; 0 = as many as keep lowering the fit residual (2..8).
+  /// Rigid parts of the driver to find; 0 = found from the clip (findRigidParts, 2..8).
   int parts = 0;
   /// A rig's parts instead: the part of every driver vertex (e.g. the bone of largest skin
   /// weight) and the parent part of each (-1 for the root). Empty = found from the clip.
@@ -92,10 +92,11 @@ struct PoseModel {
   /// The coverage verdict's bound, split-conformal on the cross-validation: a frame is called
   /// covered at tolerance tau when errorBound(sigma) = verdictScale * predictedError(sigma) <=
   /// tau. verdictScale is the ceil((n + 1) verdictLevel)-th smallest of the n reference frames'
-  /// ratios of cross-validated error to predicted error (the largest when that is past n), so
-  /// that on frames like the held-out reference frames the true error is within the bound at
-  /// least verdictLevel of the time. Level 0 (databases written before 0.2.0): scale 1, the
-  /// bound is the predicted error itself.
+  /// ratios of held-out error to predicted error (the largest when that is past n), so that on
+  /// frames like the held-out reference frames the true error is within the bound at least
+  /// verdictLevel of the time. Held out: by the 5-fold cross-validation with one reference
+  /// clip; with several, each frame's whole clip left out (leftOutErrors). Level 0 (databases
+  /// written before 0.2.0): scale 1, the bound is the predicted error itself.
   double verdictLevel = 0.0;
   double verdictScale = 1.0;
   /// Cross-validated mean vertex error over the reference clip (scene units) and, for scale,
@@ -110,6 +111,11 @@ struct PoseModel {
   /// With several reference clips: what each added (ClipContribution, in clip order). Not
   /// stored in the database file.
   std::vector<ClipContribution> clipErrors;
+  /// With several reference clips: every reference frame's mean vertex error and posterior
+  /// deviation when its whole clip is left out (predicted by the other clips). The verdict is
+  /// calibrated on these then. Not stored in the database file.
+  std::vector<double> leftOutErrors;
+  std::vector<double> leftOutSigmas;
 
   bool empty() const { return frames.empty(); }
   /// The predicted mean vertex error at posterior deviation `sigma`: errorBias + errorScale
@@ -175,9 +181,11 @@ double conformalScale(const std::vector<double>& error, const std::vector<double
 
 /// Finds `parts` rigid parts of the driver over `frameCount` frames (frame-major, V x 3 each):
 /// hard assignment of every vertex to the part whose per-frame rigid motions explain its
-/// trajectory best, from farthest-point seeds at rest; `parts` = 0 tries 2..8 and keeps the
-/// last count that lowered the residual by a third. Sets `parent` (the part that rotates least
-/// is the root; every other part hangs off the neighbour it shares most edges with).
+/// trajectory best, from farthest-point seeds at rest; `parts` = 0 grows the count from 2 while
+/// each leaves at most two thirds of the residual of the count kept before it, and past a count
+/// that does not, tries the next once, kept when it leaves at most a third (at most 8). Sets
+/// `parent` (the part that rotates least is the root; every other part hangs off the neighbour it
+/// shares most edges with).
 std::vector<int> findRigidParts(const Mesh& driver, const float* frames, int frameCount, int parts,
                                 std::vector<int>& parent, int threads, std::ostream* log);
 
