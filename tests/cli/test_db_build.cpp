@@ -63,7 +63,11 @@ TEST(DbBuild, AlsoFitsTheModelOnMoreClipsAndKeepsThePicks) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("reference clip 2: '" + sample("test.driver.pc2")), std::string::npos)
       << r.err;
-  EXPECT_NE(r.err.find("fitted on the main clip alone: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("fitted on the main clip alone (its own kernel settings): "),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("    without clip 1 (61 frames):  clip 1 "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("    without clip 2 (24 frames):  clip 1 "), std::string::npos) << r.err;
   const Database one = loadDatabase(dir.file("one.dsdb"));
   const Database two = loadDatabase(dir.file("two.dsdb"));
   EXPECT_EQ(one.frames, two.frames) << "the picks come from the main clip";
