@@ -360,7 +360,7 @@ void writeModelJson(const std::string& path, const Database& db) {
       {"cross_validation_error", m.crossValidationError},
       {"binding_error", m.bindingError},
       {"error_line", {{"bias", m.errorBias}, {"scale", m.errorScale}}},
-      {"verdict", {{"level", m.verdictLevel}, {"scale", m.verdictScale}}},
+      {"verdict", {{"level", m.verdictLevel}, {"margin", m.verdictMargin}}},
       {"clips", clips},
       {"frames", frames}};
   writeFileAtomically(path, jsonText(report, 1) + "\n");

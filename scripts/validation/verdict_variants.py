@@ -5,11 +5,13 @@ validation run (run_validation.py's table.json and the `db build --model-json` o
 character, both in its --out folder): per character, level and tolerance, the share of frames
 called enough whose true mean error is within the tolerance, and how many are called enough.
 
-  ratio   the bound is the prediction times the conformal ratio quantile (what db build does)
-  margin  the bound is the prediction plus the conformal quantile of error - prediction
+  ratio   the bound is the prediction times the conformal quantile of error / prediction
+  margin  the bound is the prediction plus the conformal quantile of error - prediction (what
+          db build does)
 
-Both are calibrated here the way db build calibrates the ratio: on the reference frames'
-cross-validated errors and predictions, the ceil((n + 1) level)-th smallest score.
+Both are calibrated here the way db build calibrates the margin: on the reference frames' held-out
+errors and predictions (the cross-validation's with one reference clip, each frame's clip left
+out with several), the ceil((n + 1) level)-th smallest score.
 
 Usage: scripts/validation/verdict_variants.py OUT_DIR [--levels 0.8 0.9 0.95]
 """
@@ -38,8 +40,13 @@ def main():
     print("|---|---|---|" + "---|" * len(FRACTIONS))
     for scene in ("pants", "sleeve"):
         model = json.load(open(os.path.join(a.out, scene + ".model.json")))
-        errors = [f["error"] for f in model["frames"]]
-        predicted = [f["predicted_error"] for f in model["frames"]]
+        # Held out as db build holds them: each frame's whole clip left out when there are
+        # several clips, else the 5-fold cross-validation.
+        left_out = all("left_out_error" in f for f in model["frames"])
+        errors = [f["left_out_error" if left_out else "error"] for f in model["frames"]]
+        line = model["error_line"]
+        predicted = [line["bias"] + line["scale"] * f["left_out_sigma" if left_out else "sigma"]
+                     for f in model["frames"]]
         sel = [r for r in rows if r["scene"] == scene and "pred" in r]
         frames = [(p[0], p[1]) for r in sel for p in r["pred"]]  # (predicted, true)
         diagonal = sel[0]["defaults"]["coverage"]["tolerance"] / 0.02

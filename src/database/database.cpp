@@ -117,7 +117,7 @@ std::uint64_t Database::contentHash() const {
     hasher.addValue(m.errorBias).addValue(m.errorScale);
     if (m.verdictLevel > 0.0) {
       // Only models with a calibrated verdict (0.2.0 on) hash it: older ones keep their hash.
-      hasher.addValue(m.verdictLevel).addValue(m.verdictScale);
+      hasher.addValue(m.verdictLevel).addValue(m.verdictMargin);
     }
     hasher.add(m.frames.data(), m.frames.size() * sizeof(int));
     hasher.add(m.features.data(), m.features.size() * sizeof(float));
@@ -204,7 +204,7 @@ json poseModelJson(const PoseModel& model) {
           {"cross_validation_error", model.crossValidationError},
           {"binding_error", model.bindingError},
           {"verdict_level", model.verdictLevel},
-          {"verdict_scale", model.verdictScale}};
+          {"verdict_margin", model.verdictMargin}};
 }
 
 /// The JSON header without its block table: picks, meshes, sources, settings, pose model.
@@ -445,9 +445,9 @@ void readPoseModel(const BlockReader& blocks, const json& info, const std::strin
   m.errorScale = info.at("error_scale").get<double>();
   m.crossValidationError = info.at("cross_validation_error").get<double>();
   m.bindingError = info.at("binding_error").get<double>();
-  // Written since 0.2.0; a model without them bounds by its predicted error (scale 1).
+  // Written since 0.2.0; a model without them bounds by its predicted error (margin 0).
   m.verdictLevel = info.contains("verdict_level") ? info.at("verdict_level").get<double>() : 0.0;
-  m.verdictScale = info.contains("verdict_scale") ? info.at("verdict_scale").get<double>() : 1.0;
+  m.verdictMargin = info.contains("verdict_margin") ? info.at("verdict_margin").get<double>() : 0.0;
   m.partOf = blocks.read<int>("model_part_of", static_cast<std::size_t>(db.driverVertexCount()));
   m.parent = blocks.read<int>("model_parent", static_cast<std::size_t>(parts));
   m.frames = blocks.read<int>("model_frames", static_cast<std::size_t>(frames));
@@ -470,7 +470,7 @@ void readPoseModel(const BlockReader& blocks, const json& info, const std::strin
                       std::isfinite(m.linearWeight) && std::isfinite(m.ridge) && m.ridge > 0 &&
                       std::isfinite(m.errorBias) && std::isfinite(m.errorScale) &&
                       m.verdictLevel >= 0.0 && m.verdictLevel < 1.0 &&
-                      std::isfinite(m.verdictScale) && m.verdictScale >= 1.0;
+                      std::isfinite(m.verdictMargin) && m.verdictMargin >= 0.0;
   if (!finite || m.featureCount() != features) {
     DS_THROW(kInput, where, ": the kernel settings or the feature count (", features,
              ") do not fit the parts; the file is corrupt, rebuild it");

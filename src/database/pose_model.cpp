@@ -289,8 +289,8 @@ std::array<double, 2> fitErrorLine(const Eigen::Ref<const Eigen::VectorXd>& sigm
   return cost(scaleOnly[0], scaleOnly[1]) < cost(biasOnly[0], biasOnly[1]) ? scaleOnly : biasOnly;
 }
 
-double conformalScale(const std::vector<double>& error, const std::vector<double>& predicted,
-                      double level) {
+double conformalMargin(const std::vector<double>& error, const std::vector<double>& predicted,
+                       double level) {
   if (error.size() != predicted.size() || error.empty()) {
     DS_THROW(kInput,
              "calibrating the coverage verdict needs as many predicted errors as errors, "
@@ -301,15 +301,13 @@ double conformalScale(const std::vector<double>& error, const std::vector<double
     DS_THROW(kInput, "the coverage verdict's level must be between 0 and 1 (got ", level, ")");
   }
   const std::size_t n = error.size();
-  const double mean = std::accumulate(error.begin(), error.end(), 0.0) / static_cast<double>(n);
-  const double floor = std::max(1e-300, 1e-9 * mean);
-  std::vector<double> ratios(n);
+  std::vector<double> residuals(n);
   for (std::size_t i = 0; i < n; ++i) {
-    ratios[i] = error[i] / std::max(predicted[i], floor);
+    residuals[i] = error[i] - predicted[i];
   }
-  std::sort(ratios.begin(), ratios.end());
+  std::sort(residuals.begin(), residuals.end());
   const auto rank = static_cast<std::size_t>(std::ceil(static_cast<double>(n + 1) * level));
-  return std::max(1.0, ratios[std::min(n, std::max<std::size_t>(1, rank)) - 1]);
+  return std::max(0.0, residuals[std::min(n, std::max<std::size_t>(1, rank)) - 1]);
 }
 
 MatrixXd poseKernel(const MatrixXd& a, const MatrixXd& b, double lengthScale, double linearWeight) {
@@ -710,7 +708,7 @@ void fitErrorPredictor(PoseModel& model, const MatrixXd& x, const OffsetBasis& b
   model.frameSigmas.assign(sigma.data(), sigma.data() + sigma.size());
 }
 
-/// The verdict's scale at `level` (PoseModel::verdictScale): over the frames' held-out errors
+/// The verdict's margin at `level` (PoseModel::verdictMargin): over the frames' held-out errors
 /// with their clip left out when there are several clips (a whole clip held out is what a new
 /// shot is like), else over the cross-validation.
 void calibrateVerdict(PoseModel& model, double level) {
@@ -722,7 +720,7 @@ void calibrateVerdict(PoseModel& model, double level) {
     predictedErrors.push_back(model.predictedError(s));
   }
   model.verdictLevel = level;
-  model.verdictScale = conformalScale(errors, predictedErrors, level);
+  model.verdictMargin = conformalMargin(errors, predictedErrors, level);
 }
 
 /// What each reference clip adds (PoseModel::clipErrors): the cross-validation again with each

@@ -243,57 +243,57 @@ TEST(PoseModel, TheErrorLineIsTheBestNonNegativeLine) {
   EXPECT_THROW(fitErrorLine(sigma, Eigen::VectorXd::Zero(3)), Error);
 }
 
-TEST(PoseModel, TheVerdictScaleIsTheConformalRankOfTheRatios) {
-  // Against counting: the scale is a ratio error / predicted of the calibration frames, at
-  // least ceil((n + 1) level) of the n ratios are within it and, when it is above 1, fewer
-  // are strictly below it.
+TEST(PoseModel, TheVerdictMarginIsTheConformalRankOfTheResiduals) {
+  // Against counting: the margin is a residual error - predicted of the calibration frames (or
+  // 0), at least ceil((n + 1) level) of the n residuals are within it and, when it is above 0,
+  // fewer are strictly below it.
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   for (int n : {1, 9, 10, 57, 400}) {
     for (double level : {0.5, 0.8, 0.9, 0.95}) {
-      std::vector<double> error(n), predicted(n), ratio(n);
+      std::vector<double> error(n), predicted(n), residual(n);
       for (int i = 0; i < n; ++i) {
         predicted[i] = 0.01 + 0.02 * unit(rng);
-        error[i] = predicted[i] * (0.2 + 2.5 * unit(rng));
-        ratio[i] = error[i] / predicted[i];
+        error[i] = std::max(0.0, predicted[i] + 0.01 * (unit(rng) - 0.3));
+        residual[i] = error[i] - predicted[i];
       }
-      const double scale = conformalScale(error, predicted, level);
+      const double margin = conformalMargin(error, predicted, level);
       const long need = std::min<long>(n, static_cast<long>(std::ceil((n + 1) * level)));
       const long within =
-          std::count_if(ratio.begin(), ratio.end(), [&](double r) { return r <= scale; });
+          std::count_if(residual.begin(), residual.end(), [&](double r) { return r <= margin; });
       const long below =
-          std::count_if(ratio.begin(), ratio.end(), [&](double r) { return r < scale; });
+          std::count_if(residual.begin(), residual.end(), [&](double r) { return r < margin; });
       EXPECT_GE(within, need) << "n " << n << " level " << level;
-      EXPECT_GE(scale, 1.0);
-      if (scale > 1.0) {
+      EXPECT_GE(margin, 0.0);
+      if (margin > 0.0) {
         EXPECT_LT(below, need) << "n " << n << " level " << level << ": not the smallest";
-        EXPECT_TRUE(std::find(ratio.begin(), ratio.end(), scale) != ratio.end());
+        EXPECT_TRUE(std::find(residual.begin(), residual.end(), margin) != residual.end());
       }
     }
   }
-  // A frame predicted 0 with an error is the largest ratio, still finite.
-  EXPECT_TRUE(std::isfinite(conformalScale({0.01, 0.02}, {0.0, 0.02}, 0.9)));
-  EXPECT_THROW(conformalScale({0.01}, {0.01, 0.02}, 0.9), Error);
-  EXPECT_THROW(conformalScale({}, {}, 0.9), Error);
-  EXPECT_THROW(conformalScale({0.01}, {0.01}, 1.0), Error);
+  // Predictions above every error: no margin.
+  EXPECT_EQ(conformalMargin({0.01, 0.02}, {0.03, 0.04}, 0.9), 0.0);
+  EXPECT_THROW(conformalMargin({0.01}, {0.01, 0.02}, 0.9), Error);
+  EXPECT_THROW(conformalMargin({}, {}, 0.9), Error);
+  EXPECT_THROW(conformalMargin({0.01}, {0.01}, 1.0), Error);
 }
 
 TEST_F(PoseModelClTest, AFrameIsFlaggedByItsBoundNotItsPrediction) {
-  // With the verdict's scale s, a frame whose predicted error p is under the tolerance but s p
-  // is over it is flagged; the bound is s p on every frame; a model from before the verdict
-  // was calibrated (level 0, scale 1) flags by its prediction.
+  // With the verdict's margin m, a frame whose predicted error p is under the tolerance but
+  // p + m is over it is flagged; the bound is p + m on every frame; a model from before the
+  // verdict was calibrated (level 0, margin 0) flags by its prediction.
   const Database& db = sampleDatabase();
   ASSERT_GT(db.poseModel.verdictLevel, 0.0) << "db build calibrates the verdict";
-  ASSERT_GE(db.poseModel.verdictScale, 1.0);
+  ASSERT_GE(db.poseModel.verdictMargin, 0.0);
   const auto driver = openPointCache(sample("test.driver.pc2"));
   const std::vector<int> frames = driver->frames();
   const std::vector<float> pose = readFrames(*driver, frames);
   testing::Backends cl = clBackends();
   Database scaled = db;
-  scaled.poseModel.verdictScale = 2.0;
+  scaled.poseModel.verdictMargin = 0.004;
   Database old = db;
   old.poseModel.verdictLevel = 0.0;
-  old.poseModel.verdictScale = 1.0;
+  old.poseModel.verdictMargin = 0.0;
   // A tolerance between the frames' predictions, so some frames fall on each side.
   const Evaluation probe = Evaluator(old, EvaluatorSettings(), cl.view()).evaluate(frames, pose);
   std::vector<double> predicted;
@@ -308,7 +308,7 @@ TEST_F(PoseModelClTest, AFrameIsFlaggedByItsBoundNotItsPrediction) {
   int flaggedOnlyByBound = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
     const FrameRecord& x = a.records[i];
-    EXPECT_DOUBLE_EQ(x.errorBound, 2.0 * x.predictedError) << "frame " << x.frame;
+    EXPECT_DOUBLE_EQ(x.errorBound, x.predictedError + 0.004) << "frame " << x.frame;
     EXPECT_EQ(x.flagged, x.errorBound > settings.coverageTolerance ? 1 : 0) << "frame " << x.frame;
     EXPECT_EQ(b.records[i].errorBound, b.records[i].predictedError) << "frame " << x.frame;
     EXPECT_EQ(b.records[i].flagged, b.records[i].predictedError > settings.coverageTolerance);
@@ -364,7 +364,7 @@ TEST(PoseModel, EachClipsContributionIsMeasuredByLeavingItOut) {
   for (double sigma : m.leftOutSigmas) {
     predicted.push_back(m.predictedError(sigma));
   }
-  EXPECT_EQ(m.verdictScale, conformalScale(m.leftOutErrors, predicted, m.verdictLevel));
+  EXPECT_EQ(m.verdictMargin, conformalMargin(m.leftOutErrors, predicted, m.verdictLevel));
 }
 
 TEST_F(PoseModelClTest, HistoryReadsTheSameFramesInBlocksAsInOneCall) {
@@ -423,10 +423,10 @@ TEST(PoseModel, TheDatabaseKeepsTheModel) {
   EXPECT_EQ(a.ridge, b.ridge);
   EXPECT_EQ(a.errorScale, b.errorScale);
   EXPECT_EQ(a.verdictLevel, b.verdictLevel);
-  EXPECT_EQ(a.verdictScale, b.verdictScale);
+  EXPECT_EQ(a.verdictMargin, b.verdictMargin);
   EXPECT_EQ(db.contentHash(), back.contentHash());
   Database recalibrated = db;
-  recalibrated.poseModel.verdictScale += 0.5;
+  recalibrated.poseModel.verdictMargin += 0.001;
   EXPECT_NE(recalibrated.contentHash(), db.contentHash()) << "the verdict is part of the content";
   Database without = db;
   without.poseModel = PoseModel();

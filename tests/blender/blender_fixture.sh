@@ -43,9 +43,9 @@ bound=(--max-weight-change 0.02 --batch 64)
 "$cli" bake --db "$work/sleeve_pose.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
   -o "$work/cli/pose/sleeve.####.exr"
 # The default tolerance flags every frame of the test clip (the sample's 61 reference frames
-# bound each one's error at 14.7-20.5 mm); this one flags part of it. It is 145/8192, a float32
-# exactly, as Blender's float properties hold it, and 0.05 mm from the nearest bound.
+# bound each one's error at 21.2-24.6 mm); this one flags part of it. It is 186/8192, a float32
+# exactly, as Blender's float properties hold it, and 0.08 mm from the nearest bound.
 "$cli" bake --db "$work/sleeve_pose.dsdb" --driver "$data/test.driver.pc2" --frames 1-48 --quiet \
-  --coverage-tolerance 0.0177001953125 -o "$work/cli/pose_tolerance/sleeve.####.exr"
+  --coverage-tolerance 0.022705078125 -o "$work/cli/pose_tolerance/sleeve.####.exr"
 
 python3 "$source_dir/scripts/blender_package.py" -o "$work/drivenshape_blender.zip"

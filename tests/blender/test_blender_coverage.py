@@ -153,8 +153,12 @@ for frame in (4, flagged[0], 30):
     scene.frame_set(frame)
     check_colors(ramp(cli[frame][0]), f"frame {frame} ({cli[frame][0] * 1000.0:.2f} mm, "
                  f"{'flagged' if cli[frame][1] else 'not flagged'})")
-checks.check(ramp(cli[4][0])[1] > ramp(cli[4][0])[0] and ramp(cli[30][0])[0] > ramp(cli[30][0])[1],
-             "an unflagged frame is greener than red, a flagged one redder than green")
+# Yellow is the tolerance: an unflagged frame is on the green side of it (more green per red),
+# a flagged one on the red side.
+unflagged, over = ramp(cli[4][0]), ramp(cli[30][0])
+checks.check(not cli[4][1] and cli[30][1] and
+             unflagged[1] / unflagged[0] > YELLOW[1] / YELLOW[0] > over[1] / over[0],
+             "an unflagged frame is greener than the tolerance's yellow, a flagged one redder")
 
 scene.frame_set(25)
 bpy.ops.drivenshape.live_start()

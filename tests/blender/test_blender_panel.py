@@ -7,7 +7,7 @@ from (ui.coverage_lines) with live mode's own record and Evaluator. The expected
 here: the tolerance from the cloth's rest bounding box (the default is 2% of its diagonal), the
 unit scale from the scene; the predicted error and the bound from a second Evaluator of the
 module run on the same driver frame outside Blender's handlers, the bound checked against the
-prediction times the database's verdict scale. With the QP there is nothing to show."""
+prediction plus the database's verdict margin. With the QP there is nothing to show."""
 
 import os
 import sys
@@ -64,9 +64,10 @@ predicted, bound = records[0].predicted_error, records[0].error_bound
 checks.check(record.predicted_error == predicted and record.error_bound == bound,
              f"live mode's prediction {record.predicted_error!r} and bound {record.error_bound!r}"
              f" are the module's {predicted!r} and {bound!r}")
-scale = reference.describe_settings()["pose_model"]["verdict_scale"]
-checks.check(scale >= 1.0 and abs(bound - scale * predicted) <= 1e-12 * bound,
-             f"the bound {bound!r} is the prediction {predicted!r} times the verdict scale {scale!r}")
+margin = reference.describe_settings()["pose_model"]["verdict_margin"]
+checks.check(margin >= 0.0 and abs(bound - (predicted + margin)) <= 1e-12 * bound,
+             f"the bound {bound!r} is the prediction {predicted!r} plus the verdict margin "
+             f"{margin!r}")
 
 units = scene.unit_settings
 checks.check(units.system == "METRIC" and units.scale_length == 1.0,

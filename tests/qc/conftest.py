@@ -11,11 +11,11 @@ import pytest
 
 FRAMES = "1-24"
 FRAME_COUNT = 24
-# A coverage tolerance among the sample's error bounds (14.7-19.8 mm on frames 1-24), so the
+# A coverage tolerance among the sample's error bounds (21.2-24.2 mm on frames 1-24), so the
 # pose model's bake flags some frames; the default (2% of the cloth's diagonal, 12.5 mm) flags
 # all of them, and HIGH_TOLERANCE none.
-LOW_TOLERANCE = "0.0175"
-HIGH_TOLERANCE = "0.025"
+LOW_TOLERANCE = "0.0225"
+HIGH_TOLERANCE = "0.03"
 
 
 def pytest_addoption(parser):

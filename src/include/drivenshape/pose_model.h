@@ -50,7 +50,7 @@ struct PoseModelOptions {
   /// (PoseModel::clipErrors).
   std::vector<int> clipSizes;
   /// The share of frames the coverage verdict's bound is calibrated to hold for (PoseModel::
-  /// verdictScale), in (0, 1).
+  /// verdictMargin), in (0, 1).
   double verdictLevel = 0.9;
   /// Host threads (0 = all cores). The result does not depend on it.
   int threads = 0;
@@ -89,16 +89,16 @@ struct PoseModel {
   /// bias, and predictedError() clamps at 0).
   double errorBias = 0.0;
   double errorScale = 0.0;
-  /// The coverage verdict's bound, split-conformal on the cross-validation: a frame is called
-  /// covered at tolerance tau when errorBound(sigma) = verdictScale * predictedError(sigma) <=
-  /// tau. verdictScale is the ceil((n + 1) verdictLevel)-th smallest of the n reference frames'
-  /// ratios of held-out error to predicted error (the largest when that is past n), so that on
-  /// frames like the held-out reference frames the true error is within the bound at least
-  /// verdictLevel of the time. Held out: by the 5-fold cross-validation with one reference
-  /// clip; with several, each frame's whole clip left out (leftOutErrors). Level 0 (databases
-  /// written before 0.2.0): scale 1, the bound is the predicted error itself.
+  /// The coverage verdict's bound, split-conformal on the held-out reference frames: a frame is
+  /// called covered at tolerance tau when errorBound(sigma) = predictedError(sigma) +
+  /// verdictMargin <= tau. verdictMargin is the ceil((n + 1) verdictLevel)-th smallest of the n
+  /// reference frames' held-out error minus predicted error (the largest when that is past n),
+  /// so that on frames like the held-out reference frames the true error is within the bound at
+  /// least verdictLevel of the time. Held out: by the 5-fold cross-validation with one
+  /// reference clip; with several, each frame's whole clip left out (leftOutErrors). Level 0
+  /// (databases written before 0.2.0): margin 0, the bound is the predicted error itself.
   double verdictLevel = 0.0;
-  double verdictScale = 1.0;
+  double verdictMargin = 0.0;  ///< scene units
   /// Cross-validated mean vertex error over the reference clip (scene units) and, for scale,
   /// that of the plain binding.
   double crossValidationError = 0.0;
@@ -123,9 +123,9 @@ struct PoseModel {
   double predictedError(double sigma) const {
     return std::max(0.0, errorBias + errorScale * sigma);
   }
-  /// The verdict's bound on the mean vertex error at posterior deviation `sigma`: verdictScale
-  /// times predictedError(sigma).
-  double errorBound(double sigma) const { return verdictScale * predictedError(sigma); }
+  /// The verdict's bound on the mean vertex error at posterior deviation `sigma`:
+  /// predictedError(sigma) + verdictMargin.
+  double errorBound(double sigma) const { return predictedError(sigma) + verdictMargin; }
   int partCount() const { return static_cast<int>(parent.size()); }
   /// Features of one pose: 9 per part with a parent (its rotation relative to the parent's,
   /// minus the identity), 3 per root (the up axis in the root's frame, minus up).
@@ -170,14 +170,13 @@ void readRigParts(const std::string& path, int driverVertexCount, std::vector<in
 std::array<double, 2> fitErrorLine(const Eigen::Ref<const Eigen::VectorXd>& sigma,
                                    const Eigen::Ref<const Eigen::VectorXd>& error);
 
-/// The split-conformal scale of the verdict's bound (PoseModel::verdictScale): over the
-/// reference frames' cross-validated errors and their predicted errors (same length, at least
-/// 1), the ceil((n + 1) level)-th smallest ratio error / predicted (the largest when that rank
-/// is past n), never below 1. A predicted error below 1e-9 of the mean error counts as that
-/// much, so the scale stays finite. Error(kInput) when the lengths differ or are 0, or the
-/// level is not in (0, 1).
-double conformalScale(const std::vector<double>& error, const std::vector<double>& predicted,
-                      double level);
+/// The split-conformal margin of the verdict's bound (PoseModel::verdictMargin): over the
+/// reference frames' held-out errors and their predicted errors (same length, at least 1), the
+/// ceil((n + 1) level)-th smallest error - predicted (the largest when that rank is past n),
+/// never below 0. Error(kInput) when the lengths differ or are 0, or the level is not in
+/// (0, 1).
+double conformalMargin(const std::vector<double>& error, const std::vector<double>& predicted,
+                       double level);
 
 /// Finds `parts` rigid parts of the driver over `frameCount` frames (frame-major, V x 3 each):
 /// hard assignment of every vertex to the part whose per-frame rigid motions explain its

@@ -35,7 +35,7 @@ class PoseStage final : public Stage {
                               {"cross_validation_error", mPose.crossValidationError},
                               {"binding_error", mPose.bindingError},
                               {"verdict_level", mPose.verdictLevel},
-                              {"verdict_scale", mPose.verdictScale}};
+                              {"verdict_margin", mPose.verdictMargin}};
     settings["coverage_tolerance"] = coverageTolerance(mModel);
   }
 
