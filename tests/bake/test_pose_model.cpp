@@ -188,6 +188,8 @@ TEST_F(PoseModelClTest, ANegativeErrorLineStillPredictsEveryFrame) {
   // predictions are clamped at 0, never dropped (the report writes a prediction >= 0 only).
   Database db = sampleDatabase();
   db.poseModel.errorBias = -1.0e6;
+  db.poseModel.verdictLevel = 0.0;  // such a database has no calibrated verdict either
+  db.poseModel.verdictMargin = 0.0;
   const auto driver = openPointCache(sample("test.driver.pc2"));
   const std::vector<int> frames = driver->frames();
   testing::Backends cl = clBackends();
