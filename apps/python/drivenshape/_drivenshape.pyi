@@ -295,7 +295,7 @@ class EvaluatorSettings:
     max_weight_change=0.0: temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order within each batch
     layers=None: layers after the correction and the resolution: a mix with another cache, wind (command line: the --mix and --wind-* options, see Layer options; Python: load_layers); none by default
     audit=True: the per-frame audit: cloth vertices inside the driver before and after the correction, binding switches, the largest frame-to-frame jump (costs time)
-    coverage_tolerance=0.0: pose model: frames whose predicted mean vertex error exceeds D are flagged for simulation
+    coverage_tolerance=0.0: pose model: frames whose error bound (the predicted mean vertex error, scaled to hold on the database's verdict level of frames) exceeds D are flagged for simulation
     threads=0: host threads for the weights, the alignment, the closest-point search and EXR writing
     clearance_certificate=True: search closest points only where they can matter (the cloth and every count are bitwise the same either way; off only to measure or check the full search)
     """
@@ -364,7 +364,7 @@ class EvaluatorSettings:
     @property
     def coverage_tolerance(self) -> float:
         """
-        pose model: frames whose predicted mean vertex error exceeds D are flagged for simulation
+        pose model: frames whose error bound (the predicted mean vertex error, scaled to hold on the database's verdict level of frames) exceeds D are flagged for simulation
         """
     @coverage_tolerance.setter
     def coverage_tolerance(self, value: float) -> None:
