@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include <drivenshape/binding.h>
+#include <drivenshape/coverage_check.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh_check.h>
@@ -323,31 +324,12 @@ nlohmann::json frameJson(const FrameRecord& record, int shapeCount) {
   return entry;
 }
 
-/// Frames a cloth simulation runs before the first frame it is wanted for, so that the cloth
-/// has settled from its start state (the reference generator's preroll is 20 frames).
-constexpr int kSimulationRunUp = 20;
-
-/// The flagged frames as runs to simulate: each run of flagged frames starts kSimulationRunUp
-/// frames earlier (not before `first`, the shot's first checked frame), and runs that then
-/// overlap or touch are merged. [{from, to, wanted}] with `wanted` the flagged frames inside.
-nlohmann::json simulationRuns(const std::vector<int>& flagged, int first) {
-  nlohmann::json runs = nlohmann::json::array();
-  std::size_t i = 0;
-  while (i < flagged.size()) {
-    std::size_t j = i;
-    while (j + 1 < flagged.size() && flagged[j + 1] == flagged[j] + 1) {
-      ++j;
-    }
-    const int from = std::max(first, flagged[i] - kSimulationRunUp);
-    if (!runs.empty() && from <= runs.back()["to"].get<int>() + 1) {
-      runs.back()["to"] = flagged[j];
-      runs.back()["wanted"] = runs.back()["wanted"].get<int>() + static_cast<int>(j - i + 1);
-    } else {
-      runs.push_back({{"from", from}, {"to", flagged[j]}, {"wanted", static_cast<int>(j - i + 1)}});
-    }
-    i = j + 1;
+nlohmann::json runsJson(const std::vector<SimulationRun>& runs) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const SimulationRun& run : runs) {
+    out.push_back({{"from", run.from}, {"to", run.to}, {"wanted", run.wanted}});
   }
-  return runs;
+  return out;
 }
 
 /// The shot's coverage verdict from the frames' error bounds: the fraction of frames the
@@ -376,7 +358,7 @@ nlohmann::json coverageJson(const std::vector<FrameRecord>& records, double tole
           {"frames_checked", checked},
           {"covered_fraction", covered},
           {"simulate_frames", flagged.empty() ? std::string() : formatFrameRange(flagged)},
-          {"simulate_runs", simulationRuns(flagged, first)},
+          {"simulate_runs", runsJson(simulationRuns(flagged, first))},
           {"run_up", kSimulationRunUp},
           {"verdict",
            flagged.empty() ? "DrivenShape is enough" : "simulate " + formatFrameRange(flagged)}};

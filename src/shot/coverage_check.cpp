@@ -194,6 +194,30 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
   return check;
 }
 
+std::vector<SimulationRun> simulationRuns(const std::vector<int>& flagged, int first, int runUp) {
+  std::vector<SimulationRun> runs;
+  for (std::size_t i = 0; i < flagged.size();) {
+    std::size_t j = i;  // [i, j]: consecutive frame numbers
+    while (j + 1 < flagged.size() && flagged[j + 1] == flagged[j] + 1) {
+      ++j;
+    }
+    if (j + 1 < flagged.size() && flagged[j + 1] <= flagged[j]) {
+      DS_THROW(kInternal, "simulation runs of frames that are not ascending and distinct (",
+               flagged[j], " then ", flagged[j + 1], ")");
+    }
+    const int from = std::max(first, flagged[i] - runUp);
+    const int wanted = static_cast<int>(j - i + 1);
+    if (!runs.empty() && from <= runs.back().to + 1) {
+      runs.back().to = flagged[j];
+      runs.back().wanted += wanted;
+    } else {
+      runs.push_back({from, flagged[j], wanted});
+    }
+    i = j + 1;
+  }
+  return runs;
+}
+
 std::vector<double> averageRanks(const std::vector<double>& values) {
   for (double v : values) {
     if (!std::isfinite(v)) {

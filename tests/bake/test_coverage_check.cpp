@@ -281,5 +281,61 @@ TEST(CoverageCheck, ReportsThatDoNotFitTheBake) {
   expectThrows([&] { checkCoverage(qp, e); }, ErrorCode::kInput, "pose model");
 }
 
+TEST(SimulationRuns, AreTheUnionOfEachFlaggedFramesRunUp) {
+  // Against a brute force: every flagged frame f needs frames max(first, f - runUp)..f
+  // simulated; the runs are the maximal stretches of needed frames, each with the flagged
+  // frames inside it.
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int first = static_cast<int>(rng() % 50) - 10;
+    const int runUp = static_cast<int>(rng() % 30);
+    const int span = 1 + static_cast<int>(rng() % 200);
+    const double share = (rng() % 100) / 100.0;
+    std::vector<int> flagged;
+    for (int f = first; f < first + span; ++f) {
+      if ((rng() % 1000) / 1000.0 < share) {
+        flagged.push_back(f);
+      }
+    }
+    std::vector<bool> needed(static_cast<std::size_t>(span), false), wanted(needed);
+    for (int f : flagged) {
+      for (int g = std::max(first, f - runUp); g <= f; ++g) {
+        needed[static_cast<std::size_t>(g - first)] = true;
+      }
+      wanted[static_cast<std::size_t>(f - first)] = true;
+    }
+    std::vector<SimulationRun> expected;
+    for (int i = 0; i < span; ++i) {
+      if (!needed[static_cast<std::size_t>(i)]) {
+        continue;
+      }
+      if (expected.empty() || !needed[static_cast<std::size_t>(i - 1)]) {
+        expected.push_back({first + i, first + i, 0});
+      }
+      expected.back().to = first + i;
+      expected.back().wanted += wanted[static_cast<std::size_t>(i)] ? 1 : 0;
+    }
+    const std::vector<SimulationRun> runs = simulationRuns(flagged, first, runUp);
+    ASSERT_EQ(runs.size(), expected.size()) << "trial " << trial;
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+      EXPECT_EQ(runs[r].from, expected[r].from) << "trial " << trial << " run " << r;
+      EXPECT_EQ(runs[r].to, expected[r].to) << "trial " << trial << " run " << r;
+      EXPECT_EQ(runs[r].wanted, expected[r].wanted) << "trial " << trial << " run " << r;
+    }
+  }
+  // A hand example: 30-32 and 60 with a run-up of 20 from frame 1: 10-32, then 40-60; 40-41
+  // touching 33 would merge.
+  const std::vector<SimulationRun> two = simulationRuns({30, 31, 32, 60}, 1, 20);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0].from, 10);
+  EXPECT_EQ(two[0].to, 32);
+  EXPECT_EQ(two[0].wanted, 3);
+  EXPECT_EQ(two[1].from, 40);
+  EXPECT_EQ(two[1].wanted, 1);
+  EXPECT_EQ(simulationRuns({30, 31, 32, 53}, 1, 20).size(), 1u);
+  EXPECT_TRUE(simulationRuns({}, 1).empty());
+  expectThrows([&] { simulationRuns({5, 5}, 1); }, ErrorCode::kInternal, "ascending");
+}
+
 }  // namespace
 }  // namespace drivenshape

@@ -80,6 +80,26 @@ struct CoverageCheck {
 /// predicts none of the evaluated frames (with what to do).
 CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluation& evaluation);
 
+// ---- The frames to simulate, as runs a cloth simulation can be given ----
+
+/// Frames a cloth simulation runs before the first frame it is wanted for, so that the cloth
+/// has settled from its start state (the reference generator's preroll is 20 frames).
+constexpr int kSimulationRunUp = 20;
+
+/// One simulation run: frames from..to, of which `wanted` are flagged frames.
+struct SimulationRun {
+  int from = 0;
+  int to = 0;
+  int wanted = 0;
+};
+
+/// The flagged frames (ascending, distinct) as simulation runs: each run of consecutive flagged
+/// frame numbers starts `runUp` frames earlier, never before `first` (the shot's first frame),
+/// and a run that then starts at most one frame after the previous run's end is merged into it.
+/// In frame order. Error(kInternal) when the frames are not ascending and distinct.
+std::vector<SimulationRun> simulationRuns(const std::vector<int>& flagged, int first,
+                                          int runUp = kSimulationRunUp);
+
 /// Average ranks (1-based; tied values share the mean of their positions) of `values`.
 /// Error(kNumerical) for a value that is not finite.
 std::vector<double> averageRanks(const std::vector<double>& values);
