@@ -94,7 +94,12 @@ void infoDatabase(const std::string& path) {
               << " reference frames, " << model.featureCount() << " features, rank " << model.rank()
               << "; cross-validated mean vertex error " << model.crossValidationError
               << " (binding " << model.bindingError << "), predicted error " << model.errorBias
-              << " + " << model.errorScale << " sigma\n";
+              << " + " << model.errorScale << " sigma";
+    if (model.verdictLevel > 0.0) {
+      std::cout << "; error bound: predicted + " << model.verdictMargin << " (holds on "
+                << 100.0 * model.verdictLevel << "% of held-out reference frames)";
+    }
+    std::cout << "\n";
   }
   if (db.drivenSides.empty()) {
     std::cout << "  side table: none (a bake learns it when it starts; rebuild the database "
@@ -334,8 +339,8 @@ class CliObserver : public BakeObserver {
       return "";
     }
     std::ostringstream text;
-    text << ", predicted error " << std::setprecision(4) << record.predictedError
-         << (record.flagged > 0 ? ", simulate" : ", enough");
+    text << ", predicted error " << std::setprecision(4) << record.predictedError << ", bound "
+         << record.errorBound << (record.flagged > 0 ? ", simulate" : ", enough");
     return text.str();
   }
 

@@ -316,6 +316,7 @@ TEST(Cli, BakeVerboseNamesEverySettingEachFrameAndTheStages) {
         << r.err;
   }
   EXPECT_NE(r.err.find(", predicted error "), std::string::npos) << "the pose model's: " << r.err;
+  EXPECT_NE(r.err.find(", bound "), std::string::npos) << "the verdict's bound: " << r.err;
   EXPECT_NE(r.err.find("seconds: "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(" resolve "), std::string::npos) << r.err;
   r = runCli(dir, {"bake", "--db", db, "--driver", sample("test.driver.pc2"), "--frames", "1", "-o",
