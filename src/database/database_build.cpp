@@ -434,6 +434,7 @@ void fitModel(Database& db, const std::vector<int>& candidates, const std::vecto
     logClipContributions(db.poseModel, mainAlone, *log);
   }
 }
+
 }  // namespace
 
 Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,

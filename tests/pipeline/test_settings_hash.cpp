@@ -124,17 +124,25 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTable) {
   }
 }
 
-// The defaults on a database with the pose model (what `db build` makes): weights model.
+// The defaults on a database with the pose model (what `db build` makes): weights model. Since
+// 0.2.0 the database also holds the verdict's calibration, which its content hash (and so the
+// settings hash) takes in; without it (level 0: a database of before) the hash is main's.
 TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTableWithThePoseModel) {
   const Database db = buildSample(true);
+  ASSERT_GT(db.poseModel.verdictLevel, 0.0);
+  Database before = db;
+  before.poseModel.verdictLevel = 0.0;
+  before.poseModel.verdictMargin = 0.0;
   std::unique_ptr<Device> host = makeHostDevice();
-  const Evaluator evaluator(db, EvaluatorSettings(), *host);
+  const Evaluator evaluator(before, EvaluatorSettings(), *host);
   ASSERT_EQ(evaluator.settings().weightMode, WeightMode::kModel);
   const std::string hash = hashToHex(evaluator.settingsHash());
   const std::string output = hashToHex(evaluator.settingsHash(OutputHashFields{1024, 8, 64}));
   std::printf("  pose model defaults   %s %s\n", hash.c_str(), output.c_str());
   EXPECT_EQ(hash, "295dc96bec57c31e");
   EXPECT_EQ(output, "f55a50a5393e1e72");
+  const Evaluator calibrated(db, EvaluatorSettings(), *host);
+  EXPECT_NE(hashToHex(calibrated.settingsHash()), hash) << "the verdict is part of the database";
 }
 
 /// A value of `setting` other than its default that the sample's settings can run.
