@@ -124,7 +124,7 @@ ArgParser dbBuildParser() {
       .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
       .option("--verdict-level", "P",
               "share of frames the coverage verdict's error bound is calibrated to hold for "
-              "(split-conformal on the model's cross-validation; bake --coverage-tolerance "
+              "(split-conformal on the held-out reference frames; bake --coverage-tolerance "
               "flags a frame whose bound is over it)",
               "0.9")
       .option("--model-json", "PATH",
