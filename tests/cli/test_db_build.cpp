@@ -59,7 +59,7 @@ TEST(DbBuild, AlsoFitsTheModelOnMoreClipsAndKeepsThePicks) {
   CliRun r = build(dir, {"-o", dir.file("one.dsdb")});
   ASSERT_EQ(r.code, 0) << r.err;
   r = build(dir, {"--also", sample("test.driver.pc2"), sample("test.driven.pc2") + ":1-24", "-o",
-                  dir.file("two.dsdb")});
+                  dir.file("two.dsdb"), "--model-json", dir.file("two.json")});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("reference clip 2: '" + sample("test.driver.pc2")), std::string::npos)
       << r.err;
@@ -68,8 +68,19 @@ TEST(DbBuild, AlsoFitsTheModelOnMoreClipsAndKeepsThePicks) {
       << r.err;
   EXPECT_NE(r.err.find("    without clip 1 (61 frames):  clip 1 "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("    without clip 2 (24 frames):  clip 1 "), std::string::npos) << r.err;
+  // --model-json: the fit, every reference frame, the clips and what each adds; the verdict's
+  // level as asked (0.9 by default) and its margin as the database holds it.
+  const nlohmann::json fit = nlohmann::json::parse(slurp(dir.file("two.json")));
+  EXPECT_EQ(fit["reference_frames"].get<int>(), 61 + 24);
+  EXPECT_EQ(fit["frames"].size(), 85u);
+  ASSERT_EQ(fit["clips"].size(), 2u);
+  EXPECT_EQ(fit["clips"][1]["frames"].get<int>(), 24);
+  EXPECT_EQ(fit["clips"][1]["errors_without_it"].size(), 2u);
+  EXPECT_TRUE(fit["frames"][70].contains("left_out_error"));
+  EXPECT_EQ(fit["verdict"]["level"].get<double>(), 0.9);
   const Database one = loadDatabase(dir.file("one.dsdb"));
   const Database two = loadDatabase(dir.file("two.dsdb"));
+  EXPECT_EQ(fit["verdict"]["margin"].get<double>(), two.poseModel.verdictMargin);
   EXPECT_EQ(one.frames, two.frames) << "the picks come from the main clip";
   EXPECT_EQ(one.drivenShapes, two.drivenShapes);
   EXPECT_EQ(one.poseModel.frameCount(), 61);
@@ -141,6 +152,9 @@ TEST(DbBuild, BadClipsAndSuggestionsAreRefusedWithTheirExitCodes) {
       "drop --model none");
   expectError(build(dir, {"--also", test, cloth, "--model", "none", "-o", db}), 2, "--also");
   expectError(build(dir, {}), 2, "-o DB");
+  expectError(build(dir, {"--verdict-level", "1", "-o", db}), 2, "--verdict-level");
+  expectError(build(dir, {"--model", "none", "--model-json", dir.file("m.json"), "-o", db}), 2,
+              "drop --model none");
   // Input (3): missing files, caches of another mesh, frames the cache lacks.
   expectError(build(dir, {"--also", dir.file("missing.pc2"), cloth, "-o", db}), 3, "missing.pc2");
   expectError(build(dir, {"--also", cloth, cloth, "-o", db}), 3,
