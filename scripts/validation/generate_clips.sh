@@ -20,7 +20,7 @@ out="${2:?usage: generate_clips.sh GENERATOR_DIR OUT_DIR [NAME...]}"
 shift 2
 # The generator's weight transfer needs scipy in Blender's Python (Debian's blender runs the
 # system python3).
-if ! python3 -c "import scipy" 2>/dev/null; then
+if ! /usr/bin/python3 -c "import scipy" 2>/dev/null; then
   echo "generate_clips: the generator needs scipy: apt-get install python3-scipy" >&2
   exit 1
 fi
