@@ -262,6 +262,26 @@ void writeDatabaseFiles(const fs::path& corpus, const fs::path& regressions) {
   }
   const std::string sidesBytes = databaseBytes(sides);
   writeBytes(corpus / "driven_sides.dsdb", sidesBytes);
+  // A pose model (one root part, two reference frames, rank 1) with the verdict's calibration
+  // (0.2.0): its header entry and blocks.
+  ds::Database pose = tinyDatabase(2);
+  ds::PoseModel& model = pose.poseModel;
+  model.partOf.assign(static_cast<std::size_t>(pose.driverVertexCount()), 0);
+  model.parent = {-1};
+  model.frames = {1001, 1008};
+  model.features = {0.0f, 0.0f, 0.0f, 0.01f, -0.02f, 0.0f};  // 2 frames x 3 features
+  model.coefficients = {0.5f, -0.25f};                       // rank 1 x 2 frames
+  model.basis.assign(static_cast<std::size_t>(pose.drivenVertexCount()) * 3, 0.001f);
+  model.lengthScale = 0.5;
+  model.linearWeight = 1.0;
+  model.ridge = 0.1;
+  model.errorBias = 0.001;
+  model.errorScale = 0.02;
+  model.crossValidationError = 0.004;
+  model.bindingError = 0.01;
+  model.verdictLevel = 0.9;
+  model.verdictMargin = 0.003;
+  writeBytes(corpus / "pose_model.dsdb", databaseBytes(pose));
 
   // Crash report: a face offset past the face-vertex block, checksum valid -> heap overflow in
   // Mesh::triangulate.
