@@ -43,18 +43,15 @@ void ClLayers::upload(const LayerTables& tables) {
   mHasMix = !tables.mixWeights.empty();
   mHasWind = !tables.windWeights.empty();
   cl_util::guard("uploading the layer tables", [&] {
-    mRest = readOnlyBuffer(tables.rest);
+    mRest = cl_util::readOnlyBuffer(mContext, tables.rest);
     // A one-float placeholder keeps every kernel argument a valid buffer.
-    mMixWeights = readOnlyBuffer(mHasMix ? tables.mixWeights : std::vector<float>{0.0f});
-    mWindWeights = readOnlyBuffer(mHasWind ? tables.windWeights : std::vector<float>{0.0f});
-    mNoClearance = readOnlyBuffer(std::vector<float>{0.0f});
+    mMixWeights =
+        cl_util::readOnlyBuffer(mContext, mHasMix ? tables.mixWeights : std::vector<float>{0.0f});
+    mWindWeights =
+        cl_util::readOnlyBuffer(mContext, mHasWind ? tables.windWeights : std::vector<float>{0.0f});
+    mNoClearance = cl_util::readOnlyBuffer(mContext, std::vector<float>{0.0f});
   });
   mUploaded = true;
-}
-
-cl::Buffer ClLayers::readOnlyBuffer(const std::vector<float>& data) {
-  return cl::Buffer(mContext, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, data.size() * sizeof(float),
-                    const_cast<float*>(data.data()));
 }
 
 cl::Buffer& ClLayers::reserve(cl_util::GrowingBuffer& chunk, std::size_t bytes, const char* what) {

@@ -37,7 +37,6 @@ class ClLayers final : public LayerBackend {
            sizeof(float);
   }
 
-  cl::Buffer readOnlyBuffer(const std::vector<float>& data);
   cl::Buffer& reserve(cl_util::GrowingBuffer& chunk, std::size_t bytes, const char* what);
   // One item per (vertex, frame), rows of DS_LOCAL_SIZE vertices.
   void enqueue(cl::Kernel& kernel, int frameCount);

@@ -58,12 +58,12 @@ class ClPositionMaps final : public PositionMapBackend {
     mActiveCount = tables.activeCount();
     mTexelCount = tables.texelCount();
     guard("uploading the position-map tables", [&] {
-      mTriangles = readOnly(tables.triangles);
-      mTriStart = readOnly(tables.vertexTriangleStart);
-      mTriIds = readOnly(tables.vertexTriangles);
-      mTexels = readOnly(tables.texels);
-      mTexelTriangles = readOnly(tables.texelTriangles);
-      mTexelWeights = readOnly(tables.texelWeights);
+      mTriangles = cl_util::readOnlyBuffer(mContext, tables.triangles);
+      mTriStart = cl_util::readOnlyBuffer(mContext, tables.vertexTriangleStart);
+      mTriIds = cl_util::readOnlyBuffer(mContext, tables.vertexTriangles);
+      mTexels = cl_util::readOnlyBuffer(mContext, tables.texels);
+      mTexelTriangles = cl_util::readOnlyBuffer(mContext, tables.texelTriangles);
+      mTexelWeights = cl_util::readOnlyBuffer(mContext, tables.texelWeights);
     });
     mUploaded = true;
   }
@@ -147,16 +147,6 @@ class ClPositionMaps final : public PositionMapBackend {
     cl::Buffer buffer;
     std::size_t bytes = 0;
   };
-
-  template <typename T>
-  cl::Buffer readOnly(const std::vector<T>& data) {
-    // An empty table (a map with no covered texel) still needs a valid buffer to bind.
-    const T zero{};
-    const void* source = data.empty() ? static_cast<const void*>(&zero) : data.data();
-    const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
-    return cl::Buffer(mContext, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, bytes,
-                      const_cast<void*>(source));
-  }
 
   void reserve(ChunkBuffer& chunk, std::size_t bytes, cl_mem_flags flags, bool zeroFill,
                const char* what) {

@@ -60,6 +60,17 @@ struct ClTarget {
   Transfers* transfers = nullptr;
 };
 
+/// A read-only device buffer holding a copy of `data`. An empty table gets one zero element,
+/// so that a kernel argument is always a valid buffer.
+template <typename T>
+cl::Buffer readOnlyBuffer(const cl::Context& context, const std::vector<T>& data) {
+  const T zero{};
+  const void* source = data.empty() ? static_cast<const void*>(&zero) : data.data();
+  const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
+  return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, bytes,
+                    const_cast<void*>(source));
+}
+
 /// One embedded kernel source (from the generated headers in drivenshape_kernels/).
 struct KernelSource {
   const char* name;  ///< file name, for build logs

@@ -83,19 +83,14 @@ void ClStages::upload(const ShapeTables& tables) {
   std::vector<float> center = cl_stages::padRows(tables.center.data(), 1, np, mDriverPadded);
 
   cl_util::guard("uploading the projection tables", [&] {
-    mRows = readOnlyBuffer(rows);
-    mCenter = readOnlyBuffer(center);
+    mRows = cl_util::readOnlyBuffer(mContext, rows);
+    mCenter = cl_util::readOnlyBuffer(mContext, center);
   });
   cl_util::guard("uploading the driven shapes",
                  [&] { mDriven = makeBlendTable(tables.drivenShapes, nd); });
   cl_util::guard("uploading the driver shapes",
                  [&] { mDriver = makeBlendTable(tables.driverShapes, np); });
   mUploaded = true;
-}
-
-cl::Buffer ClStages::readOnlyBuffer(std::vector<float>& data) {
-  return cl::Buffer(mContext, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, data.size() * sizeof(float),
-                    data.data());
 }
 
 ClStages::BlendTable ClStages::makeBlendTable(const std::vector<float>& shapes, std::size_t count) {
@@ -119,8 +114,8 @@ ClStages::BlendTable ClStages::makeBlendTable(const std::vector<float>& shapes, 
           static_cast<float>(static_cast<double>(shapes[i * count + j]) - static_cast<double>(ref));
     }
   }
-  table.deltas = readOnlyBuffer(deltas);
-  table.reference = readOnlyBuffer(reference);
+  table.deltas = cl_util::readOnlyBuffer(mContext, deltas);
+  table.reference = cl_util::readOnlyBuffer(mContext, reference);
   return table;
 }
 

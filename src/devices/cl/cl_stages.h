@@ -65,7 +65,6 @@ class ClStages final : public StageBackend {
   };
 
   // Glue (cl_stages.cpp).
-  cl::Buffer readOnlyBuffer(std::vector<float>& data);
   BlendTable makeBlendTable(const std::vector<float>& shapes, std::size_t count);
   void reserve(ChunkBuffer& chunk, std::size_t bytes, cl_mem_flags flags, bool zeroFill,
                const char* what);
