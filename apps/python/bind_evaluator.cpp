@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include <drivenshape/binding.h>
+#include <drivenshape/coverage_check.h>
 #include <drivenshape/database.h>
 #include <drivenshape/device.h>
 #include <drivenshape/evaluator.h>
@@ -874,6 +875,12 @@ void bindEvaluator(py::module_& module) {
   bindDevices(module);
   bindSettings(module);
   bindFrameRecord(module);
+  module.def("verdict_holds", &verdictHolds, py::arg("enough"), py::arg("missed"),
+             py::arg("enough_true_error"), py::arg("tolerance"), py::arg("level"),
+             "Whether a coverage verdict holds against the truth: at `level` > 0 when at least "
+             "that share of the `enough` frames it called enough are truly within `tolerance` "
+             "(`missed` are not); at level 0 (a report before 0.2.0) when their true mean error "
+             "is within it. What `drivenshape eval --report` judges.");
   bindEvaluatorClass(module);
 }
 

@@ -57,24 +57,18 @@ def clips(clips_dir, reference):
     return out
 
 
-def read_pc2(path):
-    """(frames, points, 3) float32 positions of a PC2 file."""
-    import numpy as np
-    with open(path, "rb") as fh:
-        head = fh.read(32)
-        points = int.from_bytes(head[16:20], "little")
-        count = int.from_bytes(head[28:32], "little")
-        return np.frombuffer(fh.read(), dtype="<f4").reshape(count, points, 3)
-
-
-def spread(d, family, twin, meta):
+def spread(d, family, twin, meta, build):
     """Mean vertex distance (scene units) between a clip's cloth and its twin's over the motion
-    frames; None when the twin was not generated."""
+    frames, the caches read by the built module (BUILD/python); None when the twin was not
+    generated."""
     import numpy as np
     path = os.path.join(twin, family + ".driven.pc2")
     if not os.path.exists(path):
         return None
-    a, b = read_pc2(os.path.join(d, family + ".driven.pc2")), read_pc2(path)
+    sys.path.insert(0, os.path.join(build, "python"))
+    import drivenshape
+    a = drivenshape.read_pc2(os.path.join(d, family + ".driven.pc2"))[0]
+    b = drivenshape.read_pc2(path)[0]
     first = meta["motion_start_frame"] - 1
     return float(np.linalg.norm(a[first:] - b[first:], axis=2).mean())
 
@@ -151,7 +145,7 @@ def main():
             for r in rows:
                 meta = json.load(open(os.path.join(r["dir"], r["family"] + ".json")))
                 twin = os.path.join(a.spread, r["clip"].split()[0] + "_q10", r["scene"])
-                metres = spread(r["dir"], r["family"], twin, meta)
+                metres = spread(r["dir"], r["family"], twin, meta, a.build)
                 r["spread"] = None if metres is None else metres * 1e3
         print_table(rows, [m for m in a.modes.split(",") if all(m in r for r in rows)], a)
         print_summary(rows)
@@ -181,7 +175,7 @@ def main():
         row = {"clip": name, "scene": scene, "frames": frames, "dir": d, "family": family}
         if a.spread:
             twin = os.path.join(a.spread, name.split()[0] + "_q10", scene)
-            metres = spread(d, family, twin, meta)
+            metres = spread(d, family, twin, meta, a.build)
             row["spread"] = None if metres is None else metres * 1e3
         for mode in modes:
             out = os.path.join(a.out, name.split()[0], mode)

@@ -122,6 +122,19 @@ BakeReportCoverage readBakeReportCoverage(const std::string& path) {
   return parseBakeReportCoverage(readWholeFile(path, "bake report"), path);
 }
 
+bool verdictHolds(int enough, int missed, double enoughTrueError, double tolerance, double level) {
+  if (enough < 1 || missed < 0 || missed > enough || !(level >= 0.0 && level < 1.0)) {
+    DS_THROW(kInput,
+             "a verdict is judged on at least 1 frame called enough, with 0 to that many "
+             "missed, at a level from 0 to below 1 (got ",
+             enough, " frames, ", missed, " missed, level ", level, ")");
+  }
+  if (level > 0.0) {
+    return static_cast<double>(enough - missed) / enough >= level;
+  }
+  return enoughTrueError <= tolerance;
+}
+
 CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluation& evaluation) {
   if (report.clothVertices >= 0 && report.clothVertices != evaluation.vertexCount) {
     DS_THROW(kInput, report.source, ": the report is of a bake of ", report.clothVertices,
@@ -185,8 +198,8 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
   if (!enough.empty()) {
     check.enoughTrueError = meanOf(enough);
     check.withinShare = static_cast<double>(check.enough - check.missed) / check.enough;
-    check.verdictHolds = check.level > 0.0 ? *check.withinShare >= check.level
-                                           : *check.enoughTrueError <= check.tolerance;
+    check.verdictHolds = verdictHolds(check.enough, check.missed, *check.enoughTrueError,
+                                      check.tolerance, check.level);
   }
   if (!flagged.empty()) {
     check.flaggedTrueError = meanOf(flagged);

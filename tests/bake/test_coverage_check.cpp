@@ -281,6 +281,19 @@ TEST(CoverageCheck, ReportsThatDoNotFitTheBake) {
   expectThrows([&] { checkCoverage(qp, e); }, ErrorCode::kInput, "pose model");
 }
 
+TEST(CoverageCheck, TheVerdictHoldsOnItsShareOrForOldReportsOnItsMean) {
+  // At a level: the share truly within against the level, whatever the mean.
+  EXPECT_TRUE(verdictHolds(10, 1, 0.5, 0.01, 0.9));     // 90% within
+  EXPECT_FALSE(verdictHolds(10, 2, 0.001, 0.01, 0.9));  // 80%, the mean well within
+  EXPECT_TRUE(verdictHolds(1, 0, 1.0, 0.01, 0.5));
+  // Without a level (a report before 0.2.0): the true mean against the tolerance.
+  EXPECT_TRUE(verdictHolds(10, 9, 0.01, 0.01, 0.0));
+  EXPECT_FALSE(verdictHolds(10, 0, 0.0101, 0.01, 0.0));
+  expectThrows([] { verdictHolds(0, 0, 0.0, 0.01, 0.9); }, ErrorCode::kInput, "at least 1");
+  expectThrows([] { verdictHolds(3, 4, 0.0, 0.01, 0.9); }, ErrorCode::kInput, "4 missed");
+  expectThrows([] { verdictHolds(3, 0, 0.0, 0.01, 1.0); }, ErrorCode::kInput, "level 1");
+}
+
 TEST(SimulationRuns, AreTheUnionOfEachFlaggedFramesRunUp) {
   // Against a brute force: every flagged frame f needs frames max(first, f - runUp)..f
   // simulated; the runs are the maximal stretches of needed frames, each with the flagged

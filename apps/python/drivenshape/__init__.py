@@ -63,6 +63,7 @@ from ._drivenshape import (  # noqa: F401
     read_point_cache_exr_info,
     save_database,
     settings_table,
+    verdict_holds,
     write_obj,
     write_pc2,
     write_point_cache_exr,
@@ -137,6 +138,6 @@ __all__ = [
     "format_frame_range", "list_devices", "load_binding_mask", "load_database", "load_layers",
     "load_regions", "open_device", "open_point_cache", "parse_binding_mask", "parse_frame_range",
     "parse_regions", "plan_shot", "read_obj", "read_pc2", "read_point_cache_exr",
-    "read_point_cache_exr_info", "save_database", "settings_table", "write_obj", "write_pc2",
-    "write_point_cache_exr",
+    "read_point_cache_exr_info", "save_database", "settings_table", "verdict_holds", "write_obj",
+    "write_pc2", "write_point_cache_exr",
 ]

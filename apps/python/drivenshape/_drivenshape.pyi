@@ -10,7 +10,7 @@ import numpy
 import numpy.typing
 import os
 import typing
-__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'build_database', 'convert_up_axis', 'expand_frame_pattern', 'format_frame_range', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'write_obj', 'write_pc2', 'write_point_cache_exr']
+__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'build_database', 'convert_up_axis', 'expand_frame_pattern', 'format_frame_range', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
 class _Buffer:
     """
     C++ memory shown to numpy without a copy
@@ -712,6 +712,10 @@ def save_database(path: str | os.PathLike[str], database: Database) -> None:
 def settings_table() -> list[dict[str, typing.Any]]:
     """
     The settings table (drivenshape/settings_table.h) as a list of dicts: key, flag, type, default, minimum, maximum, choices, unit, help, hashed, used_when, ...
+    """
+def verdict_holds(enough: int, missed: int, enough_true_error: float, tolerance: float, level: float) -> bool:
+    """
+    Whether a coverage verdict holds against the truth: at `level` > 0 when at least that share of the `enough` frames it called enough are truly within `tolerance` (`missed` are not); at level 0 (a report before 0.2.0) when their true mean error is within it. What `drivenshape eval --report` judges.
     """
 def write_obj(path: str | os.PathLike[str], mesh: Mesh) -> None:
     """

@@ -43,7 +43,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Optional, TypedDict
 import numpy as np
 import numpy.typing as npt
 
-from . import Error, Mesh, PointCache, format_frame_range, open_point_cache, read_obj
+from . import (Error, Mesh, PointCache, format_frame_range, open_point_cache, read_obj,
+               verdict_holds)
 
 if TYPE_CHECKING:  # matplotlib is imported where the plots are drawn, not with the module
     from matplotlib.axes import Axes
@@ -300,11 +301,9 @@ class Coverage:
     def holds(self, checked: tuple[float, list[int], int]) -> bool:
         """Whether the verdict holds against the truth: at least `level` of the frames judged
         enough are truly within the tolerance (a report without a level: their true mean
-        error is within it), as `drivenshape eval --report` judges it."""
+        error is within it): the library's rule, as `drivenshape eval --report` judges it."""
         true_error, missed, count = checked
-        if self.level > 0.0:
-            return (count - len(missed)) / count >= self.level
-        return true_error <= self.tolerance
+        return verdict_holds(count, len(missed), true_error, self.tolerance, self.level)
 
     def verdict(self, units: Units) -> str:
         tolerance = units.with_unit(self.tolerance)

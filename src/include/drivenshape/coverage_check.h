@@ -75,6 +75,14 @@ struct CoverageCheck {
   int predictedMaxFrame = 0;               ///< the first of `frames` with it
 };
 
+/// Whether a verdict holds against the truth, from the frames it called enough: `enough` of
+/// them (at least 1), `missed` of which are truly over `tolerance`, with true mean error
+/// `enoughTrueError`. At `level` > 0 (the report's) it holds when at least that share of them
+/// are within the tolerance; a report without a level (0, before 0.2.0) holds when their true
+/// mean error is within it. What `eval --report` and the QC page both judge. Error(kInput)
+/// when enough < 1, missed is outside 0..enough or level is outside [0, 1).
+bool verdictHolds(int enough, int missed, double enoughTrueError, double tolerance, double level);
+
 /// Matches the report to the bake's evaluation (its per-frame mean error). Error(kInput)
 /// naming the report when it states a cloth vertex count other than the evaluation's, or
 /// predicts none of the evaluated frames (with what to do).
