@@ -71,7 +71,7 @@ class EvaluatorTest : public testing::OpenClTest {
     ASSERT_EQ(db.code, 0) << db.err;
     const CliRun bake = runCli(*sDir, {"bake", "--db", sDir->file("sleeve.dsdb"), "--driver",
                                        sample("test.driver.pc2"), "--frames", "1-48", "--device",
-                                       "cpu", "--quiet", "-o", sDir->file("cli.####.exr")});
+                                       deviceSpec(), "--quiet", "-o", sDir->file("cli.####.exr")});
     ASSERT_EQ(bake.code, 0) << bake.err;
   }
   static void TearDownTestSuite() {

@@ -143,6 +143,9 @@ cl::Device& OpenClTest::device() {
 cl::CommandQueue& OpenClTest::queue() {
   return clState()->queue;
 }
+std::string OpenClTest::deviceSpec() {
+  return clState() ? clState()->device.getInfo<CL_DEVICE_NAME>() : std::string("cpu");
+}
 
 double meanVertexDistance(const std::vector<float>& a, const std::vector<float>& b) {
   double sum = 0.0;

@@ -216,6 +216,9 @@ class OpenClTest : public ::testing::Test {
   static cl::Context& context();
   static cl::Device& device();
   static cl::CommandQueue& queue();
+  /// The device's name, as `--device` takes it, for tests that run the CLI beside the device;
+  /// "cpu" when there is none (the CLI's error then names it).
+  static std::string deviceSpec();
 };
 
 }  // namespace drivenshape::testing
