@@ -35,6 +35,7 @@ class HostStagingClosest final : public ClosestBackend {
     mSides = sides;
   }
   void setExitFade(float fade) override { mInner->setExitFade(fade); }
+  void setAlongNormal(bool alongNormal) override { mInner->setAlongNormal(alongNormal); }
   void closest(int f, const float* poses, const float* points, SurfaceHit* hits) override {
     mInner->closest(f, poses, points, hits);
   }

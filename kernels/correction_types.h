@@ -59,6 +59,7 @@ typedef struct DsResolveParams {
   ds_int sided;          // 1: read each point's side from `sides`; 0: every point lives outside
   float fade;            // dsResolve's exit fade (ClosestBackend::setExitFade), 0 = off
   ds_int nodeCount;      // N, the BVH's nodes (read when fade > 0)
+  ds_int alongNormal;    // dsResolve: 1 moves along the pseudo-normal, 0 the nearest way
 } DsResolveParams;
 
 // One node of a bounding-volume hierarchy over driver triangles (kernels/bvh.cl, built by
@@ -119,6 +120,12 @@ typedef struct DsBvhQueryParams {
 // (1 - u - v, u, v) is at most DS_FEATURE_TOL, on a vertex when two are (pseudo-normals of the
 // inside audit and of the penetration resolution; see src/database/surface_features.h).
 #define DS_FEATURE_TOL 1e-6
+
+// The nearest-way resolution's steadying band (ClosestBackend::setAlongNormal): a point closer to
+// the skin than DS_RESOLVE_STEADY x the offset has the pseudo-normal, weighted by what it lacks
+// of that distance, added to p - q, so a point on the skin itself (p = q) still has a direction;
+// farther points go exactly along p - q (continuity measured in tests/correction).
+#define DS_RESOLVE_STEADY 1e-4
 
 // A triangle is treated as a segment/point set (no face region) when
 //   |(b-a) x (c-a)|^2 <= DS_FLAT_SIN2 * |b-a|^2 |c-a|^2,
@@ -222,7 +229,7 @@ typedef float3 ds_real3;
 static_assert(sizeof(DsSurfaceHit) == 16, "DsSurfaceHit layout");
 static_assert(sizeof(DsClosestParams) == 32, "DsClosestParams layout");
 static_assert(sizeof(DsTransferParams) == 16, "DsTransferParams layout");
-static_assert(sizeof(DsResolveParams) == 32, "DsResolveParams layout");
+static_assert(sizeof(DsResolveParams) == 36, "DsResolveParams layout");
 static_assert(sizeof(DsBvhNode) == 16, "DsBvhNode layout");
 static_assert(sizeof(DsBvhRefitParams) == 32, "DsBvhRefitParams layout");
 static_assert(sizeof(DsBvhQueryParams) == 32, "DsBvhQueryParams layout");

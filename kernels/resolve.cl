@@ -105,6 +105,18 @@ inline ds_real dsSignedDistance(__global const float* pose, __global const int* 
   return side < 0 ? -distance : distance;
 }
 
+// The nearest way out of a point at `offset` = p - q from its closest point q, with signed
+// distance s and unit pseudo-normal n there, for a skin offset `skin` (ClosestBackend::
+// setAlongNormal; host reference: correction::nearestWayOut): the unit vector of
+// sign(s) (p - q) + max(DS_RESOLVE_STEADY skin - |s|, 0) n, or n where that vanishes.
+inline ds_real3 dsNearestWayOut(const ds_real3 offset, const ds_real s, const ds_real3 n,
+                                const float skin) {
+  const ds_real steady = (ds_real)DS_RESOLVE_STEADY * (ds_real)skin - fabs(s);
+  const ds_real3 way = (s < 0 ? -offset : offset) + fmax(steady, (ds_real)0) * n;
+  const ds_real length = sqrt(dot(way, way));
+  return length > 0 ? way / length : n;
+}
+
 // The nearest other exit of p (see above): the least distance from p to a triangle of the tree
 // at `root` whose closest point lies farther than `depth` from q; INFINITY when there is none.
 inline ds_real dsOtherExit(ds_real3 p, ds_real3 q, ds_real depth, __global const float* pose,
@@ -186,7 +198,10 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
   const bool inside = params.sided != 0 && sides[point] < 0;
   const ds_real target = inside ? -(ds_real)params.offset : (ds_real)params.offset;
   if (length > 0 && (inside ? signedDistance > target : signedDistance < target)) {
-    const ds_real3 full = q + (target / length) * normal;
+    const ds_real3 full =
+        q + (params.alongNormal != 0
+                 ? (target / length) * normal
+                 : target * dsNearestWayOut(p - q, signedDistance, normal / length, params.offset));
     ds_real fraction = 1;
     const ds_real depth = fabs(signedDistance);
     if (params.fade > 0 && depth > 0 && (inside ? signedDistance > 0 : signedDistance < 0)) {

@@ -140,4 +140,12 @@ Eigen::Vector3d pseudoNormal(const float* pose, const std::int32_t* triangles,
   return normal;
 }
 
+Eigen::Vector3d nearestWayOut(const Eigen::Vector3d& offset, double s, const Eigen::Vector3d& n,
+                              float skin) {
+  const double steady = DS_RESOLVE_STEADY * static_cast<double>(skin) - std::fabs(s);
+  const Eigen::Vector3d way = (s < 0.0 ? -offset : offset) + std::max(steady, 0.0) * n;
+  const double length = way.norm();
+  return length > 0.0 ? Eigen::Vector3d(way / length) : n;
+}
+
 }  // namespace drivenshape::correction

@@ -51,4 +51,11 @@ FeatureTables buildFeatureTables(const std::int32_t* triangles, int triangleCoun
 Eigen::Vector3d pseudoNormal(const float* pose, const std::int32_t* triangles,
                              const FeatureView& tables, int t, double u, double v);
 
+/// The nearest way out (ClosestBackend::setAlongNormal) of a point at `offset` = p - q from its
+/// closest point q, with signed distance `s` and unit pseudo-normal `n` there, for the skin
+/// offset `skin`: the unit vector of sign(s) (p - q) + max(DS_RESOLVE_STEADY skin - |s|, 0) n,
+/// or n where that vanishes (kernels/resolve.cl's dsNearestWayOut).
+Eigen::Vector3d nearestWayOut(const Eigen::Vector3d& offset, double s, const Eigen::Vector3d& n,
+                              float skin);
+
 }  // namespace drivenshape::correction

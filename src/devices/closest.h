@@ -81,6 +81,15 @@ class ClosestBackend {
   /// Error(kInput) on a negative or non-finite fade.
   virtual void setExitFade(float fade) = 0;
 
+  /// Which way resolve() moves a point (EvaluatorSettings::resolveDirection). Along the normal
+  /// (the default after construction, 0.1's resolution) the target is q +- offset N. Otherwise
+  /// it is q +- offset D, D the unit vector of sigma (p - q) + max(DS_RESOLVE_STEADY offset -
+  /// |s|, 0) N with sigma the sign of s: the direction from q to p turned to the outside, the
+  /// shortest way to the offset, continuous where q crosses from a face onto an edge or a vertex
+  /// (N jumps there by up to half the angle between the faces); the N term only steadies points
+  /// within 1e-4 of the offset from the skin.
+  virtual void setAlongNormal(bool alongNormal) = 0;
+
   /// For every point of every frame, the closest triangle of that frame's pose among the
   /// triangles its mask allows: the distance equals a brute-force search over those triangles
   /// (to rounding), distances within a tie band of about 1e-7 of the scene scale count as
@@ -118,9 +127,10 @@ class ClosestBackend {
   /// angle-weighted pseudo-normal sign), q the closest point and N the unit pseudo-normal at q
   /// (face normal, edge normal or angle-weighted vertex normal), an outside point with
   /// s < offset moves to q + offset * N, an inside point with s > -offset to q - offset * N
-  /// (on the wrong side, only part of the way when setExitFade() is on); other points (and
-  /// points where N is zero, or whose fade is 0) are left untouched. Points are updated in
-  /// place; moved[f] receives how many points of frame f moved (may be null).
+  /// (N replaced by D when setAlongNormal(false); on the wrong side, only part of the way when
+  /// setExitFade() is on); other points (and points where N is zero, or whose fade is 0) are left
+  /// untouched. Points are updated in place; moved[f] receives how many points of frame f moved
+  /// (may be null).
   ///   poses  F x 3Vp;  hits  F x Vd;  points  F x 3Vd;  moved  F
   /// offset >= 0 in scene units. Throws Error(kNumerical) on NaN/infinite input.
   virtual void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,

@@ -65,6 +65,10 @@ const char* blendModeName(BlendMode mode) {
   return mode == BlendMode::kLocal ? "local" : "world";
 }
 
+const char* resolveDirectionName(ResolveDirection direction) {
+  return direction == ResolveDirection::kNearest ? "nearest" : "normal";
+}
+
 namespace {
 
 /// The mode of `modes` spelled `text` (by `name`), or Error(kUsage) listing the spellings.

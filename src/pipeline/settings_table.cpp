@@ -254,6 +254,13 @@ void hashResolve(const HashInput& in, Hasher& h) {
 void hashSkinOffset(const HashInput& in, Hasher& h) {
   h.addValue(in.model.settings.resolve ? in.model.settings.skinOffset : 0.0);
 }
+/// Along the normal, the resolution leaves the hash of the bakes before the nearest direction.
+void hashResolveDirection(const HashInput& in, Hasher& h) {
+  if (in.model.settings.resolve &&
+      in.model.settings.resolveDirection != ResolveDirection::kNormal) {
+    h.addValue(static_cast<int>(in.model.settings.resolveDirection));
+  }
+}
 /// Off, the exit fade leaves the hash of the bakes before it.
 void hashExitFade(const HashInput& in, Hasher& h) {
   if (in.model.settings.resolve && in.model.settings.exitFade > 0) {
@@ -428,7 +435,7 @@ void correctionRows(std::vector<SettingRow>& rows) {
       .field<&S::resolve>()
       .help(
           "the penetration resolution: cloth inside the driver or closer than the skin "
-          "offset moves out along the surface normal")
+          "offset moves out to the offset")
       .hash(&hashResolve)
       .report("resolve");
   Row(rows, "skin_offset", "skin offset", SettingType::kNumber)
@@ -437,10 +444,21 @@ void correctionRows(std::vector<SettingRow>& rows) {
       .range(0, kNoLimit, "scene units")
       .help(
           "penetration resolution: cloth closer to the driver than D (or inside it) moves "
-          "out to D along the surface normal (0.002 = 2 mm in metre scenes)")
+          "out to D (0.002 = 2 mm in metre scenes)")
       .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
       .hash(&hashSkinOffset)
       .report("skin_offset");
+  Row(rows, "resolve_direction", "resolve direction", SettingType::kChoice)
+      .flag("--resolve-direction", "DIR")
+      .choice<&S::resolveDirection, &resolveDirectionName, 2>()
+      .help(
+          "penetration resolution: nearest (a vertex moves along the line from its closest "
+          "point on the driver, the shortest way to the offset) or normal (along the driver's "
+          "pseudo-normal there, as 0.1 did: where the closest point crosses from a face onto "
+          "an edge the cloth jumps by up to half the angle between the two faces)")
+      .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
+      .hash(&hashResolveDirection)
+      .report("resolve_direction");
   Row(rows, "exit_fade", "exit fade", SettingType::kNumber)
       .flag("--exit-fade", "K")
       .field<&S::exitFade>()

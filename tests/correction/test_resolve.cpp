@@ -400,6 +400,139 @@ TEST_F(CorrectionClTest, ResolveWithZeroOffsetMovesOnlyInsidePointsOntoTheSurfac
   }
 }
 
+/// Where the nearest-way resolution (setAlongNormal(false)) moves p on the cube
+/// [c - 1, c + 1]^3, in closed form: outside, q + offset (p - q) / |p - q| with q the clamp of p
+/// (a face, an edge or a corner: the shortest way to the offset); inside, as along the normal
+/// (q on the nearest face, which is also the nearest way out).
+Eigen::Vector3d cubeResolvedNearest(const float* p, const Eigen::Vector3d& centre) {
+  if (cubeSignedDistance(p, centre) <= 0.0) {
+    return cubeResolved(p, centre, kOffset);
+  }
+  const Eigen::Vector3d r = Eigen::Vector3d(p[0], p[1], p[2]) - centre;
+  const Eigen::Vector3d q = r.cwiseMax(-1.0).cwiseMin(1.0);
+  return centre + q + kOffset * (r - q).normalized();
+}
+
+/// Sets each backend's direction for one test and restores 0.1's (the backends are shared).
+class NearestWay {
+ public:
+  explicit NearestWay(std::initializer_list<ClosestBackend*> backends) : mBackends(backends) {
+    for (ClosestBackend* backend : mBackends) {
+      backend->setAlongNormal(false);
+    }
+  }
+  ~NearestWay() {
+    for (ClosestBackend* backend : mBackends) {
+      backend->setAlongNormal(true);
+    }
+  }
+  NearestWay(const NearestWay&) = delete;
+  NearestWay& operator=(const NearestWay&) = delete;
+
+ private:
+  std::vector<ClosestBackend*> mBackends;
+};
+
+TEST_F(CorrectionClTest, ResolveTheNearestWayMovesToTheOffsetAlongTheLineFromTheClosestPoint) {
+  const CubeScene scene = makeCubeScene();
+  const int vd = scene.pointCount;
+  const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
+  const double scale = sceneScale(scene.poses.data(), scene.frameCount * scene.mesh.vertexCount(),
+                                  scene.points.data(), scene.frameCount * vd);
+  const NearestWay nearest({hostBackend(), clBackend()});
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
+    std::vector<float> points = scene.points;
+    backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), kOffset, points.data(),
+                     nullptr);
+    int wrong = 0;
+    int atFeatures = 0;  // moved points whose way out is not a face normal
+    double worst = 0.0;
+    for (int f = 0; f < scene.frameCount; ++f) {
+      for (int i = 0; i < vd; ++i) {
+        const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+        const float* before = &scene.points[3 * k];
+        const double d = cubeSignedDistance(before, scene.centres[f]);
+        const Eigen::Vector3d got(points[3 * k], points[3 * k + 1], points[3 * k + 2]);
+        const Eigen::Vector3d want = d < kOffset ? cubeResolvedNearest(before, scene.centres[f])
+                                                 : Eigen::Vector3d(before[0], before[1], before[2]);
+        const double error = (got - want).norm();
+        worst = std::max(worst, error);
+        const Eigen::Vector3d r =
+            (Eigen::Vector3d(before[0], before[1], before[2]) - scene.centres[f]).cwiseAbs();
+        atFeatures += d > 0.0 && d < kOffset && (r.array() > 1.0).count() >= 2;
+        if (error > kResolveRelTol * scale && ++wrong <= 5) {
+          ADD_FAILURE() << "frame " << f << " point " << i << " (" << before[0] << ", " << before[1]
+                        << ", " << before[2] << ") -> " << got.transpose() << ", closed form "
+                        << want.transpose() << ", tolerance " << kResolveRelTol << " x " << scale;
+        }
+      }
+    }
+    EXPECT_EQ(wrong, 0) << "of " << scene.frameCount * vd << " points";
+    EXPECT_GT(atFeatures, 0) << "no point near an edge or a corner: the case is not exercised";
+    std::printf(
+        "[ resolve  ] %s, nearest way: worst |p - closed form| %.3g, %d moved points "
+        "beside an edge or corner\n",
+        backend->name().c_str(), worst, atFeatures);
+  }
+}
+
+// A point sliding over the cube's edge, 0.05 above the top face (within the offset): along the
+// normal, its target jumps where its closest point crosses from the face onto the edge (from the
+// face normal to the edge's 45-degree pseudo-normal); the nearest way is continuous, with the
+// closed form's slope (at most offset / 0.05 = 2 per unit of the slide).
+TEST_F(CorrectionClTest, ResolveTheNearestWayIsContinuousWhereTheClosestPointCrossesAnEdge) {
+  PosedScene scene;
+  scene.mesh = subdividedCube(3);
+  scene.frameCount = 1;
+  for (int v = 0; v < scene.mesh.vertexCount(); ++v) {
+    for (int a = 0; a < 3; ++a) {
+      scene.poses.push_back(scene.mesh.positions(v, a));
+    }
+  }
+  constexpr double kStep = 1e-5;
+  constexpr int kSteps = 2001;  // x from 1 - 0.01 to 1 + 0.01
+  for (int i = 0; i < kSteps; ++i) {
+    const double x = 1.0 - 0.01 + kStep * i;
+    scene.points.insert(scene.points.end(), {static_cast<float>(x), 0.3f, 1.05f});
+  }
+  scene.pointCount = kSteps;
+  const std::vector<SurfaceHit> hits =
+      closestHits(*hostBackend(), scene.mesh, BindingMask::all(kSteps), 1, scene.poses.data(),
+                  scene.points.data());
+  // Consecutive inputs are kStep apart up to float rounding of x (6e-8); the slope is at most 2.
+  const double slopeBound = 2.0 * (kStep + 1.2e-7) + 2.0 * kResolveRelTol * 2.0;
+  for (const bool alongNormal : {true, false}) {
+    for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+      SCOPED_TRACE(backend->name() + (alongNormal ? ", along the normal" : ", nearest way"));
+      const NearestWay nearest({backend});
+      backend->setAlongNormal(alongNormal);
+      backend->setSurface(scene.mesh, BindingMask::all(kSteps));
+      std::vector<float> points = scene.points;
+      backend->resolve(1, scene.poses.data(), hits.data(), kOffset, points.data(), nullptr);
+      double largest = 0.0;
+      for (int i = 1; i < kSteps; ++i) {
+        const std::size_t k = 3 * static_cast<std::size_t>(i);
+        double step = 0.0;
+        for (int a = 0; a < 3; ++a) {
+          step += std::pow(static_cast<double>(points[k + a]) - points[k - 3 + a], 2.0);
+        }
+        largest = std::max(largest, std::sqrt(step));
+      }
+      std::printf("[ resolve  ] %s, %s: largest move between neighbours %.3g apart: %.3g\n",
+                  backend->name().c_str(), alongNormal ? "along the normal" : "nearest way", kStep,
+                  largest);
+      if (alongNormal) {
+        // The jump: from (1, 0.3, 1.1) to (1, 0.3, 1) + 0.1 (1, 0, 1) / sqrt(2), 0.077 long.
+        EXPECT_GT(largest, 0.07);
+      } else {
+        EXPECT_LE(largest, slopeBound);
+      }
+    }
+  }
+}
+
 /// A slab |z| <= kHalf (the subdivided cube flattened) and points on a line across its middle
 /// plane, where the two exits (top and bottom) tie: the exit fade in closed form. For a point at
 /// height e the nearest exit is the near face at depth d = kHalf - |e|; the nearest other exit

@@ -86,6 +86,11 @@ SINCE_RECORDING["posmap"] += ["--posmap-channels", "legacy"]
 # exits (--exit-fade 0.15); the goldens were recorded without it, which --exit-fade 0 restores.
 for name, _, _ in CONFIGS:
     SINCE_RECORDING[name] += ["--exit-fade", "0"]
+# 0.2: the resolution moves cloth the nearest way out, along the line from its closest point
+# (continuous where that point crosses onto an edge); the goldens moved it along the pseudo-normal,
+# which --resolve-direction normal restores.
+for name, _, _ in CONFIGS:
+    SINCE_RECORDING[name] += ["--resolve-direction", "normal"]
 DEVICES = ["host", "cpu"]  # cpu = the OpenCL CPU device (PoCL); it must exist (never skipped)
 
 # Per-frame report keys that are not results.
@@ -159,6 +164,10 @@ def strip_report(report):
     # behaviour; any other value is compared (and differs).
     if settings.get("exit_fade") == 0:
         settings.pop("exit_fade")
+    # Added with the nearest way out (0.2); the recorded reports lack it. Along the normal, it is
+    # their behaviour; the nearest way is compared (and differs).
+    if settings.get("resolve_direction") == "normal":
+        settings.pop("resolve_direction")
     # Added with the driver mesh check (issue 28); the recorded reports lack it. False (the
     # sample's driver passes the check) is their behaviour; true is compared (and differs).
     if settings.get("untrusted_driver") is False:

@@ -110,6 +110,9 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTable) {
   };
   for (const Pinned& p : pinned) {
     EvaluatorSettings settings;
+    // 0.2 moves cloth the nearest way out by default, which changes the output (and so the
+    // hash) of every bake with the resolution; along the normal, the hash is main's.
+    settings.resolveDirection = ResolveDirection::kNormal;
     p.change(settings);
     const Evaluator evaluator(db, settings, *host);
     const std::string hash = hashToHex(evaluator.settingsHash());
@@ -124,6 +127,26 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTable) {
   }
 }
 
+// The nearest way out, the default since 0.2, changes the hash of a bake with the resolution
+// (a resume bakes such frames again) and leaves the hash of one without it.
+TEST(SettingsHash, TheResolveDirectionEntersTheHashOnlyWithTheResolution) {
+  const Database db = buildSample(false);
+  std::unique_ptr<Device> host = makeHostDevice();
+  for (const bool resolve : {true, false}) {
+    EvaluatorSettings nearest;
+    nearest.resolve = resolve;
+    EvaluatorSettings normal = nearest;
+    normal.resolveDirection = ResolveDirection::kNormal;
+    const std::uint64_t a = Evaluator(db, nearest, *host).settingsHash();
+    const std::uint64_t b = Evaluator(db, normal, *host).settingsHash();
+    if (resolve) {
+      EXPECT_NE(a, b) << "with the resolution";
+    } else {
+      EXPECT_EQ(a, b) << "without the resolution";
+    }
+  }
+}
+
 // The defaults on a database with the pose model (what `db build` makes): weights model. Since
 // 0.2.0 the database also holds the verdict's calibration, which its content hash (and so the
 // settings hash) takes in; without it (level 0: a database of before) the hash is main's.
@@ -134,14 +157,16 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTableWithThePoseModel) {
   before.poseModel.verdictLevel = 0.0;
   before.poseModel.verdictMargin = 0.0;
   std::unique_ptr<Device> host = makeHostDevice();
-  const Evaluator evaluator(before, EvaluatorSettings(), *host);
+  EvaluatorSettings normal;  // 0.1's resolution (see above)
+  normal.resolveDirection = ResolveDirection::kNormal;
+  const Evaluator evaluator(before, normal, *host);
   ASSERT_EQ(evaluator.settings().weightMode, WeightMode::kModel);
   const std::string hash = hashToHex(evaluator.settingsHash());
   const std::string output = hashToHex(evaluator.settingsHash(OutputHashFields{1024, 8, 64}));
   std::printf("  pose model defaults   %s %s\n", hash.c_str(), output.c_str());
   EXPECT_EQ(hash, "295dc96bec57c31e");
   EXPECT_EQ(output, "f55a50a5393e1e72");
-  const Evaluator calibrated(db, EvaluatorSettings(), *host);
+  const Evaluator calibrated(db, normal, *host);
   EXPECT_NE(hashToHex(calibrated.settingsHash()), hash) << "the verdict is part of the database";
 }
 

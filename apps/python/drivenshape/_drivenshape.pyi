@@ -288,8 +288,9 @@ class EvaluatorSettings:
     align='rigid': none (the talk: weights compare world positions), rigid (each shot frame and database shape is first fitted rigidly to the rest driver, weighted by how rigidly each vertex moves across the database: the pelvis, not the legs) or rigid-all (the same fit, every vertex weighted by its area alone)
     align_group='': driver vertices of the rigid fit: comma-separated OBJ group names and/or vertex indices and ranges (0-99,250); empty or all = every vertex
     blend='local': world (blend world positions, then correct) or local (bind every cloth vertex once at rest, blend the shapes' offsets in those local frames, rebuild them on the shot's driver: that is the correction)
-    resolve=True: the penetration resolution: cloth inside the driver or closer than the skin offset moves out along the surface normal
-    skin_offset=0.002: penetration resolution: cloth closer to the driver than D (or inside it) moves out to D along the surface normal (0.002 = 2 mm in metre scenes)
+    resolve=True: the penetration resolution: cloth inside the driver or closer than the skin offset moves out to the offset
+    skin_offset=0.002: penetration resolution: cloth closer to the driver than D (or inside it) moves out to D (0.002 = 2 mm in metre scenes)
+    resolve_direction='nearest': penetration resolution: nearest (a vertex moves along the line from its closest point on the driver, the shortest way to the offset) or normal (along the driver's pseudo-normal there, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
     exit_fade=0.15: penetration resolution: a vertex deep inside the body whose second-nearest exit is within K x its depth of the nearest moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
     regions=None: region-local weights: one QP per region (driver groups) mixed over the matching driven groups with a smooth falloff (a JSON file: readRegions; Python: load_regions); none = one QP on every driver row
     max_weight_change=0.0: temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order within each batch
@@ -299,7 +300,7 @@ class EvaluatorSettings:
     threads=0: host threads for the weights, the alignment, the closest-point search and EXR writing
     clearance_certificate=True: search closest points only where they can matter (the cloth and every count are bitwise the same either way; off only to measure or check the full search)
     """
-    def __init__(self, *, weight_mode: typing.Literal['qp', 'nearest', 'bind', 'model', 'auto'] = 'auto', correct: bool = True, binding_mask: BindingMask | None = None, align: typing.Literal['none', 'rigid', 'rigid-all'] = 'rigid', align_group: str = '', blend: typing.Literal['world', 'local'] = 'local', resolve: bool = True, skin_offset: float = 0.002, exit_fade: float = 0.15, regions: RegionSet | None = None, max_weight_change: float = 0.0, layers: LayerSettings | None = None, audit: bool = True, coverage_tolerance: float = 0.0, threads: int = 0, clearance_certificate: bool = True) -> None:
+    def __init__(self, *, weight_mode: typing.Literal['qp', 'nearest', 'bind', 'model', 'auto'] = 'auto', correct: bool = True, binding_mask: BindingMask | None = None, align: typing.Literal['none', 'rigid', 'rigid-all'] = 'rigid', align_group: str = '', blend: typing.Literal['world', 'local'] = 'local', resolve: bool = True, skin_offset: float = 0.002, resolve_direction: typing.Literal['nearest', 'normal'] = 'nearest', exit_fade: float = 0.15, regions: RegionSet | None = None, max_weight_change: float = 0.0, layers: LayerSettings | None = None, audit: bool = True, coverage_tolerance: float = 0.0, threads: int = 0, clearance_certificate: bool = True) -> None:
         """
         Keyword arguments only, one per evaluator setting (see the class's docstring); the others keep their defaults.
         """
@@ -404,15 +405,23 @@ class EvaluatorSettings:
     @property
     def resolve(self) -> bool:
         """
-        the penetration resolution: cloth inside the driver or closer than the skin offset moves out along the surface normal
+        the penetration resolution: cloth inside the driver or closer than the skin offset moves out to the offset
         """
     @resolve.setter
     def resolve(self, value: bool) -> None:
         ...
     @property
+    def resolve_direction(self) -> typing.Literal['nearest', 'normal']:
+        """
+        penetration resolution: nearest (a vertex moves along the line from its closest point on the driver, the shortest way to the offset) or normal (along the driver's pseudo-normal there, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
+        """
+    @resolve_direction.setter
+    def resolve_direction(self, value: typing.Literal['nearest', 'normal']) -> None:
+        ...
+    @property
     def skin_offset(self) -> float:
         """
-        penetration resolution: cloth closer to the driver than D (or inside it) moves out to D along the surface normal (0.002 = 2 mm in metre scenes)
+        penetration resolution: cloth closer to the driver than D (or inside it) moves out to D (0.002 = 2 mm in metre scenes)
         """
     @skin_offset.setter
     def skin_offset(self, value: float) -> None:

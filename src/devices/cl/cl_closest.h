@@ -42,6 +42,7 @@ class ClClosest final : public ClosestBackend {
   void setSurface(const Mesh& driver, const BindingMask& mask) override;
 
   void setExitFade(float fade) override;
+  void setAlongNormal(bool alongNormal) override { mAlongNormal = alongNormal; }
 
   void setSides(const std::vector<std::int8_t>& sides) override;
 
@@ -192,7 +193,8 @@ class ClClosest final : public ClosestBackend {
   bool mSeeded = false;
   cl::Buffer mSides;  ///< Vd chars (ClosestBackend::setSides), or a placeholder when !mSided
   bool mSided = false;
-  float mFade = 0.0f;  ///< setExitFade()
+  float mFade = 0.0f;        ///< setExitFade()
+  bool mAlongNormal = true;  ///< setAlongNormal()
   bool mCertifiable = false;
   cl::Buffer mNodeTriangle;
   /// Which poses the boxes and cones were refitted on: DeviceArray::version() and the frames.

@@ -89,6 +89,7 @@ void ClClosest::launchSigned(cl::Kernel& kernel, int frameCount, DeviceArray& po
   params.sided = mSided ? 1 : 0;
   params.fade = fade;
   params.nodeCount = static_cast<cl_int>(mBvh.nodes.size());
+  params.alongNormal = mAlongNormal ? 1 : 0;
   cl_util::guard(what, [&] {
     const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
     const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);

@@ -37,6 +37,7 @@ class HostClosest final : public ClosestBackend {
   void setSurface(const Mesh& driver, const BindingMask& mask) override;
 
   void setExitFade(float fade) override;
+  void setAlongNormal(bool alongNormal) override { mAlongNormal = alongNormal; }
 
   void setSides(const std::vector<std::int8_t>& sides) override;
 
@@ -82,6 +83,7 @@ class HostClosest final : public ClosestBackend {
   std::unique_ptr<InsideAudit> mInside;
   std::vector<std::int8_t> mSides;  ///< Vd, or empty: every point outside
   float mFade = 0.0f;               ///< setExitFade()
+  bool mAlongNormal = true;         ///< setAlongNormal()
 };
 
 }  // namespace drivenshape

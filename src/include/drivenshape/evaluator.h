@@ -55,11 +55,20 @@ enum class BlendMode {
            ///< those local frames and rebuild them on the shot's driver
 };
 
+/// Which way the penetration resolution moves a vertex to the skin offset.
+enum class ResolveDirection {
+  kNearest,  ///< along the line from its closest point on the driver: the shortest way to the
+             ///< offset, continuous where the closest point crosses from a face onto an edge
+  kNormal    ///< along the driver's pseudo-normal at the closest point (0.1): jumps by up to
+             ///< half the angle between two faces where the closest point crosses onto their edge
+};
+
 /// The spellings written in reports and taken by the command line and the Python module
 /// ("none", "rigid", "rigid-all"; "qp", "nearest", "bind", "model", "auto"; "world", "local").
 const char* alignModeName(AlignMode mode);
 const char* weightModeName(WeightMode mode);
 const char* blendModeName(BlendMode mode);
+const char* resolveDirectionName(ResolveDirection direction);
 /// The modes those spellings name. Error(kUsage) naming `what` (the setting or flag that gave
 /// the text) and the spellings there are, otherwise.
 AlignMode parseAlignMode(const std::string& text, const std::string& what);
@@ -87,10 +96,11 @@ struct EvaluatorSettings {
   /// Which driver triangles each cloth vertex may bind to; empty = every triangle.
   std::optional<BindingMask> bindingMask;
   /// Penetration resolution: cloth vertices inside the shot's driver or closer than
-  /// `skinOffset` (scene units) move to skinOffset along the pseudo-normal at their exact
-  /// closest point on the driver (every triangle, no mask).
+  /// `skinOffset` (scene units) move to skinOffset from their exact closest point on the driver
+  /// (every triangle, no mask), in the direction `resolveDirection` says.
   bool resolve = true;
   double skinOffset = 0.002;
+  ResolveDirection resolveDirection = ResolveDirection::kNearest;
   /// The resolution's exit fade (ClosestBackend::setExitFade; 0 = off): a vertex deep on the
   /// wrong side whose two nearest exits are nearly equally far (inside a limb, or where the
   /// driver passes through itself at a bent joint) moves only part of the way, none when they

@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // Penetration resolution on the shot's driver (every triangle): every driven vertex stays on
 // its side of the skin (Model::sides), at least the skin offset from it. Cloth inside the body
-// or closer than the offset moves out to the offset along the pseudo-normal at its closest
-// point; a vertex that lives under the skin (a muscle) and came closer than the offset, or
-// through the skin, moves in to the offset; a vertex deep on the wrong side with two nearly
-// equally near exits moves only part of the way (EvaluatorSettings::exitFade). With the audit on,
-// the vertices on the wrong side before the move are counted here too.
+// or closer than the offset moves out to the offset from its closest point, the nearest way
+// (EvaluatorSettings::resolveDirection); a vertex that lives under the skin (a muscle) and came
+// closer than the offset, or through the skin, moves in to the offset; a vertex deep on the wrong
+// side with two nearly equally near exits moves only part of the way (EvaluatorSettings::exitFade).
+// With the audit on, the vertices on the wrong side before the move are counted here too.
 
 #include "../stage.h"
 
@@ -18,6 +18,7 @@ class ResolveStage final : public Stage {
     declare({Array::Shot, Array::Cloth}, kAuditArrays | Arrays{Array::Cloth, Array::Moved});
     model.sides();
     model.audit().setExitFade(static_cast<float>(model.settings.exitFade));
+    model.audit().setAlongNormal(model.settings.resolveDirection == ResolveDirection::kNormal);
   }
 
   const char* name() const override { return "resolve"; }
