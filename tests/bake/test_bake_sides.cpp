@@ -141,6 +141,53 @@ std::vector<float> clothOnlyResolution(const Mesh& driverMesh, const Shot& shot,
   return cloth;
 }
 
+/// The vertex positions (frame-major) where the default resolution jumps, on the host reference
+/// path: `db`'s bake of the shot without the resolution, resolved as the bake resolves it (its
+/// sides, exit fade and direction; checked against `resolved`, the host bake with it, bit for
+/// bit), then again with every point moved by `step` along each axis, both ways; a position
+/// whose answer moves by more than 10 x step is at a jump (a tie between two exits).
+std::vector<bool> resolutionJumps(const Database& db, const Shot& shot,
+                                  const std::vector<float>& resolved, double step) {
+  EvaluatorSettings rawSettings;
+  rawSettings.resolve = false;
+  const Backends host = hostBackends();
+  const std::vector<float> raw =
+      Evaluator(db, rawSettings, host.view()).evaluate(shot.frames, shot.driver).cloth;
+  const int frameCount = static_cast<int>(shot.frames.size());
+  const int vd = db.drivenVertexCount();
+  const EvaluatorSettings defaults;
+  auto resolve = [&](std::vector<float> points) {
+    const std::unique_ptr<ClosestBackend> backend = makeHostClosest();
+    backend->setSurface(db.driverMesh, BindingMask::all(vd));
+    backend->setSides(db.drivenSides);
+    backend->setExitFade(static_cast<float>(defaults.exitFade));
+    backend->setAlongNormal(defaults.resolveDirection == ResolveDirection::kNormal);
+    std::vector<SurfaceHit> hits(static_cast<std::size_t>(frameCount) * vd);
+    backend->closest(frameCount, shot.driver.data(), points.data(), hits.data());
+    backend->resolve(frameCount, shot.driver.data(), hits.data(),
+                     static_cast<float>(defaults.skinOffset), points.data(), nullptr);
+    return points;
+  };
+  const std::vector<float> base = resolve(raw);
+  EXPECT_EQ(base, resolved) << "the host resolution replayed is not the host bake's";
+  std::vector<bool> jumps(raw.size() / 3, false);
+  for (int axis = 0; axis < 3; ++axis) {
+    for (const double sign : {-1.0, 1.0}) {
+      std::vector<float> moved = raw;
+      for (std::size_t k = static_cast<std::size_t>(axis); k < moved.size(); k += 3) {
+        moved[k] = static_cast<float>(moved[k] + sign * step);
+      }
+      const std::vector<float> answer = resolve(moved);
+      for (std::size_t k = 0; k < jumps.size(); ++k) {
+        const Eigen::Vector3d d(answer[3 * k] - base[3 * k], answer[3 * k + 1] - base[3 * k + 1],
+                                answer[3 * k + 2] - base[3 * k + 2]);
+        jumps[k] = jumps[k] || d.norm() > 10.0 * step;
+      }
+    }
+  }
+  return jumps;
+}
+
 /// "inside_vertices" of an evaluator's report settings, 0 when absent.
 int reportedInsideVertices(const Evaluator& evaluator) {
   const nlohmann::json settings = nlohmann::json::parse(evaluator.describeSettings());
@@ -298,20 +345,53 @@ TEST_F(SidesTest, ClothAndMuscleBandsEachStayOnTheirSideOfTheSkin) {
               pushedOut, static_cast<int>(frames) * muscle);
   EXPECT_GT(pushedOut, 0);
 
-  // OpenCL vs host.
+  // OpenCL vs host: within the tolerance, except where the resolution itself jumps. A point under
+  // a convex edge of the skin and equally far from its two faces has two closest points; both
+  // answers are right, at the offset under either face, and which one a device picks is a matter
+  // of rounding (an NVIDIA GPU picked the other one for one position in 103,008). This test's
+  // muscle band lies there by construction (each vertex under a driver vertex, along its normal);
+  // the cloth band only where the skin is concave. A jump is found on the host
+  // alone: moving the point before the resolution by the tolerance along an axis moves the host's
+  // answer by more than 10x that (elsewhere by at most about 3x: offset / depth = 2 turned, 1
+  // along). There the two devices' answers must be equally far from the skin.
   const Backends host = hostBackends();
   Evaluator hostEvaluator(mixed, EvaluatorSettings(), host.view());
   const Evaluation hostResult = hostEvaluator.evaluate(shot.frames, shot.driver);
   EXPECT_EQ(reportedInsideVertices(hostEvaluator), muscle);
   EXPECT_EQ(hostEvaluator.settingsHash(), mixedEvaluator.settingsHash());
-  double worst = 0.0;
-  for (std::size_t i = 0; i < result.cloth.size(); ++i) {
-    worst = std::max(worst, static_cast<double>(std::fabs(result.cloth[i] - hostResult.cloth[i])));
-  }
   const double diagonal = computeBounds(result.cloth.data(), vd).diagonal();
-  EXPECT_LE(worst, testing::kDeviceVsHostRelTol * diagonal)
-      << "largest |cl - host| " << worst << ", tolerance " << testing::kDeviceVsHostRelTol << " x "
-      << diagonal;
+  const double tolerance = testing::kDeviceVsHostRelTol * diagonal;
+  const std::vector<bool> jumps = resolutionJumps(mixed, shot, hostResult.cloth, tolerance);
+  const std::vector<float> hostDistances = signedDistances(driverMesh, shot, hostResult.cloth);
+  double worst = 0.0;
+  int atJumps = 0, differentAtJumps = 0, clothJumps = 0;
+  for (std::size_t k = 0; k < jumps.size(); ++k) {
+    double difference = 0.0;
+    for (std::size_t a = 0; a < 3; ++a) {
+      difference = std::max(
+          difference,
+          static_cast<double>(std::fabs(result.cloth[3 * k + a] - hostResult.cloth[3 * k + a])));
+    }
+    if (!jumps[k]) {
+      worst = std::max(worst, difference);
+      continue;
+    }
+    ++atJumps;
+    clothJumps += bands[k % static_cast<std::size_t>(vd)] > 0;
+    differentAtJumps += difference > tolerance;
+    EXPECT_LE(std::fabs(distances[k] - hostDistances[k]), tolerance)
+        << "frame " << shot.frames[k / static_cast<std::size_t>(vd)] << " vertex "
+        << k % static_cast<std::size_t>(vd) << ": a tie answered at other distances";
+  }
+  std::printf(
+      "[ measured ] OpenCL vs host: largest |cl - host| %.3g (tolerance %.3g) away from the "
+      "resolution's ties; %d of %zu vertex positions at a tie (%d in the cloth band), %d of them "
+      "answered differently\n",
+      worst, tolerance, atJumps, jumps.size(), clothJumps, differentAtJumps);
+  EXPECT_LE(worst, tolerance) << "largest |cl - host| " << worst << ", tolerance "
+                              << testing::kDeviceVsHostRelTol << " x " << diagonal;
+  // Not a tolerance: a check that the positions compared are the cloth band, nearly all of it.
+  EXPECT_LT(clothJumps, static_cast<int>(frames) * (vd - muscle) / 100) << "cloth-band ties";
   for (std::size_t f = 0; f < shot.frames.size(); ++f) {
     EXPECT_EQ(hostResult.records[f].resolved, result.records[f].resolved) << shot.frames[f];
     EXPECT_EQ(hostResult.records[f].insideAfter, result.records[f].insideAfter) << shot.frames[f];
