@@ -105,9 +105,9 @@ inline ds_real dsSignedDistance(__global const float* pose, __global const int* 
   return side < 0 ? -distance : distance;
 }
 
-// The nearest way out of a point at `offset` = p - q from its closest point q, with signed
-// distance s and unit pseudo-normal n there, for a skin offset `skin` (ClosestBackend::
-// setAlongNormal; host reference: correction::nearestWayOut): the unit vector of
+// The nearest way out (used for points on their own side) of a point at `offset` = p - q from its
+// closest point q, with signed distance s and unit pseudo-normal n there, for a skin offset `skin`
+// (ClosestBackend:: setAlongNormal; host reference: correction::nearestWayOut): the unit vector of
 // sign(s) (p - q) + max(DS_RESOLVE_STEADY skin - |s|, 0) n, or n where that vanishes.
 inline ds_real3 dsNearestWayOut(const ds_real3 offset, const ds_real s, const ds_real3 n,
                                 const float skin) {
@@ -198,13 +198,14 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
   const bool inside = params.sided != 0 && sides[point] < 0;
   const ds_real target = inside ? -(ds_real)params.offset : (ds_real)params.offset;
   if (length > 0 && (inside ? signedDistance > target : signedDistance < target)) {
+    const bool wrongSide = inside ? signedDistance > 0 : signedDistance < 0;
     const ds_real3 full =
-        q + (params.alongNormal != 0
+        q + (params.alongNormal != 0 || wrongSide
                  ? (target / length) * normal
                  : target * dsNearestWayOut(p - q, signedDistance, normal / length, params.offset));
     ds_real fraction = 1;
     const ds_real depth = fabs(signedDistance);
-    if (params.fade > 0 && depth > 0 && (inside ? signedDistance > 0 : signedDistance < 0)) {
+    if (params.fade > 0 && depth > 0 && wrongSide) {
       const ds_real other =
           dsOtherExit(p, q, depth, pose, nodes, leafTriangles,
                       boxes + (size_t)frame * (size_t)params.nodeCount * 6, pointRoot[point]);

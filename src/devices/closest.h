@@ -82,12 +82,15 @@ class ClosestBackend {
   virtual void setExitFade(float fade) = 0;
 
   /// Which way resolve() moves a point (EvaluatorSettings::resolveDirection). Along the normal
-  /// (the default after construction, 0.1's resolution) the target is q +- offset N. Otherwise
-  /// it is q +- offset D, D the unit vector of sigma (p - q) + max(DS_RESOLVE_STEADY offset -
-  /// |s|, 0) N with sigma the sign of s: the direction from q to p turned to the outside, the
-  /// shortest way to the offset, continuous where q crosses from a face onto an edge or a vertex
-  /// (N jumps there by up to half the angle between the faces); the N term only steadies points
-  /// within 1e-4 of the offset from the skin.
+  /// (the default after construction, 0.1's resolution) the target is q +- offset N. Otherwise a
+  /// point on its own side of the skin (within the offset of it) goes to q +- offset D, D the unit
+  /// vector of sigma (p - q) + max(DS_RESOLVE_STEADY offset - |s|, 0) N with sigma the sign of s:
+  /// the direction from q to p turned to the outside, the shortest way to the offset, continuous
+  /// where q crosses from a face onto an edge or a vertex (N jumps there by up to half the angle
+  /// between the faces; the N term only steadies points within 1e-4 of the offset from the
+  /// skin); a point on the wrong side still moves along N, which leaves a crease of the body
+  /// along its bisector (the nearest way from inside lands nearer the crease's other face: more
+  /// cloth inside on the validation table's trousers).
   virtual void setAlongNormal(bool alongNormal) = 0;
 
   /// For every point of every frame, the closest triangle of that frame's pose among the
@@ -127,10 +130,10 @@ class ClosestBackend {
   /// angle-weighted pseudo-normal sign), q the closest point and N the unit pseudo-normal at q
   /// (face normal, edge normal or angle-weighted vertex normal), an outside point with
   /// s < offset moves to q + offset * N, an inside point with s > -offset to q - offset * N
-  /// (N replaced by D when setAlongNormal(false); on the wrong side, only part of the way when
-  /// setExitFade() is on); other points (and points where N is zero, or whose fade is 0) are left
-  /// untouched. Points are updated in place; moved[f] receives how many points of frame f moved
-  /// (may be null).
+  /// (N replaced by D on the own side when setAlongNormal(false); on the wrong side, only part of
+  /// the way when setExitFade() is on); other points (and points where N is zero, or whose fade is
+  /// 0) are left untouched. Points are updated in place; moved[f] receives how many points of frame
+  /// f moved (may be null).
   ///   poses  F x 3Vp;  hits  F x Vd;  points  F x 3Vd;  moved  F
   /// offset >= 0 in scene units. Throws Error(kNumerical) on NaN/infinite input.
   virtual void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,

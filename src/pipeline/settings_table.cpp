@@ -452,10 +452,11 @@ void correctionRows(std::vector<SettingRow>& rows) {
       .flag("--resolve-direction", "DIR")
       .choice<&S::resolveDirection, &resolveDirectionName, 2>()
       .help(
-          "penetration resolution: nearest (a vertex moves along the line from its closest "
-          "point on the driver, the shortest way to the offset) or normal (along the driver's "
-          "pseudo-normal there, as 0.1 did: where the closest point crosses from a face onto "
-          "an edge the cloth jumps by up to half the angle between the two faces)")
+          "penetration resolution: nearest (a vertex within the offset on its own side of the "
+          "skin moves along the line from its closest point on the driver, the shortest way; "
+          "one on the wrong side along the driver's pseudo-normal) or normal (every vertex "
+          "along the pseudo-normal, as 0.1 did: where the closest point crosses from a face "
+          "onto an edge the cloth jumps by up to half the angle between the two faces)")
       .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
       .hash(&hashResolveDirection)
       .report("resolve_direction");

@@ -402,8 +402,8 @@ TEST_F(CorrectionClTest, ResolveWithZeroOffsetMovesOnlyInsidePointsOntoTheSurfac
 
 /// Where the nearest-way resolution (setAlongNormal(false)) moves p on the cube
 /// [c - 1, c + 1]^3, in closed form: outside, q + offset (p - q) / |p - q| with q the clamp of p
-/// (a face, an edge or a corner: the shortest way to the offset); inside, as along the normal
-/// (q on the nearest face, which is also the nearest way out).
+/// (a face, an edge or a corner: the shortest way to the offset); inside (the wrong side), along
+/// the normal as before (q on the nearest face).
 Eigen::Vector3d cubeResolvedNearest(const float* p, const Eigen::Vector3d& centre) {
   if (cubeSignedDistance(p, centre) <= 0.0) {
     return cubeResolved(p, centre, kOffset);

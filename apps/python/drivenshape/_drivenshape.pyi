@@ -290,7 +290,7 @@ class EvaluatorSettings:
     blend='local': world (blend world positions, then correct) or local (bind every cloth vertex once at rest, blend the shapes' offsets in those local frames, rebuild them on the shot's driver: that is the correction)
     resolve=True: the penetration resolution: cloth inside the driver or closer than the skin offset moves out to the offset
     skin_offset=0.002: penetration resolution: cloth closer to the driver than D (or inside it) moves out to D (0.002 = 2 mm in metre scenes)
-    resolve_direction='nearest': penetration resolution: nearest (a vertex moves along the line from its closest point on the driver, the shortest way to the offset) or normal (along the driver's pseudo-normal there, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
+    resolve_direction='nearest': penetration resolution: nearest (a vertex within the offset on its own side of the skin moves along the line from its closest point on the driver, the shortest way; one on the wrong side along the driver's pseudo-normal) or normal (every vertex along the pseudo-normal, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
     exit_fade=0.15: penetration resolution: a vertex deep inside the body whose second-nearest exit is within K x its depth of the nearest moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
     regions=None: region-local weights: one QP per region (driver groups) mixed over the matching driven groups with a smooth falloff (a JSON file: readRegions; Python: load_regions); none = one QP on every driver row
     max_weight_change=0.0: temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order within each batch
@@ -413,7 +413,7 @@ class EvaluatorSettings:
     @property
     def resolve_direction(self) -> typing.Literal['nearest', 'normal']:
         """
-        penetration resolution: nearest (a vertex moves along the line from its closest point on the driver, the shortest way to the offset) or normal (along the driver's pseudo-normal there, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
+        penetration resolution: nearest (a vertex within the offset on its own side of the skin moves along the line from its closest point on the driver, the shortest way; one on the wrong side along the driver's pseudo-normal) or normal (every vertex along the pseudo-normal, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
         """
     @resolve_direction.setter
     def resolve_direction(self, value: typing.Literal['nearest', 'normal']) -> None:

@@ -52,9 +52,10 @@ void HostClosest::resolve(int frameCount, const float* poses, const SurfaceHit* 
             mFade > 0.0f && wrongSide ? exitFraction(pose, p, q, distance, boxes) : 1.0;
         if (fraction > 0.0) {
           const Eigen::Vector3d full =
-              q + (mAlongNormal ? (target / length) * normal
-                                : target * correction::nearestWayOut(offsetVector, signedDistance,
-                                                                     normal / length, offset));
+              q + (mAlongNormal || wrongSide
+                       ? (target / length) * normal
+                       : target * correction::nearestWayOut(offsetVector, signedDistance,
+                                                            normal / length, offset));
           const Eigen::Vector3d result = fraction < 1.0 ? p + fraction * (full - p) : full;
           for (int k = 0; k < 3; ++k) {
             points[3 * item + static_cast<std::size_t>(k)] = static_cast<float>(result[k]);

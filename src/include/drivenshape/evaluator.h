@@ -57,8 +57,10 @@ enum class BlendMode {
 
 /// Which way the penetration resolution moves a vertex to the skin offset.
 enum class ResolveDirection {
-  kNearest,  ///< along the line from its closest point on the driver: the shortest way to the
-             ///< offset, continuous where the closest point crosses from a face onto an edge
+  kNearest,  ///< a vertex on its own side of the skin, within the offset, moves along the line
+             ///< from its closest point on the driver: the shortest way to the offset, continuous
+             ///< where the closest point crosses from a face onto an edge; one on the wrong side
+             ///< moves along the pseudo-normal, out of a crease along its bisector
   kNormal    ///< along the driver's pseudo-normal at the closest point (0.1): jumps by up to
              ///< half the angle between two faces where the closest point crosses onto their edge
 };
