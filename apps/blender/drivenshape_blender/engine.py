@@ -61,6 +61,7 @@ def evaluator_kwargs(settings):
         correct=settings.correct,
         resolve=settings.resolve,
         skin_offset=settings.skin_offset,
+        resolve_direction=settings.resolve_direction,
         exit_fade=settings.exit_fade,
         max_weight_change=settings.max_weight_change,
         audit=settings.audit,

@@ -33,6 +33,12 @@ BLEND_MODES = (
      "rebuild them on the current pose (no per-frame search)"),
     ("world", "World", "Blend world positions, then correct onto the pose (the talk)"),
 )
+RESOLVE_DIRECTIONS = (
+    ("nearest", "Nearest", "Cloth within the offset moves along the line from its closest point on "
+     "the driver (smooth where that point crosses an edge); cloth inside along the normal"),
+    ("normal", "Normal", "Every vertex moves along the driver's normal at its closest point "
+     "(0.1; jumps where that point crosses from a face onto an edge)"),
+)
 SPACES = (
     ("LOCAL", "Object", "The driver's object-space positions go in and the cloth's object-space "
      "positions come out, as Mesh Cache modifiers read PC2 files"),
@@ -131,6 +137,8 @@ class DrivenShapeSettings(bpy.types.PropertyGroup):
         update=_settings_changed,
         description="Distance the penetration resolution keeps between cloth and driver "
         "(scene units)")
+    resolve_direction: EnumProperty(name="Direction", items=RESOLVE_DIRECTIONS, default="nearest",
+                                    update=_settings_changed)
     exit_fade: FloatProperty(
         name="Exit Fade", default=0.15, min=0.0, soft_max=1.0, precision=2, step=1,
         update=_settings_changed,

@@ -216,6 +216,7 @@ class DRIVENSHAPE_PT_collision(_Panel, bpy.types.Panel):
         column = layout.column()
         column.active = settings.resolve
         column.prop(settings, "skin_offset", text="Offset")
+        column.prop(settings, "resolve_direction")
         column.prop(settings, "exit_fade")
 
 

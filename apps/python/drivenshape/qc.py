@@ -965,6 +965,8 @@ def settings_text(settings: _Json, units: Units) -> str:
         resolve = f"resolution {on_off(settings['resolve'])}"
         if settings["resolve"] and is_number(settings.get("skin_offset")):
             resolve += f" (skin offset {units.with_unit(settings['skin_offset'])}"
+            if settings.get("resolve_direction"):
+                resolve += f", {settings['resolve_direction']} direction"
             if is_number(settings.get("exit_fade")):
                 resolve += f", exit fade {settings['exit_fade']:g}"
             resolve += ")"
