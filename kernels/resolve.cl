@@ -105,10 +105,10 @@ inline ds_real dsSignedDistance(__global const float* pose, __global const int* 
   return side < 0 ? -distance : distance;
 }
 
-// The nearest way out (used for points on their own side) of a point at `offset` = p - q from its
-// closest point q, with signed distance s and unit pseudo-normal n there, for a skin offset `skin`
-// (ClosestBackend:: setAlongNormal; host reference: correction::nearestWayOut): the unit vector of
-// sign(s) (p - q) + max(DS_RESOLVE_STEADY skin - |s|, 0) n, or n where that vanishes.
+// The nearest way out (for points on their own side; ClosestBackend::setAlongNormal, host
+// reference correction::nearestWayOut) of a point at `offset` = p - q from its closest point q,
+// with signed distance s and unit pseudo-normal n there, for a skin offset `skin`: the unit
+// vector of sign(s) (p - q) + max(DS_RESOLVE_STEADY skin - |s|, 0) n, or n where that vanishes.
 inline ds_real3 dsNearestWayOut(const ds_real3 offset, const ds_real s, const ds_real3 n,
                                 const float skin) {
   const ds_real steady = (ds_real)DS_RESOLVE_STEADY * (ds_real)skin - fabs(s);

@@ -471,6 +471,21 @@ TEST_F(CorrectionClTest, ResolveTheNearestWayMovesToTheOffsetAlongTheLineFromThe
     }
     EXPECT_EQ(wrong, 0) << "of " << scene.frameCount * vd << " points";
     EXPECT_GT(atFeatures, 0) << "no point near an edge or a corner: the case is not exercised";
+    // Points on the wrong side (inside the cube) move along the normal: bit for bit 0.1's move.
+    backend->setAlongNormal(true);
+    std::vector<float> alongNormal = scene.points;
+    backend->resolve(scene.frameCount, scene.poses.data(), hits.data(), kOffset, alongNormal.data(),
+                     nullptr);
+    backend->setAlongNormal(false);
+    int insideDiffer = 0, insideCount = 0;
+    for (std::size_t k = 0; k < points.size() / 3; ++k) {
+      if (cubeSignedDistance(&scene.points[3 * k], scene.centres[k / vd]) < 0.0) {
+        ++insideCount;
+        insideDiffer += std::memcmp(&points[3 * k], &alongNormal[3 * k], 3 * sizeof(float)) != 0;
+      }
+    }
+    EXPECT_GT(insideCount, 0);
+    EXPECT_EQ(insideDiffer, 0) << "of " << insideCount << " points inside";
     std::printf(
         "[ resolve  ] %s, nearest way: worst |p - closed form| %.3g, %d moved points "
         "beside an edge or corner\n",

@@ -66,7 +66,8 @@ enum class ResolveDirection {
 };
 
 /// The spellings written in reports and taken by the command line and the Python module
-/// ("none", "rigid", "rigid-all"; "qp", "nearest", "bind", "model", "auto"; "world", "local").
+/// ("none", "rigid", "rigid-all"; "qp", "nearest", "bind", "model", "auto"; "world", "local";
+/// "nearest", "normal").
 const char* alignModeName(AlignMode mode);
 const char* weightModeName(WeightMode mode);
 const char* blendModeName(BlendMode mode);
