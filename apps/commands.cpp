@@ -91,10 +91,11 @@ void infoDatabase(const std::string& path) {
     std::cout << "  pose model: none (bakes blend the picks with QP weights)\n";
   } else {
     std::cout << "  pose model: " << model.partCount() << " rigid parts, " << model.frameCount()
-              << " reference frames, " << model.featureCount() << " features, rank " << model.rank()
-              << "; cross-validated mean vertex error " << model.crossValidationError
-              << " (binding " << model.bindingError << "), predicted error " << model.errorBias
-              << " + " << model.errorScale << " sigma";
+              << " reference frames, " << model.featureCount() << " features (velocity over "
+              << model.velocityLag << ", history over " << model.historyFrames << " frames), rank "
+              << model.rank() << "; cross-validated mean vertex error "
+              << model.crossValidationError << " (binding " << model.bindingError
+              << "), predicted error " << model.errorBias << " + " << model.errorScale << " sigma";
     if (model.verdictLevel > 0.0) {
       std::cout << "; error bound: predicted + " << model.verdictMargin << " (holds on "
                 << 100.0 * model.verdictLevel << "% of held-out reference frames)";

@@ -120,7 +120,9 @@ ArgParser dbBuildParser() {
       .option("--model-velocity", "N",
               "frames back the pose model's velocity feature looks (0 = no velocity)", "3")
       .option("--model-history", "N",
-              "frames the pose model's history feature averages (0 = no history)", "15")
+              "frames the pose model's history feature averages (0 = no history; auto = 15 with "
+              "one reference clip, 30 with several)",
+              "auto")
       .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
       .option("--verdict-level", "P",
               "share of frames the coverage verdict's error bound is calibrated to hold for "
@@ -178,7 +180,13 @@ DatabaseBuildOptions buildOptionsFrom(const ArgParser& parser) {
              options.model.parts, ")");
   }
   options.model.velocityLag = parser.getInt("--model-velocity", 0);
-  options.model.historyFrames = parser.getInt("--model-history", 0);
+  const std::string history = parser.get("--model-history");
+  if (history != "auto" && history.find_first_not_of("0123456789") != std::string::npos) {
+    DS_THROW(kUsage, "--model-history takes auto or a number of frames 0..120 (got '", history,
+             "')");
+  }
+  options.model.historyFrames =
+      history == "auto" ? kAutoHistory : parser.getInt("--model-history", 0);
   options.model.rank = parser.getInt("--model-rank", 1);
   if (options.model.velocityLag > 60 || options.model.historyFrames > 120) {
     DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",

@@ -251,7 +251,8 @@ void fillPickedShapes(Database& db, const std::vector<float>& shapes,
   }
 }
 
-/// Frames the pose model's velocity and history read before a frame (PoseModel::historyNeeded).
+/// Frames the pose model's velocity and history read before a frame (PoseModel::historyNeeded);
+/// `options` has its history chosen (historyFramesFor).
 int historyNeeded(const PoseModelOptions& options) {
   PoseModel model;
   model.velocityLag = options.velocityLag;
@@ -381,8 +382,11 @@ void logClipContributions(const PoseModel& model, double mainAlone, std::ostream
 /// alone.
 void fitModel(Database& db, const std::vector<int>& candidates, const std::vector<float>& shapes,
               const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
-              const std::vector<ReferenceClip>& extraClips, const PoseModelOptions& options,
+              const std::vector<ReferenceClip>& extraClips, const PoseModelOptions& chosen,
               std::ostream* log) {
+  // Every fit of this build (the main clip alone included) reads the history of all its clips.
+  PoseModelOptions options = chosen;
+  options.historyFrames = historyFramesFor(chosen, static_cast<int>(extraClips.size()) + 1);
   const int need = historyNeeded(options);
   const FitFrames fit =
       gatherFitFrames(db, candidates, shapes, driverCache, drivenCache, extraClips, need, log);

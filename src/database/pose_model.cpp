@@ -793,6 +793,13 @@ void storeFit(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis, int
 
 }  // namespace
 
+int historyFramesFor(const PoseModelOptions& options, int clipCount) {
+  if (options.historyFrames != kAutoHistory) {
+    return options.historyFrames;
+  }
+  return clipCount > 1 ? 30 : 15;
+}
+
 PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,
                        const float* drivenFrames, const std::vector<int>& frames,
                        const std::vector<SurfaceHit>& restHits, const PoseModelOptions& options,
@@ -806,7 +813,8 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
   PoseModel model;
   model.up = options.up;
   model.velocityLag = options.velocityLag;
-  model.historyFrames = options.historyFrames;
+  model.historyFrames =
+      historyFramesFor(options, std::max(1, static_cast<int>(options.clipSizes.size())));
   model.frames = frames;
   setRigidParts(model, driver, driverFrames, t, options, threads, log);
 

@@ -38,7 +38,7 @@ struct ClipSpec {
   std::vector<int> frames;
 };
 Database buildWithClips(const std::vector<int>& frames, const std::vector<ClipSpec>& extra,
-                        bool poseModel = true) {
+                        bool poseModel = true, int historyFrames = kAutoHistory) {
   const Mesh driver = readObj(sample("driver_rest.obj"));
   const Mesh driven = readObj(sample("driven_rest.obj"));
   const auto driverCache = openPointCache(sample("train.driver.pc2"));
@@ -53,16 +53,18 @@ Database buildWithClips(const std::vector<int>& frames, const std::vector<ClipSp
   DatabaseBuildOptions options;
   options.frames = frames;
   options.poseModel = poseModel;
+  options.model.historyFrames = historyFrames;
   return buildDatabase(driver, driven, *driverCache, *drivenCache, clips, options);
 }
 
 TEST(ReferenceClips, AClipSplitInTwoFitsTheModelOfTheWholeClip) {
   // The train clip as one clip, and as frames 1-30 plus a second clip of frames 31-61 of the
   // same caches: the second clip's history reads frames 17-30 of its own cache, so every
-  // feature, target and fold is the same and so is the model.
-  const Database whole = buildWithClips({}, {});
-  const Database split =
-      buildWithClips(range(1, 30), {{"train.driver.pc2", "train.driven.pc2", range(31, 61)}});
+  // feature, target and fold is the same and so is the model (with the history given: by
+  // default two clips read a longer one, see below).
+  const Database whole = buildWithClips({}, {}, true, 15);
+  const Database split = buildWithClips(
+      range(1, 30), {{"train.driver.pc2", "train.driven.pc2", range(31, 61)}}, true, 15);
   const PoseModel& a = whole.poseModel;
   const PoseModel& b = split.poseModel;
   ASSERT_EQ(a.frameCount(), 61);
@@ -84,6 +86,16 @@ TEST(ReferenceClips, AClipSplitInTwoFitsTheModelOfTheWholeClip) {
   EXPECT_EQ(a.coefficients, b.coefficients);
   EXPECT_EQ(a.crossValidationError, b.crossValidationError)
       << "a fold boundary at the clip boundary changes nothing";
+}
+
+// The history's default follows the reference data: 15 frames with one clip, 30 with several
+// (historyFramesFor); a history given is kept either way.
+TEST(ReferenceClips, TheDefaultHistoryIsLongerWithSeveralClips) {
+  const std::vector<ClipSpec> second = {{"train.driver.pc2", "train.driven.pc2", range(31, 61)}};
+  EXPECT_EQ(buildWithClips({}, {}).poseModel.historyFrames, 15);
+  EXPECT_EQ(buildWithClips(range(1, 30), second).poseModel.historyFrames, 30);
+  EXPECT_EQ(buildWithClips(range(1, 30), second, true, 15).poseModel.historyFrames, 15);
+  EXPECT_EQ(buildWithClips({}, {}, true, 0).poseModel.historyFrames, 0);
 }
 
 /// docs/method.md's features, by hand: pose features p of a cache's frames 1.. (row f - 1),

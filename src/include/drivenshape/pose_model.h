@@ -29,6 +29,9 @@
 
 namespace drivenshape {
 
+/// PoseModelOptions::historyFrames: the history follows the reference data (historyFramesFor).
+inline constexpr int kAutoHistory = -1;
+
 struct PoseModelOptions {
   /// Rigid parts of the driver to find; 0 = found from the clip (findRigidParts, 2..8).
   int parts = 0;
@@ -39,10 +42,10 @@ struct PoseModelOptions {
   /// The up axis of the scene (gravity pulls along -up); the root part's features.
   std::array<double, 3> up = {0.0, 0.0, 1.0};
   /// Frames back for the velocity feature (0 = off) and frames averaged for the history
-  /// feature (0 = off). Both need earlier driver frames (DESIGN.md: read from the cache before
-  /// a chunk's first frame).
+  /// feature (0 = off; kAutoHistory: historyFramesFor). Both need earlier driver frames
+  /// (DESIGN.md: read from the cache before a chunk's first frame).
   int velocityLag = 3;
-  int historyFrames = 15;
+  int historyFrames = kAutoHistory;
   /// Basis shapes kept (the rank of the correction; at most the clip's frame count).
   int rank = 64;
   /// Frames of each reference clip in the order the frames are given (their sum is the frame
@@ -194,6 +197,13 @@ struct EarlierFrames {
   const float* driverFrames = nullptr;  ///< frames.size() x V x 3, frame-major
   std::vector<int> frames;              ///< their frame numbers
 };
+
+/// The history feature's frames for `clipCount` reference clips: options.historyFrames when it is
+/// set, else (kAutoHistory) 15 with one clip and 30 with several. A longer history tells takes
+/// apart that put other cloth on the same pose, but needs the data of several to be learnt:
+/// chosen on the validation table (docs/validation.md: with three clips 30 frames lowered the
+/// held-out error of both characters, with one clip they raised it).
+int historyFramesFor(const PoseModelOptions& options, int clipCount);
 
 /// Fits the pose model on reference frames: `frameCount` driver and driven frames (frame-major)
 /// with their frame numbers (consecutive numbers are what velocity and history read, in these
