@@ -89,8 +89,8 @@ class ClosestBackend {
   /// where q crosses from a face onto an edge or a vertex (N jumps there by up to half the angle
   /// between the faces; the N term only steadies points within 1e-4 of the offset from the
   /// skin); a point on the wrong side still moves along N, which leaves a crease of the body
-  /// along its bisector (the nearest way from inside lands nearer the crease's other face: more
-  /// cloth inside on the validation table's trousers).
+  /// along its bisector (moved the nearest way, more cloth stayed inside on the validation
+  /// table's trousers).
   virtual void setAlongNormal(bool alongNormal) = 0;
 
   /// For every point of every frame, the closest triangle of that frame's pose among the
