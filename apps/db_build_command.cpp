@@ -121,7 +121,7 @@ ArgParser dbBuildParser() {
               "frames back the pose model's velocity feature looks (0 = no velocity)", "3")
       .option("--model-history", "N",
               "frames the pose model's history feature averages (0 = no history; auto = 15 with "
-              "one reference clip, 30 with several)",
+              "one or two reference clips, 30 with three or more)",
               "auto")
       .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
       .option("--verdict-level", "P",

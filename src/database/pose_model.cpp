@@ -797,7 +797,7 @@ int historyFramesFor(const PoseModelOptions& options, int clipCount) {
   if (options.historyFrames != kAutoHistory) {
     return options.historyFrames;
   }
-  return clipCount > 1 ? 30 : 15;
+  return clipCount >= 3 ? 30 : 15;
 }
 
 PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driverFrames,

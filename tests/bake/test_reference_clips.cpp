@@ -88,13 +88,17 @@ TEST(ReferenceClips, AClipSplitInTwoFitsTheModelOfTheWholeClip) {
       << "a fold boundary at the clip boundary changes nothing";
 }
 
-// The history's default follows the reference data: 15 frames with one clip, 30 with several
-// (historyFramesFor); a history given is kept either way.
-TEST(ReferenceClips, TheDefaultHistoryIsLongerWithSeveralClips) {
+// The history's default follows the reference data: 15 frames with one or two clips, 30 with
+// three or more (historyFramesFor); a history given is kept either way.
+TEST(ReferenceClips, TheDefaultHistoryIsLongerWithThreeClips) {
   const std::vector<ClipSpec> second = {{"train.driver.pc2", "train.driven.pc2", range(31, 61)}};
+  const std::vector<ClipSpec> secondAndThird = {
+      {"train.driver.pc2", "train.driven.pc2", range(21, 40)},
+      {"train.driver.pc2", "train.driven.pc2", range(41, 61)}};
   EXPECT_EQ(buildWithClips({}, {}).poseModel.historyFrames, 15);
-  EXPECT_EQ(buildWithClips(range(1, 30), second).poseModel.historyFrames, 30);
-  EXPECT_EQ(buildWithClips(range(1, 30), second, true, 15).poseModel.historyFrames, 15);
+  EXPECT_EQ(buildWithClips(range(1, 30), second).poseModel.historyFrames, 15);
+  EXPECT_EQ(buildWithClips(range(1, 20), secondAndThird).poseModel.historyFrames, 30);
+  EXPECT_EQ(buildWithClips(range(1, 20), secondAndThird, true, 15).poseModel.historyFrames, 15);
   EXPECT_EQ(buildWithClips({}, {}, true, 0).poseModel.historyFrames, 0);
 }
 

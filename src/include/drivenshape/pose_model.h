@@ -199,10 +199,10 @@ struct EarlierFrames {
 };
 
 /// The history feature's frames for `clipCount` reference clips: options.historyFrames when it is
-/// set, else (kAutoHistory) 15 with one clip and 30 with several. A longer history tells takes
-/// apart that put other cloth on the same pose, but needs the data of several to be learnt:
-/// chosen on the validation table (docs/validation.md: with three clips 30 frames lowered the
-/// held-out error of both characters, with one clip they raised it).
+/// set, else (kAutoHistory) 15 with one or two clips and 30 with three or more. A longer history
+/// tells takes apart that put other cloth on the same pose, but needs the data of several to be
+/// learnt: chosen on the validation table (docs/validation.md: with three clips 30 frames
+/// lowered the held-out error of both characters, with two only the sleeve's, with one neither).
 int historyFramesFor(const PoseModelOptions& options, int clipCount);
 
 /// Fits the pose model on reference frames: `frameCount` driver and driven frames (frame-major)
