@@ -384,7 +384,8 @@ void fitModel(Database& db, const std::vector<int>& candidates, const std::vecto
               const PointCacheReader& driverCache, const PointCacheReader& drivenCache,
               const std::vector<ReferenceClip>& extraClips, const PoseModelOptions& chosen,
               std::ostream* log) {
-  // Every fit of this build (the main clip alone included) reads the history of all its clips.
+  // Every fit of this build, the main clip alone included, uses the history chosen for all its
+  // clips, so that the log compares like with like.
   PoseModelOptions options = chosen;
   options.historyFrames = historyFramesFor(chosen, static_cast<int>(extraClips.size()) + 1);
   const int need = historyNeeded(options);
