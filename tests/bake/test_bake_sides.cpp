@@ -10,10 +10,12 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <drivenshape/database.h>
@@ -126,19 +128,31 @@ std::vector<float> signedDistances(const Mesh& driverMesh, const Shot& shot,
   return distances;
 }
 
-/// The resolution as it was before the side table (every vertex treated as cloth), applied to
-/// `cloth` of the shot with the default skin offset: what the defaults gave a muscle then.
-std::vector<float> clothOnlyResolution(const Mesh& driverMesh, const Shot& shot,
-                                       std::vector<float> cloth) {
+/// The host backend's penetration resolution of `cloth` (F x 3Vd of the shot) with the default
+/// skin offset: an exact search, then resolve() with the side table `sides` (empty = every
+/// vertex cloth), the exit `fade` and the direction given (ClosestBackend::setAlongNormal).
+std::vector<float> hostResolution(const Mesh& driverMesh, const Shot& shot,
+                                  std::vector<float> cloth, const std::vector<std::int8_t>& sides,
+                                  float fade, bool alongNormal) {
   const int frameCount = static_cast<int>(shot.frames.size());
   const int vd = static_cast<int>(cloth.size() / 3 / shot.frames.size());
   const std::unique_ptr<ClosestBackend> host = makeHostClosest();
   host->setSurface(driverMesh, BindingMask::all(vd));
+  host->setSides(sides);
+  host->setExitFade(fade);
+  host->setAlongNormal(alongNormal);
   std::vector<SurfaceHit> hits(static_cast<std::size_t>(frameCount) * vd);
   host->closest(frameCount, shot.driver.data(), cloth.data(), hits.data());
   host->resolve(frameCount, shot.driver.data(), hits.data(),
                 static_cast<float>(EvaluatorSettings().skinOffset), cloth.data(), nullptr);
   return cloth;
+}
+
+/// The resolution as it was before the side table (every vertex treated as cloth, no exit fade,
+/// along the normal), applied to `cloth` of the shot: what the defaults gave a muscle then.
+std::vector<float> clothOnlyResolution(const Mesh& driverMesh, const Shot& shot,
+                                       std::vector<float> cloth) {
+  return hostResolution(driverMesh, shot, std::move(cloth), {}, 0.0f, true);
 }
 
 /// The vertex positions (frame-major) where the default resolution jumps, on the host reference
@@ -153,20 +167,11 @@ std::vector<bool> resolutionJumps(const Database& db, const Shot& shot,
   const Backends host = hostBackends();
   const std::vector<float> raw =
       Evaluator(db, rawSettings, host.view()).evaluate(shot.frames, shot.driver).cloth;
-  const int frameCount = static_cast<int>(shot.frames.size());
-  const int vd = db.drivenVertexCount();
   const EvaluatorSettings defaults;
   auto resolve = [&](std::vector<float> points) {
-    const std::unique_ptr<ClosestBackend> backend = makeHostClosest();
-    backend->setSurface(db.driverMesh, BindingMask::all(vd));
-    backend->setSides(db.drivenSides);
-    backend->setExitFade(static_cast<float>(defaults.exitFade));
-    backend->setAlongNormal(defaults.resolveDirection == ResolveDirection::kNormal);
-    std::vector<SurfaceHit> hits(static_cast<std::size_t>(frameCount) * vd);
-    backend->closest(frameCount, shot.driver.data(), points.data(), hits.data());
-    backend->resolve(frameCount, shot.driver.data(), hits.data(),
-                     static_cast<float>(defaults.skinOffset), points.data(), nullptr);
-    return points;
+    return hostResolution(db.driverMesh, shot, std::move(points), db.drivenSides,
+                          static_cast<float>(defaults.exitFade),
+                          defaults.resolveDirection == ResolveDirection::kNormal);
   };
   const std::vector<float> base = resolve(raw);
   EXPECT_EQ(base, resolved) << "the host resolution replayed is not the host bake's";
