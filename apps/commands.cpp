@@ -96,6 +96,11 @@ void infoDatabase(const std::string& path) {
               << model.rank() << "; cross-validated mean vertex error "
               << model.crossValidationError << " (binding " << model.bindingError
               << "), predicted error " << model.errorBias << " + " << model.errorScale << " sigma";
+    if (model.clipMixtureWeight > 0.0) {
+      std::cout << "; per-clip models of " << model.clipSizes.size()
+                << " clips mixed in (weight of the model over every clip "
+                << model.clipMixtureWeight << ")";
+    }
     if (model.verdictLevel > 0.0) {
       std::cout << "; error bound: predicted + " << model.verdictMargin << " (holds on "
                 << 100.0 * model.verdictLevel << "% of held-out reference frames)";

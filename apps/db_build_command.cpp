@@ -124,6 +124,12 @@ ArgParser dbBuildParser() {
               "one or two reference clips, 30 with three or more)",
               "auto")
       .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
+      .option("--model-per-clip", "W",
+              "models of each reference clip mixed into the pose model's prediction by how "
+              "close a pose is to each clip (W = the weight of the model over every clip): auto "
+              "= with three or more clips, the weight of 10, 3 or 1 that best predicts each "
+              "clip left out in turn, when at least 1% better than none; off = none",
+              "auto")
       .option("--verdict-level", "P",
               "share of frames the coverage verdict's error bound is calibrated to hold for "
               "(split-conformal on the held-out reference frames; bake --coverage-tolerance "
@@ -188,6 +194,15 @@ DatabaseBuildOptions buildOptionsFrom(const ArgParser& parser) {
   options.model.historyFrames =
       history == "auto" ? kAutoHistory : parser.getInt("--model-history", 0);
   options.model.rank = parser.getInt("--model-rank", 1);
+  const std::string perClip = parser.get("--model-per-clip");
+  options.model.clipMixtureWeight = perClip == "auto"  ? kAutoClipMixture
+                                    : perClip == "off" ? 0.0
+                                                       : parser.getDouble("--model-per-clip", 0.0);
+  if (!(options.model.clipMixtureWeight == kAutoClipMixture ||
+        (options.model.clipMixtureWeight >= 0.0 && options.model.clipMixtureWeight <= 1000.0))) {
+    DS_THROW(kUsage, "--model-per-clip takes auto, off or a weight from 0 to 1000 (got '", perClip,
+             "')");
+  }
   if (options.model.velocityLag > 60 || options.model.historyFrames > 120) {
     DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",
              options.model.velocityLag, " and ", options.model.historyFrames, ")");
@@ -359,7 +374,11 @@ void writeModelJson(const std::string& path, const Database& db) {
       frames.back()["left_out_sigma"] = m.leftOutSigmas[i];
     }
   }
-  const nlohmann::json report{
+  nlohmann::json perClip = nlohmann::json::array();
+  for (const ClipMixtureTrial& trial : m.clipMixtureTrials) {
+    perClip.push_back({{"weight", trial.weight}, {"left_out_error", trial.leftOutError}});
+  }
+  nlohmann::json report{
       {"units", "scene units (mean vertex distance)"},
       {"reference_frames", m.frameCount()},
       {"kernel",
@@ -371,6 +390,9 @@ void writeModelJson(const std::string& path, const Database& db) {
       {"verdict", {{"level", m.verdictLevel}, {"margin", m.verdictMargin}}},
       {"clips", clips},
       {"frames", frames}};
+  if (!perClip.empty()) {
+    report["per_clip_models"] = {{"weight", m.clipMixtureWeight}, {"tried", perClip}};
+  }
   writeFileAtomically(path, jsonText(report, 1) + "\n");
 }
 

@@ -13,6 +13,7 @@
 
 #include <drivenshape/database.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -21,6 +22,7 @@
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <string_view>
 
 #include <drivenshape/binding.h>
@@ -123,6 +125,12 @@ std::uint64_t Database::contentHash() const {
     hasher.add(m.features.data(), m.features.size() * sizeof(float));
     hasher.add(m.coefficients.data(), m.coefficients.size() * sizeof(float));
     hasher.add(m.basis.data(), m.basis.size() * sizeof(float));
+    if (m.clipMixtureWeight > 0.0) {
+      // Only models with per-clip models hash them: the others keep their hash.
+      hasher.addValue(m.clipMixtureWeight);
+      hasher.add(m.clipSizes.data(), m.clipSizes.size() * sizeof(int));
+      hasher.add(m.clipCoefficients.data(), m.clipCoefficients.size() * sizeof(float));
+    }
   }
   return hasher.value();
 }
@@ -183,28 +191,36 @@ std::vector<BlockData> databaseBlocks(const Database& db, const FlatDatabaseArra
     blocks.push_back(block("model_features", model.features, {t, d}));
     blocks.push_back(block("model_coefficients", model.coefficients, {r, t}));
     blocks.push_back(block("model_basis", model.basis, {r, vd, 3}));
+    if (model.clipMixtureWeight > 0.0) {
+      blocks.push_back(block("model_clip_coefficients", model.clipCoefficients, {r, t}));
+    }
   }
   return blocks;
 }
 
 /// The header's `pose_model` entry: the model's sizes and settings.
 json poseModelJson(const PoseModel& model) {
-  return {{"parts", model.partCount()},
-          {"rank", model.rank()},
-          {"frames", model.frameCount()},
-          {"features", model.featureCount()},
-          {"up", model.up},
-          {"velocity_lag", model.velocityLag},
-          {"history_frames", model.historyFrames},
-          {"length_scale", model.lengthScale},
-          {"linear_weight", model.linearWeight},
-          {"ridge", model.ridge},
-          {"error_bias", model.errorBias},
-          {"error_scale", model.errorScale},
-          {"cross_validation_error", model.crossValidationError},
-          {"binding_error", model.bindingError},
-          {"verdict_level", model.verdictLevel},
-          {"verdict_margin", model.verdictMargin}};
+  json out = {{"parts", model.partCount()},
+              {"rank", model.rank()},
+              {"frames", model.frameCount()},
+              {"features", model.featureCount()},
+              {"up", model.up},
+              {"velocity_lag", model.velocityLag},
+              {"history_frames", model.historyFrames},
+              {"length_scale", model.lengthScale},
+              {"linear_weight", model.linearWeight},
+              {"ridge", model.ridge},
+              {"error_bias", model.errorBias},
+              {"error_scale", model.errorScale},
+              {"cross_validation_error", model.crossValidationError},
+              {"binding_error", model.bindingError},
+              {"verdict_level", model.verdictLevel},
+              {"verdict_margin", model.verdictMargin}};
+  if (model.clipMixtureWeight > 0.0) {
+    out["clip_mixture_weight"] = model.clipMixtureWeight;
+    out["clip_frames"] = model.clipSizes;
+  }
+  return out;
 }
 
 /// The JSON header without its block table: picks, meshes, sources, settings, pose model.
@@ -454,6 +470,21 @@ void readPoseModel(const BlockReader& blocks, const json& info, const std::strin
   m.features = blocks.read<float>("model_features", std::size_t(frames) * features);
   m.coefficients = blocks.read<float>("model_coefficients", std::size_t(rank) * frames);
   m.basis = blocks.read<float>("model_basis", std::size_t(rank) * db.drivenVertexCount() * 3);
+  // Written since 0.2.0 by a build whose per-clip models were kept.
+  if (info.contains("clip_mixture_weight")) {
+    m.clipMixtureWeight = info.at("clip_mixture_weight").get<double>();
+    m.clipSizes = info.at("clip_frames").get<std::vector<int>>();
+    const bool sizes =
+        m.clipSizes.size() >= 2 && *std::min_element(m.clipSizes.begin(), m.clipSizes.end()) >= 1 &&
+        std::accumulate(m.clipSizes.begin(), m.clipSizes.end(), std::int64_t{0}) == frames;
+    if (!(std::isfinite(m.clipMixtureWeight) && m.clipMixtureWeight > 0.0) || !sizes) {
+      DS_THROW(kInput, where,
+               ": the per-clip models' weight or frames (clip_mixture_weight, clip_frames) do "
+               "not fit its ",
+               frames, " frames; the file is corrupt, rebuild it");
+    }
+    m.clipCoefficients = blocks.read<float>("model_clip_coefficients", std::size_t(rank) * frames);
+  }
   for (int p : m.partOf) {
     if (p < 0 || p >= parts) {
       DS_THROW(kInput, where, ": a driver vertex names part ", p, " of ", parts,

@@ -261,6 +261,23 @@ VectorXd meanVertexError(const MatrixXd& predicted, const MatrixXd& truth,
   return out;
 }
 
+/// The per-clip mixture's shares (PoseModel::clipMixtureWeight): entry 0 the model over every
+/// clip's, weight / its variance, then each clip model's, 1 / its variance, normalised to sum
+/// to 1. Variances are floored at 1e-12 (a pose on a reference frame).
+std::vector<double> mixtureShares(double weight, double variance,
+                                  const std::vector<double>& clipVariances) {
+  constexpr double kFloor = 1e-12;
+  std::vector<double> share = {weight / std::max(kFloor, variance)};
+  for (double v : clipVariances) {
+    share.push_back(1.0 / std::max(kFloor, v));
+  }
+  const double total = std::accumulate(share.begin(), share.end(), 0.0);
+  for (double& s : share) {
+    s /= total;
+  }
+  return share;
+}
+
 }  // namespace
 
 std::array<double, 2> fitErrorLine(const Eigen::Ref<const Eigen::VectorXd>& sigma,
@@ -396,6 +413,23 @@ PosePredictor::PosePredictor(const PoseModel& model, const Mesh& driver) : mMode
   MatrixXd k = kernelMatrix(mFeatures, mFeatures, model.lengthScale, model.linearWeight);
   k.diagonal().array() += model.ridge;
   mKernelInverse = k.llt().solve(MatrixXd::Identity(t, t));
+  if (model.clipMixtureWeight > 0.0) {
+    const MatrixXd clipCoefficients =
+        Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            model.clipCoefficients.data(), r, t)
+            .cast<double>();
+    int begin = 0;
+    for (int count : model.clipSizes) {
+      ClipModel clip;
+      clip.begin = begin;
+      clip.count = count;
+      clip.kernelInverse =
+          k.block(begin, begin, count, count).llt().solve(MatrixXd::Identity(count, count));
+      clip.coefficients = clipCoefficients.middleCols(begin, count);
+      mClipModels.push_back(std::move(clip));
+      begin += count;
+    }
+  }
 }
 
 Eigen::MatrixXd PosePredictor::blockFeatures(const float* driverFrames,
@@ -503,6 +537,21 @@ PosePredictor::Prediction PosePredictor::predict(const double* features) const {
   p.weights = mCoefficients * k;
   const double prior = mModel.linearWeight * x.squaredNorm() + 1.0;
   p.sigma = std::sqrt(std::max(0.0, prior - k.dot(mKernelInverse * k)));
+  if (!mClipModels.empty()) {
+    std::vector<double> variances;
+    std::vector<VectorXd> weights;
+    for (const ClipModel& clip : mClipModels) {
+      const auto kk = k.segment(clip.begin, clip.count);
+      variances.push_back(prior - kk.dot(clip.kernelInverse * kk));
+      weights.push_back(clip.coefficients * kk);
+    }
+    const std::vector<double> share =
+        mixtureShares(mModel.clipMixtureWeight, p.sigma * p.sigma, variances);
+    p.weights *= share[0];
+    for (std::size_t c = 0; c < weights.size(); ++c) {
+      p.weights += share[c + 1] * weights[c];
+    }
+  }
   p.predictedError = mModel.predictedError(p.sigma);
   return p;
 }
@@ -613,6 +662,34 @@ double medianFeatureDistance(const MatrixXd& x) {
   return std::max(1e-9, distances[distances.size() / 2]);
 }
 
+/// Kernel ridge regression on the reference frames `train` (kernel `kAll` over every reference
+/// frame, ridge `ridge`): writes the prediction of `coords` at the frames `test` into those rows
+/// of `predicted` and their posterior variance into those entries of `variance`.
+void predictFrom(const MatrixXd& kAll, const MatrixXd& coords, double ridge,
+                 const std::vector<int>& train, const std::vector<int>& test, MatrixXd& predicted,
+                 VectorXd& variance) {
+  const auto n = static_cast<Eigen::Index>(train.size());
+  const auto m = static_cast<Eigen::Index>(test.size());
+  MatrixXd k(n, n), ks(m, n), yt(n, coords.cols());
+  for (Eigen::Index i = 0; i < n; ++i) {
+    for (Eigen::Index j = 0; j < n; ++j) {
+      k(i, j) = kAll(train[i], train[j]);
+    }
+    k(i, i) += ridge;
+    yt.row(i) = coords.row(train[i]);
+    for (Eigen::Index j = 0; j < m; ++j) {
+      ks(j, i) = kAll(test[j], train[i]);
+    }
+  }
+  const Eigen::LLT<MatrixXd> llt(k);
+  const MatrixXd p = ks * llt.solve(yt);
+  const MatrixXd v = llt.solve(ks.transpose());
+  for (Eigen::Index j = 0; j < m; ++j) {
+    predicted.row(test[j]) = p.row(j);
+    variance[test[j]] = std::max(0.0, kAll(test[j], test[j]) - ks.row(j).dot(v.col(j)));
+  }
+}
+
 /// Cross-validation on 5 contiguous blocks of the clip: the prediction (T x rank) and the
 /// posterior deviation (T) of every reference frame by the fit `c` on the other blocks. Frames
 /// in [leftBegin, leftEnd) (a clip left out; empty by default) are in no block's training set:
@@ -620,34 +697,12 @@ double medianFeatureDistance(const MatrixXd& x) {
 void crossValidate(const MatrixXd& x, const MatrixXd& coords, const KernelFit& c,
                    MatrixXd& predicted, VectorXd& sigma, int leftBegin = 0, int leftEnd = 0) {
   const int t = static_cast<int>(x.rows());
-  const int rank = static_cast<int>(coords.cols());
   const int blocks = 5;
   const auto blockOf = [&](int f) { return std::min(blocks - 1, f * blocks / t); };
   const auto left = [&](int f) { return f >= leftBegin && f < leftEnd; };
-  predicted.resize(t, rank);
+  predicted.resize(t, coords.cols());
   sigma.resize(t);
   const MatrixXd kAll = kernelMatrix(x, x, c.lengthScale, c.linearWeight);
-  const auto fold = [&](const std::vector<int>& train, const std::vector<int>& test) {
-    MatrixXd k(train.size(), train.size()), ks(test.size(), train.size());
-    MatrixXd yt(train.size(), rank);
-    for (std::size_t i = 0; i < train.size(); ++i) {
-      for (std::size_t j = 0; j < train.size(); ++j) {
-        k(i, j) = kAll(train[i], train[j]);
-      }
-      k(i, i) += c.ridge;
-      yt.row(i) = coords.row(train[i]);
-      for (std::size_t j = 0; j < test.size(); ++j) {
-        ks(j, i) = kAll(test[j], train[i]);
-      }
-    }
-    const Eigen::LLT<MatrixXd> llt(k);
-    const MatrixXd p = ks * llt.solve(yt);
-    const MatrixXd v = llt.solve(ks.transpose());
-    for (std::size_t j = 0; j < test.size(); ++j) {
-      predicted.row(test[j]) = p.row(j);
-      sigma[test[j]] = std::sqrt(std::max(0.0, kAll(test[j], test[j]) - ks.row(j).dot(v.col(j))));
-    }
-  };
   for (int b = 0; b < blocks; ++b) {
     std::vector<int> train, test;
     for (int f = 0; f < t; ++f) {
@@ -655,15 +710,16 @@ void crossValidate(const MatrixXd& x, const MatrixXd& coords, const KernelFit& c
         (blockOf(f) == b ? test : train).push_back(f);
       }
     }
-    fold(train, test);
+    predictFrom(kAll, coords, c.ridge, train, test, predicted, sigma);
   }
   if (leftEnd > leftBegin) {
     std::vector<int> train, test;
     for (int f = 0; f < t; ++f) {
       (left(f) ? test : train).push_back(f);
     }
-    fold(train, test);
+    predictFrom(kAll, coords, c.ridge, train, test, predicted, sigma);
   }
+  sigma = sigma.cwiseSqrt();
 }
 
 /// The hyper-parameters of the grid (length scales in units of the median feature distance,
@@ -762,6 +818,128 @@ std::vector<ClipContribution> clipContributions(PoseModel& model, const MatrixXd
   return out;
 }
 
+/// The frames of each clip: begin and end rows of the reference frames, clip after clip.
+std::vector<int> clipStarts(const std::vector<int>& clipSizes) {
+  std::vector<int> start = {0};
+  for (int size : clipSizes) {
+    start.push_back(start.back() + size);
+  }
+  return start;
+}
+
+/// Leaves each clip out in turn and predicts its frames by the model over the other clips,
+/// mixed (mixtureShares) with each other clip's own model at each of `weights` (0 = not mixed):
+/// the mean vertex error over every left-out frame per weight. The kernel
+/// settings are those chosen over every clip.
+std::vector<ClipMixtureTrial> clipMixtureTrials(const MatrixXd& x, const OffsetBasis& basis,
+                                                const KernelFit& c,
+                                                const std::vector<int>& clipSizes,
+                                                const std::vector<double>& weights, int threads) {
+  const int t = static_cast<int>(x.rows());
+  const int clips = static_cast<int>(clipSizes.size());
+  const std::vector<int> start = clipStarts(clipSizes);
+  const MatrixXd kAll = kernelMatrix(x, x, c.lengthScale, c.linearWeight);
+  const auto frames = [&](int clip, bool in) {
+    std::vector<int> out;
+    for (int f = 0; f < t; ++f) {
+      if ((f >= start[clip] && f < start[clip + 1]) == in) {
+        out.push_back(f);
+      }
+    }
+    return out;
+  };
+  // Tasks 0..clips-1: the model over every other clip predicts clip k (rows of `left`); tasks
+  // clips..2 clips-1: clip j's own model predicts every other clip's frames.
+  MatrixXd left(t, basis.coords.cols());
+  VectorXd leftVariance(t);
+  std::vector<MatrixXd> own(static_cast<std::size_t>(clips), MatrixXd(t, basis.coords.cols()));
+  std::vector<VectorXd> ownVariance(static_cast<std::size_t>(clips), VectorXd::Zero(t));
+  parallelFor(2 * clips, threads, [&](int task) {
+    const int k = task % clips;
+    if (task < clips) {
+      predictFrom(kAll, basis.coords, c.ridge, frames(k, false), frames(k, true), left,
+                  leftVariance);
+    } else {
+      predictFrom(kAll, basis.coords, c.ridge, frames(k, true), frames(k, false), own[k],
+                  ownVariance[k]);
+    }
+  });
+  std::vector<ClipMixtureTrial> trials(weights.size());
+  parallelFor(static_cast<int>(trials.size()), threads, [&](int w) {
+    const double weight = weights[static_cast<std::size_t>(w)];
+    MatrixXd mixed = left;
+    if (weight > 0.0) {
+      for (int k = 0; k < clips; ++k) {
+        for (int f = start[k]; f < start[k + 1]; ++f) {
+          std::vector<double> variances;
+          for (int j = 0; j < clips; ++j) {
+            if (j != k) {
+              variances.push_back(ownVariance[j][f]);
+            }
+          }
+          const std::vector<double> share = mixtureShares(weight, leftVariance[f], variances);
+          mixed.row(f) = share[0] * left.row(f);
+          for (int j = 0, s = 1; j < clips; ++j) {
+            if (j != k) {
+              mixed.row(f) += share[s++] * own[j].row(f);
+            }
+          }
+        }
+      }
+    }
+    const VectorXd error = meanVertexError(mixed, basis.coords, basis.components);
+    trials[w] = {weight, error.mean(), std::vector<double>(error.data(), error.data() + t)};
+  });
+  return trials;
+}
+
+/// Sets the model's per-clip mixture (PoseModel::clipMixtureWeight, clipSizes): `weight` when
+/// it is positive, else (kAutoClipMixture) the weight of kClipMixtureWeights with the smallest
+/// left-out error (clipMixtureTrials) when that is at least 1% below the model over every clip
+/// alone. The verdict is then calibrated on the mixture's left-out errors, the prediction a
+/// bake makes (PoseModel::leftOutErrors).
+void chooseClipMixture(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis,
+                       const KernelFit& best, const std::vector<int>& clipSizes, double weight,
+                       int threads) {
+  const std::vector<double> weights =
+      weight > 0.0 ? std::vector<double>{0.0, weight}
+                   : std::vector<double>(kClipMixtureWeights.begin(), kClipMixtureWeights.end());
+  model.clipMixtureTrials = clipMixtureTrials(x, basis, best, clipSizes, weights, threads);
+  const std::vector<ClipMixtureTrial>& trials = model.clipMixtureTrials;
+  const ClipMixtureTrial& chosen = *std::min_element(
+      trials.begin(), trials.end(), [](const ClipMixtureTrial& a, const ClipMixtureTrial& b) {
+        return a.leftOutError < b.leftOutError;
+      });
+  constexpr double kGain = 0.99;
+  const ClipMixtureTrial* kept =
+      weight > 0.0 ? &trials.back()
+      : chosen.weight > 0.0 && chosen.leftOutError < kGain * trials.front().leftOutError ? &chosen
+                                                                                         : nullptr;
+  if (kept != nullptr) {
+    model.clipMixtureWeight = kept->weight;
+    model.clipSizes = clipSizes;
+    model.leftOutErrors = kept->frameErrors;
+  }
+}
+
+/// Per clip, its own model's coefficients (PoseModel::clipCoefficients, rank x T as doubles):
+/// (K_k + lambda I)^-1 times its frames' first `r` coordinates.
+MatrixXd clipCoefficients(const MatrixXd& x, const OffsetBasis& basis, const PoseModel& model,
+                          int r) {
+  const int t = static_cast<int>(x.rows());
+  const std::vector<int> start = clipStarts(model.clipSizes);
+  MatrixXd out(r, t);
+  for (std::size_t k = 0; k + 1 < start.size(); ++k) {
+    const int count = start[k + 1] - start[k];
+    const MatrixXd rows = x.middleRows(start[k], count);
+    MatrixXd kk = kernelMatrix(rows, rows, model.lengthScale, model.linearWeight);
+    kk.diagonal().array() += model.ridge;
+    out.middleCols(start[k], count) =
+        kk.llt().solve(basis.coords.block(start[k], 0, count, r)).transpose();
+  }
+  return out;
+}
+
 /// The full fit and its low-rank basis: c(x) = S_r U_r^T (K + lambda I)^-1 k(x) weighs the
 /// first `r` components. Stores the coefficients, the basis and the features as floats.
 void storeFit(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis, int r) {
@@ -781,6 +959,15 @@ void storeFit(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis, int
     for (std::size_t i = 0; i < dd; ++i) {
       model.basis[j * dd + i] =
           static_cast<float>(basis.components(j, static_cast<Eigen::Index>(i)));
+    }
+  }
+  if (model.clipMixtureWeight > 0.0) {
+    const MatrixXd own = clipCoefficients(x, basis, model, r);
+    model.clipCoefficients.resize(static_cast<std::size_t>(r) * t);
+    for (int j = 0; j < r; ++j) {
+      for (int f = 0; f < t; ++f) {
+        model.clipCoefficients[static_cast<std::size_t>(j) * t + f] = static_cast<float>(own(j, f));
+      }
     }
   }
   model.features.resize(static_cast<std::size_t>(t) * d);
@@ -841,6 +1028,13 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
                " frames given");
     }
     model.clipErrors = clipContributions(model, x, basis, best, options.clipSizes, threads);
+    // With two clips the mixture changes nothing left out: each left-out clip is predicted by
+    // the other clip's model either way.
+    if (options.clipMixtureWeight > 0.0 ||
+        (options.clipMixtureWeight == kAutoClipMixture && options.clipSizes.size() >= 3)) {
+      chooseClipMixture(model, x, basis, best, options.clipSizes, options.clipMixtureWeight,
+                        threads);
+    }
   }
   calibrateVerdict(model, options.verdictLevel);
   // The basis keeps the first `rank` components.
@@ -852,6 +1046,21 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
          << ", ridge " << model.ridge << "; cross-validated mean error "
          << model.crossValidationError << " (binding " << model.bindingError
          << "), predicted error " << model.errorBias << " + " << model.errorScale << " sigma\n";
+    if (!model.clipMixtureTrials.empty()) {
+      *log << "  per-clip models, each clip left out in turn: mean error";
+      for (const ClipMixtureTrial& trial : model.clipMixtureTrials) {
+        *log << (trial.weight > 0.0 ? ", at weight " : " ");
+        if (trial.weight > 0.0) {
+          *log << trial.weight << " ";
+        }
+        *log << trial.leftOutError << (trial.weight > 0.0 ? "" : " without them");
+      }
+      if (model.clipMixtureWeight > 0.0) {
+        *log << "; mixed in at weight " << model.clipMixtureWeight << "\n";
+      } else {
+        *log << "; not used\n";
+      }
+    }
   }
   return model;
 }

@@ -47,14 +47,6 @@ MatrixXd cacheFeatures(const std::string& name, const std::vector<int>& frames) 
   return predictor.blockFeatures(driver.data(), frames, earlier, 1);
 }
 
-std::vector<int> range(int first, int last) {
-  std::vector<int> out;
-  for (int f = first; f <= last; ++f) {
-    out.push_back(f);
-  }
-  return out;
-}
-
 /// The kernel as docs/method.md states it: a x.y + exp(-|x - y|^2 / 2 l^2).
 double kernel(const PoseModel& m, const VectorXd& x, const VectorXd& y) {
   return m.linearWeight * x.dot(y) +
@@ -94,8 +86,8 @@ MatrixXd referenceFeatures(const PoseModel& m) {
 TEST(FrameSuggestion, RankOneGreedyPicksWhatDirectInversionPicks) {
   const PoseModel& model = modelDatabase().poseModel;
   ASSERT_FALSE(model.empty());
-  const MatrixXd candidates = cacheFeatures("test.driver.pc2", range(1, 48));
-  const MatrixXd shots = cacheFeatures("test.driver.pc2", range(25, 48));
+  const MatrixXd candidates = cacheFeatures("test.driver.pc2", testing::frameRange(1, 48));
+  const MatrixXd shots = cacheFeatures("test.driver.pc2", testing::frameRange(25, 48));
   const int count = 6;
   const std::vector<FrameSuggestion> greedy = suggestFrames(model, candidates, shots, count, 0);
   ASSERT_EQ(greedy.size(), static_cast<std::size_t>(count));
@@ -144,8 +136,8 @@ TEST(FrameSuggestion, RankOneGreedyPicksWhatDirectInversionPicks) {
 TEST(FrameSuggestion, TheFirstBeforeIsTheModelsOwnPrediction) {
   const Database& db = modelDatabase();
   const PosePredictor predictor(db.poseModel, db.driverMesh);
-  const MatrixXd candidates = cacheFeatures("test.driver.pc2", range(1, 10));
-  const MatrixXd shots = cacheFeatures("test.driver.pc2", range(20, 48));
+  const MatrixXd candidates = cacheFeatures("test.driver.pc2", testing::frameRange(1, 10));
+  const MatrixXd shots = cacheFeatures("test.driver.pc2", testing::frameRange(20, 48));
   double error = 0.0;
   for (Eigen::Index s = 0; s < shots.rows(); ++s) {
     const VectorXd row = shots.row(s).transpose();
@@ -164,7 +156,7 @@ TEST(FrameSuggestion, TheFirstBeforeIsTheModelsOwnPrediction) {
 
 TEST(FrameSuggestion, AShotPoseAmongTheCandidatesIsSuggestedFirst) {
   const PoseModel& model = modelDatabase().poseModel;
-  const MatrixXd test = cacheFeatures("test.driver.pc2", range(1, 48));
+  const MatrixXd test = cacheFeatures("test.driver.pc2", testing::frameRange(1, 48));
   // Among poses the model has seen (its own reference frames), the shot's pose lowers its
   // deviation most. (Not among any poses: by Cauchy-Schwarz a pose correlated with the shot's
   // but of larger prior variance, e.g. further along the linear kernel, can lower it more, and
@@ -182,8 +174,8 @@ TEST(FrameSuggestion, AShotPoseAmongTheCandidatesIsSuggestedFirst) {
 
 TEST(FrameSuggestion, DeterministicWhateverTheThreadsAndClippedToTheCandidates) {
   const PoseModel& model = modelDatabase().poseModel;
-  const MatrixXd candidates = cacheFeatures("test.driver.pc2", range(1, 48));
-  const MatrixXd shots = cacheFeatures("test.driver.pc2", range(10, 40));
+  const MatrixXd candidates = cacheFeatures("test.driver.pc2", testing::frameRange(1, 48));
+  const MatrixXd shots = cacheFeatures("test.driver.pc2", testing::frameRange(10, 40));
   const std::vector<FrameSuggestion> one = suggestFrames(model, candidates, shots, 8, 1);
   const std::vector<FrameSuggestion> four = suggestFrames(model, candidates, shots, 8, 4);
   ASSERT_EQ(one.size(), four.size());
@@ -214,10 +206,10 @@ TEST(FrameSuggestion, CachesAreReadLikeABakeAndMustMatchTheDriver) {
   const auto cloth = openPointCache(sample("test.driven.pc2"));
   // The cache-level call reads the shot's earlier frames (1-24) for velocity and history.
   const std::vector<ReferenceSuggestion> fromCaches =
-      suggestReferenceFrames(db, {test.get(), {}}, {{test.get(), range(25, 48)}}, 4);
+      suggestReferenceFrames(db, {test.get(), {}}, {{test.get(), testing::frameRange(25, 48)}}, 4);
   const std::vector<FrameSuggestion> direct =
-      suggestFrames(db.poseModel, cacheFeatures("test.driver.pc2", range(1, 48)),
-                    cacheFeatures("test.driver.pc2", range(25, 48)), 4, 0);
+      suggestFrames(db.poseModel, cacheFeatures("test.driver.pc2", testing::frameRange(1, 48)),
+                    cacheFeatures("test.driver.pc2", testing::frameRange(25, 48)), 4, 0);
   ASSERT_EQ(fromCaches.size(), direct.size());
   for (std::size_t i = 0; i < direct.size(); ++i) {
     EXPECT_EQ(fromCaches[i].frame, direct[i].candidate + 1);
@@ -235,7 +227,8 @@ TEST(FrameSuggestion, CachesAreReadLikeABakeAndMustMatchTheDriver) {
       ErrorCode::kInput, "shot 2: driver cache");
   testing::expectThrows(
       [&] {
-        suggestReferenceFrames(db, {test.get(), range(40, 60)}, {{test.get(), {}}}, 1);
+        suggestReferenceFrames(db, {test.get(), testing::frameRange(40, 60)}, {{test.get(), {}}},
+                               1);
       },
       ErrorCode::kInput, "has no frame 49");
   testing::expectThrows(

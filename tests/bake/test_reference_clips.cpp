@@ -23,14 +23,6 @@ namespace {
 
 using testing::sample;
 
-std::vector<int> range(int first, int last) {
-  std::vector<int> out;
-  for (int f = first; f <= last; ++f) {
-    out.push_back(f);
-  }
-  return out;
-}
-
 /// The sample's train clip (candidates `frames`, empty = all) plus extra clips of the sample's
 /// caches: {driver cache, driven cache, frames}.
 struct ClipSpec {
@@ -64,7 +56,8 @@ TEST(ReferenceClips, AClipSplitInTwoFitsTheModelOfTheWholeClip) {
   // default two clips read a longer one, see below).
   const Database whole = buildWithClips({}, {}, true, 15);
   const Database split = buildWithClips(
-      range(1, 30), {{"train.driver.pc2", "train.driven.pc2", range(31, 61)}}, true, 15);
+      testing::frameRange(1, 30),
+      {{"train.driver.pc2", "train.driven.pc2", testing::frameRange(31, 61)}}, true, 15);
   const PoseModel& a = whole.poseModel;
   const PoseModel& b = split.poseModel;
   ASSERT_EQ(a.frameCount(), 61);
@@ -73,7 +66,7 @@ TEST(ReferenceClips, AClipSplitInTwoFitsTheModelOfTheWholeClip) {
   const ReferenceClipSource& clip = split.extraClips[0];
   EXPECT_EQ(clip.driverSource, sample("train.driver.pc2"));
   EXPECT_EQ(clip.drivenSource, sample("train.driven.pc2"));
-  EXPECT_EQ(clip.frames, range(31, 61));
+  EXPECT_EQ(clip.frames, testing::frameRange(31, 61));
   EXPECT_EQ(clip.frameOffset, 100000) << "the smallest positive multiple of 100000";
   for (int i = 0; i < 61; ++i) {
     EXPECT_EQ(b.frames[i], a.frames[i] + (i < 30 ? 0 : clip.frameOffset)) << "row " << i;
@@ -91,14 +84,17 @@ TEST(ReferenceClips, AClipSplitInTwoFitsTheModelOfTheWholeClip) {
 // The history's default follows the reference data: 15 frames with one or two clips, 30 with
 // three or more (historyFramesFor); a history given is kept either way.
 TEST(ReferenceClips, TheDefaultHistoryIsLongerWithThreeClips) {
-  const std::vector<ClipSpec> second = {{"train.driver.pc2", "train.driven.pc2", range(31, 61)}};
+  const std::vector<ClipSpec> second = {
+      {"train.driver.pc2", "train.driven.pc2", testing::frameRange(31, 61)}};
   const std::vector<ClipSpec> secondAndThird = {
-      {"train.driver.pc2", "train.driven.pc2", range(21, 40)},
-      {"train.driver.pc2", "train.driven.pc2", range(41, 61)}};
+      {"train.driver.pc2", "train.driven.pc2", testing::frameRange(21, 40)},
+      {"train.driver.pc2", "train.driven.pc2", testing::frameRange(41, 61)}};
   EXPECT_EQ(buildWithClips({}, {}).poseModel.historyFrames, 15);
-  EXPECT_EQ(buildWithClips(range(1, 30), second).poseModel.historyFrames, 15);
-  EXPECT_EQ(buildWithClips(range(1, 20), secondAndThird).poseModel.historyFrames, 30);
-  EXPECT_EQ(buildWithClips(range(1, 20), secondAndThird, true, 15).poseModel.historyFrames, 15);
+  EXPECT_EQ(buildWithClips(testing::frameRange(1, 30), second).poseModel.historyFrames, 15);
+  EXPECT_EQ(buildWithClips(testing::frameRange(1, 20), secondAndThird).poseModel.historyFrames, 30);
+  EXPECT_EQ(
+      buildWithClips(testing::frameRange(1, 20), secondAndThird, true, 15).poseModel.historyFrames,
+      15);
   EXPECT_EQ(buildWithClips({}, {}, true, 0).poseModel.historyFrames, 0);
 }
 
@@ -129,8 +125,9 @@ TEST(ReferenceClips, VelocityAndHistoryNeverReadAnotherClip) {
   // history is the test clip's frames 17-30. Clip 3: test frames 1-10, the same numbers as the
   // main clip's first frames, with no earlier frames at all.
   const Database db =
-      buildWithClips(range(1, 30), {{"test.driver.pc2", "test.driven.pc2", range(31, 48)},
-                                    {"test.driver.pc2", "test.driven.pc2", range(1, 10)}});
+      buildWithClips(testing::frameRange(1, 30),
+                     {{"test.driver.pc2", "test.driven.pc2", testing::frameRange(31, 48)},
+                      {"test.driver.pc2", "test.driven.pc2", testing::frameRange(1, 10)}});
   const PoseModel& m = db.poseModel;
   ASSERT_EQ(m.frameCount(), 30 + 18 + 10);
   ASSERT_GT(m.velocityLag, 0);
@@ -203,7 +200,7 @@ TEST(ReferenceClips, ClipsOfAnotherMeshOrWithoutTheirFramesAreRefusedByName) {
       "reference clip 3: driven cache '" + sample("test.driver.pc2") + "' has 2146 vertices");
   testing::expectThrows(
       [] {
-        buildWithClips({}, {{"test.driver.pc2", "test.driven.pc2", range(40, 50)}});
+        buildWithClips({}, {{"test.driver.pc2", "test.driven.pc2", testing::frameRange(40, 50)}});
       },
       ErrorCode::kInput,
       "reference clip 2: cache '" + sample("test.driver.pc2") + "' has no frame 49");
@@ -217,12 +214,13 @@ TEST(ReferenceClips, ClipsOfAnotherMeshOrWithoutTheirFramesAreRefusedByName) {
 TEST(ReferenceClips, ASecondClipLowersTheErrorOnItsMotion) {
   // The test clip's first half as a second clip; its second half (held out) is the shot.
   const Database one = buildWithClips({}, {});
-  const Database two = buildWithClips({}, {{"test.driver.pc2", "test.driven.pc2", range(1, 24)}});
+  const Database two =
+      buildWithClips({}, {{"test.driver.pc2", "test.driven.pc2", testing::frameRange(1, 24)}});
   const auto driver = openPointCache(sample("test.driver.pc2"));
   const auto truth = openPointCache(sample("test.driven.pc2"));
-  const std::vector<int> frames = range(1, 48);
+  const std::vector<int> frames = testing::frameRange(1, 48);
   const std::vector<float> pose = readFrames(*driver, frames);
-  const std::vector<float> expected = readFrames(*truth, range(25, 48));
+  const std::vector<float> expected = readFrames(*truth, testing::frameRange(25, 48));
   testing::Backends host = testing::hostBackends();
   EvaluatorSettings settings;
   settings.resolve = false;

@@ -72,6 +72,9 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   expectError(runCli(dir, with({"--model-rank", "0"})), 2, "--model-rank");
   expectError(runCli(dir, with({"--model-velocity", "-1"})), 2, "--model-velocity");
   expectError(runCli(dir, with({"--model-history", "500"})), 2, "--model-history");
+  for (const char* weight : {"sometimes", "-1", "5000"}) {
+    expectError(runCli(dir, with({"--model-per-clip", weight})), 2, "--model-per-clip");
+  }
 }
 
 TEST(Cli, DevicesListsTheOpenClDevice) {

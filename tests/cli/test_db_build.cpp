@@ -95,6 +95,39 @@ TEST(DbBuild, AlsoFitsTheModelOnMoreClipsAndKeepsThePicks) {
       << r.out;
 }
 
+TEST(DbBuild, ModelPerClipMixesEachClipsModelAndSaysSo) {
+  TempDir dir;
+  const std::string test = sample("test.driver.pc2"), cloth = sample("test.driven.pc2");
+  const std::vector<std::string> three = {"--also", test, cloth + ":1-24",
+                                          "--also", test, cloth + ":25-48"};
+  std::vector<std::string> args = three;
+  args.insert(args.end(), {"--model-per-clip", "2", "-o", dir.file("mixed.dsdb"), "--model-json",
+                           dir.file("mixed.json")});
+  CliRun r = build(dir, args);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("per-clip models, each clip left out in turn: mean error "),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("mixed in at weight 2"), std::string::npos) << r.err;
+  const nlohmann::json fit = nlohmann::json::parse(slurp(dir.file("mixed.json")));
+  EXPECT_EQ(fit["per_clip_models"]["weight"].get<double>(), 2.0);
+  ASSERT_EQ(fit["per_clip_models"]["tried"].size(), 2u) << "none, and the weight given";
+  EXPECT_EQ(loadDatabase(dir.file("mixed.dsdb")).poseModel.clipSizes,
+            (std::vector<int>{61, 24, 24}));
+  r = runCli(dir, {"info", dir.file("mixed.dsdb")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("per-clip models of 3 clips mixed in (weight of the model over every "
+                       "clip 2)"),
+            std::string::npos)
+      << r.out;
+  args = three;
+  args.insert(args.end(), {"--model-per-clip", "off", "-o", dir.file("off.dsdb")});
+  r = build(dir, args);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("per-clip models"), std::string::npos) << r.err;
+  EXPECT_EQ(loadDatabase(dir.file("off.dsdb")).poseModel.clipMixtureWeight, 0.0);
+}
+
 TEST(DbBuild, SuggestListsFramesDeterministicallyWithoutWritingADatabase) {
   TempDir dir;
   const std::vector<std::string> words = {"--suggest",      "4",

@@ -282,6 +282,11 @@ void writeDatabaseFiles(const fs::path& corpus, const fs::path& regressions) {
   model.verdictLevel = 0.9;
   model.verdictMargin = 0.003;
   writeBytes(corpus / "pose_model.dsdb", databaseBytes(pose));
+  // The same model with per-clip models (db build --model-per-clip): one frame per clip.
+  model.clipMixtureWeight = 1.0;
+  model.clipSizes = {1, 1};
+  model.clipCoefficients = {0.4f, -0.2f};
+  writeBytes(corpus / "pose_model_clips.dsdb", databaseBytes(pose));
 
   // Crash report: a face offset past the face-vertex block, checksum valid -> heap overflow in
   // Mesh::triangulate.

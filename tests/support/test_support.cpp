@@ -147,6 +147,14 @@ std::string OpenClTest::deviceSpec() {
   return clState() ? clState()->device.getInfo<CL_DEVICE_NAME>() : std::string("cpu");
 }
 
+std::vector<int> frameRange(int first, int last) {
+  std::vector<int> out;
+  for (int f = first; f <= last; ++f) {
+    out.push_back(f);
+  }
+  return out;
+}
+
 double meanVertexDistance(const std::vector<float>& a, const std::vector<float>& b) {
   double sum = 0.0;
   for (std::size_t i = 0; i + 2 < a.size(); i += 3) {

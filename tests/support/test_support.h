@@ -187,6 +187,9 @@ class TempDir {
 /// `fragment`; a test failure (with the message) otherwise, also when nothing is thrown.
 void expectThrows(const std::function<void()>& call, ErrorCode code, const std::string& fragment);
 
+/// The frame numbers first, first + 1, ..., last (empty when last < first).
+std::vector<int> frameRange(int first, int last);
+
 /// Mean per-vertex distance between two blocks of frames of interleaved xyz (scene units): the
 /// mean vertex error of `a` against `b`.
 double meanVertexDistance(const std::vector<float>& a, const std::vector<float>& b);

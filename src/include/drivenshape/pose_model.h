@@ -31,6 +31,12 @@ namespace drivenshape {
 
 /// PoseModelOptions::historyFrames: the history follows the reference data (historyFramesFor).
 inline constexpr int kAutoHistory = -1;
+/// PoseModelOptions::clipMixtureWeight: chosen by leaving each clip out in turn.
+inline constexpr double kAutoClipMixture = -1.0;
+/// The weights of the per-clip models a build tries (PoseModel::clipMixtureWeight; 0 = none):
+/// the model over every clip at 10, 3 and 1 times a clip model's footing. Not below 1: the
+/// model over every clip has seen every frame a clip model has.
+inline constexpr std::array<double, 4> kClipMixtureWeights = {0.0, 10.0, 3.0, 1.0};
 
 struct PoseModelOptions {
   /// Rigid parts of the driver to find; 0 = found from the clip (findRigidParts, 2..8).
@@ -52,6 +58,11 @@ struct PoseModelOptions {
   /// count; empty = one clip). With two or more the fit also measures what each clip adds
   /// (PoseModel::clipErrors).
   std::vector<int> clipSizes;
+  /// The per-clip models' weight (PoseModel::clipMixtureWeight) with two or more clips:
+  /// kAutoClipMixture = with three or more clips, the weight of kClipMixtureWeights that
+  /// predicts each clip left out in turn best, kept when at least 1% better than the model over
+  /// every clip alone; 0 = none; > 0 = this weight.
+  double clipMixtureWeight = kAutoClipMixture;
   /// The share of frames the coverage verdict's bound is calibrated to hold for (PoseModel::
   /// verdictMargin), in (0, 1).
   double verdictLevel = 0.9;
@@ -71,6 +82,14 @@ struct ClipContribution {
   std::vector<double> without;
 };
 
+/// How well one weight of the per-clip models (PoseModel::clipMixtureWeight) predicted the
+/// reference clips, each left out in turn (chooseClipMixture).
+struct ClipMixtureTrial {
+  double weight = 0.0;              ///< 0: the model over every clip alone
+  double leftOutError = 0.0;        ///< mean vertex error over every left-out frame (scene units)
+  std::vector<double> frameErrors;  ///< per reference frame, its mean vertex error left out
+};
+
 /// A fitted pose model (see above). Stored in the database file (docs/formats.md).
 struct PoseModel {
   std::vector<int> partOf;  ///< Vp: the rigid part of every driver vertex
@@ -86,6 +105,22 @@ struct PoseModel {
   std::vector<float> features;      ///< T x featureCount()
   std::vector<float> coefficients;  ///< rank x T: basis weights c = coefficients k(x)
   std::vector<float> basis;         ///< rank x 3Vd offsets in the rest binding's local frames
+  /// Per-clip models (several reference clips; clipMixtureWeight > 0): besides the model over
+  /// every clip, one model per clip over that clip's frames alone, with the same kernel and
+  /// basis. A frame's basis weights are the precision-weighted mean of their predictions: the
+  /// model over every clip weighs clipMixtureWeight / sigma^2, clip k's 1 / sigma_k^2 (each
+  /// model's posterior variance), so a pose close to one clip follows that clip's cloth where
+  /// the clips put other cloth on like poses. 0: the model over every clip alone (one clip, or
+  /// chosen so; databases written before 0.2.0).
+  double clipMixtureWeight = 0.0;
+  /// With clipMixtureWeight > 0: the frames of each clip, in `frames` order (their sum is the
+  /// frame count), and each clip's coefficients, rank x T: column f belongs to the model of
+  /// f's clip (c_k(x) = its columns times k(x) over its frames).
+  std::vector<int> clipSizes;
+  std::vector<float> clipCoefficients;
+  /// The weights tried at build, with their left-out errors (chooseClipMixture). Not stored in
+  /// the database file.
+  std::vector<ClipMixtureTrial> clipMixtureTrials;
   /// Predicted mean vertex error of a frame = errorBias + errorScale * sigma (scene units), with
   /// sigma the kernel's posterior standard deviation; fitted on the clip's cross-validation
   /// (fitErrorLine: both non-negative; a database written before that may hold a negative
@@ -246,8 +281,8 @@ class PosePredictor {
   Eigen::MatrixXd blockFeatures(const float* driverFrames, const std::vector<int>& frames,
                                 const EarlierFrames& history, int threads) const;
   struct Prediction {
-    Eigen::VectorXd weights;  ///< rank(): the basis weights
-    double sigma = 0.0;       ///< posterior standard deviation of the kernel
+    Eigen::VectorXd weights;  ///< rank(): the basis weights (with the per-clip models mixed in)
+    double sigma = 0.0;       ///< posterior standard deviation of the model over every clip
     double predictedError = 0.0;
   };
   Prediction predict(const double* features) const;
@@ -262,6 +297,14 @@ class PosePredictor {
   Eigen::MatrixXd mFeatures;       ///< T x d (double)
   Eigen::MatrixXd mCoefficients;   ///< rank x T
   Eigen::MatrixXd mKernelInverse;  ///< (K + lambda I)^-1, for the variance
+  /// The per-clip models (PoseModel::clipMixtureWeight > 0): each clip's rows of the reference
+  /// frames, coefficients (rank x count) and (K_k + lambda I)^-1.
+  struct ClipModel {
+    int begin = 0, count = 0;
+    Eigen::MatrixXd coefficients;
+    Eigen::MatrixXd kernelInverse;
+  };
+  std::vector<ClipModel> mClipModels;
 };
 
 /// A reference frame worth simulating (suggestFrames).
