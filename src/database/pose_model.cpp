@@ -1060,6 +1060,8 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
       } else {
         *log << "; not used\n";
       }
+    } else if (options.clipMixtureWeight > 0.0 && options.clipSizes.size() < 2) {
+      *log << "  per-clip models: one reference clip, nothing to mix (give more with --also)\n";
     }
   }
   return model;

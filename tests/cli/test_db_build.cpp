@@ -126,6 +126,10 @@ TEST(DbBuild, ModelPerClipMixesEachClipsModelAndSaysSo) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.err.find("per-clip models"), std::string::npos) << r.err;
   EXPECT_EQ(loadDatabase(dir.file("off.dsdb")).poseModel.clipMixtureWeight, 0.0);
+  r = build(dir, {"--model-per-clip", "1", "-o", dir.file("one.dsdb")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("per-clip models: one reference clip, nothing to mix"), std::string::npos)
+      << r.err;
 }
 
 TEST(DbBuild, SuggestListsFramesDeterministicallyWithoutWritingADatabase) {
