@@ -11,6 +11,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include <drivenshape/build_settings.h>
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
@@ -104,37 +105,15 @@ ArgParser dbBuildParser() {
                 "another reference clip of the same character and cloth: the pose model is "
                 "fitted over its frames too (all, or FRAMES); the shapes are still picked from "
                 "--driver/--driven")
-      .option("--count", "N", "shapes to keep", "30")
       .option("--add-frames", "LIST", "frames always kept (they seed the pick)")
-      .option("--remove-frames", "LIST", "frames never kept")
-      .option("--duplicate-tolerance", "X",
-              "reject shapes within X * driver bbox diagonal (RMS) of a kept one", "0.001")
-      .option("--model", "KIND",
-              "pose: also fit the pose model over every candidate frame (the rest binding plus "
-              "a learned correction; what `bake` evaluates by default); none: the picks only",
-              "pose")
-      .option("--model-parts", "N",
-              "rigid parts of the driver the pose model reads its joints from (0 = as many as "
-              "the clip shows)",
-              "0")
-      .option("--model-velocity", "N",
-              "frames back the pose model's velocity feature looks (0 = no velocity)", "3")
-      .option("--model-history", "N",
-              "frames the pose model's history feature averages (0 = no history; auto = 15 with "
-              "one or two reference clips, 30 with three or more)",
-              "auto")
-      .option("--model-rank", "N", "basis shapes the pose model keeps", "64")
-      .option("--model-per-clip", "W",
-              "models of each reference clip mixed into the pose model's prediction by how "
-              "close a pose is to each clip (W = the weight of the model over every clip): auto "
-              "= with three or more clips, the weight of 10, 3 or 1 that best predicts each "
-              "clip left out in turn, when at least 1% better than none; off = none",
-              "auto")
-      .option("--verdict-level", "P",
-              "share of frames the coverage verdict's error bound is calibrated to hold for "
-              "(split-conformal on the held-out reference frames; bake --coverage-tolerance "
-              "flags a frame whose bound is over it)",
-              "0.9")
+      .option("--remove-frames", "LIST", "frames never kept");
+  // The settings (count, duplicate tolerance, the pose model's): one row each in the table the
+  // Python module's build_database reads too.
+  const DatabaseBuildOptions defaults;
+  for (const BuildSetting& setting : buildSettingsTable()) {
+    parser.option(setting.flag, setting.valueName, setting.help, setting.get(defaults));
+  }
+  parser
       .option("--model-json", "PATH",
               "also write the pose model's fit as JSON: kernel settings, the error line and "
               "the verdict's calibration, every reference frame's cross-validated error, and "
@@ -164,8 +143,6 @@ ArgParser dbBuildParser() {
 /// The pick and pose model settings of the command line, checked.
 DatabaseBuildOptions buildOptionsFrom(const ArgParser& parser) {
   DatabaseBuildOptions options;
-  options.count = parser.getInt("--count", 1);
-  options.duplicateTolerance = parser.getDouble("--duplicate-tolerance", 0.0);
   if (parser.has("--frames")) {
     options.frames = parseFrameRange(parser.get("--frames"));
   }
@@ -175,42 +152,10 @@ DatabaseBuildOptions buildOptionsFrom(const ArgParser& parser) {
   if (parser.has("--remove-frames")) {
     options.removeFrames = parseFrameRange(parser.get("--remove-frames"));
   }
-  const std::string model = parser.get("--model");
-  if (model != "pose" && model != "none") {
-    DS_THROW(kUsage, "--model takes pose or none (got '", model, "')");
-  }
-  options.poseModel = model == "pose";
-  options.model.parts = parser.getInt("--model-parts", 0);
-  if (options.model.parts == 1 || options.model.parts > 64) {
-    DS_THROW(kUsage, "--model-parts takes 0 (found from the clip) or 2..64 (got ",
-             options.model.parts, ")");
-  }
-  options.model.velocityLag = parser.getInt("--model-velocity", 0);
-  const std::string history = parser.get("--model-history");
-  if (history != "auto" && history.find_first_not_of("0123456789") != std::string::npos) {
-    DS_THROW(kUsage, "--model-history takes auto or a number of frames 0..120 (got '", history,
-             "')");
-  }
-  options.model.historyFrames =
-      history == "auto" ? kAutoHistory : parser.getInt("--model-history", 0);
-  options.model.rank = parser.getInt("--model-rank", 1);
-  const std::string perClip = parser.get("--model-per-clip");
-  options.model.clipMixtureWeight = perClip == "auto"  ? kAutoClipMixture
-                                    : perClip == "off" ? 0.0
-                                                       : parser.getDouble("--model-per-clip", 0.0);
-  if (!(options.model.clipMixtureWeight == kAutoClipMixture ||
-        (options.model.clipMixtureWeight >= 0.0 && options.model.clipMixtureWeight <= 1000.0))) {
-    DS_THROW(kUsage, "--model-per-clip takes auto, off or a weight from 0 to 1000 (got '", perClip,
-             "')");
-  }
-  if (options.model.velocityLag > 60 || options.model.historyFrames > 120) {
-    DS_THROW(kUsage, "--model-velocity takes 0..60 and --model-history 0..120 frames (got ",
-             options.model.velocityLag, " and ", options.model.historyFrames, ")");
-  }
-  options.model.verdictLevel = parser.getDouble("--verdict-level", 0.5);
-  if (options.model.verdictLevel >= 1.0) {
-    DS_THROW(kUsage, "--verdict-level takes a share of frames from 0.5 to below 1, e.g. 0.9 (got ",
-             options.model.verdictLevel, ")");
+  for (const BuildSetting& setting : buildSettingsTable()) {
+    if (parser.has(setting.flag)) {
+      setting.set(setting, options, parser.get(setting.flag));
+    }
   }
   return options;
 }

@@ -45,6 +45,10 @@ main(sys.argv[1:])
 # The version is the project's (CMakeLists.txt), not a type: left out so that a release does
 # not make the stubs stale.
 VERSION = re.compile(r"^__version__: str = .*$", re.M)
+# pybind11 (2.10) writes a py::kwargs parameter as a bare `**kwargs`; the one function that takes
+# keywords (build_database: the db build settings, read as text) takes numbers and text.
+KWARGS = "**kwargs)"
+KWARGS_TYPED = "**kwargs: str | int | float)"
 
 
 def generate() -> str:
@@ -61,7 +65,7 @@ def generate() -> str:
             sys.exit(f"generate_python_stubs: pybind11-stubgen {MODULE} failed "
                      f"({result.returncode}):\n{result.stdout}{result.stderr}")
         text = (Path(folder) / "drivenshape" / "_drivenshape.pyi").read_text()
-    return HEADER + VERSION.sub("__version__: str", text)
+    return HEADER + VERSION.sub("__version__: str", text).replace(KWARGS, KWARGS_TYPED)
 
 
 def main() -> int:

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include <drivenshape/binding.h>
+#include <drivenshape/build_settings.h>
 #include <drivenshape/coverage_check.h>
 #include <drivenshape/database.h>
 #include <drivenshape/device.h>
@@ -577,15 +578,14 @@ void bindDatabaseClass(py::module_& module) {
       });
 }
 
-/// `build_database`: the keywords of `drivenshape db build` read into its options.
+/// `build_database`: the inputs of `drivenshape db build`, and its settings as keywords named
+/// by the build settings table (drivenshape/build_settings.h), each value read as its text.
 Database buildDatabaseFromArguments(types::MeshSource driverMesh, types::MeshSource drivenMesh,
                                     types::CacheSource driverCache, types::CacheSource drivenCache,
-                                    int count, types::OptionalFrames frames,
-                                    types::OptionalFrames addFrames,
-                                    types::OptionalFrames removeFrames, double duplicateTolerance,
-                                    const std::string& model, int modelParts,
+                                    types::OptionalFrames frames, types::OptionalFrames addFrames,
+                                    types::OptionalFrames removeFrames,
                                     types::Frame startFrameObject, types::ReferenceClips also,
-                                    types::TextOutput log) {
+                                    types::TextOutput log, const py::kwargs& settings) {
   const int startFrame = frameNumber(startFrameObject, "start_frame");
   std::optional<Mesh> driverStorage;
   std::optional<Mesh> drivenStorage;
@@ -594,16 +594,12 @@ Database buildDatabaseFromArguments(types::MeshSource driverMesh, types::MeshSou
   const std::shared_ptr<PointCacheReader> driverFrames = cacheArgument(driverCache, startFrame);
   const std::shared_ptr<PointCacheReader> drivenFrames = cacheArgument(drivenCache, startFrame);
   DatabaseBuildOptions options;
-  options.count = count;
   options.frames = optionalFrames(frames, "frames");
   options.addFrames = optionalFrames(addFrames, "add_frames");
   options.removeFrames = optionalFrames(removeFrames, "remove_frames");
-  options.duplicateTolerance = duplicateTolerance;
-  if (model != "pose" && model != "none") {
-    DS_THROW(kUsage, "model takes 'pose' or 'none' (got '", model, "')");
+  for (const auto& [key, value] : settings) {
+    setBuildSetting(options, py::str(key), py::str(value));
   }
-  options.poseModel = model == "pose";
-  options.model.parts = modelParts;
   // Extra reference clips (db build --also): (driver_cache, driven_cache[, frames]).
   std::vector<std::shared_ptr<PointCacheReader>> alsoCaches;
   std::vector<ReferenceClip> clips;
@@ -654,24 +650,28 @@ void bindDatabase(py::module_& module) {
         saveDatabase(file, db);
       },
       py::arg("path"), py::arg("database"));
+  std::string settingsHelp;
   const DatabaseBuildOptions buildDefaults;
+  for (const BuildSetting& setting : buildSettingsTable()) {
+    settingsHelp += std::string("\n  ") + setting.key + " (" + setting.flag + ", default " +
+                    setting.get(buildDefaults) + "): " + setting.help;
+  }
   module.def(
       "build_database", &buildDatabaseFromArguments, py::arg("driver_mesh"), py::arg("driven_mesh"),
       py::arg("driver_cache"), py::arg("driven_cache"), py::kw_only(),
-      py::arg("count") = buildDefaults.count, py::arg("frames") = py::none(),
-      py::arg("add_frames") = py::none(), py::arg("remove_frames") = py::none(),
-      py::arg("duplicate_tolerance") = buildDefaults.duplicateTolerance, py::arg("model") = "pose",
-      py::arg("model_parts") = 0, py::arg("start_frame") = 1, py::arg("also") = py::none(),
-      py::arg("log") = py::none(),
-      "The database of reference caches (drivenshape db build). Meshes are Mesh objects or "
-      "OBJ paths; caches are PointCache objects, paths (PC2, EXR pattern) or arrays (F, V, 3) "
-      "whose first frame is start_frame. frames: candidates (default every frame of the driver "
-      "cache); add_frames are always kept, remove_frames never. model: 'pose' also fits the "
-      "pose model over every candidate frame (db build --model), 'none' keeps the picks only; "
-      "model_parts: the driver's rigid parts (0 = found from the clip). also: more reference "
-      "clips the pose model is fitted on (db build --also), each (driver_cache, driven_cache) "
-      "or (driver_cache, driven_cache, frames). log: a file-like object that receives the pick "
-      "log.");
+      py::arg("frames") = py::none(), py::arg("add_frames") = py::none(),
+      py::arg("remove_frames") = py::none(), py::arg("start_frame") = 1,
+      py::arg("also") = py::none(), py::arg("log") = py::none(),
+      ("The database of reference caches (drivenshape db build). Meshes are Mesh objects or "
+       "OBJ paths; caches are PointCache objects, paths (PC2, EXR pattern) or arrays (F, V, 3) "
+       "whose first frame is start_frame. frames: candidates (default every frame of the driver "
+       "cache); add_frames are always kept, remove_frames never. also: more reference clips the "
+       "pose model is fitted on (db build --also), each (driver_cache, driven_cache) or "
+       "(driver_cache, driven_cache, frames). log: a file-like object that receives the pick "
+       "log. The settings are keywords, db build's options without their dashes (a value is "
+       "read as db build reads its text; an unknown keyword or a value it refuses is an Error):" +
+       settingsHelp)
+          .c_str());
 }
 
 namespace {

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import drivenshape as ds
-from conftest import TEST_FRAMES, assert_bitwise, parse_pc2
+from conftest import TEST_FRAMES, assert_bitwise, parse_pc2, run
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +35,36 @@ def test_database_equals_the_command_lines(cli_database, python_database, data):
         assert db.content_hash == cli.content_hash
         assert_bitwise(db.driver_shapes, cli.driver_shapes, f"driver shapes ({how})")
         assert_bitwise(db.driven_shapes, cli.driven_shapes, f"driven shapes ({how})")
+
+
+def test_every_db_build_setting_is_a_keyword(cli, data, tmp_path):
+    # The settings table gives build_database db build's settings under the same names: set
+    # away from their defaults, the two tools build the same database.
+    given = {"count": 7, "duplicate_tolerance": 0.002, "model_parts": 3, "model_velocity": 2,
+             "model_history": 0, "model_rank": 16, "model_per_clip": "off",
+             "verdict_level": 0.8}
+    flags = []
+    for key, value in given.items():
+        flags += ["--" + key.replace("_", "-"), value]
+    path = tmp_path / "settings.dsdb"
+    run([cli, "db", "build", "--driver-mesh", data / "driver_rest.obj",
+         "--driven-mesh", data / "driven_rest.obj", "--driver", data / "train.driver.pc2",
+         "--driven", data / "train.driven.pc2", "--quiet", "-o", path, *flags])
+    db = ds.build_database(data / "driver_rest.obj", data / "driven_rest.obj",
+                           data / "train.driver.pc2", data / "train.driven.pc2", **given)
+    default = ds.build_database(data / "driver_rest.obj", data / "driven_rest.obj",
+                                data / "train.driver.pc2", data / "train.driven.pc2")
+    assert db.shape_count == 7
+    assert db.content_hash == ds.load_database(path).content_hash != default.content_hash
+    for key, value, kind in (("model_history", 500, "model_history"),
+                             ("model_per_clip", "sometimes", "--model-per-clip"),
+                             ("modle_rank", 8, "model_rank")):
+        with pytest.raises(ds.Error) as error:
+            ds.build_database(data / "driver_rest.obj", data / "driven_rest.obj",
+                              data / "train.driver.pc2", data / "train.driven.pc2",
+                              **{key: value})
+        assert error.value.kind == "usage" and key in str(error.value) and kind in str(
+            error.value)
 
 
 def _from_arrays(data):
