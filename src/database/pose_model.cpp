@@ -1028,8 +1028,8 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
                " frames given");
     }
     model.clipErrors = clipContributions(model, x, basis, best, options.clipSizes, threads);
-    // With two clips the mixture changes nothing left out: each left-out clip is predicted by
-    // the other clip's model either way.
+    // Auto needs three clips: with two, each left-out clip is predicted by the other clip's
+    // model with or without the mixture, so the trials cannot tell them apart.
     if (options.clipMixtureWeight > 0.0 ||
         (options.clipMixtureWeight == kAutoClipMixture && options.clipSizes.size() >= 3)) {
       chooseClipMixture(model, x, basis, best, options.clipSizes, options.clipMixtureWeight,
