@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <Eigen/Dense>
+#include <nlohmann/json.hpp>
 
 #include <drivenshape/database.h>
 #include <drivenshape/evaluator.h>
@@ -212,6 +213,13 @@ TEST(ClipModels, TheyTravelInTheDatabaseFile) {
   EXPECT_EQ(a.cloth, b.cloth) << "bit for bit";
   const Evaluation c = Evaluator(without, settings, host.view()).evaluate(frames, pose);
   EXPECT_NE(a.cloth, c.cloth) << "the clip models change the bake";
+  // The report's settings say so (docs/schemas/bake_report.schema.json).
+  const auto described = [&](const Database& db) {
+    return nlohmann::json::parse(Evaluator(db, settings, host.view()).describeSettings());
+  };
+  EXPECT_EQ(described(loaded)["pose_model"]["per_clip_models"],
+            nlohmann::json({{"clips", 3}, {"weight", 1.0}}));
+  EXPECT_FALSE(described(without)["pose_model"].contains("per_clip_models"));
 }
 
 }  // namespace

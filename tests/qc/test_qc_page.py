@@ -294,6 +294,20 @@ def test_page_shows_what_the_model_has(shot, name, options, model):
             page.read_text(encoding="utf-8")
 
 
+def test_pose_model_text_names_the_per_clip_models():
+    # A database built from three clips with per-clip models kept (db build --model-per-clip):
+    # the report's settings.pose_model carries them, the page's settings line says so.
+    import drivenshape.qc as page
+    pose = {"parts": 3, "reference_frames": 960, "rank": 64, "cross_validation_error": 0.018,
+            "binding_error": 0.062}
+    plain = page.pose_model_text(pose, page.Units("m"))
+    assert "18.0 mm" in plain and "per" not in plain and "mixed" not in plain
+    mixed = page.pose_model_text({**pose, "per_clip_models": {"clips": 3, "weight": 1.0}},
+                                 page.Units("m"))
+    assert mixed.startswith(plain)
+    assert "a model of each of its 3 reference clips mixed in" in mixed and "1.0" in mixed
+
+
 def test_pose_model_page(pose):
     page, report, evaluation = pose["page"], pose["report"], pose["eval"]
     assert report["settings"]["weights"] == "model", "db build's default is the pose model"

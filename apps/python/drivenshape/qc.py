@@ -991,10 +991,15 @@ def settings_text(settings: _Json, units: Units) -> str:
 
 
 def pose_model_text(pose: _Json, units: Units) -> str:
-    return (f"{pose.get('parts')} rigid parts, {pose.get('reference_frames')} reference frames, "
+    text = (f"{pose.get('parts')} rigid parts, {pose.get('reference_frames')} reference frames, "
             f"rank {pose.get('rank')}; cross-validated mean vertex error over the reference "
             f"clip {units.with_unit(pose.get('cross_validation_error'))} (the rest binding "
             f"alone: {units.with_unit(pose.get('binding_error'))})")
+    per_clip = pose.get("per_clip_models")
+    if isinstance(per_clip, dict):
+        text += (f"; a model of each of its {per_clip.get('clips')} reference clips mixed in "
+                 f"(weight of the model over every clip {per_clip.get('weight')})")
+    return text
 
 
 def shot_name(report: _Json) -> str:

@@ -36,6 +36,10 @@ class PoseStage final : public Stage {
                               {"binding_error", mPose.bindingError},
                               {"verdict_level", mPose.verdictLevel},
                               {"verdict_margin", mPose.verdictMargin}};
+    if (mPose.clipMixtureWeight > 0.0) {
+      settings["pose_model"]["per_clip_models"] = {{"clips", mPose.clipSizes.size()},
+                                                   {"weight", mPose.clipMixtureWeight}};
+    }
     settings["coverage_tolerance"] = coverageTolerance(mModel);
   }
 
