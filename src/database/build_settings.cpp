@@ -30,8 +30,8 @@ int wholeNumber(const BuildSetting& self, const std::string& text, int minimum, 
   return value;
 }
 
-/// A finite real number in [minimum, maximum] (below `below` when that is smaller), else
-/// refused.
+/// A finite real number in [minimum, maximum] (read as the settings table reads numbers),
+/// else refused.
 double realNumber(const BuildSetting& self, const std::string& text, double minimum, double maximum,
                   const char* takes) {
   char* end = nullptr;
