@@ -42,6 +42,17 @@ inline Database buildSample(int count, const std::vector<int>& addFrames = {},
   return buildDatabase(driver, driven, *driverCache, *drivenCache, options);
 }
 
+/// The sample's rest meshes and its two clips' caches (train, the reference; test, the shot),
+/// for tests that build a database from both clips.
+struct SampleClips {
+  Mesh driver = readObj(sample("driver_rest.obj"));
+  Mesh driven = readObj(sample("driven_rest.obj"));
+  std::unique_ptr<PointCacheReader> trainDriver = openPointCache(sample("train.driver.pc2"));
+  std::unique_ptr<PointCacheReader> trainDriven = openPointCache(sample("train.driven.pc2"));
+  std::unique_ptr<PointCacheReader> testDriver = openPointCache(sample("test.driver.pc2"));
+  std::unique_ptr<PointCacheReader> testDriven = openPointCache(sample("test.driven.pc2"));
+};
+
 /// The 30-shape database of the sample, built once per test binary.
 inline const Database& sampleDatabase() {
   static const Database db = buildSample(30);

@@ -34,23 +34,18 @@ using testing::sample;
 /// or plus the first half only (two), with the per-clip weight `weight` (kAutoClipMixture,
 /// 0 = none, or a weight).
 Database buildClips(int clips, double weight) {
-  const Mesh driver = readObj(sample("driver_rest.obj"));
-  const Mesh driven = readObj(sample("driven_rest.obj"));
-  const auto trainDriver = openPointCache(sample("train.driver.pc2"));
-  const auto trainDriven = openPointCache(sample("train.driven.pc2"));
-  const auto testDriver = openPointCache(sample("test.driver.pc2"));
-  const auto testDriven = openPointCache(sample("test.driven.pc2"));
+  const testing::SampleClips s;
   std::vector<ReferenceClip> extra;
   if (clips >= 2) {
-    extra.push_back({testDriver.get(), testDriven.get(), testing::frameRange(1, 24)});
+    extra.push_back({s.testDriver.get(), s.testDriven.get(), testing::frameRange(1, 24)});
   }
   if (clips >= 3) {
-    extra.push_back({testDriver.get(), testDriven.get(), testing::frameRange(25, 48)});
+    extra.push_back({s.testDriver.get(), s.testDriven.get(), testing::frameRange(25, 48)});
   }
   DatabaseBuildOptions options;
   options.poseModel = true;
   options.model.clipMixtureWeight = weight;
-  return buildDatabase(driver, driven, *trainDriver, *trainDriven, extra, options);
+  return buildDatabase(s.driver, s.driven, *s.trainDriver, *s.trainDriven, extra, options);
 }
 
 /// Row-major float table (rows x cols) as doubles.

@@ -324,25 +324,20 @@ TEST(PoseModel, EachClipsContributionIsMeasuredByLeavingItOut) {
   // far better than the clip alone cross-validates (its held-out blocks' poses are new to it);
   // a clip of other poses (the test clip) is predicted by the train clip worse than it is
   // cross-validated once it is in.
-  const Mesh driver = readObj(sample("driver_rest.obj"));
-  const Mesh driven = readObj(sample("driven_rest.obj"));
-  const auto trainDriver = openPointCache(sample("train.driver.pc2"));
-  const auto trainDriven = openPointCache(sample("train.driven.pc2"));
-  const auto testDriver = openPointCache(sample("test.driver.pc2"));
-  const auto testDriven = openPointCache(sample("test.driven.pc2"));
+  const testing::SampleClips s;
   DatabaseBuildOptions options;
   options.count = 10;
-  const Database twins = buildDatabase(driver, driven, *trainDriver, *trainDriven,
-                                       {{trainDriver.get(), trainDriven.get(), {}}}, options);
+  const Database twins = buildDatabase(s.driver, s.driven, *s.trainDriver, *s.trainDriven,
+                                       {{s.trainDriver.get(), s.trainDriven.get(), {}}}, options);
   const std::vector<ClipContribution>& t = twins.poseModel.clipErrors;
   ASSERT_EQ(t.size(), 2u);
   for (int c = 0; c < 2; ++c) {
-    EXPECT_EQ(t[c].frames, static_cast<int>(trainDriver->frames().size()));
+    EXPECT_EQ(t[c].frames, static_cast<int>(s.trainDriver->frames().size()));
     EXPECT_LT(t[c].without[c], 0.1 * sampleDatabase().poseModel.crossValidationError)
         << "clip " << c + 1 << " predicted by its twin";
   }
-  const Database other = buildDatabase(driver, driven, *trainDriver, *trainDriven,
-                                       {{testDriver.get(), testDriven.get(), {}}}, options);
+  const Database other = buildDatabase(s.driver, s.driven, *s.trainDriver, *s.trainDriven,
+                                       {{s.testDriver.get(), s.testDriven.get(), {}}}, options);
   const std::vector<ClipContribution>& o = other.poseModel.clipErrors;
   ASSERT_EQ(o.size(), 2u);
   EXPECT_GT(o[1].without[1], o[1].withAll[1]) << "the test clip's poses are new to the train clip";
