@@ -103,7 +103,10 @@ void infoDatabase(const std::string& path) {
     }
     if (model.verdictLevel > 0.0) {
       std::cout << "; error bound: predicted + " << model.verdictMargin << " (holds on "
-                << 100.0 * model.verdictLevel << "% of held-out reference frames)";
+                << 100.0 * model.verdictLevel << "% of held-out reference frames), never below "
+                << model.smallestErrorBound() << " ("
+                << percentOfDiagonal(model.smallestErrorBound(), db.drivenMesh)
+                << "% of the cloth's rest diagonal: a lower coverage tolerance flags every frame)";
     }
     std::cout << "\n";
   }

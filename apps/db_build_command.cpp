@@ -323,6 +323,16 @@ void writeModelJson(const std::string& path, const Database& db) {
   for (const ClipMixtureTrial& trial : m.clipMixtureTrials) {
     perClip.push_back({{"weight", trial.weight}, {"left_out_error", trial.leftOutError}});
   }
+  // The share of the held-out reference frames the verdict calls enough, per tolerance (a
+  // share of the cloth's rest diagonal).
+  const Mesh& cloth = db.drivenMesh;
+  const double diagonal = computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+  nlohmann::json heldOutEnough = nlohmann::json::array();
+  for (double share : kVerdictOutlookShares) {
+    heldOutEnough.push_back({{"tolerance_share", share},
+                             {"tolerance", share * diagonal},
+                             {"enough", heldOutEnoughShare(m, share * diagonal)}});
+  }
   nlohmann::json report{
       {"units", "scene units (mean vertex distance)"},
       {"reference_frames", m.frameCount()},
@@ -332,7 +342,11 @@ void writeModelJson(const std::string& path, const Database& db) {
       {"cross_validation_error", m.crossValidationError},
       {"binding_error", m.bindingError},
       {"error_line", {{"bias", m.errorBias}, {"scale", m.errorScale}}},
-      {"verdict", {{"level", m.verdictLevel}, {"margin", m.verdictMargin}}},
+      {"verdict",
+       {{"level", m.verdictLevel},
+        {"margin", m.verdictMargin},
+        {"smallest_bound", m.smallestErrorBound()},
+        {"held_out_enough", heldOutEnough}}},
       {"clips", clips},
       {"frames", frames}};
   if (!perClip.empty()) {

@@ -764,13 +764,21 @@ void fitErrorPredictor(PoseModel& model, const MatrixXd& x, const OffsetBasis& b
   model.frameSigmas.assign(sigma.data(), sigma.data() + sigma.size());
 }
 
+/// The reference frames' errors and deviations held out as the verdict is calibrated: with
+/// their clip left out when there are several clips, else in the cross-validation.
+const std::vector<double>& heldOutErrors(const PoseModel& model) {
+  return model.leftOutErrors.empty() ? model.frameErrors : model.leftOutErrors;
+}
+const std::vector<double>& heldOutSigmas(const PoseModel& model) {
+  return model.leftOutErrors.empty() ? model.frameSigmas : model.leftOutSigmas;
+}
+
 /// The verdict's margin at `level` (PoseModel::verdictMargin): over the frames' held-out errors
 /// with their clip left out when there are several clips (a whole clip held out is what a new
 /// shot is like), else over the cross-validation.
 void calibrateVerdict(PoseModel& model, double level) {
-  const bool clips = !model.leftOutErrors.empty();
-  const std::vector<double>& errors = clips ? model.leftOutErrors : model.frameErrors;
-  const std::vector<double>& sigmas = clips ? model.leftOutSigmas : model.frameSigmas;
+  const std::vector<double>& errors = heldOutErrors(model);
+  const std::vector<double>& sigmas = heldOutSigmas(model);
   std::vector<double> predictedErrors;
   for (double s : sigmas) {
     predictedErrors.push_back(model.predictedError(s));
@@ -978,7 +986,41 @@ void storeFit(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis, int
   }
 }
 
+/// The build log's verdict line: the bound, the smallest it gets, and the share of the held-out
+/// reference frames it calls enough at each of kVerdictOutlookShares of the rest cloth's
+/// (`cloth`) diagonal.
+void logVerdict(const PoseModel& model, const Mesh& cloth, std::ostream& log) {
+  const double diagonal = computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+  log << "  verdict: error bound = predicted error + " << model.verdictMargin << " (holds on "
+      << 100.0 * model.verdictLevel << "% of the held-out reference frames), never below "
+      << model.smallestErrorBound() << " (" << percentOfDiagonal(model.smallestErrorBound(), cloth)
+      << "% of the cloth's rest diagonal); held-out reference frames it calls enough at";
+  const char* separator = " ";
+  for (double share : kVerdictOutlookShares) {
+    log << separator << 100.0 * share
+        << "%: " << std::lround(100.0 * heldOutEnoughShare(model, share * diagonal)) << "%";
+    separator = ", ";
+  }
+  log << " of the diagonal\n";
+}
+
 }  // namespace
+
+double heldOutEnoughShare(const PoseModel& model, double tolerance) {
+  const std::vector<double>& sigmas = heldOutSigmas(model);
+  if (sigmas.empty()) {
+    return 0.0;
+  }
+  const auto within = std::count_if(sigmas.begin(), sigmas.end(), [&](double sigma) {
+    return model.errorBound(sigma) <= tolerance;
+  });
+  return static_cast<double>(within) / static_cast<double>(sigmas.size());
+}
+
+double percentOfDiagonal(double value, const Mesh& cloth) {
+  const double diagonal = computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+  return std::round(10000.0 * value / diagonal) / 100.0;
+}
 
 int historyFramesFor(const PoseModelOptions& options, int clipCount) {
   if (options.historyFrames != kAutoHistory) {
@@ -1046,6 +1088,7 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
          << ", ridge " << model.ridge << "; cross-validated mean error "
          << model.crossValidationError << " (binding " << model.bindingError
          << "), predicted error " << model.errorBias << " + " << model.errorScale << " sigma\n";
+    logVerdict(model, driven, *log);
     if (!model.clipMixtureTrials.empty()) {
       *log << "  per-clip models, each clip left out in turn: mean error";
       for (const ClipMixtureTrial& trial : model.clipMixtureTrials) {

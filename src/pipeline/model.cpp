@@ -117,6 +117,39 @@ EvaluatorSettings validate(const Database& db, EvaluatorSettings settings) {
   return settings;
 }
 
+/// The coverage tolerance of `settings` on `db` (coverageTolerance(const Model&)).
+double toleranceOf(const Database& db, const EvaluatorSettings& settings) {
+  if (settings.coverageTolerance > 0) {
+    return settings.coverageTolerance;
+  }
+  const Mesh& cloth = db.drivenMesh;
+  return kDefaultCoverageShare *
+         computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+}
+
+/// The settings' warnings (those they leave unused), and one when the pose model's coverage
+/// tolerance is below the smallest error bound the database's verdict gives: every frame would
+/// be flagged for simulation.
+std::vector<std::string> modelWarnings(const Database& db, const EvaluatorSettings& settings) {
+  std::vector<std::string> out = refuseUnusedSettings(unusedSettings({settings}));
+  const PoseModel& pose = db.poseModel;
+  if (settings.weightMode != WeightMode::kModel || pose.empty() || pose.verdictLevel <= 0.0) {
+    return out;
+  }
+  const double tolerance = toleranceOf(db, settings);
+  const double smallest = pose.smallestErrorBound();
+  if (tolerance < smallest) {
+    out.push_back(detail::concat(
+        "the coverage tolerance ", tolerance, " (", percentOfDiagonal(tolerance, db.drivenMesh),
+        "% of the cloth's rest diagonal) is below the smallest error bound this database's "
+        "verdict gives any frame, ",
+        smallest, " (", percentOfDiagonal(smallest, db.drivenMesh),
+        "%): every frame will be flagged for simulation; raise the coverage tolerance to at "
+        "least that, or build the database with reference clips closer to the shot's motion"));
+  }
+  return out;
+}
+
 }  // namespace
 
 Model::Model(const Database& database, EvaluatorSettings evaluatorSettings, Device& target)
@@ -130,7 +163,7 @@ Model::Model(const Database& database, EvaluatorSettings evaluatorSettings, Devi
       driverValues(static_cast<std::size_t>(vp) * 3),
       drivenValues(static_cast<std::size_t>(vd) * 3),
       local(blendsLocally(settings)),
-      warnings(refuseUnusedSettings(unusedSettings({settings}))),
+      warnings(modelWarnings(database, settings)),
       mMask(settings.bindingMask ? *settings.bindingMask : BindingMask::all(vd)) {
   driverShapes = db.driverShapes;
   if (!local) {
@@ -258,11 +291,7 @@ ShapeTables tablesFrom(const Database& db, const SimplexLeastSquares& solver,
 }
 
 double coverageTolerance(const Model& model) {
-  if (model.settings.coverageTolerance > 0) {
-    return model.settings.coverageTolerance;
-  }
-  const Mesh& cloth = model.db.drivenMesh;
-  return 0.02 * computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+  return toleranceOf(model.db, model.settings);
 }
 
 void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,

@@ -56,7 +56,8 @@ class Model {
   const std::size_t driverValues, drivenValues;  ///< 3Vp, 3Vd
   const bool local;                              ///< blendsLocally(settings)
   /// Settings set away from their defaults that these settings leave unused (the settings
-  /// table's unusedSettings on the resolved settings; those it refuses threw instead).
+  /// table's unusedSettings on the resolved settings; those it refuses threw instead), and a
+  /// coverage tolerance below the smallest error bound of the database's verdict.
   const std::vector<std::string> warnings;
   const BindingMask& mask() const { return mMask; }
 

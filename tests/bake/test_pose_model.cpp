@@ -319,6 +319,63 @@ TEST_F(PoseModelClTest, AFrameIsFlaggedByItsBoundNotItsPrediction) {
   EXPECT_GT(flaggedOnlyByBound, 0) << "the tolerance was chosen so the bound flags more frames";
 }
 
+TEST_F(PoseModelClTest, BelowTheSmallestBoundEveryFrameIsFlaggedAndTheEvaluatorSaysSo) {
+  // The smallest bound a frame can get is the error line at sigma 0 plus the margin: a coverage
+  // tolerance under it flags every frame, and the evaluator (so every tool's bake) warns once.
+  const Database& db = sampleDatabase();
+  const PoseModel& m = db.poseModel;
+  const double smallest = std::max(0.0, m.errorBias) + m.verdictMargin;
+  EXPECT_DOUBLE_EQ(m.smallestErrorBound(), smallest);
+  const auto driver = openPointCache(sample("test.driver.pc2"));
+  const std::vector<int> frames = driver->frames();
+  const std::vector<float> pose = readFrames(*driver, frames);
+  testing::Backends cl = clBackends();
+  const auto warned = [](const Evaluator& e) {
+    return std::count_if(e.warnings().begin(), e.warnings().end(), [](const std::string& w) {
+      return w.find("every frame will be flagged for simulation") != std::string::npos;
+    });
+  };
+  EvaluatorSettings below;
+  below.coverageTolerance = 0.999 * smallest;
+  Evaluator under(db, below, cl.view());
+  EXPECT_EQ(warned(under), 1);
+  for (const FrameRecord& record : under.evaluate(frames, pose).records) {
+    EXPECT_EQ(record.flagged, 1) << "frame " << record.frame;
+  }
+  EvaluatorSettings above;
+  above.coverageTolerance = 1.001 * smallest;
+  EXPECT_EQ(warned(Evaluator(db, above, cl.view())), 0);
+  // The default tolerance, 2% of the rest cloth's diagonal, warns exactly when it is under.
+  const Mesh& cloth = db.drivenMesh;
+  const double diagonal =
+      (cloth.positions.colwise().maxCoeff() - cloth.positions.colwise().minCoeff())
+          .cast<double>()
+          .norm();
+  EXPECT_EQ(warned(Evaluator(db, EvaluatorSettings(), cl.view())), 0.02 * diagonal < smallest);
+  // Without the pose model's weights nothing is flagged, so nothing is said.
+  EvaluatorSettings qp = below;
+  qp.weightMode = WeightMode::kQp;
+  EXPECT_EQ(warned(Evaluator(db, qp, cl.view())), 0);
+}
+
+TEST(PoseModel, TheHeldOutOutlookCountsTheCalibrationFramesWithinTheTolerance) {
+  // heldOutEnoughShare counts the frames the verdict was calibrated on (the cross-validation
+  // with one clip, each clip left out with several) whose bound is within the tolerance.
+  PoseModel m;
+  m.errorBias = 0.002;
+  m.errorScale = 0.01;
+  m.verdictMargin = 0.003;
+  m.frameSigmas = {0.0, 0.1, 0.2, 0.5, 1.0};  // bounds 0.005, 0.006, 0.007, 0.010, 0.015
+  m.frameErrors.assign(5, 0.0);
+  EXPECT_DOUBLE_EQ(heldOutEnoughShare(m, 0.0049), 0.0);
+  EXPECT_DOUBLE_EQ(heldOutEnoughShare(m, 0.0070001), 3.0 / 5.0);
+  EXPECT_DOUBLE_EQ(heldOutEnoughShare(m, 0.02), 1.0);
+  m.leftOutErrors.assign(4, 0.0);
+  m.leftOutSigmas = {1.0, 1.0, 1.0, 0.0};
+  EXPECT_DOUBLE_EQ(heldOutEnoughShare(m, 0.0070001), 1.0 / 4.0) << "several clips: left out";
+  EXPECT_DOUBLE_EQ(heldOutEnoughShare(PoseModel(), 1.0), 0.0) << "no held-out figures";
+}
+
 TEST(PoseModel, EachClipsContributionIsMeasuredByLeavingItOut) {
   // The sample's train clip given twice: left out, a clip is predicted by its identical twin
   // far better than the clip alone cross-validates (its held-out blocks' poses are new to it);

@@ -81,6 +81,25 @@ TEST(DbBuild, AlsoFitsTheModelOnMoreClipsAndKeepsThePicks) {
   const Database one = loadDatabase(dir.file("one.dsdb"));
   const Database two = loadDatabase(dir.file("two.dsdb"));
   EXPECT_EQ(fit["verdict"]["margin"].get<double>(), two.poseModel.verdictMargin);
+  // The verdict's outlook: its smallest bound, and per tolerance the share of the frames it was
+  // calibrated on (each clip left out) whose bound is within it, recounted from the frames.
+  const double bias = fit["error_line"]["bias"], scale = fit["error_line"]["scale"];
+  const double margin = fit["verdict"]["margin"];
+  EXPECT_DOUBLE_EQ(fit["verdict"]["smallest_bound"].get<double>(), std::max(0.0, bias) + margin);
+  ASSERT_EQ(fit["verdict"]["held_out_enough"].size(), 4u);
+  for (const nlohmann::json& outlook : fit["verdict"]["held_out_enough"]) {
+    const double tolerance = outlook["tolerance"];
+    int within = 0;
+    for (const nlohmann::json& frame : fit["frames"]) {
+      const double sigma = frame["left_out_sigma"];
+      within += std::max(0.0, bias + scale * sigma) + margin <= tolerance;
+    }
+    EXPECT_DOUBLE_EQ(outlook["enough"].get<double>(), within / 85.0) << outlook.dump();
+  }
+  EXPECT_EQ(fit["verdict"]["held_out_enough"][2]["tolerance_share"].get<double>(), 0.02);
+  EXPECT_NE(r.err.find("  verdict: error bound = predicted error + "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("held-out reference frames it calls enough at 1%: "), std::string::npos)
+      << r.err;
   EXPECT_EQ(one.frames, two.frames) << "the picks come from the main clip";
   EXPECT_EQ(one.drivenShapes, two.drivenShapes);
   EXPECT_EQ(one.poseModel.frameCount(), 61);
@@ -91,6 +110,10 @@ TEST(DbBuild, AlsoFitsTheModelOnMoreClipsAndKeepsThePicks) {
   r = runCli(dir, {"info", dir.file("two.dsdb")});
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("reference clip 2 (pose model only): driver " + sample("test.driver.pc2")),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("% of the cloth's rest diagonal: a lower coverage tolerance flags every "
+                       "frame)"),
             std::string::npos)
       << r.out;
 }

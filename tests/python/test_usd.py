@@ -119,6 +119,19 @@ def test_usd_bake_with_the_defaults_equals_the_cli_bake_with_the_pose_model(
             assert getattr(args, row["key"]) == getattr(defaults, row["key"]), row["key"]
 
 
+def test_usd_bake_prints_the_evaluators_warnings_as_the_cli_does(
+        driver_usd, pose_bakes, tmp_path, opencl_device):
+    # A tolerance below the database's smallest error bound: the library warns that every frame
+    # is flagged; the tool prints it as one "warning:" line, also with --quiet.
+    result = usd_bake("--db", pose_bakes.database, "--usd", driver_usd, "--prim",
+                      "/Character/Arm", "--out", tmp_path / "warned.usdc",
+                      "--coverage-tolerance", "0.001", "--quiet")
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("warning: the coverage tolerance 0.001 "), \
+        result.stderr
+    assert "every frame will be flagged for simulation" in lines[0]
+
+
 def test_usd_bake_through_the_api_on_the_host(driver_usd, cli_bakes, database, tmp_path,
                                               host_device):
     out = tmp_path / "cloth_host.usda"

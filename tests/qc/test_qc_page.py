@@ -370,6 +370,21 @@ def test_flagged_frames(shot):
     assert "coverage.png" in parsed.images
 
 
+def test_the_bakes_warnings_are_on_the_page(shot, pose):
+    # A tolerance below the smallest error bound the database's verdict gives: the bake warns
+    # that every frame is flagged, and the page shows that warning as the report words it.
+    page, report = page_of(shot, "warned", "--coverage-tolerance", "0.001")
+    assert any("every frame will be flagged" in w for w in report.get("warnings", [])), report
+    assert all(r["coverage"]["flagged"] for r in report["frames"])
+    parsed = parse_page(page)
+    shown = [text for key, text in sorted(parsed.paragraphs.items()) if key.startswith("warning-")]
+    assert shown == [f"The bake warned: {w}" for w in report["warnings"]]
+    assert "warning" in parsed.classes["warning-1"]
+    # A bake that warned of nothing shows no warning.
+    assert "warnings" not in pose["report"]
+    assert not [key for key in parse_page(pose["page"]).paragraphs if key.startswith("warning-")]
+
+
 def test_farm_chunks_give_one_verdict(shot):
     """Two chunk reports (the halves of the flagged bake) give the whole bake's verdict."""
     _, report = page_of(shot, "flagged", "--coverage-tolerance", LOW_TOLERANCE)

@@ -227,6 +227,9 @@ def merge_reports(paths: Sequence[str]) -> _Json:
             if known is None or known.get("skipped"):
                 frames[record["frame"]] = record
     merged = dict(first)
+    warnings = list(dict.fromkeys(w for r in reports for w in r.get("warnings", [])))
+    if warnings:
+        merged["warnings"] = warnings
     merged["frames"] = [frames[f] for f in sorted(frames)]
     merged["baked"] = sum(1 for r in merged["frames"] if not r.get("skipped"))
     merged["skipped"] = len(merged["frames"]) - merged["baked"]
@@ -711,6 +714,8 @@ td.weights { white-space: nowrap; }
 #truth { font-size: 15px; font-weight: normal; }
 .verdict.ok { border-color: #2a7; background: #eef8f1; }
 .verdict.simulate { border-color: #c33; background: #fbeeee; }
+.warning { font-size: 14px; padding: 6px 12px; margin: 8px 0; border-left: 6px solid #d90;
+           background: #fdf6e3; }
 img { max-width: 100%; border: 1px solid #eee; display: block; margin: 6px 0 16px; }
 code { background: #f4f4f4; padding: 0 3px; }
 """
@@ -1057,6 +1062,10 @@ def header_html(args: argparse.Namespace, report: _Json, evaluation: Optional[_J
                          f"({format_frame_range(missed)})")
             parts.append(f'<p class="verdict {"ok" if holds else "simulate"}" id="truth">'
                          f"{html.escape(text)}.</p>")
+    # What the bake warned about its inputs and settings, each as the report says it.
+    for index, warning in enumerate(report.get("warnings", []), 1):
+        parts.append(f'<p class="warning" id="warning-{index}">The bake warned: '
+                     f"{html.escape(warning)}</p>")
     parts.append(f'<table id="header">\n{body}\n</table>')
     return "\n".join(parts)
 

@@ -42,6 +42,7 @@ import os
 import re
 import sys
 import tempfile
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, Optional, SupportsFloat, SupportsIndex, TypedDict, Union
 
@@ -775,11 +776,17 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         # The output's time codes and the wind's time (frame / fps) follow the stage's rate.
         args.fps = args.fps or shot.time_codes_per_second
         settings = _settings(args, db)
-        result = bake(db, shot, args.out, device=args.device, settings=settings,
-                      out_prim=args.out_prim, up_axis=args.up_axis,
-                      meters_per_unit=args.meters_per_unit, fps=args.fps,
-                      check_topology=not args.ignore_topology, batch=args.batch,
-                      temporal_warmup=args.temporal_warmup, database_path=args.db)
+        # The evaluator's warnings (Python warnings) as `drivenshape bake` prints its own: one
+        # "warning:" line each on stderr, also with --quiet.
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = bake(db, shot, args.out, device=args.device, settings=settings,
+                          out_prim=args.out_prim, up_axis=args.up_axis,
+                          meters_per_unit=args.meters_per_unit, fps=args.fps,
+                          check_topology=not args.ignore_topology, batch=args.batch,
+                          temporal_warmup=args.temporal_warmup, database_path=args.db)
+        for warning in caught:
+            print(f"warning: {warning.message}", file=sys.stderr)
         if result["note"] and not args.quiet:
             print(f"warning: {result['note']}", file=sys.stderr)
         if not args.quiet:

@@ -37,6 +37,10 @@ inline constexpr double kAutoClipMixture = -1.0;
 /// the model over every clip at 10, 3 and 1 times a clip model's footing. Not below 1: the
 /// model over every clip has seen every frame a clip model has.
 inline constexpr std::array<double, 4> kClipMixtureWeights = {0.0, 10.0, 3.0, 1.0};
+/// The bake's default coverage tolerance, a share of the cloth's rest bounding-box diagonal.
+inline constexpr double kDefaultCoverageShare = 0.02;
+/// The tolerances (shares of that diagonal) `db build` states its verdict's outlook at.
+inline constexpr std::array<double, 4> kVerdictOutlookShares = {0.01, 0.015, 0.02, 0.03};
 
 struct PoseModelOptions {
   /// Rigid parts of the driver to find; 0 = found from the clip (findRigidParts, 2..8).
@@ -164,6 +168,9 @@ struct PoseModel {
   /// The verdict's bound on the mean vertex error at posterior deviation `sigma`:
   /// predictedError(sigma) + verdictMargin.
   double errorBound(double sigma) const { return predictedError(sigma) + verdictMargin; }
+  /// The smallest bound the verdict can give a frame, errorBound(0): at a coverage tolerance
+  /// below it every frame is flagged for simulation.
+  double smallestErrorBound() const { return errorBound(0.0); }
   int partCount() const { return static_cast<int>(parent.size()); }
   /// Features of one pose: 9 per part with a parent (its rotation relative to the parent's,
   /// minus the identity), 3 per root (the up axis in the root's frame, minus up).
@@ -189,6 +196,17 @@ struct PoseModel {
                                            : 0;
   }
 };
+
+/// The share of the reference frames whose held-out error bound (errorBound of the deviation
+/// they had when held out for the verdict's calibration: their clip left out with several
+/// clips, their cross-validation block with one) is within `tolerance`: what the verdict calls
+/// enough on shots like them. Needs the build's held-out figures (frameSigmas, leftOutSigmas);
+/// 0 for a model without them (one loaded from a file).
+double heldOutEnoughShare(const PoseModel& model, double tolerance);
+
+/// `value` (scene units) as a percentage of `cloth`'s rest bounding-box diagonal, rounded to two
+/// decimals: how the verdict's tolerances and bounds are stated to people.
+double percentOfDiagonal(double value, const Mesh& cloth);
 
 /// A rig's parts (`--rig`): the JSON text of a rig file (bone_names; driver_weights, one row of
 /// bone weights per driver vertex; optional bones [{name, parent}]). Every driver vertex goes to
