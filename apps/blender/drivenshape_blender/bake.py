@@ -92,6 +92,9 @@ class Bake:
                 f"'{described.get('weights')}' weights. Set Weights to Auto or Pose model, with a "
                 "database built with the pose model")
         self.tolerance = described.get("coverage_tolerance", -1.0)
+        # What the library warns of these settings on this database (a setting left unused, a
+        # tolerance below the smallest error bound the verdict gives), reported after the job.
+        self.warnings = list(self.evaluator.warnings)
         self.database = database
         self.topology_hash = database.driven_mesh.topology_hash
         self.plan = [(b.first, b.frames, b.solve_frames, len(b.warmup))

@@ -100,8 +100,13 @@ class _ShotOperator:
             return _report_failure(self, error)
         finally:
             window_manager.progress_end()
-        self.report({"INFO"}, summary)
+        self._report_done(summary, job.warnings)
         return {"FINISHED"}
+
+    def _report_done(self, summary, warnings):
+        self.report({"INFO"}, summary)
+        for warning in warnings:
+            self.report({"WARNING"}, warning)
 
     def invoke(self, context, _event):
         # From the UI: a few frames per timer tick, progress in the status bar, Esc cancels.
@@ -142,7 +147,7 @@ class _ShotOperator:
             self._bake.restore_frame()
             return _report_failure(self, error)
         self._end(context)
-        self.report({"INFO"}, summary)
+        self._report_done(summary, self._bake.warnings)
         return {"FINISHED"}
 
     def _cancelled(self):
