@@ -92,8 +92,11 @@ void infoDatabase(const std::string& path) {
   } else {
     std::cout << "  pose model: " << model.partCount() << " rigid parts, " << model.frameCount()
               << " reference frames, " << model.featureCount() << " features (velocity over "
-              << model.velocityLag << ", history over " << model.historyFrames << " frames), rank "
-              << model.rank() << "; cross-validated mean vertex error "
+              << model.velocityLag << ", history over " << model.historyFrames << " frames";
+    if (model.siblingWeight > 0.0) {
+      std::cout << ", sibling parts at weight " << model.siblingWeight;
+    }
+    std::cout << "), rank " << model.rank() << "; cross-validated mean vertex error "
               << model.crossValidationError << " (binding " << model.bindingError
               << "), predicted error " << model.errorBias << " + " << model.errorScale << " sigma";
     if (model.clipMixtureWeight > 0.0) {

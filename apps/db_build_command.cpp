@@ -339,6 +339,7 @@ void writeModelJson(const std::string& path, const Database& db) {
       {"kernel",
        {{"length_scale", m.lengthScale}, {"linear_weight", m.linearWeight}, {"ridge", m.ridge}}},
       {"rank", m.rank()},
+      {"sibling_weight", m.siblingWeight},
       {"cross_validation_error", m.crossValidationError},
       {"binding_error", m.bindingError},
       {"error_line", {{"bias", m.errorBias}, {"scale", m.errorScale}}},

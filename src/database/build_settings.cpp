@@ -116,6 +116,14 @@ std::vector<BuildSetting> makeTable() {
          return o.model.historyFrames == kAutoHistory ? std::string("auto")
                                                       : std::to_string(o.model.historyFrames);
        }});
+  rows.push_back(
+      {"model_siblings", "--model-siblings", "W",
+       "weight of the pose model's sibling features: the relative rotation of each pair of parts "
+       "with the same parent (two thighs), so the cloth between them sees both (0 = off)",
+       [](const BuildSetting& self, DatabaseBuildOptions& o, const std::string& text) {
+         o.model.siblingWeight = realNumber(self, text, 0.0, 100.0, "a weight from 0 to 100");
+       },
+       [](const DatabaseBuildOptions& o) { return numberText(o.model.siblingWeight); }});
   rows.push_back({"model_rank", "--model-rank", "N", "basis shapes the pose model keeps",
                   [](const BuildSetting& self, DatabaseBuildOptions& o, const std::string& text) {
                     o.model.rank =

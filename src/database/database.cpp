@@ -125,6 +125,10 @@ std::uint64_t Database::contentHash() const {
     hasher.add(m.features.data(), m.features.size() * sizeof(float));
     hasher.add(m.coefficients.data(), m.coefficients.size() * sizeof(float));
     hasher.add(m.basis.data(), m.basis.size() * sizeof(float));
+    if (m.siblingWeight > 0.0) {
+      // Only models with sibling features hash their weight: the others keep their hash.
+      hasher.addValue(m.siblingWeight);
+    }
     if (m.clipMixtureWeight > 0.0) {
       // Only models with per-clip models hash them: the others keep their hash.
       hasher.addValue(m.clipMixtureWeight);
@@ -216,6 +220,9 @@ json poseModelJson(const PoseModel& model) {
               {"binding_error", model.bindingError},
               {"verdict_level", model.verdictLevel},
               {"verdict_margin", model.verdictMargin}};
+  if (model.siblingWeight > 0.0) {
+    out["sibling_weight"] = model.siblingWeight;
+  }
   if (model.clipMixtureWeight > 0.0) {
     out["clip_mixture_weight"] = model.clipMixtureWeight;
     out["clip_frames"] = model.clipSizes;
@@ -464,6 +471,8 @@ void readPoseModel(const BlockReader& blocks, const json& info, const std::strin
   // Written since 0.2.0; a model without them bounds by its predicted error (margin 0).
   m.verdictLevel = info.contains("verdict_level") ? info.at("verdict_level").get<double>() : 0.0;
   m.verdictMargin = info.contains("verdict_margin") ? info.at("verdict_margin").get<double>() : 0.0;
+  // Written since 0.2.0 by a build with sibling features (a rig with parts of one parent).
+  m.siblingWeight = info.contains("sibling_weight") ? info.at("sibling_weight").get<double>() : 0.0;
   m.partOf = blocks.read<int>("model_part_of", static_cast<std::size_t>(db.driverVertexCount()));
   m.parent = blocks.read<int>("model_parent", static_cast<std::size_t>(parts));
   m.frames = blocks.read<int>("model_frames", static_cast<std::size_t>(frames));
@@ -496,6 +505,12 @@ void readPoseModel(const BlockReader& blocks, const json& info, const std::strin
       DS_THROW(kInput, where, ": part ", p, " has parent ", m.parent[p],
                "; the file is corrupt, rebuild it");
     }
+  }
+  if (info.contains("sibling_weight") &&
+      !(std::isfinite(m.siblingWeight) && m.siblingWeight > 0.0 && !m.siblingPairs().empty())) {
+    DS_THROW(kInput, where, ": sibling_weight ", m.siblingWeight,
+             " is not a positive weight of parts with a common parent; the file is corrupt, "
+             "rebuild it");
   }
   const bool finite = std::isfinite(m.lengthScale) && m.lengthScale > 0 &&
                       std::isfinite(m.linearWeight) && std::isfinite(m.ridge) && m.ridge > 0 &&

@@ -398,6 +398,7 @@ PosePredictor::PosePredictor(const PoseModel& model, const Mesh& driver) : mMode
   mPartVertices = std::move(g.vertices);
   mRestCenters = std::move(g.centers);
   mRestCentered = std::move(g.centered);
+  mSiblingPairs = model.siblingPairs();
   if (model.coefficients.empty()) {
     return;
   }
@@ -489,6 +490,17 @@ void PosePredictor::poseFeatures(const float* frame, double* out) const {
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
           out[o++] = relative(i, j);
+        }
+      }
+    }
+  }
+  if (mModel.siblingWeight > 0.0) {
+    for (const std::array<int, 2>& pair : mSiblingPairs) {
+      const Matrix3d relative =
+          rotation[pair[0]].transpose() * rotation[pair[1]] - Matrix3d::Identity();
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          out[o++] = mModel.siblingWeight * relative(i, j);
         }
       }
     }
@@ -1046,6 +1058,14 @@ PoseModel fitPoseModel(const Mesh& driver, const Mesh& driven, const float* driv
       historyFramesFor(options, std::max(1, static_cast<int>(options.clipSizes.size())));
   model.frames = frames;
   setRigidParts(model, driver, driverFrames, t, options, threads, log);
+  model.siblingWeight = model.siblingPairs().empty() ? 0.0 : options.siblingWeight;
+  if (log != nullptr && model.siblingWeight > 0.0) {
+    *log << "  pose model: sibling parts";
+    for (const std::array<int, 2>& pair : model.siblingPairs()) {
+      *log << " " << pair[0] << "-" << pair[1];
+    }
+    *log << " see each other (weight " << model.siblingWeight << ")\n";
+  }
 
   // Features of every reference frame.
   model.lengthScale = 1.0;  // placeholder until chosen; the predictor below needs a valid model

@@ -98,6 +98,17 @@ std::vector<float> chainFrames(const Mesh& mesh, const std::vector<double>& a1,
   return out;
 }
 
+/// A pose model's parts for cubeChain(): one part per cube, each the child of the one before.
+PoseModel chainModel() {
+  PoseModel model;
+  model.partOf.assign(24, 0);
+  for (int v = 8; v < 24; ++v) {
+    model.partOf[v] = v < 16 ? 1 : 2;
+  }
+  model.parent = {-1, 0, 1};
+  return model;
+}
+
 TEST(PoseModel, RigidPartsOfAnArticulatedChainAreItsCubes) {
   const Mesh mesh = cubeChain();
   std::mt19937 rng(7);
@@ -123,12 +134,7 @@ TEST(PoseModel, RigidPartsOfAnArticulatedChainAreItsCubes) {
 
 TEST(PoseModel, FeaturesAreJointRotationsWhateverTheCharacterStands) {
   const Mesh mesh = cubeChain();
-  PoseModel model;
-  model.partOf.assign(24, 0);
-  for (int v = 8; v < 24; ++v) {
-    model.partOf[v] = v < 16 ? 1 : 2;
-  }
-  model.parent = {-1, 0, 1};
+  PoseModel model = chainModel();
   const PosePredictor predictor(model, mesh);
   ASSERT_EQ(model.poseFeatureCount(), 3 + 9 + 9);
   const double a1 = 0.7, a2 = -0.4;
@@ -154,6 +160,37 @@ TEST(PoseModel, FeaturesAreJointRotationsWhateverTheCharacterStands) {
       EXPECT_NEAR(x[12 + i], r2(i / 3, i % 3), testing::kAlignTol) << "joint 2 entry " << i;
     }
   }
+}
+
+TEST(PoseModel, SiblingFeaturesAreTheRotationOfOnePartSeenFromItsSibling) {
+  // The chain's cubes 1 and 2 declared children of cube 0 (siblings): the extra block is the
+  // weight times (R1^T R2 - I), the rotation of cube 2 seen from cube 1 (here the hinge's a2,
+  // whatever the world rotation); off (weight 0) and on a chain there is no such block.
+  const Mesh mesh = cubeChain();
+  PoseModel model = chainModel();
+  model.siblingWeight = 0.5;
+  EXPECT_TRUE(model.siblingPairs().empty());
+  EXPECT_EQ(model.poseFeatureCount(), 3 + 9 + 9);
+  model.parent = {-1, 0, 0};
+  ASSERT_EQ(model.siblingPairs(), (std::vector<std::array<int, 2>>{{1, 2}}));
+  ASSERT_EQ(model.poseFeatureCount(), 3 + 9 + 9 + 9);
+  const PosePredictor predictor(model, mesh);
+  const double a1 = 0.7, a2 = -0.4;
+  const Eigen::Matrix3d world =
+      Eigen::AngleAxisd(0.9, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
+  const Eigen::Matrix3d sibling = 0.5 * (Eigen::AngleAxisd(a2, Eigen::Vector3d::UnitY()).matrix() -
+                                         Eigen::Matrix3d::Identity());
+  for (const Eigen::Matrix3d& q :
+       std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity(), world}) {
+    const std::vector<float> frame = chainFrames(mesh, {a1}, {a2}, q);
+    std::vector<double> x(30);
+    predictor.poseFeatures(frame.data(), x.data());
+    for (int i = 0; i < 9; ++i) {
+      EXPECT_NEAR(x[21 + i], sibling(i / 3, i % 3), testing::kAlignTol) << "entry " << i;
+    }
+  }
+  model.siblingWeight = 0.0;
+  EXPECT_EQ(model.poseFeatureCount(), 3 + 9 + 9);
 }
 
 TEST_F(PoseModelClTest, TheModelBeatsTheBindingOnFramesItNeverSaw) {
@@ -485,6 +522,30 @@ TEST(PoseModel, TheDatabaseKeepsTheModel) {
   Database without = db;
   without.poseModel = PoseModel();
   EXPECT_NE(without.contentHash(), db.contentHash()) << "the model is part of the content";
+  // Sibling features (the sample's chain declared a root with two children): the weight comes
+  // back and is part of the content; a weight on parts without a common parent is refused.
+  Database siblings = db;
+  PoseModel& m = siblings.poseModel;
+  m.parent = {-1, 0, 0};
+  m.siblingWeight = 0.5;
+  m.features.assign(static_cast<std::size_t>(m.frameCount() * m.featureCount()), 0.25f);
+  saveDatabase(dir.file("siblings.dsdb"), siblings);
+  const Database siblingsBack = loadDatabase(dir.file("siblings.dsdb"));
+  EXPECT_EQ(siblingsBack.poseModel.siblingWeight, 0.5);
+  EXPECT_EQ(siblingsBack.poseModel.features, m.features);
+  EXPECT_EQ(siblingsBack.contentHash(), siblings.contentHash());
+  Database heavier = siblings;
+  heavier.poseModel.siblingWeight = 0.25;
+  EXPECT_NE(heavier.contentHash(), siblings.contentHash()) << "the weight is part of the content";
+  Database chain = db;
+  chain.poseModel.siblingWeight = 0.5;  // the sample's parts are a chain: no pair
+  saveDatabase(dir.file("chain.dsdb"), chain);
+  try {
+    loadDatabase(dir.file("chain.dsdb"));
+    ADD_FAILURE() << "a sibling weight without sibling parts was read";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("sibling_weight"), std::string::npos) << error.what();
+  }
 }
 
 TEST(PoseModel, RigFilesGiveThePartsOfTheirHeaviestBones) {

@@ -282,6 +282,19 @@ void writeDatabaseFiles(const fs::path& corpus, const fs::path& regressions) {
   model.verdictLevel = 0.9;
   model.verdictMargin = 0.003;
   writeBytes(corpus / "pose_model.dsdb", databaseBytes(pose));
+  // The same model over three parts, two of one parent, with sibling features (db build
+  // --model-siblings): 3 + 9 + 9 pose features and 9 for the pair, per frame.
+  ds::Database siblings = pose;
+  ds::PoseModel& three = siblings.poseModel;
+  for (std::size_t v = 0; v < three.partOf.size(); ++v) {
+    three.partOf[v] = static_cast<int>(v % 3);
+  }
+  three.parent = {-1, 0, 0};
+  three.siblingWeight = 0.5;
+  three.features.assign(2 * 30, 0.0f);
+  three.features[3] = 0.01f;
+  three.features[30 + 21] = -0.02f;
+  writeBytes(corpus / "pose_model_siblings.dsdb", databaseBytes(siblings));
   // The same model with per-clip models (db build --model-per-clip): one frame per clip.
   model.clipMixtureWeight = 1.0;
   model.clipSizes = {1, 1};

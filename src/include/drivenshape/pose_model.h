@@ -56,6 +56,10 @@ struct PoseModelOptions {
   /// (DESIGN.md: read from the cache before a chunk's first frame).
   int velocityLag = 3;
   int historyFrames = kAutoHistory;
+  /// The weight of the sibling features (PoseModel::siblingWeight): each pair of parts with the
+  /// same parent (two thighs, two upper arms) also gives its relative rotation, times this
+  /// weight; 0 = off. A rig without such pairs stores 0.
+  double siblingWeight = 0.5;
   /// Basis shapes kept (the rank of the correction; at most the clip's frame count).
   int rank = 64;
   /// Frames of each reference clip in the order the frames are given (their sum is the frame
@@ -98,6 +102,11 @@ struct ClipMixtureTrial {
 struct PoseModel {
   std::vector<int> partOf;  ///< Vp: the rigid part of every driver vertex
   std::vector<int> parent;  ///< per part: the parent part, -1 for the root
+  /// With siblingWeight > 0 the pose features also hold, per pair of parts with the same parent
+  /// (siblingPairs), their relative rotation minus the identity times this weight: what one leg
+  /// does to the cloth between the legs is how it sits against the other. 0: none (no such
+  /// pairs, built with it off, or a database written before 0.2.0).
+  double siblingWeight = 0.0;
   std::array<double, 3> up = {0.0, 0.0, 1.0};
   int velocityLag = 0;
   int historyFrames = 0;
@@ -172,12 +181,30 @@ struct PoseModel {
   /// below it every frame is flagged for simulation.
   double smallestErrorBound() const { return errorBound(0.0); }
   int partCount() const { return static_cast<int>(parent.size()); }
+  /// The pairs of parts (a < b) with the same parent, in order of a then b.
+  std::vector<std::array<int, 2>> siblingPairs() const {
+    std::vector<std::array<int, 2>> pairs;
+    for (int a = 0; a < partCount(); ++a) {
+      for (int b = a + 1; b < partCount(); ++b) {
+        if (parent[static_cast<std::size_t>(a)] >= 0 &&
+            parent[static_cast<std::size_t>(a)] == parent[static_cast<std::size_t>(b)]) {
+          pairs.push_back({a, b});
+        }
+      }
+    }
+    return pairs;
+  }
   /// Features of one pose: 9 per part with a parent (its rotation relative to the parent's,
-  /// minus the identity), 3 per root (the up axis in the root's frame, minus up).
+  /// minus the identity), 3 per root (the up axis in the root's frame, minus up); with
+  /// siblingWeight > 0, 9 per sibling pair (their relative rotation, minus the identity, times
+  /// the weight).
   int poseFeatureCount() const {
     int count = 0;
     for (int p : parent) {
       count += p < 0 ? 3 : 9;
+    }
+    if (siblingWeight > 0.0) {
+      count += 9 * static_cast<int>(siblingPairs().size());
     }
     return count;
   }
@@ -312,9 +339,10 @@ class PosePredictor {
   std::vector<std::vector<int>> mPartVertices;
   std::vector<Eigen::Vector3d> mRestCenters;
   std::vector<Eigen::Matrix3Xd> mRestCentered;
-  Eigen::MatrixXd mFeatures;       ///< T x d (double)
-  Eigen::MatrixXd mCoefficients;   ///< rank x T
-  Eigen::MatrixXd mKernelInverse;  ///< (K + lambda I)^-1, for the variance
+  std::vector<std::array<int, 2>> mSiblingPairs;  ///< PoseModel::siblingPairs()
+  Eigen::MatrixXd mFeatures;                      ///< T x d (double)
+  Eigen::MatrixXd mCoefficients;                  ///< rank x T
+  Eigen::MatrixXd mKernelInverse;                 ///< (K + lambda I)^-1, for the variance
   /// The per-clip models (PoseModel::clipMixtureWeight > 0): each clip's rows of the reference
   /// frames, coefficients (rank x count) and (K_k + lambda I)^-1.
   struct ClipModel {
