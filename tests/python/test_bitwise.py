@@ -43,9 +43,8 @@ def test_every_db_build_setting_is_a_keyword(cli, data, tmp_path):
     # away from their defaults, the two tools build the same database.
     # ("model" is given its default, pose: none would leave the model's settings unused.)
     given = {"count": 7, "duplicate_tolerance": 0.002, "model": "pose", "model_parts": 3,
-             "model_velocity": 2,
-             "model_history": 0, "model_siblings": 0.25, "model_rank": 16,
-             "model_per_clip": "off", "verdict_level": 0.8}
+             "model_velocity": 2, "model_history": 0, "model_siblings": 0.25,
+             "model_rank": 16, "model_per_clip": "off", "verdict_level": 0.8}
     # Every setting the docstring lists (one line each, from the table) is set here.
     listed = re.findall(r"^  ([a-z_]+) \(--", ds.build_database.__doc__, re.MULTILINE)
     assert sorted(listed) == sorted(given), listed
