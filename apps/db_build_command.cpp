@@ -325,8 +325,7 @@ void writeModelJson(const std::string& path, const Database& db) {
   }
   // The share of the held-out reference frames the verdict calls enough, per tolerance (a
   // share of the cloth's rest diagonal).
-  const Mesh& cloth = db.drivenMesh;
-  const double diagonal = computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+  const double diagonal = boundsDiagonal(db.drivenMesh);
   nlohmann::json heldOutEnough = nlohmann::json::array();
   for (double share : kVerdictOutlookShares) {
     heldOutEnough.push_back({{"tolerance_share", share},

@@ -399,6 +399,8 @@ PosePredictor::PosePredictor(const PoseModel& model, const Mesh& driver) : mMode
   mRestCenters = std::move(g.centers);
   mRestCentered = std::move(g.centered);
   mSiblingPairs = model.siblingPairs();
+  mPoseFeatureCount = model.poseFeatureCount();
+  mFeatureCount = model.featureCount();
   if (model.coefficients.empty()) {
     return;
   }
@@ -438,7 +440,7 @@ Eigen::MatrixXd PosePredictor::blockFeatures(const float* driverFrames,
                                              const EarlierFrames& history, int threads) const {
   const int count = static_cast<int>(frames.size());
   const int total = count + static_cast<int>(history.frames.size());
-  const int n = mModel.poseFeatureCount(), d = mModel.featureCount();
+  const int n = mPoseFeatureCount, d = mFeatureCount;
   const std::size_t values = mModel.partOf.size() * 3;
   // The block: the wanted frames and the earlier ones by frame number (features() walks back
   // through consecutive numbers).
@@ -509,7 +511,7 @@ void PosePredictor::poseFeatures(const float* frame, double* out) const {
 
 void PosePredictor::features(const double* pose, const int* frames, int count, int i,
                              double* out) const {
-  const int n = mModel.poseFeatureCount();
+  const int n = mPoseFeatureCount;
   // earlier[j] = block index of frame frames[i] - j, the earliest found standing in.
   const int need = mModel.historyNeeded();
   std::vector<int> earlier(static_cast<std::size_t>(need) + 1, i);
@@ -541,7 +543,7 @@ void PosePredictor::features(const double* pose, const int* frames, int count, i
 }
 
 PosePredictor::Prediction PosePredictor::predict(const double* features) const {
-  const int d = mModel.featureCount();
+  const int d = mFeatureCount;
   const Eigen::Map<const Eigen::RowVectorXd> x(features, d);
   const VectorXd k =
       kernelMatrix(x, mFeatures, mModel.lengthScale, mModel.linearWeight).transpose();
@@ -1002,7 +1004,7 @@ void storeFit(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis, int
 /// reference frames it calls enough at each of kVerdictOutlookShares of the rest cloth's
 /// (`cloth`) diagonal.
 void logVerdict(const PoseModel& model, const Mesh& cloth, std::ostream& log) {
-  const double diagonal = computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+  const double diagonal = boundsDiagonal(cloth);
   log << "  verdict: error bound = predicted error + " << model.verdictMargin << " (holds on "
       << 100.0 * model.verdictLevel << "% of the held-out reference frames), never below "
       << model.smallestErrorBound() << " (" << percentOfDiagonal(model.smallestErrorBound(), cloth)
@@ -1030,8 +1032,7 @@ double heldOutEnoughShare(const PoseModel& model, double tolerance) {
 }
 
 double percentOfDiagonal(double value, const Mesh& cloth) {
-  const double diagonal = computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
-  return std::round(10000.0 * value / diagonal) / 100.0;
+  return std::round(10000.0 * value / boundsDiagonal(cloth)) / 100.0;
 }
 
 int historyFramesFor(const PoseModelOptions& options, int clipCount) {

@@ -161,4 +161,8 @@ Bounds computeBounds(const float* xyz, int vertexCount) {
   return bounds;
 }
 
+double boundsDiagonal(const Mesh& mesh) {
+  return computeBounds(mesh.positions.data(), mesh.vertexCount()).diagonal();
+}
+
 }  // namespace drivenshape

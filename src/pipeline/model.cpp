@@ -122,9 +122,7 @@ double toleranceOf(const Database& db, const EvaluatorSettings& settings) {
   if (settings.coverageTolerance > 0) {
     return settings.coverageTolerance;
   }
-  const Mesh& cloth = db.drivenMesh;
-  return kDefaultCoverageShare *
-         computeBounds(cloth.positions.data(), cloth.vertexCount()).diagonal();
+  return kDefaultCoverageShare * boundsDiagonal(db.drivenMesh);
 }
 
 /// The settings' warnings (those they leave unused), and one when the pose model's coverage

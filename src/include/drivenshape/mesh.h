@@ -60,6 +60,8 @@ struct Bounds {
   float diagonal() const { return (max - min).norm(); }
 };
 Bounds computeBounds(const float* xyz, int vertexCount);
+/// The diagonal of `mesh`'s bounding box (its rest positions): the scale tolerances are shares of.
+double boundsDiagonal(const Mesh& mesh);
 
 /// Reads a Wavefront OBJ: `v`, `vt`, `f` (any polygon size, v, v/vt, v//vn, v/vt/vn, negative
 /// indices), `g`/`o` groups; ignores normals, materials and smoothing. Throws Error(kInput)

@@ -340,9 +340,12 @@ class PosePredictor {
   std::vector<Eigen::Vector3d> mRestCenters;
   std::vector<Eigen::Matrix3Xd> mRestCentered;
   std::vector<std::array<int, 2>> mSiblingPairs;  ///< PoseModel::siblingPairs()
-  Eigen::MatrixXd mFeatures;                      ///< T x d (double)
-  Eigen::MatrixXd mCoefficients;                  ///< rank x T
-  Eigen::MatrixXd mKernelInverse;                 ///< (K + lambda I)^-1, for the variance
+  /// PoseModel::poseFeatureCount() and featureCount(), counted once rather than per frame.
+  int mPoseFeatureCount = 0;
+  int mFeatureCount = 0;
+  Eigen::MatrixXd mFeatures;       ///< T x d (double)
+  Eigen::MatrixXd mCoefficients;   ///< rank x T
+  Eigen::MatrixXd mKernelInverse;  ///< (K + lambda I)^-1, for the variance
   /// The per-clip models (PoseModel::clipMixtureWeight > 0): each clip's rows of the reference
   /// frames, coefficients (rank x count) and (K_k + lambda I)^-1.
   struct ClipModel {
