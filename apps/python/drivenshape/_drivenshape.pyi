@@ -654,7 +654,7 @@ def build_database(driver_mesh: Mesh | str | os.PathLike[str], driven_mesh: Mesh
       model_siblings (--model-siblings, default 0.5): weight of the pose model's sibling features: the relative rotation of each pair of parts with the same parent (two thighs), so the cloth between them sees both (0 = off)
       model_rank (--model-rank, default 64): basis shapes the pose model keeps
       model_per_clip (--model-per-clip, default auto): models of each reference clip mixed into the pose model's prediction by how close a pose is to each clip (W = the weight of the model over every clip): auto = with three or more clips, the weight of 10, 3 or 1 that best predicts each clip left out in turn, when at least 1% better than none; off = none
-      verdict_level (--verdict-level, default 0.9): share of frames the coverage verdict's error bound is calibrated to hold for (split-conformal on the held-out reference frames; bake --coverage-tolerance flags a frame whose bound is over it)
+      verdict_level (--verdict-level, default 0.92): share of frames the coverage verdict's error bound is calibrated to hold for (split-conformal on the held-out reference frames; bake --coverage-tolerance flags a frame whose bound is over it)
     """
 def convert_up_axis(positions: numpy.typing.ArrayLike, from_axis: str, to_axis: str) -> numpy.typing.NDArray[numpy.float32]:
     """

@@ -73,7 +73,7 @@ struct PoseModelOptions {
   double clipMixtureWeight = kAutoClipMixture;
   /// The share of frames the coverage verdict's bound is calibrated to hold for (PoseModel::
   /// verdictMargin), in (0, 1).
-  double verdictLevel = 0.9;
+  double verdictLevel = 0.92;
   /// Host threads (0 = all cores). The result does not depend on it.
   int threads = 0;
 };
