@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include <drivenshape/error.h>
+#include <drivenshape/version.h>
 
 #include "executor.h"
 #include "finite.h"
@@ -147,10 +148,10 @@ struct Evaluator::Impl {
   /// The settings hash in the layout the bake's EXR headers have had since version 0.1 (a
   /// file-format contract: a resume compares it): the settings table's rows in their order
   /// (pipeline::hashSettings), then what stages added since append (Stage::addToHash).
-  std::uint64_t settingsHash(const OutputHashFields* output) const {
+  std::uint64_t settingsHash(const OutputHashFields* output, const char* version) const {
     // Of the built-in stages, the resolution appends its side table, only when some driven
     // vertex lives inside (never for cloth).
-    Hasher tail(pipeline::hashSettings(model, output));
+    Hasher tail(pipeline::hashSettings(model, output, version));
     executor.addToHash(tail);
     return tail.value();
   }
@@ -235,11 +236,16 @@ void Evaluator::resetHistory() {
 }
 
 std::uint64_t Evaluator::settingsHash() const {
-  return mImpl->settingsHash(nullptr);
+  return mImpl->settingsHash(nullptr, kVersion);
 }
 
 std::uint64_t Evaluator::settingsHash(const OutputHashFields& output) const {
-  return mImpl->settingsHash(&output);
+  return mImpl->settingsHash(&output, kVersion);
+}
+
+std::uint64_t Evaluator::settingsHashOfVersion(const std::string& version,
+                                               const OutputHashFields* output) const {
+  return mImpl->settingsHash(output, version.c_str());
 }
 
 std::string Evaluator::describeSettings() const {

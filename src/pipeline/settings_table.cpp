@@ -685,7 +685,8 @@ const std::vector<SettingRow>& settingRows() {
   return rows;
 }
 
-std::uint64_t hashSettings(const Model& model, const OutputHashFields* output) {
+std::uint64_t hashSettings(const Model& model, const OutputHashFields* output,
+                           const char* version) {
   const HashInput input{model, output};
   Hasher hasher;
   hasher.addValue(model.db.contentHash());
@@ -694,7 +695,7 @@ std::uint64_t hashSettings(const Model& model, const OutputHashFields* output) {
       row.hash(input, hasher);
     }
   }
-  hasher.addString(kVersion);
+  hasher.addString(version);
   std::uint64_t value = hasher.value();
   for (const SettingRow& row : settingRows()) {
     if (row.hashAfterVersion != nullptr) {

@@ -13,6 +13,11 @@ compares with the recorded goldens (tests/data/golden/f302ac6.json), exactly:
 
   * the report's settings_hash.
 
+A binary of another version than the recording's writes its version string into every file
+(dsToolVersion) and into the settings hash: its files are then compared byte for byte as if
+stamped with the recorded version and settings hash (golden_pixels.restamped_sha256), and the
+settings hash is only reported (tests/pipeline/test_settings_hash pins its layout).
+
 Configurations whose default output changed on purpose after the recording bake with the flags
 that restore the recorded output (golden_bakes.SINCE_RECORDING: --zip-encoder openexr for every
 configuration, --posmap-channels legacy).
@@ -52,10 +57,13 @@ def table_defaults(settings_doc):
     return {row["report_key"]: row["default"] for row in table if row.get("report_key")}
 
 
-def compare_bake(expected, actual, defaults=None):
+def compare_bake(expected, actual, defaults=None, version_changed=False):
     """(problems, notes): lines naming config/device/frame/field for each difference.
     `defaults`: the settings table's {report key: default}; a report setting the recording
-    lacks that holds its default is a setting added since, which left the bake as it was."""
+    lacks that holds its default is a setting added since, which left the bake as it was.
+    version_changed: the binary is another version than the recording's, so the files are
+    compared byte for byte as restamped with the recorded version and settings hash (the hash
+    hashes the version string; tests/pipeline/test_settings_hash pins its layout)."""
     tag = f"{expected['config']} {expected['device']}"
     problems, notes = [], []
 
@@ -117,7 +125,7 @@ def compare_bake(expected, actual, defaults=None):
                 pixels += 1
             else:
                 bad.append(frame)
-            if have["bytes"] == hashes["bytes"]:
+            if (have["restamped"] if version_changed else have["bytes"]) == hashes["bytes"]:
                 same_bytes += 1
             elif have["pixels"] == hashes["pixels"]:
                 bad.append(f"{frame} (same pixels, other file bytes)")
@@ -132,7 +140,10 @@ def compare_bake(expected, actual, defaults=None):
     if expected["info"]["device"] != actual["info"]["device"]:
         notes.append(f"{tag}: device '{actual['info']['device']}' (recorded on "
                      f"'{expected['info']['device']}')")
-    if expected["info"]["settings_hash"] != actual["info"]["settings_hash"]:
+    if version_changed:
+        notes.append(f"{tag}: settings hash {actual['info']['settings_hash']} (recorded "
+                     f"{expected['info']['settings_hash']} by another version; not compared)")
+    elif expected["info"]["settings_hash"] != actual["info"]["settings_hash"]:
         problems.append(f"{tag}: settings hash {actual['info']['settings_hash']} (recorded "
                         f"{expected['info']['settings_hash']})")
     return problems, notes, counts, report_problems
@@ -190,19 +201,35 @@ def main():
             print(f"configuration {name}: + {' '.join(golden_bakes.SINCE_RECORDING[name])} "
                   "(a default changed since the recording; golden_bakes.SINCE_RECORDING)")
 
+    expected = {(b["config"], b["device"]): b for b in golden["bakes"]}
+    version = subprocess.run([args.cli, "--version"], capture_output=True, text=True,
+                             check=True).stdout.strip()
+    recorded_version = golden["binary"]["version"]
+    version_changed = version != recorded_version
+    restamp = None
+    if version_changed:
+        print(f"{version}, recorded by {recorded_version}: files are compared byte for byte as "
+              "if stamped with the recorded version and settings hash (dsToolVersion, "
+              "dsSettingsHash)")
+
+        def restamp(config, device):
+            if (config, device) not in expected:
+                return None
+            return {"dsToolVersion": recorded_version.split()[-1],
+                    "dsSettingsHash": expected[(config, device)]["info"]["settings_hash"]}
+
     work = args.work or tempfile.mkdtemp(prefix="ds-golden-check-")
     start = time.monotonic()
     try:
         baked = golden_bakes.bake_all(os.path.abspath(args.cli), work, configs, devices,
                                       keep=args.keep, log=lambda line: print("  " + line),
-                                      since_recording=True)
+                                      since_recording=True, restamp=restamp)
     except RuntimeError as error:
         print(f"FAIL bake: {error}")
         print(f"(work folder kept: {work})")
         return 1
     seconds = time.monotonic() - start
 
-    expected = {(b["config"], b["device"]): b for b in golden["bakes"]}
     defaults = table_defaults(args.settings_doc)
     problems, notes, lines = [], [], []
     for bake in baked["bakes"]:
@@ -210,7 +237,8 @@ def main():
         if key not in expected:
             problems.append(f"{key[0]} {key[1]}: not in the goldens")
             continue
-        p, n, counts, report_problems = compare_bake(expected[key], bake, defaults)
+        p, n, counts, report_problems = compare_bake(expected[key], bake, defaults,
+                                                     version_changed)
         problems += p
         notes += n
         parts = []

@@ -191,9 +191,11 @@ def strip_report(report):
 
 
 def bake_all(cli, work, configs=None, devices=None, keep=False, log=print, float_text=None,
-             since_recording=False):
+             since_recording=False, restamp=None):
     """Builds the database and runs every (config, device) bake with `cli`, one at a time.
-    With since_recording, a configuration's SINCE_RECORDING flags follow its own.
+    With since_recording, a configuration's SINCE_RECORDING flags follow its own. With
+    `restamp` (config, device -> {attribute: value} or None), each EXR's hashes also hold its
+    bytes restamped with those header values (golden_pixels.restamped_sha256).
 
     Returns {"database": {...}, "bakes": [{"config", "device", "flags", "summary", "frames",
     "exr", "posmap", "info", "seconds"}]}. Bake folders are removed after hashing unless keep.
@@ -232,16 +234,18 @@ def bake_all(cli, work, configs=None, devices=None, keep=False, log=print, float
             summary, frames, info = strip_report(report)
             if device != "host" and info["device"] == "host":
                 raise RuntimeError(f"{name}/{device}: the bake ran on the host path, not OpenCL")
+            stamp = restamp(name, device) if restamp else None
             exr = {}
             for frame in FRAMES:
                 exr[str(frame)] = golden_pixels.exr_hashes(
-                    golden_pixels.expand_pattern(pattern, frame))
+                    golden_pixels.expand_pattern(pattern, frame), stamp)
             posmap = None
             if "--posmap" in flags:
                 posmap = {}
                 for frame in FRAMES:
                     posmap[str(frame)] = golden_pixels.exr_hashes(
-                        golden_pixels.expand_pattern(os.path.join(folder, POSMAP_NAME), frame))
+                        golden_pixels.expand_pattern(os.path.join(folder, POSMAP_NAME), frame),
+                        stamp)
             bake = {"config": name, "device": device, "flags": flags, "summary": summary,
                     "frames": frames, "exr": exr, "info": info, "seconds": round(seconds, 2)}
             if posmap is not None:

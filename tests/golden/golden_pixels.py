@@ -61,8 +61,32 @@ def _attribute_text(value):
     return repr(value)
 
 
-def exr_hashes(path):
-    """{"pixels": sha256 of the decoded pixels, "bytes": of the file, "header": of the header}."""
+def restamped_sha256(path, values):
+    """sha256 of the file's bytes with each string header attribute named in `values` holding
+    that value instead (same length only: the header keeps its size, the offset table its
+    offsets): the bytes a file would have had if written by another version, whose version
+    string and settings hash (which hashes the version) were these. An attribute the file does
+    not hold (a position map has no settings hash) is left out; an attribute whose value has
+    another length makes it a hash of nothing: None."""
+    with open(path, "rb") as f:
+        data = f.read()
+    for name, value in values.items():
+        new = value.encode("utf-8")
+        key = name.encode("utf-8") + b"\0string\0" + struct.pack("<i", len(new))
+        at = data.find(name.encode("utf-8") + b"\0string\0")
+        if at < 0:
+            continue
+        at = data.find(key)
+        if at < 0:
+            return None
+        start = at + len(key)
+        data = data[:start] + new + data[start + len(new):]
+    return hashlib.sha256(data).hexdigest()
+
+
+def exr_hashes(path, restamp=None):
+    """{"pixels": sha256 of the decoded pixels, "bytes": of the file, "header": of the header};
+    with `restamp` (attribute -> value), also "restamped": restamped_sha256(path, restamp)."""
     image = OpenEXR.File(path, separate_channels=True)
     if len(image.parts) != 1:
         raise ValueError(f"{path}: {len(image.parts)} parts; expected a single-part EXR")
@@ -86,7 +110,10 @@ def exr_hashes(path):
             continue
         head.update(key.encode("utf-8") + b"=" + _attribute_text(header[key]).encode("utf-8") +
                     b"\n")
-    return {"pixels": pixels.hexdigest(), "bytes": file_sha256(path), "header": head.hexdigest()}
+    out = {"pixels": pixels.hexdigest(), "bytes": file_sha256(path), "header": head.hexdigest()}
+    if restamp:
+        out["restamped"] = restamped_sha256(path, restamp)
+    return out
 
 
 _HASH_TOKEN = re.compile(r"#+")

@@ -8,8 +8,9 @@
 // (before the settings table existed; the commit that adds it changes nothing else) and the
 // values were printed there by that commit's Evaluator (the test prints what it measures; they
 // were the same on 1 and 2 cores). Every later commit must reproduce them.
-// The library version (0.1.0) is part of the hash: a version bump changes every value here, on
-// purpose (record them again, and say so in CHANGELOG.md).
+// The library version is part of the hash, so every value here is the hash as version 0.1.0
+// computes it (Evaluator::settingsHashOfVersion): the pins keep their source, main at 9921612,
+// across version bumps; one test checks that this build's own version gives other values.
 
 #include <cmath>
 #include <cstdint>
@@ -29,6 +30,7 @@
 #include <drivenshape/point_cache.h>
 #include <drivenshape/regions.h>
 #include <drivenshape/settings_table.h>
+#include <drivenshape/version.h>
 
 #include "hash.h"
 
@@ -46,6 +48,9 @@ std::string data(const std::string& name) {
 Database buildSample(bool poseModel) {
   return testing::buildSleeveDatabase(poseModel);
 }
+
+/// The version whose hashes the tests below pin (the hashes main printed at 9921612).
+constexpr const char* kPinnedVersion = "0.1.0";
 
 struct Pinned {
   const char* name;
@@ -115,14 +120,17 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTable) {
     settings.resolveDirection = ResolveDirection::kNormal;
     p.change(settings);
     const Evaluator evaluator(db, settings, *host);
-    const std::string hash = hashToHex(evaluator.settingsHash());
-    const std::string output = hashToHex(evaluator.settingsHash(bakeDefaults));
+    const std::string hash = hashToHex(evaluator.settingsHashOfVersion(kPinnedVersion));
+    const std::string output =
+        hashToHex(evaluator.settingsHashOfVersion(kPinnedVersion, &bakeDefaults));
     std::printf("  %-20s %s %s\n", p.name, hash.c_str(), output.c_str());
     EXPECT_EQ(hash, p.hash) << p.name;
     EXPECT_EQ(output, p.outputHash) << p.name << " with the bake's output fields";
     if (settings.maxWeightChange > 0) {
       // With the temporal bound the warm-up and the batch size enter the hash too.
-      EXPECT_EQ(hashToHex(evaluator.settingsHash(otherOutput)), "a4bfb71eb709f2a0") << p.name;
+      EXPECT_EQ(hashToHex(evaluator.settingsHashOfVersion(kPinnedVersion, &otherOutput)),
+                "a4bfb71eb709f2a0")
+          << p.name;
     }
   }
 }
@@ -161,13 +169,29 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTableWithThePoseModel) {
   normal.resolveDirection = ResolveDirection::kNormal;
   const Evaluator evaluator(before, normal, *host);
   ASSERT_EQ(evaluator.settings().weightMode, WeightMode::kModel);
-  const std::string hash = hashToHex(evaluator.settingsHash());
-  const std::string output = hashToHex(evaluator.settingsHash(OutputHashFields{1024, 8, 64}));
+  const OutputHashFields bakeDefaults{1024, 8, 64};
+  const std::string hash = hashToHex(evaluator.settingsHashOfVersion(kPinnedVersion));
+  const std::string output =
+      hashToHex(evaluator.settingsHashOfVersion(kPinnedVersion, &bakeDefaults));
   std::printf("  pose model defaults   %s %s\n", hash.c_str(), output.c_str());
   EXPECT_EQ(hash, "295dc96bec57c31e");
   EXPECT_EQ(output, "f55a50a5393e1e72");
   const Evaluator calibrated(db, normal, *host);
-  EXPECT_NE(hashToHex(calibrated.settingsHash()), hash) << "the verdict is part of the database";
+  EXPECT_NE(hashToHex(calibrated.settingsHashOfVersion(kPinnedVersion)), hash)
+      << "the verdict is part of the database";
+}
+
+// The version string is part of the hash: this build's hash is the one of its own version, and
+// another version's outputs never match it (a resume after upgrading bakes them again).
+TEST(SettingsHash, TheLibraryVersionEntersTheHash) {
+  const Database db = buildSample(false);
+  std::unique_ptr<Device> host = makeHostDevice();
+  const Evaluator evaluator(db, EvaluatorSettings{}, *host);
+  const OutputHashFields bakeDefaults{1024, 8, 64};
+  EXPECT_EQ(evaluator.settingsHash(), evaluator.settingsHashOfVersion(kVersion));
+  EXPECT_EQ(evaluator.settingsHash(bakeDefaults),
+            evaluator.settingsHashOfVersion(kVersion, &bakeDefaults));
+  EXPECT_NE(evaluator.settingsHashOfVersion("0.1.0"), evaluator.settingsHashOfVersion("0.1.1"));
 }
 
 /// A value of `setting` other than its default that the sample's settings can run.

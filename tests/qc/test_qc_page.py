@@ -522,3 +522,23 @@ def test_runs_as_a_module_of_the_package():
     result = subprocess.run([sys.executable, "-m", "drivenshape.qc", "--help"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0 and "python -m drivenshape.qc" in result.stdout
+
+
+def test_a_report_of_0_1_0(tmp_path):
+    """A QP bake's report as 0.1.0 wrote it (tests/data/compat: it has the QP's own
+    relative_residual, not relative_residual_direct) gets its page, residuals included."""
+    path = Path(__file__).resolve().parents[1] / "data" / "compat" / "v0.1.0_qp.report.json"
+    report = json.loads(path.read_text(encoding="utf-8"))
+    assert report["tool_version"] == "0.1.0" and report["settings"]["weights"] == "qp"
+    out = tmp_path / "qc"
+    qc("--report", path, "-o", out)
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "the QP blend" in page and "0.1.0" in page
+    assert (out / "residual.png").exists() and (out / "weights.png").exists()
+    cells = re.findall(r'<tr id="frame-(\d+)">(.*?)</tr>', page, re.S)
+    assert [int(f) for f, _ in cells] == [r["frame"] for r in report["frames"]]
+    # The summary's largest residual is the largest relative_residual of the report (printed to
+    # three significant digits).
+    shown = re.search(r'data-key="residual_max">([^<]+)<', page).group(1)
+    largest = max(r["relative_residual"] for r in report["frames"])
+    assert float(shown) == pytest.approx(largest, rel=1e-2), (shown, largest)

@@ -9,7 +9,7 @@ bl_info = {
     "author": "drivenshape developers",
     # Blender needs a literal tuple: it must spell project(drivenshape VERSION ...) of the top
     # CMakeLists.txt, which the CTest version_check (tests/version) enforces.
-    "version": (0, 1, 0),
+    "version": (0, 2, 0),
     "blender": (3, 4, 0),
     "location": "3D Viewport > Sidebar > DrivenShape",
     "description": "Data-driven cloth: live preview and bakes from a database of simulated "

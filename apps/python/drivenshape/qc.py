@@ -165,6 +165,15 @@ def is_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def residual_key(report: _Json) -> str:
+    """The frame records' relative residual: relative_residual_direct (from the shapes) since
+    0.2.0; a report of 0.1.0 has only the QP's own relative_residual."""
+    records = [r for r in report["frames"] if isinstance(r, dict) and not r.get("skipped")]
+    if records and all("relative_residual_direct" not in r for r in records):
+        return "relative_residual"
+    return "relative_residual_direct"
+
+
 def load_report(path: str) -> _Json:
     """A bake report (docs/schemas/bake_report.schema.json), checked for what the page reads."""
     report: _Json = load_json(path, "bake report")  # checked next
@@ -179,12 +188,14 @@ def load_report(path: str) -> _Json:
     for index, record in enumerate(report["frames"]):
         require(isinstance(record, dict) and isinstance(record.get("frame"), int), path,
                 f"frame record {index} has no integer 'frame'")
+    residual = residual_key(report)
+    for record in report["frames"]:
         if record.get("skipped"):
             continue
         if model in SOLVING_MODELS:
-            require("weights" in record and is_number(record.get("relative_residual_direct")),
+            require("weights" in record and is_number(record.get(residual)),
                     path, f"frame {record['frame']} of a --weights {model} bake has no "
-                    "'weights' or no number 'relative_residual_direct'")
+                    f"'weights' or no number '{residual}'")
             check_weights(record, report["database"].get("shape_count"), path)
         if model == "model":
             require(is_number(record.get("predicted_error"))
@@ -523,7 +534,7 @@ class Plots:
         return self.save(fig, axes_list[-1], "weights.png")
 
     def residual(self, report: _Json, model: str) -> Optional[str]:
-        frames, values = records_series(report, "relative_residual_direct")
+        frames, values = records_series(report, residual_key(report))
         if len(frames) == 0:
             return None
         fig, (axes,) = self.figure(3.0)
@@ -811,7 +822,7 @@ def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
             summary.add("missed", "frames within the tolerance whose true mean error is over it",
                         str(len(missed)), format_frame_range(missed) if missed else "-")
     if model in SOLVING_MODELS:
-        residual = series("relative_residual_direct")
+        residual = series(residual_key(report))
         if residual:
             summary.add("residual_mean", "relative residual, mean",
                         ratio_text(mean_of([v for _, v in residual])))
@@ -883,7 +894,7 @@ def worst_frames(report: _Json, model: str, coverage: Optional[Coverage],
     if coverage:
         return "predicted error", ranked(coverage.predicted.items())
     if model in SOLVING_MODELS:
-        frames, values = records_series(report, "relative_residual_direct")
+        frames, values = records_series(report, residual_key(report))
         return "relative residual", ranked(zip(frames.tolist(), values.tolist()))
     frames, values = records_series(report, "max_jump")
     return "largest jump", ranked(zip(frames.tolist(), values.tolist()))
@@ -916,7 +927,7 @@ def frame_table(report: _Json, model: str, coverage: Optional[Coverage],
         columns.append(("weights", "largest weights (db frame: weight)",
                         lambda r: ("weights", html.escape(top_weights(r, db_frames)))))
         columns.append(("residual", "rel. residual",
-                        lambda r: ("num", ratio_text(r.get("relative_residual_direct")))))
+                        lambda r: ("num", ratio_text(r.get(residual_key(report))))))
     if coverage:
         columns.append(("predicted", f"predicted error ({unit})",
                         lambda r: ("num", units.text(coverage.predicted.get(r["frame"])))))

@@ -258,6 +258,11 @@ class Evaluator {
   std::uint64_t settingsHash() const;
   /// The same with what a writer of outputs adds (the bake's `dsSettingsHash`).
   std::uint64_t settingsHash(const OutputHashFields& output) const;
+  /// Both as a build of library version `version` (e.g. "0.1.0") computes them: the version
+  /// string is part of the layout, so outputs of another version never match this build's
+  /// hash; these say whether they match that version's (output: nullptr for settingsHash()).
+  std::uint64_t settingsHashOfVersion(const std::string& version,
+                                      const OutputHashFields* output = nullptr) const;
   /// The settings as the bake report writes them (JSON object text).
   std::string describeSettings() const;
   /// What the settings ask for that they leave unused (an exit fade without the resolution):
