@@ -13,6 +13,8 @@
 #include <set>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include <drivenshape/database.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
@@ -537,6 +539,15 @@ TEST(PoseModel, TheDatabaseKeepsTheModel) {
   Database heavier = siblings;
   heavier.poseModel.siblingWeight = 0.25;
   EXPECT_NE(heavier.contentHash(), siblings.contentHash()) << "the weight is part of the content";
+  // The bake report's settings name the weight (docs/schemas/bake_report.schema.json), and
+  // only when the model has the sibling features.
+  testing::Backends host = testing::hostBackends();
+  const auto poseModelSettings = [&](const Database& d) {
+    return nlohmann::json::parse(
+        Evaluator(d, EvaluatorSettings(), host.view()).describeSettings())["pose_model"];
+  };
+  EXPECT_EQ(poseModelSettings(siblingsBack)["sibling_weight"], 0.5);
+  EXPECT_FALSE(poseModelSettings(db).contains("sibling_weight"));
   Database chain = db;
   chain.poseModel.siblingWeight = 0.5;  // the sample's parts are a chain: no pair
   saveDatabase(dir.file("chain.dsdb"), chain);

@@ -36,6 +36,9 @@ class PoseStage final : public Stage {
                               {"binding_error", mPose.bindingError},
                               {"verdict_level", mPose.verdictLevel},
                               {"verdict_margin", mPose.verdictMargin}};
+    if (mPose.siblingWeight > 0.0) {
+      settings["pose_model"]["sibling_weight"] = mPose.siblingWeight;
+    }
     if (mPose.clipMixtureWeight > 0.0) {
       settings["pose_model"]["per_clip_models"] = {{"clips", mPose.clipSizes.size()},
                                                    {"weight", mPose.clipMixtureWeight}};
