@@ -325,12 +325,10 @@ void writeModelJson(const std::string& path, const Database& db) {
   }
   // The share of the held-out reference frames the verdict calls enough, per tolerance (a
   // share of the cloth's rest diagonal).
-  const double diagonal = boundsDiagonal(db.drivenMesh);
   nlohmann::json heldOutEnough = nlohmann::json::array();
-  for (double share : kVerdictOutlookShares) {
-    heldOutEnough.push_back({{"tolerance_share", share},
-                             {"tolerance", share * diagonal},
-                             {"enough", heldOutEnoughShare(m, share * diagonal)}});
+  for (const VerdictOutlook& at : verdictOutlook(m, db.drivenMesh)) {
+    heldOutEnough.push_back(
+        {{"tolerance_share", at.share}, {"tolerance", at.tolerance}, {"enough", at.enough}});
   }
   nlohmann::json report{
       {"units", "scene units (mean vertex distance)"},

@@ -1004,15 +1004,13 @@ void storeFit(PoseModel& model, const MatrixXd& x, const OffsetBasis& basis, int
 /// reference frames it calls enough at each of kVerdictOutlookShares of the rest cloth's
 /// (`cloth`) diagonal.
 void logVerdict(const PoseModel& model, const Mesh& cloth, std::ostream& log) {
-  const double diagonal = boundsDiagonal(cloth);
   log << "  verdict: error bound = predicted error + " << model.verdictMargin << " (holds on "
       << 100.0 * model.verdictLevel << "% of the held-out reference frames), never below "
       << model.smallestErrorBound() << " (" << percentOfDiagonal(model.smallestErrorBound(), cloth)
       << "% of the cloth's rest diagonal); held-out reference frames it calls enough at";
   const char* separator = " ";
-  for (double share : kVerdictOutlookShares) {
-    log << separator << 100.0 * share
-        << "%: " << std::lround(100.0 * heldOutEnoughShare(model, share * diagonal)) << "%";
+  for (const VerdictOutlook& at : verdictOutlook(model, cloth)) {
+    log << separator << 100.0 * at.share << "%: " << std::lround(100.0 * at.enough) << "%";
     separator = ", ";
   }
   log << " of the diagonal\n";
@@ -1029,6 +1027,15 @@ double heldOutEnoughShare(const PoseModel& model, double tolerance) {
     return model.errorBound(sigma) <= tolerance;
   });
   return static_cast<double>(within) / static_cast<double>(sigmas.size());
+}
+
+std::vector<VerdictOutlook> verdictOutlook(const PoseModel& model, const Mesh& cloth) {
+  const double diagonal = boundsDiagonal(cloth);
+  std::vector<VerdictOutlook> out;
+  for (double share : kVerdictOutlookShares) {
+    out.push_back({share, share * diagonal, heldOutEnoughShare(model, share * diagonal)});
+  }
+  return out;
 }
 
 double percentOfDiagonal(double value, const Mesh& cloth) {

@@ -924,10 +924,11 @@ def frame_table(report: _Json, model: str, coverage: Optional[Coverage],
     # (key, header, cell(record) -> (class, html)); the count columns' cells also take their key
     columns: list[tuple[str, str, Callable[..., tuple[str, str]]]] = []
     if model in SOLVING_MODELS:
+        residual = residual_key(report)
         columns.append(("weights", "largest weights (db frame: weight)",
                         lambda r: ("weights", html.escape(top_weights(r, db_frames)))))
         columns.append(("residual", "rel. residual",
-                        lambda r: ("num", ratio_text(r.get(residual_key(report))))))
+                        lambda r: ("num", ratio_text(r.get(residual)))))
     if coverage:
         columns.append(("predicted", f"predicted error ({unit})",
                         lambda r: ("num", units.text(coverage.predicted.get(r["frame"])))))

@@ -231,6 +231,17 @@ struct PoseModel {
 /// 0 for a model without them (one loaded from a file).
 double heldOutEnoughShare(const PoseModel& model, double tolerance);
 
+/// The verdict's outlook at one tolerance: `share` of the rest cloth's diagonal, `tolerance`
+/// that length (scene units), `enough` heldOutEnoughShare at it.
+struct VerdictOutlook {
+  double share = 0.0;
+  double tolerance = 0.0;
+  double enough = 0.0;
+};
+/// The outlook at each of kVerdictOutlookShares of `cloth`'s rest diagonal: what the build
+/// log's verdict line and `db build --model-json` state.
+std::vector<VerdictOutlook> verdictOutlook(const PoseModel& model, const Mesh& cloth);
+
 /// `value` (scene units) as a percentage of `cloth`'s rest bounding-box diagonal, rounded to two
 /// decimals: how the verdict's tolerances and bounds are stated to people.
 double percentOfDiagonal(double value, const Mesh& cloth);
