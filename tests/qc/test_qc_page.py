@@ -524,10 +524,14 @@ def test_runs_as_a_module_of_the_package():
     assert result.returncode == 0 and "python -m drivenshape.qc" in result.stdout
 
 
+# A QP bake's report as 0.1.0 wrote it (tests/data/compat/README.md).
+COMPAT_REPORT = Path(__file__).resolve().parents[1] / "data" / "compat" / "v0.1.0_qp.report.json"
+
+
 def test_a_report_of_0_1_0(tmp_path):
     """A QP bake's report as 0.1.0 wrote it (tests/data/compat: it has the QP's own
     relative_residual, not relative_residual_direct) gets its page, residuals included."""
-    path = Path(__file__).resolve().parents[1] / "data" / "compat" / "v0.1.0_qp.report.json"
+    path = COMPAT_REPORT
     report = json.loads(path.read_text(encoding="utf-8"))
     assert report["tool_version"] == "0.1.0" and report["settings"]["weights"] == "qp"
     out = tmp_path / "qc"
@@ -542,3 +546,81 @@ def test_a_report_of_0_1_0(tmp_path):
     shown = re.search(r'data-key="residual_max">([^<]+)<', page).group(1)
     largest = max(r["relative_residual"] for r in report["frames"])
     assert float(shown) == pytest.approx(largest, rel=1e-2), (shown, largest)
+
+
+@pytest.mark.parametrize("change, named", [
+    (lambda r: r.update(seconds=1.5), "seconds is 1.5; expected an object"),
+    (lambda r: r["database"].update(frames=1.0), "database.frames is 1.0; expected a list"),
+    (lambda r: r["settings"].update(max_weight_change="x"), "settings.max_weight_change"),
+    (lambda r: r.update(warnings=[["a"]]), "warnings holds something other than sentences"),
+    (lambda r: r["frames"][0].update(max_jump={}), "frame 1: max_jump is {}"),
+    (lambda r: r["frames"][0].update(inside_after=True), "frame 1: inside_after is true"),
+    (lambda r: r.update(seconds=None), "seconds is null"),
+])
+def test_a_report_of_the_wrong_shape_is_refused_naming_the_field(tmp_path, change, named):
+    report = json.loads(COMPAT_REPORT.read_text(encoding="utf-8"))
+    change(report)
+    path = tmp_path / "bad.report.json"
+    path.write_text(json.dumps(report))
+    result = qc("--report", path, "-o", tmp_path / "qc", expect=3)
+    assert named in result.stderr, result.stderr
+    assert not (tmp_path / "qc").exists()
+
+
+@pytest.mark.parametrize("number", ["NaN", "Infinity", "1e308", "-2e301", "1" + "0" * 301])
+def test_numbers_json_does_not_allow_or_the_page_cannot_scale_are_refused(tmp_path, number):
+    text = COMPAT_REPORT.read_text(encoding="utf-8").replace('"baked": 6', f'"baked": {number}')
+    path = tmp_path / "bad.report.json"
+    path.write_text(text)
+    result = qc("--report", path, "-o", tmp_path / "qc", expect=3)
+    assert "is not valid JSON" in result.stderr, result.stderr
+
+
+def mutated(report, rng):
+    """`report` with 1-3 random changes: a key or item dropped, or replaced by another JSON
+    value of any type, at any depth."""
+    values = [None, 0, -1, 1.5, "x", [], {}, True, [1, 2], {"a": 1}, 1e299]
+    report = json.loads(json.dumps(report))
+    for _ in range(rng.randint(1, 3)):
+        node = report
+        while True:
+            keys = list(node) if isinstance(node, dict) else list(range(len(node)))
+            if not keys:
+                break
+            key = rng.choice(keys)
+            roll = rng.random()
+            if roll < 0.3:
+                del node[key]
+            elif roll < 0.6:
+                node[key] = rng.choice(values)
+            elif isinstance(node[key], (dict, list)):
+                node = node[key]
+                continue
+            break
+    return report
+
+
+def test_mutated_reports_are_drawn_or_refused_never_crash(tmp_path, pose):
+    """Random damage to a QP report of 0.1.0 and a pose-model report of today: the page either
+    reads the report or refuses it with exit 3 (QcError), never an exception of its own."""
+    import random
+
+    from drivenshape import qc as page
+
+    rng = random.Random(20261126)
+    bases = [json.loads(COMPAT_REPORT.read_text(encoding="utf-8")),
+             dict(pose["report"], frames=pose["report"]["frames"][:6])]
+    path = tmp_path / "damaged.report.json"
+    drawn = 0
+    for attempt in range(400):
+        path.write_text(json.dumps(mutated(bases[attempt % 2], rng)))
+        try:
+            page.load_report(str(path))
+        except page.QcError as error:
+            assert error.code == page.EXIT_INPUT
+            continue
+        if drawn < 16:  # the whole page for some of those read (about a second each)
+            out = tmp_path / f"qc{drawn}"
+            assert page.main(["--report", str(path), "-o", str(out)]) in (0, page.EXIT_INPUT)
+            drawn += 1
+    assert drawn == 16

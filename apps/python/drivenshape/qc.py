@@ -142,17 +142,42 @@ def percent_text(fraction: float) -> str:
 
 # ---- inputs ----------------------------------------------------------------------------------
 
+# The largest magnitude a number of a report or an eval JSON may have: far beyond any length or
+# count a bake writes, and small enough that the page's scaling (lengths x 1000 in mm, plot
+# margins) stays finite.
+LARGEST_NUMBER = 1e300
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not abs(value) <= LARGEST_NUMBER:
+        raise ValueError(f"the number {text} is out of range")
+    return value
+
+
+def _finite_int(text: str) -> int:
+    value = int(text)
+    if not abs(value) <= LARGEST_NUMBER:
+        raise ValueError(f"the number {text[:20]}... is out of range")
+    return value
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
 def load_json(path: str, what: str) -> Any:
     try:
         with open(path, encoding="utf-8") as stream:
-            return json.load(stream)
+            return json.load(stream, parse_float=_finite_float, parse_int=_finite_int,
+                             parse_constant=_no_constant)
     except FileNotFoundError:
         raise QcError(EXIT_INPUT, f"{what} '{path}' does not exist")
     except IsADirectoryError:
         raise QcError(EXIT_INPUT, f"{what} '{path}' is a folder, not a JSON file")
     except OSError as error:
         raise QcError(EXIT_INPUT, f"cannot read {what} '{path}': {error.strerror}")
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+    except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as error:
         raise QcError(EXIT_INPUT, f"{what} '{path}' is not valid JSON: {error}")
 
 
@@ -174,6 +199,57 @@ def residual_key(report: _Json) -> str:
     return "relative_residual_direct"
 
 
+# The optional fields the page reads, per object of the report (docs/schemas/
+# bake_report.schema.json), and the JSON type each must have when present: a report of another
+# shape is refused naming the field rather than failing halfway through the page.
+_NUMBER = (int, float)
+OPTIONAL_FIELDS: dict[str, dict[str, Any]] = {
+    "": {"output": str, "driver_cache": str, "device": str, "tool": str, "tool_version": str,
+         "settings_hash": str, "seconds": dict, "warnings": list, "coverage": dict},
+    "database": {"content_hash": str, "shape_count": int, "frames": list},
+    "settings": {"max_weight_change": _NUMBER, "regions": list, "regions_file": str,
+                 "binding_mask": str, "layers": dict, "batch": int, "compression": str,
+                 "resolve_direction": str, "skin_offset": _NUMBER, "exit_fade": _NUMBER,
+                 "pose_model": dict},
+    "settings.pose_model": {"cross_validation_error": _NUMBER, "binding_error": _NUMBER},
+    "coverage": {"level": _NUMBER},
+}
+
+
+_TYPE_NAMES = {str: "a string", int: "an integer", dict: "an object", list: "a list",
+               _NUMBER: "a number"}
+
+
+# ... and in each baked frame's record.
+RECORD_FIELDS: dict[str, Any] = {
+    "inside_before": int, "inside_corrected": int, "inside_after": int, "resolved": int,
+    "max_jump": _NUMBER, "error_bound": _NUMBER, "pose_distance": _NUMBER,
+}
+
+
+def check_fields(holder: _Json, fields: dict[str, Any], where: str, path: str) -> None:
+    """`fields` of `holder`, when present, with their types (null and booleans are none of
+    them); `where` names the holder in the message."""
+    for key, kind in fields.items():
+        value = holder.get(key)
+        require(key not in holder or (isinstance(value, kind) and not isinstance(value, bool)),
+                path, f"{where}{key} is {json.dumps(value)[:60]}; expected {_TYPE_NAMES[kind]}")
+
+
+def check_optional_fields(report: _Json, path: str) -> None:
+    """OPTIONAL_FIELDS and every baked frame's RECORD_FIELDS (check_fields)."""
+    for where, fields in OPTIONAL_FIELDS.items():
+        holder = report
+        for key in where.split(".") if where else []:
+            holder = holder.get(key, {})  # an object when present (checked a level up)
+        check_fields(holder, fields, f"{where}." if where else "", path)
+    require(all(isinstance(w, str) for w in report.get("warnings", [])), path,
+            "warnings holds something other than sentences (strings)")
+    for record in report["frames"]:
+        if not record.get("skipped"):
+            check_fields(record, RECORD_FIELDS, f"frame {record['frame']}: ", path)
+
+
 def load_report(path: str) -> _Json:
     """A bake report (docs/schemas/bake_report.schema.json), checked for what the page reads."""
     report: _Json = load_json(path, "bake report")  # checked next
@@ -183,11 +259,13 @@ def load_report(path: str) -> _Json:
         require(isinstance(report.get(key), dict), path, f"no '{key}' object; is this a "
                 "report written by `drivenshape bake`?")
     model = report["settings"].get("weights")
-    require(model in MODELS, path, f"settings.weights is {json.dumps(model)}; expected one of "
-            f"{', '.join(MODELS)} (a report of `drivenshape bake`)")
+    require(isinstance(model, str) and model in MODELS, path,
+            f"settings.weights is {json.dumps(model)}; expected one of {', '.join(MODELS)} (a "
+            "report of `drivenshape bake`)")
     for index, record in enumerate(report["frames"]):
         require(isinstance(record, dict) and isinstance(record.get("frame"), int), path,
                 f"frame record {index} has no integer 'frame'")
+    check_optional_fields(report, path)
     residual = residual_key(report)
     for record in report["frames"]:
         if record.get("skipped"):
@@ -212,7 +290,8 @@ def load_report(path: str) -> _Json:
 def check_weights(record: _Json, shape_count: object, path: str) -> None:
     """A frame's weights: k numbers, or one list of k per region."""
     weights = record["weights"]
-    rows = weights if weights and isinstance(weights[0], list) else [weights]
+    rows = weights if isinstance(weights, list) and weights and isinstance(weights[0], list) \
+        else [weights]
     for row in rows:
         require(isinstance(row, list) and all(is_number(w) for w in row)
                 and len(row) == shape_count, path,
