@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// drivenshape_bench: bakes a synthetic shot of the DESIGN.md workloads through OpenCL and
-// through the host reference in one run, and reports per-stage times and frames per second.
-// A benchmark, not a test: it asserts nothing, it measures.
+// drivenshape_bench: bakes a synthetic shot of the workloads of docs/performance.md (W1, W2)
+// through OpenCL and through the host reference in one run, and reports per-stage times and frames
+// per second. A benchmark, not a test: it asserts nothing, it measures.
 //
 //   drivenshape_bench [--workload W1] [--frames N] [--device SPEC] [--json PATH] [--keep DIR]
 //

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The synthetic character of the benchmarks (drivenshape_bench, drivenshape_bench_exr): a
-// bending tube (driver) inside a looser tube (driven), 1 unit (a metre) long, and the DESIGN.md
-// workloads W1 and W2 built from it. Generated deterministically.
+// bending tube (driver) inside a looser tube (driven), 1 unit (a metre) long, and the
+// workloads W1 and W2 of docs/performance.md built from it. Generated deterministically.
 
 #pragma once
 

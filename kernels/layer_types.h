@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Types and the wind noise of the layer stage (DESIGN.md section 3 step 7), shared by the host
+// Types and the wind noise of the layer stage (docs/commands.md, "Layering"), shared by the host
 // (src/devices/host/host_wind.cpp, the reference) and the device (kernels/mix.cl,
 // kernels/wind.cl). The OpenCL programs get this text as their first source; the host includes it.
 // Both sides run the very same float operations in the same order (the kernels switch off

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// Collision correction (DESIGN.md §1 "Collision / correction", §3 steps 5-6): for every point d
-// of the blended cloth D~, the exact closest triangle of the blended driver P~, and the
+// Collision correction (docs/method.md, "Exact closest triangle" and "Local frames"): for every
+// point d of the blended cloth D~, the exact closest triangle of the blended driver P~, and the
 // local-frame transfer of d from P~ to the shot's pose P_new (ClosestBackend, one per device:
 // src/devices/host/host_closest.h, src/devices/cl/cl_closest.h, defined one file per kernel
 // stem); InsideAudit tells which points lie inside the driver.

@@ -41,9 +41,9 @@ struct SettingRow {
 /// The rows of settingsTable(), in the same order.
 const std::vector<SettingRow>& settingRows();
 
-/// The settings hash of Evaluator::settingsHash up to the stages' own additions (DESIGN.md
-/// formats: a resume compares it, so its layout is fixed): the database's content hash, every
-/// hashed row in table order, the library version (`version`, this build's kVersion but for
+/// The settings hash of Evaluator::settingsHash up to the stages' own additions (docs/formats.md,
+/// "Point-cache EXR": a resume compares it, so its layout is fixed): the database's content hash,
+/// every hashed row in table order, the library version (`version`, this build's kVersion but for
 /// Evaluator::settingsHashOfVersion), then the rows hashed after it.
 std::uint64_t hashSettings(const Model& model, const OutputHashFields* output, const char* version);
 /// Every evaluator setting's entries of the report (before the stages add theirs).

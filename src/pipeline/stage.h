@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// The evaluator's pipeline (DESIGN.md §3): each step of a frame is one Stage, in one file under
-// src/pipeline/stages/, registered by one line in stage_list.h. A stage is configured once (its
-// constructor, from the Model the stages share), where it also declares which arrays of the
-// Batch (Array) it reads and which it writes; it adds what changes its result to the settings
-// hash and the report, and runs on a Batch of frames. The Executor (executor.h) checks the
-// wiring once (every array a stage reads is an input of the call or written by an earlier
-// stage), then runs the stages in order and times each by its name; the Batch hands a running
-// stage only the arrays it declared.
+// The evaluator's pipeline (docs/architecture.md, "The path of one driver frame"): each step of a
+// frame is one Stage, in one file under src/pipeline/stages/, registered by one line in
+// stage_list.h. A stage is configured once (its constructor, from the Model the stages share),
+// where it also declares which arrays of the Batch (Array) it reads and which it writes; it adds
+// what changes its result to the settings hash and the report, and runs on a Batch of frames. The
+// Executor (executor.h) checks the wiring once (every array a stage reads is an input of the call
+// or written by an earlier stage), then runs the stages in order and times each by its name; the
+// Batch hands a running stage only the arrays it declared.
 
 #include <cstddef>
 #include <cstdint>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Layers inside the bake (DESIGN.md section 3 step 7): the mix and the wind run after the
+// Layers inside the bake (docs/commands.md, "Layering"): the mix and the wind run after the
 // correction, on the device of the bake, and are recorded in the settings hash, the report
 // and the EXR header. The layer maths is tested in tests/layers; these tests check the wiring.
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Micro-benchmark of the correction stage on W1-like sizes (DESIGN.md section 7): closest
+// Micro-benchmark of the correction stage on W1-like sizes (docs/performance.md): closest
 // triangle (host candidate search + exact step) and local-frame transfer for a whole shot, in
 // chunks, through the host reference and through OpenCL, in one run on one machine. Not a
 // test: run it by hand.

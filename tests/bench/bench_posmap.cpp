@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// W3 benchmark (DESIGN.md section 7): position maps at 2048x2048 for 240 frames. Not a test.
+// W3 benchmark (docs/performance.md): position maps at 2048x2048 for 240 frames. Not a test.
 //
 //   bench_posmap --mesh driven_rest.obj --cache test_public.driven.pc2 [--frames 240]
 //                [--res 2048] [--padding 8] [--codec-frames 24] [--repeats 3] [--files 1]

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Micro-benchmark of the per-frame stages on W1-like sizes (DESIGN.md section 7): project and
+// Micro-benchmark of the per-frame stages on W1-like sizes (docs/performance.md): project and
 // blend for a whole shot, in chunks, through the host reference and through OpenCL, in one run
 // on one machine. Not a test: run it by hand.
 //

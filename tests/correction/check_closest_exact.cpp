@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // check_closest_exact: the closest-triangle exactness check on real data that cannot ship with
-// the tests (e.g. ../shared/data/pants/test_public). For every frame, every driven vertex is
-// queried against the driver pose of the same frame through the library (OpenCL on the first
-// device, or the host path with --host) and through the independent brute-force oracle of the
+// the tests (e.g. a generated trousers clip, scripts/validation). For every frame, every driven
+// vertex is queried against the driver pose of the same frame through the library (OpenCL on the
+// first device, or the host path with --host) and through the independent brute-force oracle of the
 // tests; distances must agree within kClosestDistanceTol for 100% of vertices.
 //
 //   check_closest_exact DRIVER.obj DRIVER.pc2 DRIVEN.pc2 [--host] [--every N]

@@ -48,7 +48,7 @@ struct BakeOptions {
   /// count, and a farm chunk whose size is a multiple of chunkSize reproduces the single bake
   /// exactly.
   int temporalWarmup = kDefaultTemporalWarmup;
-  /// Layers after the correction and resolution (DESIGN.md section 3 step 7): a mix with
+  /// Layers after the correction and resolution (docs/commands.md, "Layering"): a mix with
   /// another cache of the cloth, procedural wind, from files. Off by default. Recorded in the
   /// settings hash, the report and the EXR header (`dsLayers`).
   LayerOptions layers;

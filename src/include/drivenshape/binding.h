@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// How the cloth is bound to the driver's surface (DESIGN.md §1 "Collision / correction"): a
-// driven point's closest point on a driver triangle (SurfaceHit), the binding masks that restrict
-// which driver triangles a driven vertex may bind to, and the side of the skin each driven point
-// lives on. The backends that find and use these hits are private to the library
+// How the cloth is bound to the driver's surface (docs/method.md, "Local frames, resolution,
+// layers"): a driven point's closest point on a driver triangle (SurfaceHit), the binding masks
+// that restrict which driver triangles a driven vertex may bind to, and the side of the skin each
+// driven point lives on. The backends that find and use these hits are private to the library
 // (src/devices/closest.h).
 
 #include <algorithm>

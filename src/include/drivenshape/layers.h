@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// Layering (DESIGN.md §1 "Layering", §3 step 7): per-vertex weight maps, a per-vertex mix of the
-// DrivenShape result with another cache (a simulated hood, a skinned mesh), and procedural wind
-// that never pushes cloth into the body. The bake runs a LayerStack once per chunk of frames,
-// after the correction.
+// Layering (docs/method.md, "Local frames, resolution, layers"): per-vertex weight maps, a
+// per-vertex mix of the DrivenShape result with another cache (a simulated hood, a skinned mesh),
+// and procedural wind that never pushes cloth into the body. The bake runs a LayerStack once per
+// chunk of frames, after the correction.
 
 #include <array>
 #include <cstdint>

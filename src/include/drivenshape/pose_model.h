@@ -53,7 +53,7 @@ struct PoseModelOptions {
   std::array<double, 3> up = {0.0, 0.0, 1.0};
   /// Frames back for the velocity feature (0 = off) and frames averaged for the history
   /// feature (0 = off; kAutoHistory: historyFramesFor). Both need earlier driver frames
-  /// (DESIGN.md: read from the cache before a chunk's first frame).
+  /// (the shot planner reads them from the cache before a chunk's first frame).
   int velocityLag = 3;
   int historyFrames = kAutoHistory;
   /// The weight of the sibling features (PoseModel::siblingWeight): each pair of parts with the

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The blend (DESIGN.md §3 step 4): the database shapes weighted per frame, on the backend. Per
+// The blend (docs/method.md, "Blend"): the database shapes weighted per frame, on the backend. Per
 // region when there are regions, then mixed per vertex with the regions' partition of unity.
 // Local blending blends every shape's offsets in the local frames of the rest binding (encoded
 // here, once); the bind baseline blends nothing and hands the rest shapes on.

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-// Onto the shot's driver (DESIGN.md §3 steps 5-6). Local blending rebuilds the blended offsets
-// on the shot's driver; world blending binds the blended cloth D~ to the blended driver P~
-// (exact closest triangles, mask respected) and carries it to the shot's driver in each
-// triangle's frame. Without the correction the cloth only goes back through the inverse
-// alignment.
+// Onto the shot's driver (docs/method.md, "Local frames, resolution, layers"). Local blending
+// rebuilds the blended offsets on the shot's driver; world blending binds the blended cloth D~ to
+// the blended driver P~ (exact closest triangles, mask respected) and carries it to the shot's
+// driver in each triangle's frame. Without the correction the cloth only goes back through the
+// inverse alignment.
 
 #include <algorithm>
 

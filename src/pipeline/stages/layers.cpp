@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// Layers after the correction and resolution (DESIGN.md §3 step 7): the mix with another cache,
-// then wind limited by each vertex's clearance from the shot's driver (exact closest points,
-// every triangle).
+// Layers after the correction and resolution (docs/method.md, "Local frames, resolution, layers"):
+// the mix with another cache, then wind limited by each vertex's clearance from the shot's driver
+// (exact closest points, every triangle).
 
 #include <cmath>
 

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Projections p = M^T (b - m) per frame and weight problem, and the norms the QP needs: one
-// backend launch for the whole-driver QP, the host for region rows (DESIGN.md §3 step 2).
+// backend launch for the whole-driver QP, the host for region rows (docs/architecture.md, "The path
+// of one driver frame").
 
 #include "parallel.h"
 

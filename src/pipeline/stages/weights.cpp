@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// The blend weights of each frame (DESIGN.md §3 step 3): the DrivenShape QP per weight problem
-// (min ||A w - b||, sum w = 1, 0 <= w <= 1, optionally within maxWeightChange of the previous
-// frame's weights), or the nearest-shape baseline.
+// The blend weights of each frame (docs/method.md, "Weights"): the DrivenShape QP per weight
+// problem (min ||A w - b||, sum w = 1, 0 <= w <= 1, optionally within maxWeightChange of the
+// previous frame's weights), or the nearest-shape baseline.
 
 #include <algorithm>
 #include <cmath>
