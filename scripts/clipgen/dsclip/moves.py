@@ -170,12 +170,18 @@ def random_motion(character, T, rng, forced=None, gap=(12, 20), keep_share=0.3, 
     return angles, np.zeros((T, 3)), np.zeros(T), about
 
 
+# The gestures (reach and wave, the travelling root's turn) are laid out over this many motion
+# frames; a longer clip stretches them, a shorter one stops part-way (never faster than this).
+GESTURE_FRAMES = 120
+
+
 def walking_root(T, speed=1.2, turn=90.0, bob_phase=None):
     """A root that speeds up to `speed` m/s over 18 frames, walks forward (-Y at rest) and
-    turns `turn` degrees to the left between 25% and 85% of the clip, bobbing 1.2 cm."""
+    turns `turn` degrees to the left between 25% and 85% of the gesture span, bobbing 1.2 cm."""
     t = np.arange(T, dtype=float)
+    span = max(T, GESTURE_FRAMES)
     start = curves.ramp(t, 0.0, 18.0)
-    yaw = turn * curves.ramp(t, 0.25 * T, 0.85 * T)
+    yaw = turn * curves.ramp(t, 0.25 * span, 0.85 * span)
     heading = np.column_stack([np.sin(np.radians(yaw)), -np.cos(np.radians(yaw)), np.zeros(T)])
     step = (speed / config.FPS) * start[:, None] * heading
     pos = np.vstack([np.zeros((1, 3)), np.cumsum(step[:-1], axis=0)])
@@ -221,7 +227,7 @@ def walk(T, rng, travel):
 
 def reach_and_wave(T, rng, travel):
     """Sleeve: reach forward with the arm straight, then raise the forearm and wave; the keys
-    sit at fixed shares of the clip, so any length gives the whole gesture."""
+    sit at fixed shares of the gesture span (GESTURE_FRAMES or the clip, the longer)."""
     jitter = lambda size: float(rng.uniform(-size, size))
     # share of the clip, hflex, elev, twist, elbow flex
     keys = np.array([
@@ -235,12 +241,11 @@ def reach_and_wave(T, rng, travel):
         [1.00, 10 + jitter(5), -5 + jitter(4), -30 + jitter(5), 45 + jitter(5)],
     ])
     t = np.arange(T, dtype=float)
-    times = keys[:, 0] * max(T - 1, 1)
-    times = times + np.arange(len(times)) * 1e-6   # strictly increasing for tiny T
-    Y = curves.hermite(times, keys[:, 1:], t)
+    span = max(T, GESTURE_FRAMES)
+    Y = curves.hermite(keys[:, 0] * (span - 1), keys[:, 1:], t)
     wave_period = rng.uniform(10.0, 13.0)
-    w0, w1 = 0.50 * T, 0.87 * T
-    window = curves.ramp(t, w0, w0 + 0.05 * T) * (1.0 - curves.ramp(t, w1 - 0.05 * T, w1))
+    w0, w1 = 0.50 * span, 0.87 * span
+    window = curves.ramp(t, w0, w0 + 0.05 * span) * (1.0 - curves.ramp(t, w1 - 0.05 * span, w1))
     wave = TWO_PI * (t - w0) / wave_period
     angles = {"shoulder.L.hflex": Y[:, 0], "shoulder.L.elev": Y[:, 1],
               "shoulder.L.twist": Y[:, 2] + 28.0 * window * np.sin(wave),
