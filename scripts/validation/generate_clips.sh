@@ -22,8 +22,9 @@
 # make_layering_preview.sh and the other scripts that read one `train` and one `test_public`
 # clip per character.
 # Environment: BLENDER (default blender).
-# Cost: about 0.3-1 s per frame on two idle cores (the pants about twice the sleeve); each clip
-# adds 20 preroll frames. scripts/clipgen/README.md has the measured figures.
+# Cost: on the project's 2-core VM, shared with compilers, 1.3-1.8 s per frame for the sleeve and
+# up to 4.4 s for the pants (each clip adds 20 preroll frames); all of clips.txt about 2 hours.
+# scripts/clipgen/README.md and docs/validation.md have the measured figures.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 maker="$(cd "$here/../clipgen" && pwd)/make_clip.py"
