@@ -22,8 +22,8 @@
 # make_layering_preview.sh and the other scripts that read one `train` and one `test_public`
 # clip per character.
 # Environment: BLENDER (default blender).
-# Cost: on the project's 2-core VM, shared with compilers, 1.3-1.8 s per frame for the sleeve and
-# up to 4.4 s for the pants (each clip adds 20 preroll frames); all of clips.txt about 2 hours.
+# Cost: on the project's 2-core VM, shared with compilers, 1.4-4.4 s per frame (each clip adds 20
+# preroll frames); all of clips.txt 1 to 3 hours.
 # scripts/clipgen/README.md and docs/validation.md have the measured figures.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
