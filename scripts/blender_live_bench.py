@@ -9,8 +9,10 @@ The add-on is loaded from the source tree (apps/blender), as "install by path" d
 
 A scene folder holds driver_rest.obj, driven_rest.obj, train.driver.pc2, train.driven.pc2 and a
 test driver clip (test.driver.pc2 or test_public.driver.pc2). `sleeve` is the bundled
-tests/data/sleeve (2146 driver / 2244 cloth vertices); `pants` is ../shared/data/pants (4311 /
-4581), which only benchmarks may read. The database (30 shapes from every training frame) is
+tests/data/sleeve (2146 driver / 2244 cloth vertices); `pants` is out/data/pants, the public
+pants clips made by scripts/validation/generate_clips.sh --link-data out/data out/clips (4241 /
+4501 vertices; the figures in docs/blender.md were measured on an earlier generator's pants of
+4311 / 4581), which only benchmarks read. The database (30 shapes from every training frame) is
 built once with the module and kept in out/bench/.
 
 The driver plays the test clip through a Mesh Cache modifier with live mode on. Per frame it
@@ -42,7 +44,7 @@ import drivenshape_blender  # noqa: E402
 
 SCENES = {
     "sleeve": os.path.join(ROOT, "tests", "data", "sleeve"),
-    "pants": os.path.join(os.path.dirname(ROOT), "shared", "data", "pants"),
+    "pants": os.path.join(ROOT, "out", "data", "pants"),
 }
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# One-off bitwise check of a refactored bake on the two public clips (../shared/data/{pants,
-# sleeve}): for each clip, a 30-shape database from the `train` clip, then `test_public` baked
+# One-off bitwise check of a refactored bake on the two public clips (DRIVENSHAPE_DATA/{pants,
+# sleeve}, made by scripts/validation/generate_clips.sh --link-data): for each clip, a 30-shape database from the `train` clip, then `test_public` baked
 # (all its frames) in three modes (default; talk: --align none --blend world --no-resolve;
 # bind: --weights bind) on the host path and the OpenCL CPU device, with an OLD and a NEW
 # drivenshape binary. Per frame it compares the decoded pixels (sha256 through the OpenEXR
@@ -10,7 +10,7 @@
 #
 #   pants default cpu: 140/140 frames pixel-identical, 140/140 byte-identical, 140/140 report records identical
 #
-# Not a test (it reads ../shared/data); the sample-scale check is CTest golden_sample.
+# Not a test (it reads generated clips); the sample-scale check is CTest golden_sample.
 #
 # Usage: scripts/golden_clips.sh OLD_BIN NEW_BIN [OUTDIR]      (OUTDIR default out/golden-clips)
 #   OLD_BIN or NEW_BIN may be `-` to skip that side: record the OLD side now
@@ -19,7 +19,7 @@
 # The OLD side's hashes are cached in OUTDIR/old-<clip>-<mode>-<device>.json and reused while
 # the OLD binary's sha256 matches; the NEW side is baked every run (OUTDIR/new-*.json). Bakes go
 # to OUTDIR/work and are deleted once hashed (KEEP_BAKES=1 keeps them).
-# Environment: DRIVENSHAPE_DATA (default ../shared/data), CLIPS (default "pants sleeve"),
+# Environment: DRIVENSHAPE_DATA (default out/data, in the clone), CLIPS (default "pants sleeve"),
 #   MODES (default "default talk bind"; also qp: --weights qp), DEVICES (default "host cpu"), HOST_STEP (bake every
 #   Nth frame on the host path; default 1 = every frame: the host bakes a whole clip in ~5 s).
 # Exit status: 0 when every compared bake is pixel-identical with identical report records, 1
@@ -35,7 +35,7 @@ fi
 old_bin=$1
 new_bin=$2
 outdir=${3:-out/golden-clips}
-data=${DRIVENSHAPE_DATA:-../shared/data}
+data=${DRIVENSHAPE_DATA:-out/data}
 read -ra clips <<<"${CLIPS:-pants sleeve}"
 read -ra modes <<<"${MODES:-default talk bind}"
 read -ra devices <<<"${DEVICES:-host cpu}"

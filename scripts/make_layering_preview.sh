@@ -16,15 +16,17 @@
 #   6. scripts/layering_preview.py renders the layered frame PREVIEW_FRAME from three sides,
 #      coloured by the mix weight, the wind weight and |layered - plain|.
 #
-# Not a test: it reads the reference data beside the checkout (../shared/data).
+# Not a test: it reads the public pants clips made by scripts/validation/generate_clips.sh
+# --link-data out/data out/clips (a pants/ folder with the rest OBJs, train.* and test_public.*).
 # Usage: scripts/make_layering_preview.sh
-# Environment: DATA (default ../shared/data), DRIVENSHAPE_BUILD (default build), OUT (default
+# Environment: DRIVENSHAPE_DATA (or DATA; default out/data, in the clone), DRIVENSHAPE_BUILD
+#              (default build), OUT (default
 #              out/layering), FRAMES (default 1-140, the whole test clip), PREVIEW_FRAME
 #              (default 100), IMAGE (default scripts/readme_images/layering_pants.png),
 #              DRIVENSHAPE_DEVICE (bake --device, default auto).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-data=${DATA:-../shared/data}
+data=${DRIVENSHAPE_DATA:-${DATA:-out/data}}
 build=${DRIVENSHAPE_BUILD:-build}
 out=${OUT:-out/layering}
 frames=${FRAMES:-1-140}
@@ -49,8 +51,9 @@ fi
 for file in driver_rest.obj driven_rest.obj train.driver.pc2 train.driven.pc2 \
   test_public.driver.pc2 test_public.driven.pc2; do
   if [[ ! -f $src/$file ]]; then
-    echo "make_layering_preview: '$src/$file' not found; set DATA to the folder that holds" \
-      "pants/ (the reference data, default ../shared/data)" >&2
+    echo "make_layering_preview: '$src/$file' not found; make the public clips with" \
+      "scripts/validation/generate_clips.sh --link-data $data out/clips, or set" \
+      "DRIVENSHAPE_DATA to a folder that holds pants/" >&2
     exit 3
   fi
 done

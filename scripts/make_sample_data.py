@@ -1,6 +1,12 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: Apache-2.0
-"""Regenerates the bundled sample shot in tests/data/sleeve from ../shared/data/sleeve.
+"""Regenerates the bundled sample shot in tests/data/sleeve from the public sleeve clips.
+
+The source (--source, default out/data/sleeve) is a folder with the sleeve's rest OBJs, `train`
+and `test_public` clips: the public clips of scripts/validation/clips.txt, made and linked by
+`scripts/validation/generate_clips.sh --link-data out/data out/clips`. The sample in the
+repository was cut from clips of an earlier generator, so a new cut differs from it (and the
+tests' recorded figures with it).
 
 The sample is small on purpose (a few MB): every 5th frame of the range-of-motion `train` clip
 (after the preroll) to build a database from, and the first 48 frames of motion of
@@ -39,7 +45,9 @@ def write_pc2(path, points, frames):
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--source", default=os.path.join(here, "..", "..", "shared", "data", "sleeve"))
+    parser.add_argument("--source", default=os.path.join(here, "..", "out", "data", "sleeve"),
+                        help="the sleeve folder of generate_clips.sh --link-data (default "
+                        "out/data/sleeve)")
     parser.add_argument("--out", default=os.path.join(here, "..", "tests", "data", "sleeve"))
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
@@ -60,7 +68,8 @@ def main():
             write_pc2(os.path.join(args.out, f"{key}.{part}.pc2"), points, chosen)
     with open(os.path.join(args.out, "sample.json"), "w") as f:
         json.dump({"scene": "sleeve",
-                   "source": "shared/data/sleeve (Blender 3.4 cloth), renumbered from frame 1",
+                   "source": "the sleeve train and test_public clips of scripts/clipgen "
+                             "(Blender cloth), renumbered from frame 1",
                    "train_source_frames": picks["train"],
                    "test_source_frames": picks["test"],
                    "fps": 24}, f, indent=1)

@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# Measures bake accuracy on the reference data beside the checkout (../shared/data): builds a
+# Measures bake accuracy on the public clips (DRIVENSHAPE_DATA: made by
+# scripts/validation/generate_clips.sh --link-data out/data out/clips): builds a
 # 30-shape database from each scene's `train` clip, bakes `test_public` in every mode (the
 # talk's method, the binding baseline, and the fidelity options of issue 4) and compares each
 # with the simulated truth: mean / RMS / max vertex error (mm), cloth vertices inside the
 # driver per frame (and the truth's, when `drivenshape eval` measures penetrations), and the
 # largest frame-to-frame vertex jump against the truth's. Prints a Markdown table (the
-# accuracy table in docs/method.md). Not a test: it reads ../shared/data.
+# accuracy table in docs/method.md). Not a test: it reads generated clips.
 #
 # Usage: scripts/measure_accuracy.sh [SCENE...]   (default: pants sleeve)
-# Environment: DRIVENSHAPE_DATA (default ../shared/data), DRIVENSHAPE_BUILD (default build),
+# Environment: DRIVENSHAPE_DATA (default out/data), DRIVENSHAPE_BUILD (default build),
 #              DRIVENSHAPE_DEVICE (bake --device, default auto), MODES (space-separated keys to
 #              run, default all), DB_FLAGS (extra `db build` flags, e.g. "--add-frames 1"
 #              to seed the database with the simulation's undraped first frame instead of the
@@ -20,7 +21,7 @@
 # sleeve by the middle of the rest bounding box along its longest axis (upper arm / forearm).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-data=${DRIVENSHAPE_DATA:-../shared/data}
+data=${DRIVENSHAPE_DATA:-out/data}
 build=${DRIVENSHAPE_BUILD:-build}
 device=${DRIVENSHAPE_DEVICE:-auto}
 db_flags=${DB_FLAGS:-}

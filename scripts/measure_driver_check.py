@@ -2,11 +2,12 @@
 # SPDX-License-Identifier: Apache-2.0
 """The figures behind bake's driver sanity check (docs/method.md, "The driver's sanity check").
 
-For each reference scene (../shared/data/{pants,sleeve}) it builds a 30-shape database from
-`train`, then measures every frame of `train` and `test_public` (scale: median edge-length ratio
-against the rest driver; spread: RMS log ratio around it) and bakes both clips to read the
-report's direct relative residual; then the same for drivers made wrong on purpose (x 1.1, in
-centimetres, vertices shuffled). Not a test (it reads ../shared/data); prints one table.
+For each public scene (--data DIR/{pants,sleeve}, default out/data: the public clips made by
+scripts/validation/generate_clips.sh --link-data out/data out/clips) it builds a 30-shape
+database from `train`, then measures every frame of `train` and `test_public` (scale: median
+edge-length ratio against the rest driver; spread: RMS log ratio around it) and bakes both clips
+to read the report's direct relative residual; then the same for drivers made wrong on purpose
+(x 1.1, in centimetres, vertices shuffled). Not a test (it reads generated clips); prints one table.
 
   PYTHONPATH=build/python .venv/bin/python scripts/measure_driver_check.py [--data DIR]
 """
@@ -62,7 +63,7 @@ def residuals(db, driver, work, name):
 def main():
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--data", default=os.path.join(REPO, "..", "shared", "data"))
+    parser.add_argument("--data", default=os.path.join(REPO, "out", "data"))
     args = parser.parse_args()
     print("| driver | scale | edge spread | direct relative residual (median / max) |")
     print("|---|---|---|---|")

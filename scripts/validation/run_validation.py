@@ -13,13 +13,18 @@ motion frames (after the 20 preroll frames):
   qp        the 0.1 defaults: --weights qp (rigid alignment, local blend, resolution)
   defaults  the defaults: the pose model (--weights auto on a database with a model)
 
+The public clips are entries of clips.txt too, found by name in the clip folder (--clips):
+<scene>_train1 (the database) and <scene>_test_public2 (the last two rows). --reference DIR
+takes them from DIR/<scene>/{train,test_public}.* instead (e.g. the folder of
+generate_clips.sh --link-data).
+
 Prints one Markdown table (mean vertex error in mm per mode, the defaults against the better of
 talk and binding, cloth inside the body per frame against the truth's, the largest frame jump
 against the truth's, the coverage verdict), then the coverage figures: Spearman rank correlation
 of the predicted error with the true per-frame error over every validation frame, and the true
 mean error of the frames the verdict calls covered. Writes everything under --out.
 
-Usage: scripts/validation/run_validation.py [--reference ../shared/data] [--clips DIR]
+Usage: scripts/validation/run_validation.py [--clips DIR] [--reference DIR]
        [--build build] [--out out/validation] [--modes talk,bind,qp,defaults] [--only NAME...]
        [--skip NAME...] [--db-flags FLAGS] [--bake-flags FLAGS]
        scripts/validation/run_validation.py --from-tables RUN1/table.json RUN2/table.json ...
@@ -41,19 +46,38 @@ MODES = {
 }
 
 
+# The public clips of clips.txt, by character: the database's `train` clip and the public
+# `test_public` clip (the table's last rows).
+DATABASE_CLIP = "{}_train1"
+PUBLIC_TEST_CLIP = "{}_test_public2"
+
+
+def public_folder(clips_dir, reference, scene, family):
+    """The folder of a character's public `train` or `test_public` clip."""
+    if reference:
+        return os.path.join(reference, scene)
+    name = (DATABASE_CLIP if family == "train" else PUBLIC_TEST_CLIP).format(scene)
+    return os.path.join(clips_dir, name, scene)
+
+
 def clips(clips_dir, reference):
     """(name, scene, directory, family) of every generated clip, then the public test clips."""
+    public = {f.format(s) for f in (DATABASE_CLIP, PUBLIC_TEST_CLIP) for s in ("pants", "sleeve")}
     out = []
     for line in open(os.path.join(HERE, "clips.txt")):
         if not line.strip() or line.startswith("#"):
             continue
         name, scene, family = line.split()[:3]
         d = os.path.join(clips_dir, name, scene)
-        if os.path.exists(os.path.join(d, family + ".driven.pc2")):
+        if name not in public and os.path.exists(os.path.join(d, family + ".json")):
             out.append((name, scene, d, family))
     for scene in ("pants", "sleeve"):
-        out.append((scene + "_test_public (public)", scene, os.path.join(reference, scene),
-                    "test_public"))
+        d = public_folder(clips_dir, reference, scene, "test_public")
+        if os.path.exists(os.path.join(d, "test_public.json")):
+            out.append((scene + "_test_public (public)", scene, d, "test_public"))
+        else:
+            print(f"note: no public test clip in {d} (generate_clips.sh CLIPS "
+                  f"{PUBLIC_TEST_CLIP.format(scene)}); its row is left out", file=sys.stderr)
     return out
 
 
@@ -105,9 +129,13 @@ def spearman(a, b):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--reference", default=os.path.join(ROOT, "..", "shared", "data"))
     ap.add_argument("--clips", default=os.environ.get("DRIVENSHAPE_VALIDATION_CLIPS",
-                                                      os.path.join(ROOT, "out", "clips")))
+                                                      os.path.join(ROOT, "out", "clips")),
+                    help="the folder of generate_clips.sh (default $DRIVENSHAPE_VALIDATION_CLIPS, "
+                    "else out/clips)")
+    ap.add_argument("--reference", default=None, metavar="DIR",
+                    help="take the public train and test_public clips from DIR/<scene>/ instead "
+                    "of the clip folder's <scene>_train1 and <scene>_test_public2")
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "validation"))
     ap.add_argument("--modes", default="talk,bind,qp,defaults")
@@ -157,7 +185,10 @@ def main():
     open(log, "w").close()
     dbs = {}
     for scene in ("pants", "sleeve"):
-        src = os.path.join(a.reference, scene)
+        src = public_folder(a.clips, a.reference, scene, "train")
+        if not os.path.exists(os.path.join(src, "train.driven.pc2")):
+            sys.exit(f"run_validation: no train clip in {src}; make it with "
+                     f"scripts/validation/generate_clips.sh {a.clips} {DATABASE_CLIP.format(scene)}")
         db = os.path.join(a.out, scene + ".dsdb")
         run([ds, "db", "build", "--driver-mesh", f"{src}/driver_rest.obj", "--driven-mesh",
              f"{src}/driven_rest.obj", "--driver", f"{src}/train.driver.pc2", "--driven",

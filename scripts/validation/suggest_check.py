@@ -10,9 +10,12 @@ plus N frames of that clip picked by the farthest-point rule of `db build` (`--c
 candidate clip alone). Each database bakes every shot with the defaults, and `drivenshape eval`
 judges the bakes against the shots' simulations on their motion frames. Prints one table.
 
+The public `train` clip is the clip folder's <scene>_train1 (an entry of clips.txt, made by
+scripts/validation/generate_clips.sh); --reference DIR takes DIR/<scene>/train.* instead.
+
 Usage: scripts/validation/suggest_check.py [--scene pants] [--candidate pants_rom31]
-       [--shots pants_ext15 pants_ext16] [--count 10] [--reference ../shared/data]
-       [--clips DIR] [--build build] [--out out/suggest]
+       [--shots pants_ext15 pants_ext16] [--count 10] [--clips DIR] [--reference DIR]
+       [--build build] [--out out/suggest]
 """
 import argparse
 import json
@@ -56,9 +59,13 @@ def main():
     ap.add_argument("--candidate", default="pants_rom31")
     ap.add_argument("--shots", nargs="+", default=["pants_ext15", "pants_ext16"])
     ap.add_argument("--count", type=int, default=10)
-    ap.add_argument("--reference", default=os.path.join(ROOT, "..", "shared", "data"))
     ap.add_argument("--clips", default=os.environ.get("DRIVENSHAPE_VALIDATION_CLIPS",
-                                                      os.path.join(ROOT, "out", "clips")))
+                                                      os.path.join(ROOT, "out", "clips")),
+                    help="the folder of generate_clips.sh (default $DRIVENSHAPE_VALIDATION_CLIPS, "
+                    "else out/clips)")
+    ap.add_argument("--reference", default=None, metavar="DIR",
+                    help="take the public train clip from DIR/<scene>/ instead of the clip "
+                    "folder's <scene>_train1")
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "suggest"))
     a = ap.parse_args()
@@ -66,7 +73,11 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     log = os.path.join(a.out, "commands.log")
     open(log, "w").close()
-    src = os.path.join(a.reference, a.scene)
+    src = (os.path.join(a.reference, a.scene) if a.reference
+           else os.path.join(a.clips, f"{a.scene}_train1", a.scene))
+    if not os.path.exists(os.path.join(src, "train.driven.pc2")):
+        sys.exit(f"suggest_check: no train clip in {src}; make it with "
+                 f"scripts/validation/generate_clips.sh {a.clips} {a.scene}_train1")
     base = [ds, "db", "build", "--driver-mesh", f"{src}/driver_rest.obj", "--driven-mesh",
             f"{src}/driven_rest.obj", "--driver", f"{src}/train.driver.pc2", "--driven",
             f"{src}/train.driven.pc2", "--count", "30", "--quiet"]
