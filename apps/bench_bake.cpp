@@ -21,6 +21,7 @@
 
 #include <drivenshape/bake.h>
 #include <drivenshape/database.h>
+#include <drivenshape/database_build.h>
 #include <drivenshape/error.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/settings_table.h>

@@ -21,6 +21,7 @@
 #include <drivenshape/evaluate.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/position_map.h>
+#include <drivenshape/position_map_sequence.h>
 #include <drivenshape/settings_table.h>
 
 #include "atomic_file.h"

@@ -13,6 +13,7 @@
 
 #include <drivenshape/build_settings.h>
 #include <drivenshape/database.h>
+#include <drivenshape/database_build.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh_check.h>

@@ -10,6 +10,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/position_map.h>
+#include <drivenshape/position_map_sequence.h>
 
 #include "atomic_file.h"
 #include "hash.h"

@@ -10,6 +10,7 @@
 #include <drivenshape/build_settings.h>
 #include <drivenshape/coverage_check.h>
 #include <drivenshape/database.h>
+#include <drivenshape/database_build.h>
 #include <drivenshape/device.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/layers.h>

@@ -9,9 +9,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <drivenshape/binding.h>
 #include <drivenshape/mesh.h>
-
-#include "closest.h"
 
 namespace drivenshape::correction {
 

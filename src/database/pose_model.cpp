@@ -16,6 +16,7 @@
 
 #include <drivenshape/error.h>
 
+#include "local_encoding.h"
 #include "parallel.h"
 #include "pose_kernel.h"
 

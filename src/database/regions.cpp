@@ -9,8 +9,8 @@
 #include <sstream>
 
 #include <drivenshape/error.h>
+#include <drivenshape/mesh.h>
 
-#include "align.h"
 #include "atomic_file.h"
 
 #include "json_text.h"

@@ -2,7 +2,7 @@
 // UV rasterisation for position maps (the "far" side): texel -> triangle + barycentrics,
 // built once per mesh and map size. See position_map.h for the conventions.
 
-#include <drivenshape/position_map.h>
+#include <drivenshape/position_map_tables.h>
 
 #include <algorithm>
 #include <cctype>
@@ -303,43 +303,6 @@ void checkMapSize(int width, int height, int padding) {
 }
 
 }  // namespace
-
-std::string UvOverlapReport::describe() const {
-  if (texels == 0) {
-    return "";
-  }
-  std::ostringstream text;
-  text << "UV islands overlap on " << texels << " texel" << (texels == 1 ? "" : "s") << " ("
-       << facePairs << " face pair" << (facePairs == 1 ? "" : "s")
-       << " kept/hidden, faces counted from 1 in f-line order: ";
-  for (std::size_t i = 0; i < examples.size(); ++i) {
-    text << (i == 0 ? "" : ", ") << examples[i].first + 1 << "/" << examples[i].second + 1;
-  }
-  if (static_cast<long long>(examples.size()) < facePairs) {
-    text << ", ...";
-  }
-  text << "); the face listed first (lower triangle index) keeps each shared texel";
-  return text.str();
-}
-
-std::pair<int, int> parsePositionMapResolution(const std::string& text, const std::string& flag) {
-  const auto parseSide = [&](const std::string& part) {
-    if (part.empty() || part.size() > 9 ||
-        !std::all_of(part.begin(), part.end(),
-                     [](unsigned char ch) { return std::isdigit(ch) != 0; })) {
-      DS_THROW(kUsage, flag, " '", text,
-               "' is not a resolution; use W or WxH in texels, e.g. 2048 or 2048x1024");
-    }
-    return std::stoi(part);
-  };
-  const auto cross = text.find_first_of("xX");
-  const int width = parseSide(text.substr(0, cross));
-  const int height = cross == std::string::npos ? width : parseSide(text.substr(cross + 1));
-  if (width < 1 || height < 1 || width > kMaxPositionMapSide || height > kMaxPositionMapSide) {
-    DS_THROW(kUsage, flag, " '", text, "': each side must be 1..", kMaxPositionMapSide, " texels");
-  }
-  return {width, height};
-}
 
 PositionMapTables buildPositionMapTables(const Mesh& mesh, int width, int height, int padding,
                                          const std::string& meshName) {

@@ -205,12 +205,6 @@ class ClosestBackend {
   }
 };
 
-/// Host-side encoding for local-frame blending (the inverse of ClosestBackend::rebuild, in
-/// double arithmetic): the local coordinates of `count` points (count x 3) with their hits on
-/// one pose (Vp x 3) of `driver`'s topology, written to local (count x 3).
-void encodeLocal(const Mesh& driver, const float* pose, int count, const float* points,
-                 const SurfaceHit* hits, float* local);
-
 /// The host reference implementation (plain C++, double arithmetic).
 std::unique_ptr<ClosestBackend> makeHostClosest(const ClosestOptions& options = {});
 

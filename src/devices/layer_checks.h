@@ -5,7 +5,7 @@
 #pragma once
 
 #include <drivenshape/error.h>
-#include <drivenshape/layers.h>
+#include <drivenshape/layer_backend.h>
 
 namespace drivenshape::layer_checks {
 

@@ -6,7 +6,7 @@
 #include <cstddef>
 
 #include <drivenshape/error.h>
-#include <drivenshape/position_map.h>
+#include <drivenshape/position_map_backend.h>
 
 namespace drivenshape::posmap_checks {
 

@@ -81,8 +81,4 @@ class StageBackend {
 /// The host reference implementation (plain C++, no OpenCL).
 std::unique_ptr<StageBackend> makeHostStages();
 
-struct Database;
-/// Flat tables for the stage backends, built from a database (projection basis, shapes).
-ShapeTables makeShapeTables(const Database& database);
-
 }  // namespace drivenshape

@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include <drivenshape/layers.h>
+#include <drivenshape/layer_backend.h>
 #include <layer_types.h>
 
 namespace drivenshape::layer_detail {

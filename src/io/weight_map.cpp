@@ -2,7 +2,7 @@
 // Weight maps (one number in [0, 1] per driven vertex): JSON arrays, one-channel point-cache
 // EXRs, OBJ face groups, and the edge-ring falloff that softens them.
 
-#include <drivenshape/layers.h>
+#include <drivenshape/weight_map.h>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>

@@ -70,40 +70,6 @@ const char* resolveDirectionName(ResolveDirection direction) {
   return direction == ResolveDirection::kNearest ? "nearest" : "normal";
 }
 
-namespace {
-
-/// The mode of `modes` spelled `text` (by `name`), or Error(kUsage) listing the spellings.
-template <typename Mode, std::size_t N>
-Mode parseMode(const std::string& text, const std::string& what, const Mode (&modes)[N],
-               const char* (*name)(Mode)) {
-  std::string spellings;
-  for (const Mode mode : modes) {
-    if (text == name(mode)) {
-      return mode;
-    }
-    spellings += (spellings.empty() ? "" : ", ") + std::string(name(mode));
-  }
-  DS_THROW(kUsage, what, " takes ", spellings, " (got '", text, "')");
-}
-
-}  // namespace
-
-AlignMode parseAlignMode(const std::string& text, const std::string& what) {
-  static const AlignMode modes[] = {AlignMode::kNone, AlignMode::kRigid, AlignMode::kRigidAll};
-  return parseMode(text, what, modes, &alignModeName);
-}
-
-WeightMode parseWeightMode(const std::string& text, const std::string& what) {
-  static const WeightMode modes[] = {WeightMode::kQp, WeightMode::kNearest, WeightMode::kBind,
-                                     WeightMode::kModel, WeightMode::kAuto};
-  return parseMode(text, what, modes, &weightModeName);
-}
-
-BlendMode parseBlendMode(const std::string& text, const std::string& what) {
-  static const BlendMode modes[] = {BlendMode::kWorld, BlendMode::kLocal};
-  return parseMode(text, what, modes, &blendModeName);
-}
-
 WeightMode resolvedWeightMode(const EvaluatorSettings& settings, const Database& database) {
   if (settings.weightMode != WeightMode::kAuto) {
     return settings.weightMode;

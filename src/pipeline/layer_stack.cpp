@@ -13,6 +13,7 @@
 #include <drivenshape/frames.h>
 
 #include <layer_types.h>
+#include "hash.h"
 #include "json_text.h"
 
 namespace drivenshape {

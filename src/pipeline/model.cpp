@@ -186,11 +186,11 @@ ClosestBackend& Model::binding() {
   return *mBinding;
 }
 
-ClosestBackend& Model::audit() {
-  if (!mAudit) {
-    mAudit = makeClosest(BindingMask::all(vd));
+ClosestBackend& Model::unmaskedClosest() {
+  if (!mUnmaskedClosest) {
+    mUnmaskedClosest = makeClosest(BindingMask::all(vd));
   }
-  return *mAudit;
+  return *mUnmaskedClosest;
 }
 
 std::unique_ptr<ClosestBackend> Model::makeClosest(const BindingMask& mask) {
@@ -203,12 +203,13 @@ std::unique_ptr<ClosestBackend> Model::makeClosest(const BindingMask& mask) {
 
 const std::vector<std::int8_t>& Model::sides() {
   if (!mSidesLearnt) {
-    mSides = db.drivenSides.size() == static_cast<std::size_t>(vd)
-                 ? db.drivenSides
-                 : learnSides(db, audit(), device, settings.clearanceCertificate, threads);
+    mSides =
+        db.drivenSides.size() == static_cast<std::size_t>(vd)
+            ? db.drivenSides
+            : learnSides(db, unmaskedClosest(), device, settings.clearanceCertificate, threads);
     mInsideVertices = static_cast<int>(std::count(mSides.begin(), mSides.end(), kSideInside));
     if (mInsideVertices > 0) {
-      audit().setSides(mSides);
+      unmaskedClosest().setSides(mSides);
     }
     mSidesLearnt = true;
   }
@@ -310,10 +311,10 @@ void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& c
   }
   counts.assign(static_cast<std::size_t>(count), 0);
   if (certify) {
-    model.audit().closestOrClearBlock(count, poses, cloth, clearance, hits, counts.data(),
-                                      &answered, keep);
+    model.unmaskedClosest().closestOrClearBlock(count, poses, cloth, clearance, hits, counts.data(),
+                                                &answered, keep);
   } else {
-    model.audit().closestBlock(count, poses, cloth, hits);
+    model.unmaskedClosest().closestBlock(count, poses, cloth, hits);
   }
   FrameRecord* records = batch.out<Array::Records>();
   for (int i = 0; i < count; ++i) {
@@ -327,8 +328,8 @@ void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cl
   auditClosest(model, batch, poses, cloth, clearance, keep);
   std::vector<int>& counts = batch.out<Array::Counts>();
   counts.assign(static_cast<std::size_t>(batch.count()), 0);
-  model.audit().countInside(batch.count(), poses, batch.out<Array::AuditHits>(), cloth,
-                            counts.data());
+  model.unmaskedClosest().countInside(batch.count(), poses, batch.out<Array::AuditHits>(), cloth,
+                                      counts.data());
   FrameRecord* records = batch.out<Array::Records>();
   for (int i = 0; i < batch.count(); ++i) {
     records[i].*field = counts[static_cast<std::size_t>(i)];
@@ -454,14 +455,6 @@ void Batch::refuse(Array array, const char* access) const {
 }  // namespace drivenshape::pipeline
 
 namespace drivenshape {
-
-ShapeTables makeShapeTables(const Database& database) {
-  return pipeline::tablesFrom(
-      database,
-      SimplexLeastSquares(pipeline::driverMatrix(database.driverShapes, database.shapeCount(),
-                                                 database.driverVertexCount(), {})),
-      database.driverShapes, database.drivenShapes);
-}
 
 std::vector<std::int8_t> learnDrivenSides(const Database& database, Device& device, int threads) {
   ClosestOptions options;

@@ -62,18 +62,18 @@ class Model {
   const BindingMask& mask() const { return mMask; }
 
   // Backends on the device, made on first use. binding() searches the triangles the mask
-  // allows; audit() every triangle (resolution, audit, wind clearance).
+  // allows; unmaskedClosest() every triangle (resolution, audit, wind clearance).
   StageBackend& stages();
   ClosestBackend& binding();
-  ClosestBackend& audit();
+  ClosestBackend& unmaskedClosest();
   LayerBackend& layers();
 
   /// Which side of the driver's skin each driven vertex lives on (Vd values, kSideOutside or
   /// kSideInside), learnt from the database's pairs on first use (by the resolution and the
-  /// audit) and set on audit(): for every pair i, the sign of driven vertex v's signed distance
-  /// to driver shape i (exact closest point over every triangle, InsideAudit's pseudo-normal
-  /// sign); v lives inside when more than half of the pairs have it inside (ties and points on
-  /// the skin count as outside). Cloth lives outside; a muscle under the skin inside.
+  /// audit) and set on unmaskedClosest(): for every pair i, the sign of driven vertex v's signed
+  /// distance to driver shape i (exact closest point over every triangle, InsideAudit's
+  /// pseudo-normal sign); v lives inside when more than half of the pairs have it inside (ties and
+  /// points on the skin count as outside). Cloth lives outside; a muscle under the skin inside.
   const std::vector<std::int8_t>& sides();
   /// How many driven vertices live inside. 0 (every cloth database): the side table is never
   /// set on the backend, nor added to the settings hash or the report, so outputs are those of
@@ -105,7 +105,7 @@ class Model {
 
   BindingMask mMask;
   std::unique_ptr<StageBackend> mStages;
-  std::unique_ptr<ClosestBackend> mBinding, mAudit;
+  std::unique_ptr<ClosestBackend> mBinding, mUnmaskedClosest;
   std::unique_ptr<LayerBackend> mLayers;
   std::vector<WeightProblem> mProblems;
   bool mSidesLearnt = false;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <drivenshape/device.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh_check.h>

@@ -10,6 +10,7 @@
 
 #include <drivenshape/bake.h>
 #include <drivenshape/database.h>
+#include <drivenshape/database_build.h>
 #include <drivenshape/device.h>
 #include <drivenshape/device_cl.h>
 #include <drivenshape/point_cache.h>

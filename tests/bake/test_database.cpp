@@ -3,6 +3,7 @@
 // format (round trip, corruption, versions).
 
 #include <drivenshape/database.h>
+#include <drivenshape/database_build.h>
 
 #include <gtest/gtest.h>
 

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include <drivenshape/database.h>
+#include <drivenshape/database_build.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/pose_model.h>

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <drivenshape/database.h>
+#include <drivenshape/database_build.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/pose_model.h>

@@ -15,6 +15,7 @@
 #include <drivenshape/error.h>
 
 #include "closest.h"
+#include "local_encoding.h"
 
 #include "correction_fixture.h"
 #include "correction_test_util.h"

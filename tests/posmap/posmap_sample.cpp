@@ -15,6 +15,8 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/position_map.h>
+#include <drivenshape/position_map_tables.h>
+#include <drivenshape/position_map_backend.h>
 
 namespace {
 

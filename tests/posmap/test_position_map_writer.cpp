@@ -3,6 +3,8 @@
 // its refusals (vertex count, missing frames, output folder).
 
 #include <drivenshape/position_map.h>
+#include <drivenshape/position_map_sequence.h>
+#include <drivenshape/position_map_backend.h>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>

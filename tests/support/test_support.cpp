@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 
+#include <drivenshape/database_build.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 

@@ -13,8 +13,8 @@
 #include <CL/opencl.hpp>
 
 #include <drivenshape/device.h>
-#include <drivenshape/layers.h>
-#include <drivenshape/position_map.h>
+#include <drivenshape/layer_backend.h>
+#include <drivenshape/position_map_backend.h>
 
 #include "closest.h"
 #include "stages.h"

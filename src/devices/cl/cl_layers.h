@@ -14,7 +14,7 @@
 
 #include <CL/opencl.hpp>
 
-#include <drivenshape/layers.h>
+#include <drivenshape/layer_backend.h>
 
 #include "cl_program.h"
 

@@ -4,7 +4,7 @@
 // kernel over all its frames, one read back. Output buffers are zero-filled once when they are
 // allocated: the kernels write active texels only, so the rest stay 0 in every frame.
 
-#include <drivenshape/position_map.h>
+#include <drivenshape/position_map_backend.h>
 
 #include <algorithm>
 #include <cstddef>

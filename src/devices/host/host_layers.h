@@ -9,7 +9,7 @@
 
 #include <string>
 
-#include <drivenshape/layers.h>
+#include <drivenshape/layer_backend.h>
 
 namespace drivenshape {
 

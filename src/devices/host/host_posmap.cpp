@@ -3,7 +3,7 @@
 // position_map.h; the OpenCL twin is kernels/posmap.cl). Plain loops in float, in the same
 // order of operations as the kernels, so the two agree to a few ulps.
 
-#include <drivenshape/position_map.h>
+#include <drivenshape/position_map_backend.h>
 
 #include <algorithm>
 #include <cmath>

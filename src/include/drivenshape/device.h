@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include <drivenshape/layers.h>
-#include <drivenshape/position_map.h>
+#include <drivenshape/layer_backend.h>
+#include <drivenshape/position_map_backend.h>
 
 namespace drivenshape {
 

@@ -72,11 +72,6 @@ const char* alignModeName(AlignMode mode);
 const char* weightModeName(WeightMode mode);
 const char* blendModeName(BlendMode mode);
 const char* resolveDirectionName(ResolveDirection direction);
-/// The modes those spellings name. Error(kUsage) naming `what` (the setting or flag that gave
-/// the text) and the spellings there are, otherwise.
-AlignMode parseAlignMode(const std::string& text, const std::string& what);
-WeightMode parseWeightMode(const std::string& text, const std::string& what);
-BlendMode parseBlendMode(const std::string& text, const std::string& what);
 
 /// Everything that decides the cloth of a frame, as in-memory objects. The defaults are the
 /// command line's `bake` defaults (see docs/method.md for how they were chosen).

@@ -71,4 +71,18 @@ Mesh readObj(const std::string& path);
 /// Writes positions + faces (+ UVs, groups) as OBJ, atomically.
 void writeObj(const std::string& path, const Mesh& mesh);
 
+/// Vertices of `mesh` named by a selection: the vertices of the faces of each named `g`/`o`
+/// group, and/or explicit 0-based vertex indices. `spec` is a comma-separated list whose items
+/// are group names or indices / inclusive ranges ("0-99,250"); an empty spec or "all" selects
+/// every vertex. Sorted, duplicate-free. `source` names the flag or file in messages. Throws
+/// Error(kInput) for an unknown group (listing the known ones), an index out of range or a
+/// selection that names no vertex.
+std::vector<int> selectVertices(const Mesh& mesh, const std::string& spec,
+                                const std::string& source);
+
+/// The vertices of the faces of group `name` of `mesh` (sorted); throws Error(kInput) naming
+/// `source` and listing the known groups when the mesh has no such group.
+std::vector<int> groupVertices(const Mesh& mesh, const std::string& name,
+                               const std::string& source);
+
 }  // namespace drivenshape

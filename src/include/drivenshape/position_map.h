@@ -3,9 +3,6 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <functional>
-#include <iosfwd>
-#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -121,42 +118,6 @@ struct PositionMapTables {
   }
 };
 
-/// Rasterises the UV layout of `mesh` into a width x height map with `padding` texels of
-/// dilation. `meshName` (a path, usually) prefixes input errors. Throws Error(kUsage) for a
-/// size outside 1..kMaxPositionMapSide or a padding outside 0..kMaxPositionMapPadding, and
-/// Error(kInput) for a mesh without UVs, a face corner without a UV, or a UV outside [0, 1]
-/// (naming the face, the UV index and its value).
-PositionMapTables buildPositionMapTables(const Mesh& mesh, int width, int height, int padding,
-                                         const std::string& meshName = "mesh");
-
-/// Evaluates position maps for F frames per call ("osd" side). Two implementations share this
-/// contract: OpenCL kernels (makeClPositionMaps) and the plain C++ host reference
-/// (makeHostPositionMaps), the oracle in tests. Blocks are frame-major, interleaved xyz:
-///
-///   frames     F x 3V        frame f, vertex v, axis a at [f * 3V + 3v + a]
-///   positions  F x 3(W*H)    frame f, texel i = y * W + x, axis a at [f * 3WH + 3i + a]
-///   normals    F x 3(W*H)    same layout; unit length or 0 where the normal is degenerate
-///
-/// Every texel of every frame is written: active texels get the interpolated value
-///   P = p0 + b1 (p1 - p0) + b2 (p2 - p0)
-/// (N the same way from the frame's area-weighted vertex normals, then normalised), all other
-/// texels 0. upload() once, evaluate() many times. Not thread-safe.
-class PositionMapBackend {
- public:
-  virtual ~PositionMapBackend() = default;
-  /// "host" or the OpenCL device name.
-  virtual std::string name() const = 0;
-  /// Makes the tables resident (device memory for OpenCL). Must precede evaluate().
-  virtual void upload(const PositionMapTables& tables) = 0;
-  /// `normals` may be null (no normals computed).
-  virtual void evaluate(int frameCount, const float* frames, float* positions, float* normals) = 0;
-  /// The largest single buffer the backend can hold, in bytes (bounds the frames per call).
-  virtual std::size_t maxBufferBytes() const = 0;
-};
-
-/// The host reference implementation (plain C++, no OpenCL).
-std::unique_ptr<PositionMapBackend> makeHostPositionMaps();
-
 // ---------------------------------------------------------------------------------------
 // Position-map EXR: scanline, one file per frame, W x H, row 0 = top (see above). Channels,
 // named as compositing tools name a colour image and its layers (PositionMapChannels::kRgba,
@@ -260,73 +221,5 @@ void writePositionMapPreview(const std::string& path, const PositionMapTables& t
 
 /// "out/cloth.1001.exr" -> "out/cloth.1001.png" (the extension replaced or appended).
 std::string positionMapPreviewPath(const std::string& exrPath);
-
-/// Writes position maps of one mesh frame by frame: rasterises once, evaluates on a backend,
-/// writes EXRs (and previews). The bake calls it after blending, the `posmap` command after
-/// reading a cache.
-///
-///     PositionMapWriter writer(mesh, options, makeHostPositionMaps(), "cloth.obj", &std::cerr);
-///     writer.writeFrame(1001, xyz, "maps/cloth.1001.exr");
-class PositionMapWriter {
- public:
-  /// Builds the tables (buildPositionMapTables: may throw kUsage / kInput) and uploads them.
-  /// An overlap of UV islands is reported on `log` as a warning line (when `log` is set).
-  PositionMapWriter(const Mesh& mesh, const PositionMapOptions& options,
-                    std::unique_ptr<PositionMapBackend> backend,
-                    const std::string& meshName = "mesh", std::ostream* log = nullptr);
-  ~PositionMapWriter();
-  PositionMapWriter(const PositionMapWriter&) = delete;
-  PositionMapWriter& operator=(const PositionMapWriter&) = delete;
-
-  const PositionMapTables& tables() const { return mTables; }
-  const PositionMapOptions& options() const { return mOptions; }
-  std::string backendName() const;
-  /// Frames per writeFrames() call that one launch handles (from options and memory).
-  int chunkSize() const { return mChunkSize; }
-
-  /// One frame: `xyz` holds 3V floats of the mesh's vertices.
-  void writeFrame(int frame, const float* xyz, const std::string& path);
-  /// Several frames: `xyz` is F x 3V (frame-major), `paths[f]` the output of `frames[f]`.
-  /// Frames beyond chunkSize() are split into several launches. Files are written on up to
-  /// options.threads threads; a failed file does not stop the others, and the first failure
-  /// is rethrown after the rest are written.
-  void writeFrames(const std::vector<int>& frames, const float* xyz,
-                   const std::vector<std::string>& paths);
-
-  /// Seconds spent so far in evaluation (backend) and in writing files.
-  double evaluateSeconds() const { return mEvaluateSeconds; }
-  double writeSeconds() const { return mWriteSeconds; }
-
- private:
-  void writeChunk(int count, const int* frames, const float* xyz, const std::string* paths);
-
-  PositionMapOptions mOptions;
-  PositionMapTables mTables;
-  std::unique_ptr<PositionMapBackend> mBackend;
-  int mChunkSize = 1;
-  std::vector<float> mPositions;
-  std::vector<float> mNormals;
-  double mEvaluateSeconds = 0.0;
-  double mWriteSeconds = 0.0;
-};
-
-/// What writePositionMapSequence did.
-struct PositionMapRunResult {
-  int written = 0;
-  double readSeconds = 0.0;
-  double evaluateSeconds = 0.0;
-  double writeSeconds = 0.0;
-  double totalSeconds = 0.0;
-};
-
-/// Writes the maps of `frames` of `cache` to `outputPattern` (a frame token, e.g.
-/// maps/cloth.####.exr), a chunk of frames at a time. Checks first that the cache has the
-/// mesh's vertex count and every frame (Error(kInput) naming the cache, the counts or the
-/// missing frames) and that the output folder is writable (Error(kOutput)).
-/// `frameDone(frame, path)` is called after each file, on the calling thread.
-PositionMapRunResult writePositionMapSequence(
-    PositionMapWriter& writer, const PointCacheReader& cache, const std::vector<int>& frames,
-    const std::string& outputPattern,
-    const std::function<void(int, const std::string&)>& frameDone = {});
 
 }  // namespace drivenshape

@@ -18,7 +18,7 @@
 #include <variant>
 #include <vector>
 
-#include <drivenshape/bake.h>
+#include <drivenshape/bake_options.h>
 #include <drivenshape/evaluator.h>
 
 namespace drivenshape {

@@ -23,17 +23,11 @@
 #include <cstddef>
 #include <vector>
 
+#include <drivenshape/bake_options.h>
+
 namespace drivenshape {
 
 class Evaluator;
-
-/// The bake's defaults (`--batch`, `--temporal-warmup`; BakeOptions), which every tool uses.
-inline constexpr int kDefaultBatchFrames = 64;
-inline constexpr int kDefaultTemporalWarmup = 8;
-
-/// Memory that one launch batch's frame blocks may take; larger meshes get smaller batches
-/// (see shotPlanSettings).
-inline constexpr std::size_t kBatchMemoryBudget = std::size_t(768) << 20;
 
 /// What decides the batches of a shot.
 struct ShotPlanSettings {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 
+#include "local_encoding.h"
 #include "parallel.h"
 
 #include "../stage.h"

@@ -19,7 +19,7 @@ class LayersStage final : public Stage {
             Arrays{Array::Cloth, Array::LayersApplied}.with(Array::AuditHits, wind));
     model.layerStack.emplace(model.settings.layers, model.db.drivenMesh, model.layers());
     if (model.settings.layers.hasWind()) {
-      model.audit();  // the wind's clearance
+      model.unmaskedClosest();  // the wind's clearance
     }
   }
 
@@ -36,7 +36,8 @@ class LayersStage final : public Stage {
     if (mModel.settings.layers.hasWind()) {
       DeviceArray& auditHits = batch.out<Array::AuditHits>();
       auditHits.resize<SurfaceHit>(points);
-      mModel.audit().closestBlock(batch.count(), batch.in<Array::Shot>(), cloth, auditHits);
+      mModel.unmaskedClosest().closestBlock(batch.count(), batch.in<Array::Shot>(), cloth,
+                                            auditHits);
       const SurfaceHit* hits = auditHits.read<SurfaceHit>();
       mClearance.resize(points);
       for (std::size_t i = 0; i < points; ++i) {

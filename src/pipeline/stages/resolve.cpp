@@ -17,8 +17,9 @@ class ResolveStage final : public Stage {
   explicit ResolveStage(Model& model) : mModel(model) {
     declare({Array::Shot, Array::Cloth}, kAuditArrays | Arrays{Array::Cloth, Array::Moved});
     model.sides();
-    model.audit().setExitFade(static_cast<float>(model.settings.exitFade));
-    model.audit().setAlongNormal(model.settings.resolveDirection == ResolveDirection::kNormal);
+    model.unmaskedClosest().setExitFade(static_cast<float>(model.settings.exitFade));
+    model.unmaskedClosest().setAlongNormal(model.settings.resolveDirection ==
+                                           ResolveDirection::kNormal);
   }
 
   const char* name() const override { return "resolve"; }
@@ -46,8 +47,8 @@ class ResolveStage final : public Stage {
     }
     std::vector<int>& moved = batch.out<Array::Moved>();
     moved.assign(batch.count(), 0);
-    mModel.audit().resolveBlock(batch.count(), shot, batch.out<Array::AuditHits>(), offset, cloth,
-                                moved.data());
+    mModel.unmaskedClosest().resolveBlock(batch.count(), shot, batch.out<Array::AuditHits>(),
+                                          offset, cloth, moved.data());
     FrameRecord* records = batch.out<Array::Records>();
     for (int i = 0; i < batch.count(); ++i) {
       records[i].resolved = moved[i];

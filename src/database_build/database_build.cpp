@@ -1,4 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
+#include <drivenshape/database_build.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -9,7 +11,6 @@
 #include <ostream>
 #include <set>
 
-#include <drivenshape/database.h>
 #include <drivenshape/device.h>
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>

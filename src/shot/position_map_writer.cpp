@@ -2,7 +2,7 @@
 // PositionMapWriter and writePositionMapSequence: tables once, then chunks of frames through
 // a backend into EXR files (and PNG previews).
 
-#include <drivenshape/position_map.h>
+#include <drivenshape/position_map_sequence.h>
 
 #include "parallel.h"
 
@@ -15,6 +15,7 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+#include <drivenshape/position_map_tables.h>
 
 #include "atomic_file.h"
 
