@@ -3,6 +3,7 @@
 #include "binding.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -366,6 +367,23 @@ void bindPointCacheClass(py::module_& module) {
       });
 }
 
+/// Error(kInput) naming `what`, the frame and the vertex of the first value of `values`
+/// ((F, V, 3) or (V, 3)) that is not finite: a writer never stores NaN or infinity, which
+/// every reader of the file would refuse or pass on.
+void requireFinite(const float* values, py::ssize_t count, int vertices, const char* what) {
+  const float* end = values + count;
+  const float* bad = std::find_if(values, end, [](float v) { return !std::isfinite(v); });
+  if (bad != end) {
+    const py::ssize_t vertex = (bad - values) / 3;
+    DS_THROW(kInput, what, ": the value of frame index ", vertex / std::max(vertices, 1),
+             ", vertex ", vertex % std::max(vertices, 1), " is ", *bad,
+             "; a cache holds finite positions only");
+  }
+}
+
+/// The largest frame number magnitude a PC2 sample maps to (the reader's bound, src/io/pc2.cpp).
+constexpr double kPc2FrameBound = 2.0e9;
+
 /// `write_point_cache_exr`: one frame of positions (V, 3) and optional normals.
 void writeExrFrame(types::Path path, types::ArrayLike positions, types::OptionalArrayLike normals,
                    types::Frame frame, types::WholeNumber width, const std::string& compression,
@@ -385,6 +403,7 @@ void writeExrFrame(types::Path path, types::ArrayLike positions, types::Optional
     DS_THROW(kUsage, "positions hold no vertices (", xyz.describe(),
              "); a point-cache EXR holds at least one");
   }
+  requireFinite(xyz.data(), xyz.size(), static_cast<int>(xyz.dim(0)), "positions");
   std::optional<FloatArray> normalArray;
   if (!normals.is_none()) {
     normalArray.emplace(normals, "normals");
@@ -392,6 +411,11 @@ void writeExrFrame(types::Path path, types::ArrayLike positions, types::Optional
       DS_THROW(kUsage, "normals must be shaped like positions ", xyz.describe(), "; got ",
                normalArray->describe());
     }
+    requireFinite(normalArray->data(), normalArray->size(), static_cast<int>(xyz.dim(0)),
+                  "normals");
+  }
+  if (!(fps > 0.0) || !std::isfinite(fps)) {
+    DS_THROW(kUsage, "frames_per_second ", fps, " is not a positive finite number");
   }
   options.compression = parseExrCompression(compression);
   options.zipEncoder = parseZipEncoder(zipEncoder, "zip_encoder");
@@ -427,6 +451,17 @@ void bindCacheFiles(py::module_& module) {
         const std::string file = pathString(path);
         const FloatArray array(positions, "positions");
         const FrameBlockShape shape = frameBlockShape(array, "positions");
+        requireFinite(array.data(), array.size(), shape.vertices, "positions");
+        // Samples beyond the frames a PC2 reader maps would be written and never read.
+        const double last = static_cast<double>(startFrame) +
+                            static_cast<double>(std::max(shape.frames - 1, 0)) * sampleRate;
+        if (!(std::abs(static_cast<double>(startFrame)) < kPc2FrameBound) ||
+            !(std::abs(last) < kPc2FrameBound)) {
+          DS_THROW(kUsage, "start_frame ", static_cast<double>(startFrame), " with ",
+                   shape.frames, " samples at sample_rate ", sampleRate,
+                   " reaches frame ", last, ", beyond the frames a PC2 reader maps (|frame| < ",
+                   kPc2FrameBound, ")");
+        }
         py::gil_scoped_release release;
         writePc2(file, shape.vertices, startFrame, shape.frames, array.data(), sampleRate);
       },
@@ -537,6 +572,8 @@ void bindMeshes(py::module_& module) {
       "write_obj",
       [](types::Path path, const Mesh& mesh) {
         const std::string file = pathString(path);
+        requireFinite(mesh.positions.data(), mesh.positions.size(), mesh.vertexCount(),
+                      "the mesh's positions");
         py::gil_scoped_release release;
         writeObj(file, mesh);
       },

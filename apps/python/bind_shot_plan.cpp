@@ -1,15 +1,26 @@
 // SPDX-License-Identifier: Apache-2.0
 // The shot planner (drivenshape/shot_plan.h): plan_shot for whole shots (evaluate_cache, the
-// add-on's bake) and PlaybackPlanner for a timeline played frame by frame (live mode).
+// add-on's bake) and PlaybackPlanner for a timeline played frame by frame (live mode); and what
+// a bake says of its shot: the driver check, the coverage verdict, its simulation runs and the
+// bake report (drivenshape/bake.h, coverage_check.h), so that a tool evaluating a shot itself
+// (the USD bake) checks and reports it as `drivenshape bake` does.
 #include "binding.h"
 
 #include <algorithm>
 #include <climits>
+#include <map>
 #include <numeric>
+#include <optional>
 #include <sstream>
+#include <tuple>
 
+#include <drivenshape/bake.h>
+#include <drivenshape/coverage_check.h>
+#include <drivenshape/database.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/shot_plan.h>
+
+#include "driver_check.h"
 
 namespace drivenshape::python {
 namespace {
@@ -50,9 +61,119 @@ std::string describe(const BatchPlan& batch) {
   return text.str();
 }
 
+/// The bake result the report of an evaluated shot states: its records (each written to
+/// `output` unless it names its own file), device, settings hash, warnings and seconds ("read", "write", "setup", "total" and the stages by name).
+BakeResult shotResult(const Evaluator& evaluator, const std::vector<FrameRecord>& records,
+                      const std::string& output, const std::map<std::string, double>& seconds,
+                      const std::vector<std::string>& warnings) {
+  BakeResult result;
+  result.frames = records;
+  for (FrameRecord& record : result.frames) {
+    if (record.output.empty()) {
+      record.output = output;  // the file that holds every frame (a USD stage)
+    }
+  }
+  result.device = evaluator.deviceName();
+  result.settingsHash = evaluator.settingsHash();
+  result.baked = static_cast<int>(records.size());
+  result.warnings = warnings;
+  for (const auto& [name, value] : seconds) {
+    double* field = name == "read"    ? &result.times.read
+                    : name == "write" ? &result.times.write
+                    : name == "setup" ? &result.times.setup
+                    : name == "total" ? &result.times.total
+                                      : &result.times.stages[name];
+    *field = value;
+  }
+  return result;
+}
+
+void bindShotReport(py::module_& module) {
+  module.def(
+      "check_driver_scale",
+      [](const Database& database, const PointCacheReader& driver, types::Frames frames) {
+        const std::vector<int> list = frameList(frames);
+        std::vector<std::pair<bool, std::string>> out;
+        py::gil_scoped_release release;
+        for (const DriverFinding& finding : checkDriver(database, driver, list)) {
+          out.emplace_back(finding.refuse, finding.message);
+        }
+        return out;
+      },
+      py::arg("database"), py::arg("driver"), py::arg("frames"),
+      "What `drivenshape bake` finds checking a driver against the database before it bakes: "
+      "[(refuse, message)] for sampled `frames` whose edge lengths say other units (a "
+      "centimetre driver for a metre database) or another character; empty when all is well. "
+      "The bake refuses a finding with refuse=True (unless --force) and warns of the others.");
+  module.def(
+      "simulation_runs",
+      [](types::Frames flagged, types::Frame first, int runUp) {
+        std::vector<int> frames = frameList(flagged, "flagged");
+        std::sort(frames.begin(), frames.end());
+        frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
+        std::vector<std::tuple<int, int, int>> out;
+        for (const SimulationRun& run : simulationRuns(frames, frameNumber(first, "first"), runUp)) {
+          out.emplace_back(run.from, run.to, run.wanted);
+        }
+        return out;
+      },
+      py::arg("flagged"), py::arg("first"), py::arg("run_up") = kSimulationRunUp,
+      "The flagged frames as cloth simulation runs [(from, to, wanted)], as the bake report's "
+      "coverage.simulate_runs gives them: each run of consecutive frames starts `run_up` frames "
+      "earlier (never before `first`, the shot's first frame); runs that then touch merge.");
+  module.def(
+      "shot_verdict",
+      [](types::EvaluatorObject evaluatorObject,
+         const std::vector<FrameRecord>& records) -> std::optional<types::JsonDict> {
+        const Evaluator& evaluator = evaluatorOf(evaluatorObject);
+        const std::string text =
+            coverageVerdictJson(records, evaluator.coverageTolerance(),
+                                evaluator.database().poseModel.verdictLevel);
+        if (text == "null") {
+          return std::nullopt;
+        }
+        return types::JsonDict(py::module_::import("json").attr("loads")(text));
+      },
+      py::arg("evaluator"), py::arg("records"),
+      "The shot's coverage verdict over the FrameRecords of its frames, as the bake report's "
+      "`coverage` object: tolerance, level, frames_checked, covered_fraction, simulate_frames, "
+      "simulate_runs, run_up and verdict ('DrivenShape is enough' or 'simulate 12-20'); None "
+      "when no record has a pose-model prediction (another model than the pose model).");
+  module.def(
+      "bake_report",
+      [](types::EvaluatorObject evaluatorObject, const std::vector<FrameRecord>& records,
+         const std::string& driver, const std::string& output,
+         const std::map<std::string, double>& seconds, const std::vector<std::string>& warnings,
+         int batch, int temporalWarmup, double framesPerSecond) {
+        const Evaluator& evaluator = evaluatorOf(evaluatorObject);
+        BakeOptions options;
+        for (const FrameRecord& record : records) {
+          options.frames.push_back(record.frame);
+        }
+        options.outputPattern = output;
+        options.chunkSize = batch;
+        options.temporalWarmup = temporalWarmup;
+        options.framesPerSecond = framesPerSecond;
+        options.evaluator = evaluator.settings();
+        return bakeReportJson(evaluator.database(), driver, options, evaluator,
+                              shotResult(evaluator, records, output, seconds, warnings));
+      },
+      py::arg("evaluator"), py::arg("records"), py::arg("driver"), py::arg("output"),
+      py::arg("seconds") = std::map<std::string, double>(),
+      py::arg("warnings") = std::vector<std::string>(), py::arg("batch") = kDefaultBatchFrames,
+      py::arg("temporal_warmup") = kDefaultTemporalWarmup,
+      py::arg("frames_per_second") = 24.0,
+      "The JSON text of the bake report `drivenshape bake --report` writes "
+      "(docs/schemas/bake_report.schema.json) for `records` evaluated by `evaluator` from the "
+      "driver file `driver` into `output` (each record's output unless it names its own): the "
+      "settings, every frame's record and the shot's coverage verdict. settings_hash is the evaluator's (an EXR bake's also covers its file "
+      "options).");
+}
+
 }  // namespace
 
 void bindShotPlan(py::module_& module) {
+  bindShotReport(module);
   py::class_<BatchPlan>(module, "BatchPlan",
                         "One evaluator call of a plan: reset the temporal state when `restart`, "
                         "evaluate solve_frames (warmup then frames) with warmup=len(warmup), "

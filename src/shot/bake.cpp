@@ -364,8 +364,11 @@ nlohmann::json coverageJson(const std::vector<FrameRecord>& records, double tole
            flagged.empty() ? "DrivenShape is enough" : "simulate " + formatFrameRange(flagged)}};
 }
 
-void writeReport(const std::string& path, const Database& db, const PointCacheReader& driver,
-                 const BakeOptions& options, const Evaluator& evaluator, const BakeResult& result) {
+}  // namespace
+
+std::string bakeReportJson(const Database& db, const std::string& driverPath,
+                           const BakeOptions& options, const Evaluator& evaluator,
+                           const BakeResult& result) {
   using nlohmann::json;
   json settings = parseJsonText(evaluator.describeSettings(), "the evaluator settings");
   settings.update(parseJsonText(describeBakeSettings(options), "the bake settings"));
@@ -396,7 +399,7 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
         {"shape_count", db.shapeCount()},
         {"driven_vertices", db.drivenVertexCount()},
         {"frames", db.frames}}},
-      {"driver_cache", driver.path()},
+      {"driver_cache", driverPath},
       {"output", options.outputPattern},
       {"settings_hash", hashToHex(result.settingsHash)},
       {"settings", settings},
@@ -413,7 +416,19 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   if (!coverage.is_null()) {
     report["coverage"] = coverage;
   }
-  writeFileAtomically(path, jsonText(report, 1) + "\n");
+  return jsonText(report, 1) + "\n";
+}
+
+std::string coverageVerdictJson(const std::vector<FrameRecord>& records, double tolerance,
+                                double level) {
+  return jsonText(coverageJson(records, tolerance, level));
+}
+
+namespace {
+
+void writeReport(const std::string& path, const Database& db, const PointCacheReader& driver,
+                 const BakeOptions& options, const Evaluator& evaluator, const BakeResult& result) {
+  writeFileAtomically(path, bakeReportJson(db, driver.path(), options, evaluator, result));
 }
 
 }  // namespace

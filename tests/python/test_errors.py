@@ -153,3 +153,54 @@ def test_raw_bytes_of_a_bad_input_are_escaped_in_the_message(cli_database, tmp_p
         ds.load_binding_mask(mask, database)
     assert error.value.kind == "input" and error.value.code == 3, error.value
     assert "\\xf7" in str(error.value) and "\xf7" not in str(error.value), str(error.value)
+
+
+# ---- Writers and whole-shot calls (issue 42) ----------------------------------------------------
+
+def test_writers_refuse_what_no_reader_could_use(driver, tmp_path):
+    """NaN positions were written (every reader then refused the file), and a PC2 starting at
+    frame 2**40 was written whole though its reader maps none of its samples to a frame."""
+    bad = driver[:2].copy()
+    bad[1, 7, 2] = np.nan
+    for write in (lambda: ds.write_pc2(tmp_path / "nan.pc2", bad),
+                  lambda: ds.write_point_cache_exr(tmp_path / "nan.exr", bad[1]),
+                  lambda: ds.write_point_cache_exr(tmp_path / "nan_n.exr", driver[0],
+                                                   normals=bad[1])):
+        with pytest.raises(ds.Error) as error:
+            write()
+        assert error.value.kind == "input" and "vertex 7" in str(error.value), error.value
+    for start in (2.0**40, -2.0**40, float("nan"), 2.0e9):
+        with pytest.raises(ds.Error) as error:
+            ds.write_pc2(tmp_path / "far.pc2", driver[:2], start_frame=start)
+        assert_usage(error, "start_frame")
+    with pytest.raises(ds.Error) as error:
+        ds.write_pc2(tmp_path / "end.pc2", driver[:3], start_frame=1.999e9, sample_rate=1e6)
+    assert_usage(error, "start_frame", "beyond")
+    with pytest.raises(ds.Error) as error:
+        ds.write_point_cache_exr(tmp_path / "fps.exr", driver[0], frames_per_second=0.0)
+    assert_usage(error, "frames_per_second")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [], "a refused write left a file"
+    # What a reader maps is written and read back.
+    ds.write_pc2(tmp_path / "ok.pc2", driver[:2], start_frame=1.0e9)
+    assert ds.open_point_cache(tmp_path / "ok.pc2").frames == [1000000000, 1000000001]
+
+
+def test_write_obj_refuses_a_mesh_with_non_finite_positions(cli_database, tmp_path):
+    mesh = ds.load_database(cli_database).driven_mesh
+    positions = np.array(mesh.positions)
+    positions[3, 0] = np.inf
+    broken = ds.Mesh.from_polygons(positions, mesh.face_start, mesh.face_vertices)
+    with pytest.raises(ds.Error) as error:
+        ds.write_obj(tmp_path / "inf.obj", broken)
+    assert error.value.kind == "input" and "vertex 3" in str(error.value)
+    assert not (tmp_path / "inf.obj").exists()
+
+
+def test_evaluate_cache_refuses_a_shot_too_large_for_memory_up_front(evaluator, driver):
+    """evaluate_cache allocated the cloth of every frame first: MemoryError (or the machine
+    swapping) for a huge range, where a usage error saying so is due."""
+    cache = ds.PointCache.from_array(driver[:3], start_frame=1)
+    for frames in (range(1, INT_MAX), list(range(1, 2**27))):
+        with pytest.raises(ds.Error) as error:
+            ds.evaluate_cache(evaluator, cache, frames)
+        assert_usage(error, "GiB", "evaluate the frames in parts")

@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -376,3 +377,167 @@ def test_usd_bake_records_its_provenance(driver_usd, pose_bakes, tmp_path, openc
     assert geom.GetNormalsAttr().GetTimeSamples() == [float(f) for f in TEST_FRAMES]
     assert geom.GetVelocitiesAttr().GetTimeSamples() == [float(f) for f in TEST_FRAMES]
     assert validation_errors(out) == []
+
+
+# ---- Issue 42: inputs kept, modes, the driver check, and the CLI's frames and verdict -----------
+
+def test_an_output_that_is_an_input_is_refused(driver_usd, cli_bakes, data, tmp_path):
+    """`bake --out` equal to `--usd` replaced the shot's driver animation. Outputs are compared
+    with every input by name and by file identity (a link, a hard link)."""
+    shot = tmp_path / "shot.usda"
+    shot.write_bytes(driver_usd.read_bytes())
+    original = shot.read_bytes()
+    (tmp_path / "link.usda").symlink_to(shot)
+    os.link(shot, tmp_path / "hard.usda")
+    args = ("--db", cli_bakes.database, "--usd", shot, "--prim", "/Character/Arm",
+            "--device", "host")
+    for out in (shot, tmp_path / "link.usda", tmp_path / "hard.usda",
+                tmp_path / "." / "shot.usda"):
+        result = usd_bake(*args, "--out", out, expect=2)
+        assert "would overwrite the input --usd" in result.stderr, result.stderr
+    result = usd_bake(*args, "--out", tmp_path / "cloth.usdc", "--report", cli_bakes.database,
+                      expect=2)
+    assert "would overwrite the input --db" in result.stderr
+    result = usd_bake(*args, "--out", tmp_path / "cloth.usdc", "--report",
+                      tmp_path / "cloth.usdc", expect=2)
+    assert "name the same file" in result.stderr
+    # Through the API: the output against the stage and its layers.
+    with pytest.raises(ds.Error, match="would overwrite the input"):
+        usd.bake(cli_bakes.database, usd.read_mesh_animation(shot, "/Character/Arm"),
+                 tmp_path / "hard.usda", device="host")
+    # export: the output against the mesh, the PC2 and every EXR frame.
+    export = [sys.executable, "-m", "drivenshape.usd", "export", "--mesh",
+              str(data / "driven_rest.obj")]
+    pc2 = tmp_path / "cloth.pc2"
+    pc2.write_bytes((data / "test.driven.pc2").read_bytes())
+    pc2_link = tmp_path / "cloth_pc2.usda"
+    pc2_link.symlink_to(pc2)
+    frames = cli_bakes.folder("host")
+    exr_link = tmp_path / "frame.usda"
+    exr_link.symlink_to(frames / "sleeve.0003.exr")
+    exr_frames = str(frames / "sleeve.####.exr")
+    for extra in (["--pc2", str(pc2), "-o", str(pc2_link)],
+                  ["--exr", exr_frames, "--frames", "1-5", "-o", str(exr_link)]):
+        result = subprocess.run(export + extra, capture_output=True, text=True)
+        assert result.returncode == 2 and "would overwrite the input" in result.stderr, \
+            result.stderr
+    assert shot.read_bytes() == original and pc2.read_bytes() == (
+        data / "test.driven.pc2").read_bytes()
+    assert (frames / "sleeve.0003.exr").stat().st_size > 0
+
+
+@pytest.mark.parametrize("mask", [0o022, 0o027])
+def test_stages_and_reports_get_the_users_umask(driver_usd, cli_bakes, tmp_path, mask):
+    """USD files were written 0600 (mkstemp's mode): render nodes and other users could not
+    read them."""
+    out = tmp_path / "cloth.usdc"
+    command = [sys.executable, "-m", "drivenshape.usd", "bake", "--db", str(cli_bakes.database),
+               "--usd", str(driver_usd), "--prim", "/Character/Arm", "--out", str(out),
+               "--frames", "1-3", "--device", "host", "--quiet"]
+    result = subprocess.run(command, capture_output=True, text=True,
+                            preexec_fn=lambda: os.umask(mask))
+    assert result.returncode == 0, result.stderr
+    for path in (out, tmp_path / "cloth.report.json"):
+        assert path.stat().st_mode & 0o777 == 0o666 & ~mask, (path, oct(path.stat().st_mode))
+    old = os.umask(mask)
+    try:
+        usd.write_mesh_usd(tmp_path / "api.usda", {"counts": [3], "indices": [0, 1, 2]}, [1],
+                           np.eye(3, dtype=np.float32))
+    finally:
+        os.umask(old)
+    assert (tmp_path / "api.usda").stat().st_mode & 0o777 == 0o666 & ~mask
+
+
+def test_usd_bake_checks_the_driver_as_the_cli_does(database, pose_bakes, data, tmp_path,
+                                                    cli):
+    """A centimetre driver baked silently; --fps 0 and --meters-per-unit 0 were ignored."""
+    positions, _, _ = parse_pc2(data / "test.driver.pc2")
+    centimetres = tmp_path / "shot_cm.usda"
+    usd.write_mesh_usd(centimetres, database.driver_mesh, [1, 2, 3], positions[:3] * 100,
+                       prim_path="/Character/Arm")
+    args = ("--db", pose_bakes.database, "--usd", centimetres, "--prim", "/Character/Arm",
+            "--device", "host")
+    result = usd_bake(*args, "--out", tmp_path / "cm.usdc", expect=3)
+    # The library's own finding, word for word the command line's (bake of the same points).
+    pc2 = tmp_path / "shot_cm.pc2"
+    ds.write_pc2(pc2, positions[:3] * 100)
+    cli_result = subprocess.run([cli, "bake", "--db", pose_bakes.database, "--driver", pc2,
+                                 "--frames", "1-3", "-o", tmp_path / "cm" / "c.####.exr",
+                                 "--device", "host"], capture_output=True, text=True)
+    assert cli_result.returncode == 3
+    finding = cli_result.stderr.strip().split("error: ", 1)[1].split(str(pc2))[-1]
+    assert finding[:40] in result.stderr, (finding, result.stderr)
+    assert not (tmp_path / "cm.usdc").exists()
+    forced = usd_bake(*args, "--out", tmp_path / "cm.usdc", "--force")
+    assert "warning: forced: " in forced.stderr
+    report = json.loads((tmp_path / "cm.report.json").read_text())
+    assert any(w.startswith("forced: ") for w in report["warnings"])
+    for option in ("--fps", "--meters-per-unit"):
+        for value in ("0", "-24", "nan", "inf"):
+            result = usd_bake("--db", pose_bakes.database, "--usd", centimetres, "--prim",
+                              "/Character/Arm", "--out", tmp_path / "never.usdc", option,
+                              value, expect=2)
+            assert option in result.stderr and "positive" in result.stderr, result.stderr
+    assert not (tmp_path / "never.usdc").exists()
+
+
+@pytest.mark.parametrize("frames", ["10-20", "30-48", "5,9-12"])
+def test_a_sub_range_is_the_cli_bake_of_those_frames_with_its_report(
+        driver_usd, pose_bakes, tmp_path, frames):
+    """With the default database (the pose model, which reads each frame's history), `usd bake
+    --frames 10-20` read only frames 10-20 and so gave other cloth than `drivenshape bake
+    --frames 10-20` (11.8 mm at frame 10), and wrote no report or verdict. It now plans with
+    the library's shot planner: bitwise the CLI's cloth, and the CLI's report (records and
+    verdict)."""
+    wanted = ds.parse_frame_range(frames)
+    out = tmp_path / "cloth.usdc"
+    result = usd_bake("--db", pose_bakes.database, "--usd", driver_usd, "--prim",
+                      "/Character/Arm", "--out", out, "--frames", frames, "--device", "host")
+    reference = pose_bakes.frames("host", wanted, frame_text=frames, reader="openexr")
+    stage = Usd.Stage.Open(str(out))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Mesh"))
+    assert [round(t) for t in mesh.GetPointsAttr().GetTimeSamples()] == wanted
+    for index, frame in enumerate(wanted):
+        points = np.asarray(mesh.GetPointsAttr().Get(frame), dtype=np.float32)
+        assert_bitwise(points, reference[index], f"USD bake --frames {frames} at {frame}")
+    mine = json.loads((tmp_path / "cloth.report.json").read_text(encoding="utf-8"))
+    cli_report = json.loads((pose_bakes.folder("host", frames=frames) / "sleeve.report.json")
+                            .read_text(encoding="utf-8"))
+    # Every frame's record is the CLI's, but for the file it went to (the stage, an EXR).
+    assert [r.pop("output") for r in mine["frames"]] == [str(out)] * len(wanted)
+    for record in cli_report["frames"]:
+        record.pop("output")
+    assert mine["frames"] == cli_report["frames"]
+    assert mine["coverage"] == cli_report["coverage"]
+    assert f"verdict: {cli_report['coverage']['verdict']}" in result.stdout
+    for key in ("tool", "tool_version", "database", "device", "baked", "skipped"):
+        assert mine[key] == cli_report[key], key
+    assert mine["settings"]["weights"] == cli_report["settings"]["weights"]
+    assert mine["driver_cache"] == f"{driver_usd}:/Character/Arm"
+    import jsonschema
+
+    schema = Path(__file__).resolve().parents[2] / "docs/schemas/bake_report.schema.json"
+    jsonschema.validate(json.loads((tmp_path / "cloth.report.json").read_text()),
+                        json.loads(schema.read_text(encoding="utf-8")))
+
+
+def test_the_module_gives_the_shots_verdict_and_its_runs(pose_bakes, data, host_device):
+    """shot_verdict and simulation_runs: the report's coverage object, from the records of
+    evaluate_cache, as the CLI's bake of the same frames writes it."""
+    db = ds.load_database(pose_bakes.database)
+    settings = ds.EvaluatorSettings()
+    settings.coverage_tolerance = 0.0225  # flags some of the sample's frames
+    evaluator = ds.Evaluator(db, settings, host_device)
+    cache = ds.open_point_cache(data / "test.driver.pc2")
+    _, records = ds.evaluate_cache(evaluator, cache, list(range(1, 25)))
+    verdict = ds.shot_verdict(evaluator, records)
+    folder = pose_bakes.folder("host", "--coverage-tolerance", "0.0225", frames="1-24")
+    report = json.loads((folder / "sleeve.report.json").read_text(encoding="utf-8"))
+    assert verdict == report["coverage"]
+    flagged = [r.frame for r in records if r.flagged == 1]
+    assert flagged, "the tolerance flags no frame: the test shows nothing"
+    runs = [{"from": a, "to": b, "wanted": n} for a, b, n in ds.simulation_runs(flagged, 1)]
+    assert runs == report["coverage"]["simulate_runs"]
+    # The model without predictions has no verdict.
+    none = ds.Evaluator(db, ds.EvaluatorSettings(weight_mode="bind"), host_device)
+    assert ds.shot_verdict(none, ds.evaluate_cache(none, cache, [1, 2])[1]) is None

@@ -23,6 +23,7 @@ import shutil
 import struct
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -494,12 +495,77 @@ def test_failures_leave_no_report(shot, pose, data, tmp_path):
     assert "settings.weights" in result.stderr and "magic" in result.stderr
     strange.unlink()
     assert list(tmp_path.iterdir()) == [bad], "a failed run left files behind"
-    # A folder that is not a QC report is never replaced.
+    # A failure in a folder that exists leaves it as it was.
     out.mkdir()
     (out / "keep.txt").write_text("mine")
-    result = qc("--report", report, "-o", out, expect=4)
-    assert "not a QC report" in result.stderr
+    qc("--report", strange.with_name("missing.json"), "-o", out, expect=3)
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+def tree(folder):
+    """{relative path: bytes} of every file under `folder`."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def test_the_page_in_the_shot_folder_leaves_the_bake_alone(shot, pose, data, tmp_path):
+    """Issue 42: a TD writes the page into the shot folder beside the bake's frames and report,
+    bakes again there and refreshes the page; `-o DIR` replaced DIR whole when it held an
+    earlier page, and the frames, the report and everything else in it were lost."""
+    folder = tmp_path / "sh010"
+    shutil.copytree(shot.bake("enough").parent, folder)
+    (folder / "notes").mkdir()
+    (folder / "notes" / "todo.txt").write_text("check frame 12")
+    (folder / "keep.txt").write_text("mine")
+    before = tree(folder)
+    report = folder / "sleeve.report.json"
+    evaluation = shot.evaluate("enough")
+    # The page with the heat map, then a refresh without it (as after a bake and no eval).
+    qc("--report", report, "--eval", evaluation, "--mesh", data / "driven_rest.obj", "-o",
+       folder)
+    assert {"index.html", "heatmap.png", "error.png"} <= {p.name for p in folder.iterdir()}
+    qc("--report", report, "--title", "refreshed", "-o", folder)
+    after = tree(folder)
+    for name, content in before.items():
+        assert after.get(name) == content, f"{name} was changed or removed"
+    page = {name for name in after if name not in before}
+    assert page == {"index.html", ".drivenshape-qc.json"} | PAGE_IMAGES["model"] - {
+        "heatmap.png", "error.png"}, page  # the earlier page's heat map went with it
+    assert "<title>refreshed</title>" in (folder / "index.html").read_text(encoding="utf-8")
+    assert not [p for p in folder.iterdir() if p.name.startswith(".qc.tmp")], "temp left"
+    # A file of the page that someone changed is no longer the page's: refused, kept.
+    (folder / "jump.png").write_bytes(b"edited by hand")
+    result = qc("--report", report, "-o", folder, expect=4)
+    assert "jump.png" in result.stderr and "nothing is replaced" in result.stderr
+    assert (folder / "jump.png").read_bytes() == b"edited by hand"
+    assert "<title>refreshed</title>" in (folder / "index.html").read_text(encoding="utf-8")
+
+
+def test_names_of_the_page_taken_by_other_files_are_refused(shot, tmp_path):
+    report = shot.bake("default")
+    out = tmp_path / "site"
+    out.mkdir()
+    (out / "index.html").write_text("<html>the shot's own page</html>")
+    result = qc("--report", report, "-o", out, expect=4)
+    assert "index.html" in result.stderr, result.stderr
+    assert tree(out) == {"index.html": b"<html>the shot's own page</html>"}
+    # A link where the page writes is not the page's either (its target is never written).
+    target = tmp_path / "elsewhere.png"
+    target.write_bytes(b"target")
+    (out / "index.html").unlink()
+    (out / "jump.png").symlink_to(target)
+    qc("--report", report, "-o", out, expect=4)
+    assert target.read_bytes() == b"target" and (out / "jump.png").is_symlink()
+    # -o naming a file is refused, the file kept.
+    result = qc("--report", report, "-o", target, expect=4)
+    assert "not a folder" in result.stderr and target.read_bytes() == b"target"
+    # An input inside the folder under a name of the page: refused, kept.
+    inside = tmp_path / "inside"
+    inside.mkdir()
+    shutil.copy(report, inside / "index.html")
+    copy = (inside / "index.html").read_bytes()
+    qc("--report", inside / "index.html", "-o", inside, expect=4)
+    assert (inside / "index.html").read_bytes() == copy
 
 
 def test_rewrite_replaces_an_earlier_report(shot, tmp_path):
@@ -508,9 +574,14 @@ def test_rewrite_replaces_an_earlier_report(shot, tmp_path):
     qc("--report", report, "-o", out)
     (out / "stale.png").write_bytes(b"old")
     qc("--report", report, "--title", "second", "-o", out)
-    assert not (out / "stale.png").exists()
+    assert (out / "stale.png").read_bytes() == b"old", "a file the page did not write is kept"
     assert "<title>second</title>" in (out / "index.html").read_text(encoding="utf-8")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["qc"], "temporary folders left"
+    # A page written before the manifest (0.2.0): recognised by its generator and matplotlib's
+    # PNGs, and replaced.
+    (out / ".drivenshape-qc.json").unlink()
+    qc("--report", report, "--title", "third", "-o", out)
+    assert "<title>third</title>" in (out / "index.html").read_text(encoding="utf-8")
 
 
 def test_runs_as_a_module_of_the_package():
@@ -624,3 +695,140 @@ def test_mutated_reports_are_drawn_or_refused_never_crash(tmp_path, pose):
             assert page.main(["--report", str(path), "-o", str(out)]) in (0, page.EXIT_INPUT)
             drawn += 1
     assert drawn == 16
+
+
+# ---- inputs that are not files, and damaged eval JSONs (issue 42) ------------------------------
+
+@pytest.mark.parametrize("option", ["--report", "--eval"])
+def test_a_fifo_is_refused_not_waited_on(shot, tmp_path, option):
+    """`qc` hung forever on a FIFO given as --report or --eval (nobody writes into it)."""
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    report = shot.bake("default")
+    args = ["--report", fifo] if option == "--report" else ["--report", report, "--eval", fifo]
+    started = time.monotonic()
+    result = subprocess.run([sys.executable, "-m", "drivenshape.qc", *map(str, args), "-o",
+                             str(tmp_path / "qc")], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 3, result.stderr
+    assert "FIFO" in result.stderr and str(fifo) in result.stderr, result.stderr
+    assert time.monotonic() - started < 30
+    assert not (tmp_path / "qc").exists()
+
+
+def test_a_folder_or_a_device_is_refused(tmp_path):
+    for path, named in ((tmp_path, "is a folder"), (Path("/dev/zero"), "character device")):
+        result = qc("--report", path, "-o", tmp_path / "qc", expect=3)
+        assert named in result.stderr, result.stderr
+
+
+def eval_of(pose):
+    return json.loads(json.dumps(pose["eval"]))
+
+
+def set_in(data, dotted, value):
+    """data with the field at `dotted` (keys and list indices) set to `value`."""
+    *parents, last = dotted.split(".")
+    node = data
+    for key in parents:
+        node = node[int(key)] if isinstance(node, list) else node[key]
+    node[int(last) if isinstance(node, list) else last] = value
+    return data
+
+
+# Damaged eval JSONs the page drew as if fine, or failed on with a traceback: each is refused
+# with exit 3 and a message naming the field.
+DAMAGED_EVALS = [
+    ("mean", -0.01, "mean is -0.01"),
+    ("max", 1e-9, "max is 1e-09 but the largest"),
+    ("rms", "0.01", "rms is \"0.01\""),
+    ("max_frame", 999, "max_frame is 999"),
+    ("max_frame", True, "max_frame is true"),
+    ("vertices", 0, "vertices is 0"),
+    ("truth", 7, "truth is 7"),
+    ("bake", ["a"], "bake is [\"a\"]"),
+    ("summary", [], "summary is []"),
+    ("summary.bake", "x", "summary.bake is \"x\""),
+    ("summary.bake.max_jump", -1, "summary.bake.max_jump is -1"),
+    ("summary.truth.max_jump", {}, "summary.truth.max_jump is {}"),
+    ("frames.0.frame", True, "frame record 0 has no integer 'frame'"),
+    ("frames.0.mean", -0.5, "frame 1: mean is -0.5"),
+    ("frames.0.max", None, "frame 1: max is null"),
+    ("frames.1.frame", 1, "frames lists 1 frame(s) twice"),
+    ("frames.0.truth", 3, "frame 1: truth is 3"),
+    ("frames.0.truth.jump", "big", "frame 1: truth.jump is \"big\""),
+    ("frames.0.baseline.mean", -2, "frame 1: baseline.mean is -2"),
+    ("frames.0.max_vertex", 1.5, "frame 1: max_vertex is 1.5"),
+    ("frames", [], "an empty one"),
+]
+
+
+@pytest.mark.parametrize("field, value, named", DAMAGED_EVALS,
+                         ids=[f"{f}={json.dumps(v)}" for f, v, _ in DAMAGED_EVALS])
+def test_a_damaged_eval_is_refused_naming_the_field(shot, pose, tmp_path, field, value, named):
+    path = tmp_path / "damaged.eval.json"
+    path.write_text(json.dumps(set_in(eval_of(pose), field, value)))
+    result = qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc", expect=3)
+    assert named in result.stderr and "Traceback" not in result.stderr, result.stderr
+    assert not (tmp_path / "qc").exists()
+
+
+def test_an_eval_of_other_frames_figures_is_refused(shot, pose, tmp_path):
+    """The shot's figures must be those of its frames: a mean that is not theirs, a max frame
+    mean over max."""
+    for change, named in ((lambda e: e.update(mean=e["mean"] * 2), "frames' means average"),
+                          (lambda e: e["frames"][0].update(mean=e["frames"][0]["max"] * 2),
+                           "frame 1: mean"),
+                          (lambda e: e.update(vertices=e["vertices"] + 1), "cloth vertices")):
+        damaged = eval_of(pose)
+        change(damaged)
+        path = tmp_path / "other.eval.json"
+        path.write_text(json.dumps(damaged))
+        result = qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc",
+                    expect=3)
+        assert named in result.stderr, result.stderr
+
+
+def test_deeply_nested_json_is_refused(shot, tmp_path):
+    path = tmp_path / "deep.json"
+    path.write_text("[" * 100000 + "]" * 100000)
+    for args in (["--report", path], ["--report", shot.bake("default"), "--eval", path]):
+        result = qc(*args, "-o", tmp_path / "qc", expect=3)
+        assert "nested too deeply" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_mutated_evals_are_drawn_or_refused_never_crash(tmp_path, pose, shot):
+    """Random damage to a real eval JSON (the seeded approach of the reports' test): load_eval
+    reads it or refuses it with exit 3; what it reads, the page draws (exit 0 or 3)."""
+    import random
+
+    from drivenshape import qc as page
+
+    rng = random.Random(20261204)
+    base = eval_of(pose)
+    # Six frames keep the pages quick; the shot's figures are made theirs again.
+    frames = base["frames"] = base["frames"][:6]
+    base["mean"] = sum(r["mean"] for r in frames) / len(frames)
+    base["rms"] = float(np.sqrt(np.mean([r["rms"] ** 2 for r in frames])))
+    worst = max(frames, key=lambda r: r["max"])
+    base["max"], base["max_frame"] = worst["max"], worst["frame"]
+    path = tmp_path / "base.eval.json"
+    path.write_text(json.dumps(base))
+    page.load_eval(str(path))  # the undamaged six frames are read
+    report = str(shot.bake("enough"))
+    path = tmp_path / "damaged.eval.json"
+    read = drawn = 0
+    for attempt in range(400):
+        path.write_text(json.dumps(mutated(base, rng)))
+        try:
+            page.load_eval(str(path))
+        except page.QcError as error:
+            assert error.code == page.EXIT_INPUT
+            continue
+        read += 1
+        if drawn < 8:
+            out = tmp_path / f"qc{drawn}"
+            assert page.main(["--report", report, "--eval", str(path), "-o", str(out)]) in (
+                0, page.EXIT_INPUT)
+            drawn += 1
+    print(f"{read} of 400 damaged evals read")
+    assert drawn == 8

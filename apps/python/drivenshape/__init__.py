@@ -24,6 +24,7 @@ Errors are `drivenshape.Error` (a RuntimeError) with `.kind` ('usage', 'input', 
 
 from __future__ import annotations
 
+import os as _os
 import typing as _typing
 from collections.abc import Sequence as _Sequence
 
@@ -42,7 +43,9 @@ from ._drivenshape import (  # noqa: F401
     RegionSet,
     BatchPlan,
     __version__,
+    bake_report,
     build_database,
+    check_driver_scale,
     convert_up_axis,
     expand_frame_pattern,
     format_frame_range,
@@ -63,6 +66,8 @@ from ._drivenshape import (  # noqa: F401
     read_point_cache_exr_info,
     save_database,
     settings_table,
+    shot_verdict,
+    simulation_runs,
     verdict_holds,
     write_obj,
     write_pc2,
@@ -76,6 +81,28 @@ import numpy.typing as _npt
 _FrameList = _typing.Union[int, "_np.integer[_typing.Any]", _Sequence[_typing.SupportsIndex],
                            "_npt.NDArray[_np.integer[_typing.Any]]"]
 _Cloth = _npt.NDArray[_np.float32]
+
+
+def _memory_bytes() -> int:
+    """The machine's physical memory in bytes (0 where the system does not say)."""
+    try:
+        return int(_os.sysconf("SC_PHYS_PAGES")) * int(_os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+def _check_cloth_memory(frames: int, vertices: int) -> None:
+    """Error (usage) before anything is allocated when the cloth of `frames` frames of
+    `vertices` vertices (float32 xyz) would not fit in the machine's memory."""
+    need = frames * vertices * 3 * 4
+    have = _memory_bytes()
+    if have and need > have:
+        error = Error(f"evaluating {frames} frames of {vertices} cloth vertices needs "
+                      f"{need / 2**30:.1f} GiB for the cloth alone, more than this machine's "
+                      f"{have / 2**30:.1f} GiB of memory; evaluate the frames in parts")
+        error.kind = "usage"  # type: ignore[misc]
+        error.code = 2  # type: ignore[misc]
+        raise error
 
 
 @_typing.overload
@@ -106,9 +133,14 @@ def evaluate_cache(evaluator: Evaluator, cache: PointCache, frames: _FrameList, 
     after its warm-up frames from the cache (the pose model's history, and `temporal_warmup`
     frames with max_weight_change > 0), so every frame is bitwise the bake's. Returns
     (cloth (F, Vd, 3) float32, [FrameRecord]) and, with with_seconds, the seconds per stage
-    summed over the batches."""
+    summed over the batches. Frames whose cloth would not fit in the machine's memory are
+    refused (drivenshape.Error, usage) before anything is allocated."""
+    if not isinstance(frames, (int, _np.integer)):
+        _check_cloth_memory(len(frames) if hasattr(frames, "__len__") else 0,
+                            evaluator.driven_vertex_count)
     frame_list: list[_typing.SupportsIndex] = (
         [frames] if isinstance(frames, (int, _np.integer)) else list(frames))
+    _check_cloth_memory(len(frame_list), evaluator.driven_vertex_count)
     evaluator.check_frames(frame_list)  # drivenshape.Error (usage) for a frame outside C++ ints
     plan = plan_shot(evaluator, frame_list, cache.frames, batch=batch,
                      temporal_warmup=temporal_warmup)
@@ -134,10 +166,12 @@ del _type
 __all__ = [
     "BindingMask", "Database", "Device", "Error", "Evaluator", "EvaluatorSettings", "FrameRecord",
     "LayerSettings", "Mesh", "PlaybackPlanner", "PointCache", "RegionSet", "BatchPlan",
-    "__version__", "build_database", "convert_up_axis", "evaluate_cache", "expand_frame_pattern",
+    "__version__", "bake_report", "build_database", "check_driver_scale", "convert_up_axis",
+    "evaluate_cache", "expand_frame_pattern",
     "format_frame_range", "list_devices", "load_binding_mask", "load_database", "load_layers",
     "load_regions", "open_device", "open_point_cache", "parse_binding_mask", "parse_frame_range",
     "parse_regions", "plan_shot", "read_obj", "read_pc2", "read_point_cache_exr",
-    "read_point_cache_exr_info", "save_database", "settings_table", "verdict_holds", "write_obj",
+    "read_point_cache_exr_info", "save_database", "settings_table", "shot_verdict",
+    "simulation_runs", "verdict_holds", "write_obj",
     "write_pc2", "write_point_cache_exr",
 ]

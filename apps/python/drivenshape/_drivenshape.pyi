@@ -10,7 +10,7 @@ import numpy
 import numpy.typing
 import os
 import typing
-__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'build_database', 'convert_up_axis', 'expand_frame_pattern', 'format_frame_range', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
+__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'expand_frame_pattern', 'format_frame_range', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
 class _Buffer:
     """
     C++ memory shown to numpy without a copy
@@ -642,6 +642,10 @@ class PlaybackPlanner:
     @property
     def warmup_frames(self) -> int:
         ...
+def bake_report(evaluator: Evaluator, records: list[FrameRecord], driver: str, output: str, seconds: dict[str, float] = {}, warnings: list[str] = [], batch: int = 64, temporal_warmup: int = 8, frames_per_second: float = 24.0) -> str:
+    """
+    The JSON text of the bake report `drivenshape bake --report` writes (docs/schemas/bake_report.schema.json) for `records` evaluated by `evaluator` from the driver file `driver` into `output` (each record's output unless it names its own): the settings, every frame's record and the shot's coverage verdict. settings_hash is the evaluator's (an EXR bake's also covers its file options).
+    """
 def build_database(driver_mesh: Mesh | str | os.PathLike[str], driven_mesh: Mesh | str | os.PathLike[str], driver_cache: PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike, driven_cache: PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike, *, frames: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]] | None = None, add_frames: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]] | None = None, remove_frames: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]] | None = None, start_frame: typing.SupportsIndex = 1, also: collections.abc.Iterable[tuple[PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike, PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike] | tuple[PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike, PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike, typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]] | None]] | None = None, log: typing.TextIO | None = None, **kwargs: str | int | float) -> Database:
     """
     The database of reference caches (drivenshape db build). Meshes are Mesh objects or OBJ paths; caches are PointCache objects, paths (PC2, EXR pattern) or arrays (F, V, 3) whose first frame is start_frame. frames: candidates (default every frame of the driver cache); add_frames are always kept, remove_frames never. also: more reference clips the pose model is fitted on (db build --also), each (driver_cache, driven_cache) or (driver_cache, driven_cache, frames). log: a file-like object that receives the pick log. The settings are keywords, db build's options without their dashes (a value is read as db build reads its text; an unknown keyword or a value it refuses is an Error):
@@ -655,6 +659,10 @@ def build_database(driver_mesh: Mesh | str | os.PathLike[str], driven_mesh: Mesh
       model_rank (--model-rank, default 64): basis shapes the pose model keeps
       model_per_clip (--model-per-clip, default auto): models of each reference clip mixed into the pose model's prediction by how close a pose is to each clip (W = the weight of the model over every clip): auto = with three or more clips, the weight of 10, 3 or 1 that best predicts each clip left out in turn, when at least 1% better than none; off = none
       verdict_level (--verdict-level, default 0.92): share of frames the coverage verdict's error bound is calibrated to hold for (split-conformal on the held-out reference frames; bake --coverage-tolerance flags a frame whose bound is over it)
+    """
+def check_driver_scale(database: Database, driver: PointCache, frames: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]]) -> list[tuple[bool, str]]:
+    """
+    What `drivenshape bake` finds checking a driver against the database before it bakes: [(refuse, message)] for sampled `frames` whose edge lengths say other units (a centimetre driver for a metre database) or another character; empty when all is well. The bake refuses a finding with refuse=True (unless --force) and warns of the others.
     """
 def convert_up_axis(positions: numpy.typing.ArrayLike, from_axis: str, to_axis: str) -> numpy.typing.NDArray[numpy.float32]:
     """
@@ -731,6 +739,14 @@ def save_database(path: str | os.PathLike[str], database: Database) -> None:
 def settings_table() -> list[dict[str, typing.Any]]:
     """
     The settings table (drivenshape/settings_table.h) as a list of dicts: key, flag, type, default, minimum, maximum, choices, unit, help, hashed, used_when, ...
+    """
+def shot_verdict(evaluator: Evaluator, records: list[FrameRecord]) -> dict[str, typing.Any] | None:
+    """
+    The shot's coverage verdict over the FrameRecords of its frames, as the bake report's `coverage` object: tolerance, level, frames_checked, covered_fraction, simulate_frames, simulate_runs, run_up and verdict ('DrivenShape is enough' or 'simulate 12-20'); None when no record has a pose-model prediction (another model than the pose model).
+    """
+def simulation_runs(flagged: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]], first: typing.SupportsIndex, run_up: int = 20) -> list[tuple[int, int, int]]:
+    """
+    The flagged frames as cloth simulation runs [(from, to, wanted)], as the bake report's coverage.simulate_runs gives them: each run of consecutive frames starts `run_up` frames earlier (never before `first`, the shot's first frame); runs that then touch merge.
     """
 def verdict_holds(enough: int, missed: int, enough_true_error: float, tolerance: float, level: float) -> bool:
     """

@@ -21,20 +21,25 @@ OBJ) and a truth, the mean error per vertex over the frames as a heat map on the
 and meshes are read with the module's readers (open_point_cache, read_obj). Lengths are shown in
 mm (--units names the scene's unit, metres by default; --units scene shows them as stored).
 
-The page (DIR/index.html, images DIR/*.png, relative links, no JavaScript) is written into a
-temporary folder beside DIR and renamed into place, so DIR never holds a half-written page. An
-existing DIR is replaced only if it holds an earlier QC page. Needs numpy and matplotlib
-(scripts/requirements.txt). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
+The page (DIR/index.html, images DIR/*.png, relative links, no JavaScript) is drawn in a
+temporary folder inside DIR and each file renamed into place, the page last. DIR may be any
+folder (the shot's, beside the bake's frames and report): the page writes only its own files,
+replaces only those an earlier page wrote (listed with their content in DIR/.drivenshape-qc.json)
+and leaves everything else; a name of the page taken by another file is refused. Needs numpy and
+matplotlib (scripts/requirements.txt). Exit codes: 0 ok, 2 usage, 3 input, 4 output.
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime
+import hashlib
 import html
 import json
 import os
+import re
 import shutil
+import stat
 import sys
 import tempfile
 from collections.abc import Callable, Iterable, Sequence
@@ -43,7 +48,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Optional, TypedDict
 import numpy as np
 import numpy.typing as npt
 
-from . import (Error, Mesh, PointCache, format_frame_range, open_point_cache, read_obj,
+from . import (Error, Mesh, PointCache, _files, format_frame_range, open_point_cache, read_obj,
                verdict_holds)
 
 if TYPE_CHECKING:  # matplotlib is imported where the plots are drawn, not with the module
@@ -166,17 +171,27 @@ def _no_constant(name: str) -> float:
     raise ValueError(f"{name} is not a number JSON allows")
 
 
+# The largest report or eval JSON read (a bake report of 10 000 frames with the weights of 200
+# shapes is about 40 MB); parsing takes several times the file's size in memory.
+JSON_LIMIT: int = 256 << 20
+
+
 def load_json(path: str, what: str) -> Any:
+    """The JSON of the regular file `path`: anything else (a FIFO, a device, a folder) is refused
+    without waiting on it, as are files over JSON_LIMIT, text that is not JSON, nesting deeper
+    than Python parses, and numbers the page cannot scale (NaN, Infinity, beyond 1e300)."""
+    def refuse(message: str) -> QcError:
+        return QcError(EXIT_INPUT, f"{what} {message}")
+
     try:
-        with open(path, encoding="utf-8") as stream:
-            return json.load(stream, parse_float=_finite_float, parse_int=_finite_int,
-                             parse_constant=_no_constant)
-    except FileNotFoundError:
-        raise QcError(EXIT_INPUT, f"{what} '{path}' does not exist")
-    except IsADirectoryError:
-        raise QcError(EXIT_INPUT, f"{what} '{path}' is a folder, not a JSON file")
+        with _files.open_regular(path, JSON_LIMIT, refuse) as stream:
+            text = stream.read().decode("utf-8")
+        return json.loads(text, parse_float=_finite_float, parse_int=_finite_int,
+                          parse_constant=_no_constant)
     except OSError as error:
         raise QcError(EXIT_INPUT, f"cannot read {what} '{path}': {error.strerror}")
+    except RecursionError:
+        raise QcError(EXIT_INPUT, f"{what} '{path}' is not valid JSON: nested too deeply")
     except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as error:
         raise QcError(EXIT_INPUT, f"{what} '{path}' is not valid JSON: {error}")
 
@@ -329,19 +344,115 @@ def merge_reports(paths: Sequence[str]) -> _Json:
     return merged
 
 
+# The eval JSON's fields the page reads (`drivenshape eval --json`), where they are, and what
+# each must be: a JSON of another shape is refused naming the field, never drawn as if fine.
+_LENGTH = "a length (a number >= 0)"
+_LENGTH_OR_NULL = "a length or null"
+_COUNT = "a count (an integer >= 0)"
+_TEXT_OR_NULL = "a string or null"
+EVAL_FIELDS: dict[str, dict[str, str]] = {
+    "": {"mean": _LENGTH, "rms": _LENGTH, "max": _LENGTH, "vertices": "an integer >= 1",
+         "truth": _TEXT_OR_NULL, "bake": _TEXT_OR_NULL, "device": _TEXT_OR_NULL,
+         "summary": "an object"},
+    "summary": {"bake": "an object", "truth": "an object", "baseline": "an object"},
+    "summary.bake": {"max_jump": _LENGTH_OR_NULL, "mean_inside": "a number >= 0 or null"},
+    "summary.truth": {"max_jump": _LENGTH_OR_NULL},
+    "summary.baseline": {"mean": _LENGTH},
+}
+EVAL_RECORD_FIELDS: dict[str, dict[str, str]] = {
+    "": {"mean": _LENGTH, "max": _LENGTH, "rms": _LENGTH, "max_vertex": _COUNT,
+         "truth": "an object", "baseline": "an object"},
+    "truth": {"jump": _LENGTH_OR_NULL},
+    "baseline": {"mean": _LENGTH},
+}
+# Room for rounding between figures eval computes in double from the same distances, and
+# between its mean over every vertex of every frame and the average of its frames' means.
+_ROUNDING = 1e-9
+_MEAN_AGREEMENT = 1e-6
+
+
+def _fits(value: object, kind: str) -> bool:
+    """Whether `value` is what EVAL_FIELDS' `kind` says."""
+    if kind.endswith("or null") and value is None:
+        return True
+    if kind.startswith("a string"):
+        return isinstance(value, str)
+    if kind == "an object":
+        return isinstance(value, dict)
+    if kind.startswith(("an integer", "a count")):
+        return isinstance(value, int) and not isinstance(value, bool) and \
+            value >= (1 if ">= 1" in kind else 0)
+    return is_number(value) and value >= 0  # type: ignore[operator]
+
+
+def check_eval_fields(holder: _Json, fields: dict[str, dict[str, str]], where: str,
+                      path: str, required: Iterable[str] = ()) -> None:
+    """Each of `fields` (by the dotted place of its object in `holder`), when present, is what
+    it says; those `required` (dotted) are present. `where` starts the messages."""
+    for place, kinds in fields.items():
+        node: Any = holder
+        for key in place.split(".") if place else []:
+            node = node.get(key, {})  # an object when present (checked a level up)
+        for key, kind in kinds.items():
+            name = f"{place}.{key}" if place else key
+            require(key in node or name not in required, path, f"{where}no '{name}'")
+            require(key not in node or _fits(node[key], kind), path,
+                    f"{where}{name} is {json.dumps(node.get(key))[:60]}; expected {kind}")
+
+
+def _eval_frames(data: _Json, path: str) -> list[int]:
+    """The eval's frame records, each checked; their frame numbers."""
+    records: Any = data.get("frames")
+    require(isinstance(records, list) and records, path,
+            "not the JSON of `drivenshape eval --json` (no 'frames' list, or an empty one)")
+    frames: list[int] = []
+    for index, record in enumerate(records):
+        frame: Any = record.get("frame") if isinstance(record, dict) else None
+        require(isinstance(frame, int) and not isinstance(frame, bool)
+                and -2**31 <= frame < 2**31, path, f"frame record {index} has no integer "
+                "'frame'")
+        check_eval_fields(record, EVAL_RECORD_FIELDS, f"frame {frame}: ", path,
+                          ("mean", "max"))
+        require(record["mean"] <= record["max"] * (1 + _ROUNDING), path,
+                f"frame {frame}: mean {record['mean']} is over max {record['max']}")
+        frames.append(frame)
+    repeated = len(frames) - len(set(frames))
+    require(not repeated, path, f"frames lists {repeated} frame(s) twice")
+    return frames
+
+
 def load_eval(path: str) -> _Json:
+    """`drivenshape eval --json`, checked for what the page reads: every field it shows of the
+    right type, lengths >= 0, frames listed once, and the shot's figures those of its frames
+    (max_frame one of them, max their largest max, mean <= rms <= max)."""
     data: _Json = load_json(path, "eval JSON")  # checked next
-    require(isinstance(data, dict) and isinstance(data.get("frames"), list), path,
-            "not the JSON of `drivenshape eval --json` (no 'frames' list)")
-    for index, record in enumerate(data["frames"]):
-        require(isinstance(record, dict) and isinstance(record.get("frame"), int), path,
-                f"frame record {index} has no integer 'frame'")
-        for key in ("mean", "max"):
-            require(is_number(record.get(key)), path,
-                    f"frame {record['frame']} has no number '{key}'")
-    for key in ("mean", "rms", "max", "max_frame"):
-        require(is_number(data.get(key)), path, f"no number '{key}' (the bake's error)")
+    require(isinstance(data, dict), path, "not the JSON of `drivenshape eval --json` (not an "
+                                          "object)")
+    frames = _eval_frames(data, path)
+    check_eval_fields(data, EVAL_FIELDS, "", path, ("mean", "rms", "max"))
+    require(data.get("max_frame") in frames and not isinstance(data.get("max_frame"), bool),
+            path, f"max_frame is {json.dumps(data.get('max_frame'))[:60]}; expected one of "
+                  "its frames")
+    largest = max(r["max"] for r in data["frames"])
+    require(abs(data["max"] - largest) <= _ROUNDING * largest, path,
+            f"max is {data['max']} but the largest of its frames' max is {largest}")
+    average = mean_of([r["mean"] for r in data["frames"]])
+    require(abs(data["mean"] - average) <= _MEAN_AGREEMENT * average, path,
+            f"mean is {data['mean']} but its frames' means average {average}")
+    require(data["mean"] <= data["rms"] * (1 + _ROUNDING)
+            and data["rms"] <= data["max"] * (1 + _ROUNDING), path,
+            f"mean {data['mean']}, rms {data['rms']} and max {data['max']} are not in that "
+            "order")
     return data
+
+
+def check_eval_matches(report: _Json, evaluation: _Json, eval_path: str) -> None:
+    """The eval is of the report's cloth: the same vertex count when both state it."""
+    cloth = report["database"].get("driven_vertices")
+    vertices = evaluation.get("vertices")
+    require(not isinstance(cloth, int) or vertices is None or vertices == cloth, eval_path,
+            f"an eval of {vertices} cloth vertices, but the bake report's cloth has {cloth}: "
+            "give the eval of this bake")
 
 
 class Coverage:
@@ -846,13 +957,10 @@ def mean_of(values: Sequence[float]) -> float:
     return sum(values) / len(values)
 
 
-def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
-                 evaluation: Optional[_Json], errors: Optional[_VertexErrors],
-                 error_frames: _ErrorFrames, units: Units) -> Summary:
-    unit = units.unit
-    summary = Summary()
+def _summary_bake(summary: Summary, report: _Json, model: str,
+                  baked: list[_Json]) -> None:
+    """The model, the frames baked and kept, and the bake's speed."""
     summary.add("model", "made by", MODELS[model][0], f"<code>--weights {model}</code>")
-    baked = [r for r in report["frames"] if not r.get("skipped")]
     summary.add("frames_baked", "frames baked", str(len(baked)))
     skipped = len(report["frames"]) - len(baked)
     if skipped:
@@ -865,41 +973,50 @@ def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
         summary.add("seconds", "bake seconds", f"{total:.3g}",
                     f"{len(baked) / total:.3g} frames/s")
 
+
+def _summary_coverage(summary: Summary, coverage: Coverage, error_frames: _ErrorFrames,
+                      units: Units) -> None:
+    """The pose model's verdict, its tolerance and level, the predicted errors, and with a
+    truth whether the verdict holds."""
+    unit = units.unit
+    summary.add("verdict", "coverage verdict",
+                "DrivenShape is enough" if coverage.enough
+                else f"simulate {format_frame_range(coverage.flagged)}")
+    summary.add("coverage_tolerance", f"coverage tolerance ({unit})",
+                units.text(coverage.tolerance), "mean vertex error bound allowed")
+    if coverage.level > 0:
+        summary.add("verdict_level", "verdict level", percent_text(coverage.level),
+                    "share of frames the error bound is calibrated to hold for")
+    summary.add("frames_over", "frames over the tolerance (to simulate)",
+                str(len(coverage.flagged)), f"of {len(coverage.predicted)} predicted; "
+                f"{percent_text(coverage.covered_fraction)} covered")
+    predicted = list(coverage.predicted.items())
+    summary.add("predicted_mean", f"predicted mean vertex error, mean ({unit})",
+                units.text(mean_of([v for _, v in predicted])))
+    value, frame = worst(predicted)
+    summary.add("predicted_max", f"predicted mean vertex error, max ({unit})",
+                units.text(value), frame_link(frame))
+    checked = coverage.against_truth(error_frames)
+    if checked:
+        true_error, missed, count = checked
+        share = percent_text((count - len(missed)) / count)
+        summary.add("enough_true_error",
+                    f"true mean error of the frames within the tolerance ({unit})",
+                    units.text(true_error),
+                    f"{share} of them truly within: the verdict holds" if coverage.holds(checked)
+                    else f'<span class="flag">{share} of them truly within: the verdict does '
+                    "not hold</span>")
+        summary.add("missed", "frames within the tolerance whose true mean error is over it",
+                    str(len(missed)), format_frame_range(missed) if missed else "-")
+
+
+def _summary_records(summary: Summary, report: _Json, model: str, baked: list[_Json],
+                     units: Units) -> None:
+    """From the frames' records: the residual (QP, nearest), the audit counts and the largest
+    jump."""
     def series(key: str) -> list[tuple[int, Any]]:
         return [(r["frame"], r[key]) for r in baked if is_number(r.get(key))]
 
-    if coverage:
-        summary.add("verdict", "coverage verdict",
-                    "DrivenShape is enough" if coverage.enough
-                    else f"simulate {format_frame_range(coverage.flagged)}")
-        summary.add("coverage_tolerance", f"coverage tolerance ({unit})",
-                    units.text(coverage.tolerance), "mean vertex error bound allowed")
-        if coverage.level > 0:
-            summary.add("verdict_level", "verdict level",
-                        percent_text(coverage.level),
-                        "share of frames the error bound is calibrated to hold for")
-        summary.add("frames_over", "frames over the tolerance (to simulate)",
-                    str(len(coverage.flagged)), f"of {len(coverage.predicted)} predicted; "
-                    f"{percent_text(coverage.covered_fraction)} covered")
-        predicted = list(coverage.predicted.items())
-        summary.add("predicted_mean", f"predicted mean vertex error, mean ({unit})",
-                    units.text(mean_of([v for _, v in predicted])))
-        value, frame = worst(predicted)
-        summary.add("predicted_max", f"predicted mean vertex error, max ({unit})",
-                    units.text(value), frame_link(frame))
-        checked = coverage.against_truth(error_frames)
-        if checked:
-            true_error, missed, count = checked
-            holds = coverage.holds(checked)
-            share = percent_text((count - len(missed)) / count)
-            summary.add("enough_true_error",
-                        f"true mean error of the frames within the tolerance ({unit})",
-                        units.text(true_error),
-                        f"{share} of them truly within: the verdict holds" if holds else
-                        f'<span class="flag">{share} of them truly within: the verdict does '
-                        "not hold</span>")
-            summary.add("missed", "frames within the tolerance whose true mean error is over it",
-                        str(len(missed)), format_frame_range(missed) if missed else "-")
     if model in SOLVING_MODELS:
         residual = series(residual_key(report))
         if residual:
@@ -924,29 +1041,38 @@ def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
     jumps = series("max_jump")
     if jumps:
         value, frame = worst(jumps)
-        summary.add("max_jump", f"largest frame-to-frame jump ({unit})", units.text(value),
+        summary.add("max_jump", f"largest frame-to-frame jump ({units.unit})", units.text(value),
                     frame_link(frame))
-    if evaluation:
-        bake = evaluation.get("summary", {}).get("bake", {})
-        summary.add("error_mean", f"error to the truth, mean ({unit})",
-                    units.text(evaluation["mean"]))
-        summary.add("error_rms", f"error to the truth, RMS ({unit})",
-                    units.text(evaluation["rms"]))
-        summary.add("error_max", f"error to the truth, max ({unit})",
-                    units.text(evaluation["max"]), frame_link(evaluation["max_frame"]))
-        baseline = evaluation.get("summary", {}).get("baseline")
-        if isinstance(baseline, dict) and is_number(baseline.get("mean")):
-            summary.add("baseline_error_mean", f"binding baseline error, mean ({unit})",
-                        units.text(baseline["mean"]))
-        truth = evaluation.get("summary", {}).get("truth", {})
-        if is_number(bake.get("max_jump")) and is_number(truth.get("max_jump")) \
-                and truth["max_jump"] > 0:
-            summary.add("jump_ratio", "largest jump / the truth's",
-                        ratio_text(bake["max_jump"] / truth["max_jump"]))
-        if is_number(bake.get("mean_inside")):
-            summary.add("eval_inside_mean", "inside the driver per frame (eval)",
-                        f"{bake['mean_inside']:.3g}")
-    elif error_frames:
+
+
+def _summary_eval(summary: Summary, evaluation: _Json, units: Units) -> None:
+    """The eval's error to the truth, the baseline's, the jumps against the truth's and the
+    penetrations it measured."""
+    unit = units.unit
+    bake = evaluation.get("summary", {}).get("bake", {})
+    summary.add("error_mean", f"error to the truth, mean ({unit})", units.text(evaluation["mean"]))
+    summary.add("error_rms", f"error to the truth, RMS ({unit})", units.text(evaluation["rms"]))
+    summary.add("error_max", f"error to the truth, max ({unit})", units.text(evaluation["max"]),
+                frame_link(evaluation["max_frame"]))
+    baseline = evaluation.get("summary", {}).get("baseline")
+    if isinstance(baseline, dict) and is_number(baseline.get("mean")):
+        summary.add("baseline_error_mean", f"binding baseline error, mean ({unit})",
+                    units.text(baseline["mean"]))
+    truth = evaluation.get("summary", {}).get("truth", {})
+    if is_number(bake.get("max_jump")) and is_number(truth.get("max_jump")) \
+            and truth["max_jump"] > 0:
+        summary.add("jump_ratio", "largest jump / the truth's",
+                    ratio_text(bake["max_jump"] / truth["max_jump"]))
+    if is_number(bake.get("mean_inside")):
+        summary.add("eval_inside_mean", "inside the driver per frame (eval)",
+                    f"{bake['mean_inside']:.3g}")
+
+
+def _summary_truth(summary: Summary, error_frames: _ErrorFrames,
+                   errors: Optional[_VertexErrors], units: Units) -> None:
+    """Without an eval, the error to the truth computed from the caches; the worst vertex."""
+    unit = units.unit
+    if error_frames:
         means = [v[0] for v in error_frames.values()]
         value, frame = worst((f, v[1]) for f, v in error_frames.items())
         summary.add("error_mean", f"error to the truth, mean ({unit})",
@@ -958,6 +1084,22 @@ def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
         summary.add("worst_vertex", "vertex with the largest mean error", str(vertex))
         summary.add("worst_vertex_error", f"its mean error ({unit})",
                     units.text(float(errors["mean"][vertex])))
+
+
+def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
+                 evaluation: Optional[_Json], errors: Optional[_VertexErrors],
+                 error_frames: _ErrorFrames, units: Units) -> Summary:
+    """The page's summary table, in this order: the bake, the verdict, the records' figures,
+    the error to the truth and the worst vertex."""
+    summary = Summary()
+    baked = [r for r in report["frames"] if not r.get("skipped")]
+    _summary_bake(summary, report, model, baked)
+    if coverage:
+        _summary_coverage(summary, coverage, error_frames, units)
+    _summary_records(summary, report, model, baked, units)
+    if evaluation:
+        _summary_eval(summary, evaluation, units)
+    _summary_truth(summary, {} if evaluation else error_frames, errors, units)
     return summary
 
 
@@ -1289,45 +1431,216 @@ def build_page(args: argparse.Namespace, report: _Json, evaluation: Optional[_Js
 
 # ---- output ----------------------------------------------------------------------------------
 
-def is_qc_report(folder: str) -> bool:
+# The page's list of the files it wrote into its folder, with each one's SHA-256: a later run
+# replaces (or removes) a file only while it still has the content this tool gave it.
+MANIFEST: str = ".drivenshape-qc.json"
+MANIFEST_LIMIT: int = 1 << 20
+# An index.html or PNG of a page written before the manifest (0.2.0 and earlier) is read this
+# far to recognise it.
+_LEGACY_HEAD: int = 4096
+
+
+def _digest(path: str) -> Optional[str]:
+    """SHA-256 of the regular file `path` (not followed if a link), None for anything else."""
     try:
-        with open(os.path.join(folder, "index.html"), encoding="utf-8") as stream:
-            head = stream.read(4096)
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            return None
+        digest = hashlib.sha256()
+        with open(path, "rb") as stream:
+            for block in iter(lambda: stream.read(1 << 20), b""):
+                digest.update(block)
     except OSError:
-        return False
-    # Pages of scripts/qc_report.py (earlier versions) are QC pages too.
-    return f'content="{GENERATOR}"' in head or 'content="drivenshape qc_report"' in head
+        return None
+    return digest.hexdigest()
 
 
-def write_report(args: argparse.Namespace, report: _Json, evaluation: Optional[_Json],
-                 errors: Optional[_VertexErrors]) -> str:
+def _head(path: str) -> bytes:
+    try:
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            return b""
+        with open(path, "rb") as stream:
+            return stream.read(_LEGACY_HEAD)
+    except OSError:
+        return b""
+
+
+def is_qc_page(head: bytes) -> bool:
+    """Whether the start of an index.html is a QC page (this module's, or scripts/qc_report.py's
+    of earlier versions)."""
+    return (f'content="{GENERATOR}"'.encode() in head
+            or b'content="drivenshape qc_report"' in head)
+
+
+def _manifest(folder: str) -> dict[str, set[str]]:
+    """{file name: SHA-256s it may have} of the page's manifest in `folder` ({} without one).
+    A manifest this tool did not write is refused (it would be overwritten)."""
+    path = os.path.join(folder, MANIFEST)
+    if not os.path.lexists(path):
+        return {}
+
+    def refuse(message: str) -> QcError:
+        return QcError(EXIT_OUTPUT, f"{message}: '{MANIFEST}' in '{folder}' is not a QC page's "
+                                    "list of its files; it is left alone: choose another -o")
+
+    try:
+        if os.path.islink(path):
+            raise refuse("a link")
+        with _files.open_regular(path, MANIFEST_LIMIT, refuse) as stream:
+            data = json.loads(stream.read().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        raise refuse("not JSON")
+    files = data.get("files") if isinstance(data, dict) else None
+    if not (isinstance(data, dict) and data.get("generator") == GENERATOR
+            and isinstance(files, dict)):
+        raise refuse("another format")
+    known: dict[str, set[str]] = {}
+    for name, digests in files.items():
+        digests = digests if isinstance(digests, list) else [digests]
+        if _own_name(name) and all(isinstance(d, str) for d in digests):
+            known[name] = set(digests)
+    return known
+
+
+def _own_name(name: object) -> bool:
+    """A name the page may write: a plain file name in its folder."""
+    return (isinstance(name, str) and name not in ("", ".", "..") and "/" not in name
+            and "\0" not in name and name != MANIFEST)
+
+
+def earlier_page_files(folder: str) -> set[str]:
+    """The files of `folder` an earlier run of this page wrote and nobody changed since: those
+    its manifest lists with their content; in a folder without a manifest (a page of 0.2.0 or
+    earlier) a QC index.html and the PNGs drawn by matplotlib that it shows."""
+    known = _manifest(folder)
+    if known:
+        return {name for name, digests in known.items()
+                if _digest(os.path.join(folder, name)) in digests}
+    index = os.path.join(folder, "index.html")
+    head = _head(index)
+    if not is_qc_page(head):
+        return set()
+    try:
+        with open(index, encoding="utf-8", errors="replace") as stream:
+            shown = set(re.findall(r'<img src="([^"/]+\.png)"', stream.read()))
+    except OSError:
+        shown = set()
+    own = {"index.html"}
+    for name in shown:
+        png = _head(os.path.join(folder, name))
+        if png.startswith(b"\x89PNG\r\n\x1a\n") and b"Matplotlib" in png:
+            own.add(name)
+    return own
+
+
+def _write_manifest(folder: str, files: dict[str, list[str]]) -> None:
+    """The manifest, created beside itself and renamed into place."""
+    text = json.dumps({"generator": GENERATOR, "files": files}, indent=1, sort_keys=True)
+    handle, temp = tempfile.mkstemp(prefix=f"{MANIFEST}.tmp-", dir=folder)
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text + "\n")
+        os.chmod(temp, _files.new_file_mode())
+        os.replace(temp, os.path.join(folder, MANIFEST))
+    except BaseException:
+        if os.path.lexists(temp):
+            os.remove(temp)
+        raise
+
+
+def _place(source: str, target: str, replace: bool) -> None:
+    """Moves the page's `source` to `target`: over an earlier file of the page when `replace`,
+    else only where there is no file (a hard link fails on an existing name; a file system
+    without hard links gets a rename right after a check)."""
+    if replace:
+        os.replace(source, target)
+        return
+    try:
+        os.link(source, target)
+    except FileExistsError:
+        raise QcError(EXIT_OUTPUT, f"'{target}' appeared while the page was written; it is "
+                                   "left alone: choose another -o")
+    except OSError:
+        if os.path.lexists(target):
+            raise QcError(EXIT_OUTPUT, f"'{target}' appeared while the page was written; it "
+                                       "is left alone: choose another -o")
+        os.rename(source, target)
+        return
+    os.remove(source)
+
+
+def _output_folder(args: argparse.Namespace) -> tuple[str, bool]:
+    """(-o as an absolute folder, whether this run created it)."""
     out = os.path.abspath(args.output)
     parent = os.path.dirname(out)
     if not os.path.isdir(parent):
         raise QcError(EXIT_OUTPUT, f"the output's parent folder '{parent}' does not exist")
-    if os.path.exists(out) and not (os.path.isdir(out) and (not os.listdir(out)
-                                                            or is_qc_report(out))):
-        raise QcError(EXIT_OUTPUT, f"'{args.output}' exists and is not a QC report; it is left "
-                                   "alone: choose another -o")
     try:
-        temp = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.tmp-", dir=parent)
+        os.mkdir(out)
+        return out, True
+    except FileExistsError:
+        if not os.path.isdir(out):
+            raise QcError(EXIT_OUTPUT, f"'{args.output}' exists and is not a folder; it is left "
+                                       "alone: choose another -o")
+        return out, False
     except OSError as error:
-        raise QcError(EXIT_OUTPUT, f"cannot write in '{parent}': {error.strerror}")
+        raise QcError(EXIT_OUTPUT, f"cannot create the folder '{args.output}': {error.strerror}")
+
+
+def _check_inputs_kept(args: argparse.Namespace, out: str, names: Iterable[str]) -> None:
+    """No file the page writes is one of its inputs (by name or by file identity)."""
+    inputs = [("--report", path) for path in args.report]
+    inputs += [(option, value) for option, value in (("--eval", args.eval), ("--mesh", args.mesh),
+                                                     ("--truth", args.truth),
+                                                     ("--bake", args.bake)) if value]
+    outputs = [("-o", os.path.join(out, name)) for name in names]
+    _files.check_distinct(outputs, inputs, lambda message: QcError(EXIT_OUTPUT, message))
+
+
+def write_report(args: argparse.Namespace, report: _Json, evaluation: Optional[_Json],
+                 errors: Optional[_VertexErrors]) -> str:
+    """Writes the page into the folder -o (created when missing) and returns its index.html.
+    Only the page's own files are written: each is drawn in a temporary folder inside -o, then
+    moved to its name, which must be free or hold a file an earlier page wrote (its manifest,
+    MANIFEST, lists them); files the earlier page wrote that this one does not are removed.
+    Anything else in the folder (a bake's frames and report beside the page) is left alone, and
+    a name of the page taken by another file is refused (exit 4) before anything is moved."""
+    out, created = _output_folder(args)
+    try:
+        earlier = earlier_page_files(out)
+        temp = tempfile.mkdtemp(prefix=".qc.tmp-", dir=out)
+    except OSError as error:
+        if created:
+            os.rmdir(out)
+        raise QcError(EXIT_OUTPUT, f"cannot write in '{args.output}': {error.strerror}")
+    except QcError:
+        if created:
+            os.rmdir(out)
+        raise
     try:
         build_page(args, report, evaluation, errors, temp)
-        os.chmod(temp, 0o755)
-        if os.path.exists(out):
-            old = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.old-", dir=parent)
-            os.rename(out, os.path.join(old, "report"))
-            os.rename(temp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.rename(temp, out)
+        written = {name: _digest(os.path.join(temp, name)) or "" for name in os.listdir(temp)}
+        _check_inputs_kept(args, out, written)
+        taken = sorted(name for name in written
+                       if name not in earlier and os.path.lexists(os.path.join(out, name)))
+        if taken:
+            raise QcError(EXIT_OUTPUT, f"'{args.output}' holds {', '.join(taken)}, not written "
+                                       "by an earlier QC page; nothing is replaced: move "
+                                       "them or choose another -o")
+        old = {name: _digest(os.path.join(out, name)) or "" for name in earlier}
+        # While files move, the manifest accepts each one's earlier and new content.
+        _write_manifest(out, {name: sorted({digest, old.get(name, digest)})
+                              for name, digest in {**old, **written}.items()})
+        for name in sorted(written, key=lambda n: n == "index.html"):  # the page last
+            _place(os.path.join(temp, name), os.path.join(out, name), name in earlier)
+        for name in sorted(set(earlier) - set(written)):  # an earlier page's plots not drawn now
+            os.remove(os.path.join(out, name))
+        _write_manifest(out, {name: [digest] for name, digest in written.items()})
     except OSError as error:
-        raise QcError(EXIT_OUTPUT, f"cannot write the report into '{args.output}': {error}")
+        raise QcError(EXIT_OUTPUT, f"cannot write the page into '{args.output}': {error}")
     finally:
-        if os.path.isdir(temp):
-            shutil.rmtree(temp, ignore_errors=True)
+        shutil.rmtree(temp, ignore_errors=True)
+        if created and not os.listdir(out):
+            os.rmdir(out)
     return os.path.join(out, "index.html")
 
 
@@ -1376,6 +1689,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                       "venv (scripts/setup.sh) or pip install matplotlib")
         report = merge_reports(args.report)
         evaluation = load_eval(args.eval) if args.eval else None
+        if evaluation:
+            check_eval_matches(report, evaluation, args.eval)
         errors = None
         if args.mesh:
             if not os.path.isfile(args.mesh):

@@ -38,18 +38,19 @@ line).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import sys
 import tempfile
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any, Optional, SupportsFloat, SupportsIndex, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
 
-from . import (Database, Device, Error, EvaluatorSettings, FrameRecord, Mesh, PointCache,
+from . import (Database, Device, Error, EvaluatorSettings, FrameRecord, Mesh, PointCache, _files,
                convert_up_axis)
 
 EXIT_OK: int = 0
@@ -94,13 +95,16 @@ class ExportSummary(TypedDict):
 
 
 class BakeSummary(TypedDict):
-    """What bake() returns."""
+    """What bake() returns: `verdict` is the shot's coverage verdict (the bake report's
+    `coverage` object, drivenshape.shot_verdict), None without the pose model."""
 
     frames: list[int]
     device: str
     seconds: dict[str, float]
     records: list[FrameRecord]
     note: str
+    warnings: list[str]
+    verdict: Optional[dict[str, Any]]
 
 
 def _error(kind: str, message: str) -> Error:
@@ -127,12 +131,14 @@ class MeshAnimation:
     frames: list of int frame numbers (the points' time samples); positions: (F, V, 3)
     float32; face_counts, face_indices: int32 topology of the prim; up_axis ('Y' or 'Z') and
     meters_per_unit: the stage's, or None where the stage does not author them;
-    time_codes_per_second: the stage's.
+    time_codes_per_second: the stage's; layers: the files of the stage's layers (its own file,
+    its sublayers and references), which a bake must not overwrite.
     """
 
     def __init__(self, path: str, prim_path: str, frames: list[int], positions: _Float32Array,
                  face_counts: _Int32Array, face_indices: _Int32Array, up_axis: Optional[str],
-                 meters_per_unit: Optional[float], time_codes_per_second: float) -> None:
+                 meters_per_unit: Optional[float], time_codes_per_second: float,
+                 layers: Sequence[str] = ()) -> None:
         self.path = path
         self.prim_path = prim_path
         self.frames = frames
@@ -142,6 +148,7 @@ class MeshAnimation:
         self.up_axis = up_axis
         self.meters_per_unit = meters_per_unit
         self.time_codes_per_second = time_codes_per_second
+        self.layers = list(layers) or [path]
 
     @property
     def vertex_count(self) -> int:
@@ -156,20 +163,12 @@ class MeshAnimation:
                 f"{len(self.frames)} frames>")
 
 
-def read_mesh_animation(path: _Path, prim_path: str,
-                        frames: Optional[Iterable[SupportsIndex]] = None,
-                        space: str = "local") -> MeshAnimation:
-    """Reads the points of the UsdGeomMesh at `prim_path` at every whole-frame time sample (or
-    at `frames`, each of which must be a time sample: nothing is interpolated). space 'local'
-    reads the points as authored; 'world' applies the prim's local-to-world transform per frame
-    (in double, then float32). Raises drivenshape.Error (kind 'input') naming the file, the prim
-    and the frame."""
+def _open_mesh(path: str, prim_path: str) -> tuple[Any, Any]:
+    """(stage, UsdGeom.Mesh) of the mesh prim `prim_path` in the USD file `path`."""
     Sdf, Usd, UsdGeom, Vt = _pxr()
-    path = os.fspath(path)
-    if space not in ("local", "world"):
-        raise _error("usage", f"space '{space}' is not one of local, world")
-    if not os.path.isfile(path):
-        raise _error("input", f"USD file '{path}' does not exist")
+    problem = _files.regular_problem(path)
+    if problem:
+        raise _error("input", f"USD file '{path}' {problem}")
     try:
         stage = Usd.Stage.Open(path)
     except Exception as error:  # pxr raises Tf.ErrorException
@@ -187,31 +186,43 @@ def read_mesh_animation(path: _Path, prim_path: str,
     if not prim.IsA(UsdGeom.Mesh):
         raise _error("input", f"{path}: '{prim_path}' is a {prim.GetTypeName() or 'typeless'} "
                               "prim, not a Mesh")
-    mesh = UsdGeom.Mesh(prim)
-    points = mesh.GetPointsAttr()
-    samples = points.GetTimeSamples()
-    whole = [int(round(t)) for t in samples if abs(t - round(t)) < 1e-6]
+    return stage, UsdGeom.Mesh(prim)
+
+
+def _whole_frames(mesh: Any) -> tuple[list[int], int]:
+    """(the whole frames among the time samples of the mesh's points, how many samples)."""
+    samples = mesh.GetPointsAttr().GetTimeSamples()
+    return [int(round(t)) for t in samples if abs(t - round(t)) < 1e-6], len(samples)
+
+
+def _frames_to_read(path: str, prim_path: str, whole: list[int], samples: int,
+                    frames: Optional[Iterable[SupportsIndex]]) -> list[int]:
+    """`frames` (every whole frame when None), each checked to be a time sample."""
     if frames is None:
         if not whole:
             raise _error("input", f"{path}: {prim_path}.points has no time samples at whole "
-                                  f"frames ({len(samples)} samples); drivenshape needs one per "
+                                  f"frames ({samples} samples); drivenshape needs one per "
                                   "frame")
-        read = whole
-    else:
-        read = [int(f) for f in frames]
-        have = set(whole)
-        missing = [f for f in read if f not in have]
-        if missing:
-            raise _error("input", f"{path}: {prim_path}.points has no time sample at frame "
-                                  f"{missing[0]} ({len(missing)} of the {len(read)} frames "
-                                  f"asked are missing; the samples cover "
-                                  f"{_frame_text(whole)}); nothing is interpolated")
+        return whole
+    read = [int(f) for f in frames]
+    have = set(whole)
+    missing = [f for f in read if f not in have]
+    if missing:
+        raise _error("input", f"{path}: {prim_path}.points has no time sample at frame "
+                              f"{missing[0]} ({len(missing)} of the {len(read)} frames "
+                              f"asked are missing; the samples cover "
+                              f"{_frame_text(whole)}); nothing is interpolated")
     if not read:
         raise _error("usage", "no frames to read")
-    counts = mesh.GetFaceVertexCountsAttr().Get()
-    indices = mesh.GetFaceVertexIndicesAttr().Get()
-    counts = np.asarray(counts if counts is not None else [], dtype=np.int32)
-    indices = np.asarray(indices if indices is not None else [], dtype=np.int32)
+    return read
+
+
+def _read_points(path: str, prim_path: str, mesh: Any, read: list[int],
+                 space: str) -> _Float32Array:
+    """The points (F, V, 3) float32 of the mesh at frames `read`, through the prim's transform
+    for space 'world'."""
+    UsdGeom = _pxr()[2]
+    points = mesh.GetPointsAttr()
     positions: Optional[_Float32Array] = None
     cache = UsdGeom.XformCache()
     for index, frame in enumerate(read):
@@ -225,20 +236,61 @@ def read_mesh_animation(path: _Path, prim_path: str,
                                   "topology must not change over the shot")
         if space == "world":
             cache.SetTime(float(frame))
-            matrix = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)
+            matrix = np.array(cache.GetLocalToWorldTransform(mesh.GetPrim()), dtype=np.float64)
             xyz = (xyz.astype(np.float64) @ matrix[:3, :3] + matrix[3, :3]).astype(np.float32)
         positions[index] = xyz
     assert positions is not None  # `read` is not empty
     if positions.shape[1] == 0:
         raise _error("input", f"{path}: {prim_path} has no points")
+    return positions
+
+
+def _stage_units(stage: Any) -> tuple[Optional[str], Optional[float]]:
+    """(upAxis, metersPerUnit) where the stage authors them, else None."""
+    UsdGeom = _pxr()[2]
     up_axis = None
     if stage.HasAuthoredMetadata("upAxis"):
         up_axis = str(UsdGeom.GetStageUpAxis(stage))
     meters = None
     if stage.HasAuthoredMetadata("metersPerUnit"):
         meters = float(UsdGeom.GetStageMetersPerUnit(stage))
-    return MeshAnimation(path, prim_path, read, positions, counts, indices, up_axis, meters,
-                         float(stage.GetTimeCodesPerSecond()))
+    return up_axis, meters
+
+
+def _layer_files(stage: Any) -> list[str]:
+    """The files behind the stage's layers (anonymous layers have none)."""
+    return [str(layer.realPath) for layer in stage.GetUsedLayers() if layer.realPath]
+
+
+def mesh_time_samples(path: _Path, prim_path: str) -> list[int]:
+    """The whole frames at which the points of the UsdGeomMesh at `prim_path` are sampled
+    (ascending), without reading the points: the frames a bake may read as history."""
+    _, mesh = _open_mesh(os.fspath(path), prim_path)
+    return _whole_frames(mesh)[0]
+
+
+def read_mesh_animation(path: _Path, prim_path: str,
+                        frames: Optional[Iterable[SupportsIndex]] = None,
+                        space: str = "local") -> MeshAnimation:
+    """Reads the points of the UsdGeomMesh at `prim_path` at every whole-frame time sample (or
+    at `frames`, each of which must be a time sample: nothing is interpolated). space 'local'
+    reads the points as authored; 'world' applies the prim's local-to-world transform per frame
+    (in double, then float32). Raises drivenshape.Error (kind 'input') naming the file, the prim
+    and the frame."""
+    path = os.fspath(path)
+    if space not in ("local", "world"):
+        raise _error("usage", f"space '{space}' is not one of local, world")
+    stage, mesh = _open_mesh(path, prim_path)
+    read = _frames_to_read(path, prim_path, *_whole_frames(mesh), frames)
+    counts = mesh.GetFaceVertexCountsAttr().Get()
+    indices = mesh.GetFaceVertexIndicesAttr().Get()
+    positions = _read_points(path, prim_path, mesh, read, space)
+    up_axis, meters = _stage_units(stage)
+    return MeshAnimation(path, prim_path, read, positions,
+                         np.asarray(counts if counts is not None else [], dtype=np.int32),
+                         np.asarray(indices if indices is not None else [], dtype=np.int32),
+                         up_axis, meters, float(stage.GetTimeCodesPerSecond()),
+                         _layer_files(stage))
 
 
 def check_driver(animation: MeshAnimation, mesh: Mesh) -> None:
@@ -358,6 +410,119 @@ def point_velocities(positions: npt.ArrayLike, frames: npt.ArrayLike,
     return velocities
 
 
+def _scene_number(value: float, what: str) -> float:
+    """A positive finite number of the stage (time codes per second, metres per unit)."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise _error("usage", f"{what} {value!r} is not a number")
+    if not (number > 0 and np.isfinite(number)):
+        raise _error("usage", f"{what} {value} is not a positive finite number")
+    return number
+
+
+def _checked_positions(positions: npt.ArrayLike, times: list[float], vertex_count: int,
+                       up_axis: str, points_up_axis: Optional[str]) -> _Float32Array:
+    """write_mesh_usd's positions as (F, V, 3) float32 in `up_axis`, checked: one frame per
+    time code, every vertex the faces use, finite."""
+    points = np.asarray(positions, dtype=np.float32)
+    if points.ndim == 2:
+        points = points[np.newaxis]
+    if points.ndim != 3 or points.shape[2] != 3 or len(times) != len(points):
+        raise _error("usage", f"positions {points.shape} do not match {len(times)} frames "
+                              "of (vertices, 3)")
+    if points.shape[1] < vertex_count:
+        raise _error("input", f"positions hold {points.shape[1]} points but the faces use "
+                              f"{vertex_count} vertices")
+    if not times:
+        raise _error("usage", "no frames to write")
+    if not np.isfinite(times).all():
+        raise _error("usage", "a time code is not finite")
+    if not np.isfinite(points).all():
+        frame, vertex = np.argwhere(~np.isfinite(points))[0][:2]
+        raise _error("input", f"the positions of frame {times[frame]:g} vertex {vertex} are "
+                              "not finite")
+    if up_axis not in ("Y", "Z"):
+        raise _error("usage", f"up axis '{up_axis}' is not Y or Z")
+    if points_up_axis not in (None, "Y", "Z"):
+        raise _error("usage", f"points up axis '{points_up_axis}' is not Y or Z")
+    if points_up_axis is not None and points_up_axis != up_axis:
+        points = convert_up_axis(points, points_up_axis, up_axis)
+    return points
+
+
+def _new_stage(temp: str, times: list[float], fps: float, up_axis: str,
+               meters_per_unit: float) -> Any:
+    """A new stage in the file `temp` with the scene's axis, unit, rate and frame range."""
+    Sdf, Usd, UsdGeom, Vt = _pxr()
+    stage = Usd.Stage.CreateNew(temp)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, meters_per_unit)
+    stage.SetStartTimeCode(min(times))
+    stage.SetEndTimeCode(max(times))
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetFramesPerSecond(fps)
+    return stage
+
+
+def _define_mesh(stage: Any, prim_path: str, counts: _Int32Array, indices: _Int32Array) -> Any:
+    """The UsdGeom.Mesh at prim_path (its parents Xforms, the root the default prim and a
+    component model) with its faces."""
+    Sdf, Usd, UsdGeom, Vt = _pxr()
+    names = prim_path.strip("/").split("/")
+    for depth in range(1, len(names)):
+        UsdGeom.Xform.Define(stage, "/" + "/".join(names[:depth]))
+    geom = UsdGeom.Mesh.Define(stage, prim_path)
+    stage.SetDefaultPrim(stage.GetPrimAtPath("/" + names[0]))
+    geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(counts))
+    geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(indices))
+    geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+    Usd.ModelAPI(stage.GetPrimAtPath("/" + names[0])).SetKind("component")
+    return geom
+
+
+def _write_points(geom: Any, times: list[float], positions: _Float32Array) -> None:
+    """One time sample of points and of their extent per frame."""
+    Vt = _pxr()[3]
+    points = geom.CreatePointsAttr()
+    extent = geom.CreateExtentAttr()
+    for frame, xyz in zip(times, positions):
+        points.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(xyz)), frame)
+        bounds = np.stack([xyz.min(axis=0), xyz.max(axis=0)])
+        extent.Set(Vt.Vec3fArray.FromNumpy(bounds), frame)
+
+
+def _write_uvs_and_groups(geom: Any, uvs: Optional[_UVs],
+                          groups: Mapping[str, Iterable[int]]) -> None:
+    """primvars:st (face-varying) and one UsdGeomSubset per face group when there are several."""
+    Sdf, Usd, UsdGeom, Vt = _pxr()
+    if uvs is not None:
+        values, uv_indices = uvs
+        primvar = UsdGeom.PrimvarsAPI(geom).CreatePrimvar(
+            "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+        primvar.Set(Vt.Vec2fArray.FromNumpy(np.asarray(values, dtype=np.float32)))
+        primvar.SetIndices(Vt.IntArray.FromNumpy(np.asarray(uv_indices, dtype=np.int32)))
+    if len(groups) > 1:
+        for name, faces in groups.items():
+            token = re.sub(r"[^A-Za-z0-9_]", "_", name)
+            if not token or token[0].isdigit():
+                token = "g_" + token
+            UsdGeom.Subset.CreateGeomSubset(geom, token, UsdGeom.Tokens.face,
+                                            Vt.IntArray(list(faces)))
+
+
+def _temp_beside(path: str, extension: str, folder: str) -> str:
+    """A new empty file beside `path` to write the stage into (renamed into place after)."""
+    try:
+        handle, temp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".tmp-",
+                                        suffix=extension, dir=folder)
+        os.close(handle)
+    except OSError as error:
+        raise _error("output", f"cannot write in '{folder}': {error.strerror}")
+    return temp
+
+
 def write_mesh_usd(path: _Path, mesh: Union[Mesh, MeshArrays], frames: Iterable[_TimeCode],
                    positions: npt.ArrayLike, *, prim_path: str = "/Garment/Mesh",
                    fps: float = 24.0, up_axis: str = DEFAULT_UP_AXIS,
@@ -370,7 +535,9 @@ def write_mesh_usd(path: _Path, mesh: Union[Mesh, MeshArrays], frames: Iterable[
     (primvars:st, face-varying) and face groups (UsdGeomSubsets, when there are several) of
     `mesh` (a drivenshape.Mesh, or a dict with counts, indices, uvs, groups), the stage's
     upAxis, metersPerUnit, time codes per second and frame range. The file (.usd, .usda,
-    .usdc) appears atomically. Points are written as float32 exactly.
+    .usdc) appears atomically, with the mode any new file gets (0666 less the umask). Points
+    are written as float32 exactly; non-finite points, and an fps or meters_per_unit that is
+    not a positive finite number, are refused.
 
     With `normals`, per-sample vertex normals (vertex_normals); with `velocities`, per-sample
     velocities in units per second (point_velocities) for motion blur. The root prim is a
@@ -382,86 +549,29 @@ def write_mesh_usd(path: _Path, mesh: Union[Mesh, MeshArrays], frames: Iterable[
     (x, y, z) -> (x, z, -y), exact); None (the default) means the positions are already in
     up_axis and are written as given. drivenshape's own results are Z up: pass
     points_up_axis="Z" to write them into a Y-up stage."""
-    Sdf, Usd, UsdGeom, Vt = _pxr()
     path = os.fspath(path)
     counts, indices, uvs, groups = _mesh_arrays(mesh)
-    positions = np.asarray(positions, dtype=np.float32)
-    if positions.ndim == 2:
-        positions = positions[np.newaxis]
     times = [float(f) for f in frames]
     vertex_count = int(indices.max()) + 1 if len(indices) else 0
-    if positions.ndim != 3 or positions.shape[2] != 3 or len(times) != len(positions):
-        raise _error("usage", f"positions {positions.shape} do not match {len(times)} frames "
-                              "of (vertices, 3)")
-    if positions.shape[1] < vertex_count:
-        raise _error("input", f"positions hold {positions.shape[1]} points but the faces use "
-                              f"{vertex_count} vertices")
-    if not times:
-        raise _error("usage", "no frames to write")
-    if not np.isfinite(positions).all():
-        frame, vertex = np.argwhere(~np.isfinite(positions))[0][:2]
-        raise _error("input", f"the positions of frame {times[frame]:g} vertex {vertex} are "
-                              "not finite")
-    if up_axis not in ("Y", "Z"):
-        raise _error("usage", f"up axis '{up_axis}' is not Y or Z")
-    if points_up_axis not in (None, "Y", "Z"):
-        raise _error("usage", f"points up axis '{points_up_axis}' is not Y or Z")
-    if points_up_axis is not None and points_up_axis != up_axis:
-        positions = convert_up_axis(positions, points_up_axis, up_axis)
-    if not meters_per_unit > 0:
-        raise _error("usage", f"meters per unit {meters_per_unit} is not positive")
+    points = _checked_positions(positions, times, vertex_count, up_axis, points_up_axis)
+    fps = _scene_number(fps, "fps")
+    meters_per_unit = _scene_number(meters_per_unit, "meters per unit")
     _check_prim_path(prim_path)
     extension, folder = _check_output(path)
+    temp = _temp_beside(path, extension, folder)
     try:
-        # Written beside the target and renamed into place: readers never see half a file.
-        handle, temp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".tmp-",
-                                        suffix=extension, dir=folder)
-        os.close(handle)
-    except OSError as error:
-        raise _error("output", f"cannot write in '{folder}': {error.strerror}")
-    try:
-        stage = Usd.Stage.CreateNew(temp)
-        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
-        UsdGeom.SetStageMetersPerUnit(stage, float(meters_per_unit))
-        stage.SetStartTimeCode(min(times))
-        stage.SetEndTimeCode(max(times))
-        stage.SetTimeCodesPerSecond(float(fps))
-        stage.SetFramesPerSecond(float(fps))
-        names = prim_path.strip("/").split("/")
-        for depth in range(1, len(names)):
-            UsdGeom.Xform.Define(stage, "/" + "/".join(names[:depth]))
-        geom = UsdGeom.Mesh.Define(stage, prim_path)
-        stage.SetDefaultPrim(stage.GetPrimAtPath("/" + names[0]))
-        geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(counts))
-        geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(indices))
-        geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
-        Usd.ModelAPI(stage.GetPrimAtPath("/" + names[0])).SetKind("component")
-        points = geom.CreatePointsAttr()
-        extent = geom.CreateExtentAttr()
-        for frame, xyz in zip(times, positions):
-            points.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(xyz)), frame)
-            bounds = np.stack([xyz.min(axis=0), xyz.max(axis=0)])
-            extent.Set(Vt.Vec3fArray.FromNumpy(bounds), frame)
-        _write_motion(geom, Vt, times, positions, counts, indices, fps, normals, velocities)
+        stage = _new_stage(temp, times, fps, up_axis, meters_per_unit)
+        geom = _define_mesh(stage, prim_path, counts, indices)
+        _write_points(geom, times, points)
+        _write_motion(geom, _pxr()[3], times, points, counts, indices, fps, normals, velocities)
         if provenance:
             geom.GetPrim().SetCustomDataByKey(
                 "drivenshape", {str(k): str(v) for k, v in provenance.items()})
-        if uvs is not None:
-            values, uv_indices = uvs
-            primvar = UsdGeom.PrimvarsAPI(geom).CreatePrimvar(
-                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
-            primvar.Set(Vt.Vec2fArray.FromNumpy(np.asarray(values, dtype=np.float32)))
-            primvar.SetIndices(Vt.IntArray.FromNumpy(np.asarray(uv_indices, dtype=np.int32)))
-        if len(groups) > 1:
-            for name, faces in groups.items():
-                token = re.sub(r"[^A-Za-z0-9_]", "_", name)
-                if not token or token[0].isdigit():
-                    token = "g_" + token
-                UsdGeom.Subset.CreateGeomSubset(geom, token, UsdGeom.Tokens.face,
-                                                Vt.IntArray(list(faces)))
+        _write_uvs_and_groups(geom, uvs, groups)
         stage.GetRootLayer().Save()
         del stage
+        # mkstemp made the file 0600; a stage is for render nodes and other users too.
+        os.chmod(temp, _files.new_file_mode())
         os.replace(temp, path)
     except Error:
         raise
@@ -508,6 +618,7 @@ def export(mesh: Union[Mesh, _Path], out_path: _Path, *, exr: Optional[str] = No
         raise _error("usage", f"up axis '{up_axis}' is not Y or Z")
     _check_output(out_path)
     _check_prim_path(prim_path)
+    read: list[_files.NamedPath] = [] if isinstance(mesh, Mesh) else [("the mesh", mesh)]
     if not isinstance(mesh, Mesh):
         mesh = ds.read_obj(mesh)
     if pc2 is not None:
@@ -524,6 +635,14 @@ def export(mesh: Union[Mesh, _Path], out_path: _Path, *, exr: Optional[str] = No
                 "frames_per_second")
     if not frames:
         raise _error("input", f"no frames to export from '{pc2 or exr}'")
+    if pc2 is not None:
+        read.append(("the PC2", pc2))
+    else:
+        assert exr is not None
+        read += [("a frame of the EXR sequence", ds.expand_frame_pattern(exr, int(f)))
+                 for f in frames]
+    _files.check_distinct([("the output", out_path)], read,
+                          lambda message: _error("usage", message))
     if cache.vertex_count != mesh.vertex_count:
         raise _error("input", f"'{pc2 or exr}' holds {cache.vertex_count} points but the mesh "
                               f"has {mesh.vertex_count} vertices; pass the driven mesh of the "
@@ -536,22 +655,110 @@ def export(mesh: Union[Mesh, _Path], out_path: _Path, *, exr: Optional[str] = No
 
 # ---- The bake command ----------------------------------------------------------------------
 
+def _driver_source(shot: Union[MeshAnimation, _Path], prim_path: Optional[str],
+                   frames: Optional[Iterable[SupportsIndex]], space: str, evaluator: Any,
+                   batch: int, temporal_warmup: int) -> tuple[MeshAnimation, list[int]]:
+    """(the driver animation to read from, the frames to bake). From a USD file, the frames
+    read are those the shot planner (plan_shot, as `drivenshape bake` plans) evaluates: the
+    frames to bake and the history and warm-up frames before each batch, so that a bake of any
+    sub-range is the command line's bake of those frames."""
+    import drivenshape as ds
+
+    if isinstance(shot, MeshAnimation):
+        return shot, [int(f) for f in frames] if frames is not None else list(shot.frames)
+    if prim_path is None:
+        raise _error("usage", "bake() needs prim_path with a USD path")
+    available = mesh_time_samples(shot, prim_path)
+    wanted = [int(f) for f in frames] if frames is not None else available
+    plan = ds.plan_shot(evaluator, wanted, available, batch=batch,
+                        temporal_warmup=temporal_warmup)
+    needed = sorted({frame for step in plan for frame in step.solve_frames})
+    return read_mesh_animation(shot, prim_path, needed or wanted, space), wanted
+
+
+def _check_driver_scale(db: Database, source: MeshAnimation, frames: list[int],
+                        force: bool) -> list[str]:
+    """`drivenshape bake`'s driver check (check_driver_scale: units, another character):
+    Error (input) for a finding it refuses unless `force`; returns the warnings."""
+    import drivenshape as ds
+
+    found: list[str] = []
+    for refuse, message in ds.check_driver_scale(db, source.cache(), frames):
+        if refuse and not force:
+            raise _error("input", f"{message} (force=True, --force, bakes it anyway)")
+        found.append("forced: " + message if refuse else message)
+    return found
+
+
+@contextlib.contextmanager
+def _warnings_kept(found: list[str]) -> Iterator[None]:
+    """Collects the Python warnings raised inside (the evaluator's) into `found`, for the
+    report, and raises them again after it for the caller."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    for warning in caught:
+        found.append(str(warning.message))
+        warnings.warn_explicit(warning.message, warning.category, warning.filename,
+                               warning.lineno)
+
+
+def _bake_inputs(database: Union[Database, _Path], database_path: Optional[_Path],
+                 shot: Union[MeshAnimation, _Path],
+                 inputs: Iterable[_files.NamedPath]) -> list[_files.NamedPath]:
+    """The files a bake reads, named for messages."""
+    named: list[_files.NamedPath] = list(inputs)
+    for source in (database, database_path):
+        if isinstance(source, (str, os.PathLike)):
+            named.append(("the database", source))
+    if isinstance(shot, MeshAnimation):
+        named += [("a layer of the driver stage", layer) for layer in shot.layers]
+    else:
+        named.append(("the driver stage", shot))
+    return named
+
+
+def _write_report(path: _Path, evaluator: Any, records: list[FrameRecord], driver: str,
+                  output: _Path, seconds: Mapping[str, float], found: list[str], batch: int,
+                  temporal_warmup: int, fps: float) -> None:
+    """The bake report `drivenshape bake --report` writes (bake_report), atomically."""
+    import drivenshape as ds
+
+    text = ds.bake_report(evaluator, records, driver=driver, output=os.path.abspath(output),
+                          seconds=dict(seconds), warnings=found, batch=batch,
+                          temporal_warmup=temporal_warmup, frames_per_second=fps)
+    try:
+        _files.write_text_atomically(path, text)
+    except OSError as error:
+        raise _error("output", f"cannot write the report '{os.fspath(path)}': {error}")
+
+
 def bake(database: Union[Database, _Path], shot: Union[MeshAnimation, _Path], out_path: _Path,
          *, prim_path: Optional[str] = None, frames: Optional[Iterable[SupportsIndex]] = None,
          device: Union[Device, str] = "auto", settings: Optional[EvaluatorSettings] = None,
          out_prim: str = "/Garment/Mesh", up_axis: Optional[str] = None,
          meters_per_unit: Optional[float] = None, fps: Optional[float] = None,
          space: str = "local", check_topology: bool = True, batch: int = 64,
-         temporal_warmup: int = 8, database_path: Optional[_Path] = None) -> BakeSummary:
+         temporal_warmup: int = 8, database_path: Optional[_Path] = None,
+         report_path: Optional[_Path] = None, force: bool = False,
+         inputs: Iterable[_files.NamedPath] = ()) -> BakeSummary:
     """The shot from a USD driver to a USD cloth: reads the driver prim's points (`shot` is a
     MeshAnimation, or a USD path with `prim_path`), checks them against the database's driver
-    mesh, evaluates them as `drivenshape bake` does (evaluate_cache: batches of `batch` frames,
-    the temporal bound restarted per batch after `temporal_warmup` frames) and writes the cloth
-    with write_mesh_usd. up_axis, meters_per_unit and fps default to the input stage's (Z, 1
-    and its time codes per second where it authors none). The cloth comes out in the driver's
-    axis (the input stage's upAxis, Z where it authors none); an up_axis other than that rotates
-    the cloth's points to it, exactly (write_mesh_usd's points_up_axis). Returns a dict summary
-    (frames, device, note, seconds per stage, records).
+    mesh (vertex count, faces, and `drivenshape bake`'s scale check: a driver in other units or
+    of another character is refused unless `force`), evaluates `frames` (default: every time
+    sample) as `drivenshape bake` does (evaluate_cache: the shot planner's batches of `batch`
+    frames with their history and warm-up, read from the stage's samples before each batch, so
+    any sub-range is bitwise the command line's bake of those frames) and writes the cloth with
+    write_mesh_usd, and with `report_path` the bake report `drivenshape bake --report` writes
+    (the frames' records and the shot's coverage verdict). A MeshAnimation is the source as
+    read: give it the frames before `frames` for their history. up_axis, meters_per_unit and
+    fps default to the input stage's (Z, 1 and its time codes per second where it authors
+    none); given, they must be positive finite numbers. The cloth comes out in the driver's axis
+    (the input stage's upAxis, Z where it authors none); an up_axis other than that rotates the
+    cloth's points to it, exactly (write_mesh_usd's points_up_axis). No output may be one of the
+    files read (the database, the driver stage and its layers, `inputs`: (name, path) pairs),
+    compared by name and by file identity. Returns a dict summary (frames, device, note,
+    seconds per stage, records, warnings, verdict: the report's coverage object or None).
 
     The cloth prim's customData["drivenshape"] records where it came from: tool_version,
     database_content_hash, evaluator_settings_hash (Evaluator.settings_hash: the model and its
@@ -560,35 +767,62 @@ def bake(database: Union[Database, _Path], shot: Union[MeshAnimation, _Path], ou
     prim, and the device."""
     import drivenshape as ds
 
+    outputs: list[_files.NamedPath] = [("the output", out_path)]
+    if report_path is not None:
+        outputs.append(("the report", report_path))
+    refuse = lambda message: _error("usage", message)  # noqa: E731
+    _files.check_distinct(outputs, _bake_inputs(database, database_path, shot, inputs), refuse)
     _check_output(out_path)  # before the evaluation, not after it
     _check_prim_path(out_prim)
+    fps = None if fps is None else _scene_number(fps, "fps")
+    meters_per_unit = (None if meters_per_unit is None
+                       else _scene_number(meters_per_unit, "meters per unit"))
     db = database if isinstance(database, ds.Database) else ds.load_database(database)
-    if not isinstance(shot, MeshAnimation):
-        if prim_path is None:
-            raise _error("usage", "bake() needs prim_path with a USD path")
-        shot = read_mesh_animation(shot, prim_path, frames, space)
-    if check_topology:
-        check_driver(shot, db.driver_mesh)
-    elif shot.vertex_count != db.driver_vertex_count:
-        check_driver(shot, db.driver_mesh)  # the vertex count is never optional
     target = device if isinstance(device, ds.Device) else ds.open_device(device)
-    evaluator = ds.Evaluator(db, settings or ds.EvaluatorSettings(), target)
-    cloth, records, seconds = ds.evaluate_cache(evaluator, shot.cache(), shot.frames,
-                                                batch=batch, temporal_warmup=temporal_warmup,
-                                                with_seconds=True)
-    driver_axis = shot.up_axis or DEFAULT_UP_AXIS
-    provenance = {"tool_version": ds.__version__,
-                  "database_content_hash": format(db.content_hash, "016x"),
-                  "evaluator_settings_hash": format(evaluator.settings_hash, "016x"),
-                  "database": _source_name(database_path or database),
-                  "driver": f"{_source_name(shot.path)}:{shot.prim_path}",
-                  "device": evaluator.device_name}
-    write_mesh_usd(out_path, db.driven_mesh, shot.frames, cloth, prim_path=out_prim,
-                   fps=fps or shot.time_codes_per_second, up_axis=up_axis or driver_axis,
-                   meters_per_unit=meters_per_unit or shot.meters_per_unit or
-                   DEFAULT_METERS_PER_UNIT, points_up_axis=driver_axis, provenance=provenance)
-    return {"frames": shot.frames, "device": evaluator.device_name, "seconds": seconds,
-            "records": records, "note": target.note}
+    built: list[str] = []  # the evaluator's warnings
+    with _warnings_kept(built):
+        evaluator = ds.Evaluator(db, settings or ds.EvaluatorSettings(), target)
+    source, wanted = _driver_source(shot, prim_path, frames, space, evaluator, batch,
+                                    temporal_warmup)
+    _files.check_distinct(outputs, _bake_inputs(database, database_path, source, inputs),
+                          refuse)
+    if check_topology or source.vertex_count != db.driver_vertex_count:
+        check_driver(source, db.driver_mesh)  # the vertex count is never optional
+    # The bake's warnings in the command line's order: the driver's, the evaluator's.
+    found = _check_driver_scale(db, source, wanted, force)
+    for message in found:
+        warnings.warn(message)
+    found += built
+    with _warnings_kept(found):
+        cloth, records, seconds = ds.evaluate_cache(evaluator, source.cache(), wanted,
+                                                    batch=batch, temporal_warmup=temporal_warmup,
+                                                    with_seconds=True)
+    driver_axis = source.up_axis or DEFAULT_UP_AXIS
+    fps = fps or source.time_codes_per_second
+    write_mesh_usd(out_path, db.driven_mesh, wanted, cloth, prim_path=out_prim, fps=fps,
+                   up_axis=up_axis or driver_axis, meters_per_unit=meters_per_unit or
+                   source.meters_per_unit or DEFAULT_METERS_PER_UNIT,
+                   points_up_axis=driver_axis,
+                   provenance=_provenance(db, evaluator, database_path or database, source))
+    if report_path is not None:
+        _write_report(report_path, evaluator, records, f"{source.path}:{source.prim_path}",
+                      out_path, seconds, found, batch, temporal_warmup, fps)
+    return {"frames": wanted, "device": evaluator.device_name, "seconds": seconds,
+            "records": records, "note": target.note, "warnings": found,
+            "verdict": ds.shot_verdict(evaluator, records)}
+
+
+def _provenance(db: Database, evaluator: Any, database: object,
+                source: MeshAnimation) -> dict[str, str]:
+    """The cloth prim's customData["drivenshape"] (see bake)."""
+    import drivenshape as ds
+
+    return {"tool_version": ds.__version__,
+            "database_content_hash": format(db.content_hash, "016x"),
+            "evaluator_settings_hash": format(evaluator.settings_hash, "016x"),
+            "database": _source_name(database),
+            "driver": f"{_source_name(source.path)}:{source.prim_path}",
+            "device": evaluator.device_name}
 
 
 def _source_name(source: object) -> str:
@@ -597,25 +831,34 @@ def _source_name(source: object) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    import drivenshape as ds
-
     parser = argparse.ArgumentParser(
         prog="python -m drivenshape.usd",
         description="USD in and out for drivenshape.",
         epilog="Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical.")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _bake_parser(commands)
+    _export_parser(commands)
+    return parser
+
+
+def _bake_parser(commands: Any) -> None:
+    """`bake`'s options: its own, the settings table's and the layers'."""
     bake_parser = commands.add_parser(
         "bake", help="bake a driver UsdGeomMesh into a cloth UsdGeomMesh",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Reads the time-sampled points of the driver mesh --prim in --usd, checks its "
                     "vertex count and faces against the database's driver mesh, evaluates every "
-                    "frame exactly as `drivenshape bake` does (bitwise the same cloth for the "
-                    "same settings and device) and writes the cloth as a UsdGeomMesh with one "
+                    "frame exactly as `drivenshape bake` does (the same history frames before "
+                    "each batch: bitwise the same cloth for the same frames, settings and "
+                    "device) and writes the cloth as a UsdGeomMesh with one "
                     "time sample of points and extent per frame, the faces, UVs and groups of "
                     "the database's driven rest mesh, and the stage's upAxis and metersPerUnit. "
                     "Points are never rescaled or interpolated.",
-        epilog="Exit codes: 0 ok, 2 usage, 3 input (a missing file or prim, a wrong vertex count "
-               "or topology, a non-finite point), 4 output, 5 OpenCL device, 6 numerical.\n\n"
+        epilog="Exit codes: 0 ok, 2 usage, 3 input (a missing file or prim, a wrong vertex "
+               "count or topology, a non-finite point, a driver in other units), 4 output, 5 "
+               "OpenCL device, 6 numerical. An output that is one of the inputs (by name or "
+               "file identity) and an --fps or --meters-per-unit that is not a positive number "
+               "are usage errors.\n\n"
                "example:\n  python -m drivenshape.usd bake --db sleeve.dsdb --usd shot.usda "
                "--prim /Character/Arm --out cloth.usdc --frames 1001-1100")
     add = bake_parser.add_argument
@@ -661,8 +904,18 @@ def _parser() -> argparse.ArgumentParser:
     add("--wind-seed", metavar="N", type=int, default=1, help="[default: 1]")
     add("--wind-weight", metavar="MAP", help="where the wind blows [default: everywhere]")
     add("--wind-falloff", metavar="RINGS", type=int, default=0, help="[default: 0]")
+    add("--report", metavar="REPORT.json",
+        help="the bake report, as `drivenshape bake --report` writes it (every frame's record "
+             "and the shot's coverage verdict) [default: OUT's name with .report.json]")
+    add("--no-report", action="store_true", help="write no report")
+    add("--force", action="store_true",
+        help="bake a driver the scale check refuses (other units, another character), as "
+             "`drivenshape bake --force`")
     add("--quiet", action="store_true", help="print nothing but errors")
 
+
+def _export_parser(commands: Any) -> None:
+    """`export`'s options."""
     export_parser = commands.add_parser(
         "export", help="write a drivenshape result (EXR sequence or PC2) as a UsdGeomMesh",
         description="Writes a UsdGeomMesh with time-sampled points and extents: the faces, UVs "
@@ -686,7 +939,6 @@ def _parser() -> argparse.ArgumentParser:
         help="stage upAxis: Z (default) keeps the points as they are, the axis of drivenshape's "
              "caches; Y rotates them to Y up, (x, y, z) -> (x, z, -y), exactly")
     add("-o", "--output", required=True, help="OUT.usd, .usda or .usdc")
-    return parser
 
 
 def _export_main(args: argparse.Namespace) -> int:
@@ -758,44 +1010,75 @@ def _settings(args: argparse.Namespace, db: Database) -> EvaluatorSettings:
     return settings
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
+def _layer_inputs(args: argparse.Namespace) -> list[_files.NamedPath]:
+    """The files `bake`'s options name besides --db and --usd (mix, maps, mask, regions)."""
+    options = [("--mix", args.mix), ("--mix-weight", args.mix_weight),
+               ("--wind-weight", args.wind_weight)]
+    options += [(row["flag"], getattr(args, row["key"])) for row in _setting_rows()
+                if row["key"] in _LOADERS]
+    return [(option, path) for option, path in options if path]
+
+
+def _report_path(args: argparse.Namespace) -> Optional[str]:
+    """--report, else OUT's name with .report.json (as `drivenshape bake` names its report);
+    None with --no-report."""
+    if args.no_report:
+        if args.report:
+            raise _error("usage", "--report and --no-report contradict each other")
+        return None
+    return str(args.report or os.path.splitext(args.out)[0] + ".report.json")
+
+
+def _bake_main(args: argparse.Namespace) -> int:
     import time
 
     import drivenshape as ds
 
+    if args.batch < 1 or args.temporal_warmup < 0:
+        raise _error("usage", "--batch must be at least 1 and --temporal-warmup at least 0")
+    for option, value in (("--fps", args.fps), ("--meters-per-unit", args.meters_per_unit)):
+        if value is not None:
+            _scene_number(value, option)
+    frames = ds.parse_frame_range(args.frames) if args.frames else None
+    start = time.perf_counter()
+    report = _report_path(args)
+    outputs = [("--out", args.out)] + ([("--report", report)] if report else [])
+    inputs = [("--db", args.db), ("--usd", args.usd)] + _layer_inputs(args)
+    _files.check_distinct(outputs, inputs, lambda message: _error("usage", message))
+    db = ds.load_database(args.db)
+    # The output's time codes and the wind's time (frame / fps) follow the stage's rate.
+    args.fps = args.fps or float(_open_mesh(args.usd, args.prim)[0].GetTimeCodesPerSecond())
+    settings = _settings(args, db)
+    # The evaluator's warnings (Python warnings) as `drivenshape bake` prints its own: one
+    # "warning:" line each on stderr, also with --quiet.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = bake(db, args.usd, args.out, prim_path=args.prim, frames=frames,
+                      space=args.space, device=args.device, settings=settings,
+                      out_prim=args.out_prim, up_axis=args.up_axis,
+                      meters_per_unit=args.meters_per_unit, fps=args.fps,
+                      check_topology=not args.ignore_topology, batch=args.batch,
+                      temporal_warmup=args.temporal_warmup, database_path=args.db,
+                      report_path=report, force=args.force, inputs=inputs)
+    for warning in caught:
+        print(f"warning: {warning.message}", file=sys.stderr)
+    if result["note"] and not args.quiet:
+        print(f"warning: {result['note']}", file=sys.stderr)
+    if not args.quiet:
+        baked = result["frames"]
+        seconds = time.perf_counter() - start
+        print(f"wrote {args.out}: {args.out_prim}, {db.driven_vertex_count} points, "
+              f"{len(baked)} frames ({ds.format_frame_range(baked)}) in {seconds:.2f} s on "
+              f"{result['device']}")
+        if result["verdict"]:
+            print(f"verdict: {result['verdict']['verdict']}")
+    return EXIT_OK
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        if args.command == "export":
-            return _export_main(args)
-        if args.batch < 1 or args.temporal_warmup < 0:
-            raise _error("usage", "--batch must be at least 1 and --temporal-warmup at least 0")
-        frames = ds.parse_frame_range(args.frames) if args.frames else None
-        start = time.perf_counter()
-        db = ds.load_database(args.db)
-        shot = read_mesh_animation(args.usd, args.prim, frames, args.space)
-        # The output's time codes and the wind's time (frame / fps) follow the stage's rate.
-        args.fps = args.fps or shot.time_codes_per_second
-        settings = _settings(args, db)
-        # The evaluator's warnings (Python warnings) as `drivenshape bake` prints its own: one
-        # "warning:" line each on stderr, also with --quiet.
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            result = bake(db, shot, args.out, device=args.device, settings=settings,
-                          out_prim=args.out_prim, up_axis=args.up_axis,
-                          meters_per_unit=args.meters_per_unit, fps=args.fps,
-                          check_topology=not args.ignore_topology, batch=args.batch,
-                          temporal_warmup=args.temporal_warmup, database_path=args.db)
-        for warning in caught:
-            print(f"warning: {warning.message}", file=sys.stderr)
-        if result["note"] and not args.quiet:
-            print(f"warning: {result['note']}", file=sys.stderr)
-        if not args.quiet:
-            baked = result["frames"]
-            seconds = time.perf_counter() - start
-            print(f"wrote {args.out}: {args.out_prim}, {db.driven_vertex_count} points, "
-                  f"{len(baked)} frames ({ds.format_frame_range(baked)}) in {seconds:.2f} s on "
-                  f"{result['device']}")
-        return EXIT_OK
+        return _export_main(args) if args.command == "export" else _bake_main(args)
     except Error as error:
         print(f"drivenshape.usd: {error.kind} error: {error}", file=sys.stderr)
         return error.code if error.code > 1 else 1

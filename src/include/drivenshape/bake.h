@@ -64,6 +64,21 @@ struct BakeObserver {
 BakeResult bake(const Database& database, const PointCacheReader& driver, Device& device,
                 const BakeOptions& options, BakeObserver* observer = nullptr);
 
+/// The bake report's JSON text (docs/schemas/bake_report.schema.json, what `--report` writes)
+/// of a bake of `driverPath` with `options` and `evaluator` that gave `result`: its settings,
+/// every frame's record and the shot's coverage verdict. For tools that evaluate a shot
+/// themselves (the USD bake) and report it as the command line does.
+std::string bakeReportJson(const Database& database, const std::string& driverPath,
+                           const BakeOptions& options, const Evaluator& evaluator,
+                           const BakeResult& result);
+
+/// The shot's coverage verdict over `records` (the report's `coverage` object as JSON text:
+/// tolerance, level, frames_checked, covered_fraction, simulate_frames, simulate_runs, run_up,
+/// verdict), or "null" when no record has a pose-model prediction. Skipped records are not
+/// counted.
+std::string coverageVerdictJson(const std::vector<FrameRecord>& records, double tolerance,
+                                double level);
+
 /// Checks the database's driver mesh before a bake (checkDriverMesh; `source` names the
 /// database in messages). A mesh that passes changes nothing and returns "". One that does not
 /// throws Error(kInput), unless `allowUntrusted` (`--untrusted-driver`) and it has a face to
