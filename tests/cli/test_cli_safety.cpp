@@ -21,12 +21,16 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
+#include <drivenshape/database.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
 #include "atomic_file.h"
 #include "cli_test_util.h"
+#include "hash.h"
 #include "test_support.h"
 
 namespace drivenshape {
@@ -375,6 +379,148 @@ TEST(CliSafety, StopDuringTheOnlyBatchExitsSevenWithoutAReport) {
     }
     EXPECT_TRUE(caught) << "never saw the bake write a frame";
   }
+}
+
+// ---- Defect 9: the database loader checks before it allocates, and checks everything ----
+
+/// Where `"key": "` ends in the header of database `bytes` (the value's first character).
+std::size_t headerValue(const std::string& bytes, const std::string& key) {
+  const std::string text = "\"" + key + "\": \"";
+  const std::size_t at = bytes.find(text, 24);
+  EXPECT_NE(at, std::string::npos) << key;
+  return at + text.size();
+}
+
+/// Database `bytes` as an editor who knows the format would leave them: every block checksum,
+/// then (given) the content hash, then the whole file's checksum recomputed.
+std::string resealed(std::string bytes, const std::string& contentHash = "") {
+  std::uint64_t headerLength = 0;
+  std::memcpy(&headerLength, bytes.data() + 16, 8);
+  const nlohmann::json header = nlohmann::json::parse(bytes.substr(24, headerLength));
+  for (const nlohmann::json& block : header.at("blocks")) {
+    const auto offset = block.at("offset").get<std::size_t>();
+    const auto size = block.at("bytes").get<std::size_t>();
+    const std::string oldSum = block.at("fnv1a64").get<std::string>();
+    const std::size_t at = bytes.find("\"" + oldSum + "\"", 24);
+    bytes.replace(at + 1, 16, hashToHex(Hasher().add(bytes.data() + offset, size).value()));
+  }
+  if (!contentHash.empty()) {
+    bytes.replace(headerValue(bytes, "content_hash"), 16, contentHash);
+  }
+  const std::size_t digits = headerValue(bytes, "file_fnv1a64");
+  bytes.replace(digits, 16, std::string(16, '0'));
+  bytes.replace(digits, 16, hashToHex(Hasher().add(bytes.data(), bytes.size()).value()));
+  return bytes;
+}
+
+/// The float32 block `name` of database `bytes`: its offset and value count.
+std::pair<std::size_t, std::size_t> floatBlock(const std::string& bytes, const std::string& name) {
+  std::uint64_t headerLength = 0;
+  std::memcpy(&headerLength, bytes.data() + 16, 8);
+  const nlohmann::json header = nlohmann::json::parse(bytes.substr(24, headerLength));
+  for (const nlohmann::json& block : header.at("blocks")) {
+    if (block.at("name") == name) {
+      return {block.at("offset").get<std::size_t>(), block.at("bytes").get<std::size_t>() / 4};
+    }
+  }
+  ADD_FAILURE() << "no block " << name;
+  return {0, 0};
+}
+
+// A non-database of gigabytes, or a header that claims 8 GiB, was read whole before any check
+// (exit 1 out of memory under a limit): the prefix is checked against the file's size first.
+TEST(CliSafety, DatabaseHeaderLengthIsCheckedBeforeAnythingIsAllocated) {
+  TempDir dir;
+  std::string prefix = "DSHAPEDB";
+  const std::uint32_t version = 1, reserved = 0;
+  const std::uint64_t headerLength = std::uint64_t{8} << 30;
+  prefix.append(reinterpret_cast<const char*>(&version), 4);
+  prefix.append(reinterpret_cast<const char*>(&reserved), 4);
+  prefix.append(reinterpret_cast<const char*>(&headerLength), 8);
+  const std::string huge = dir.file("huge.dsdb");
+  writeText(huge, prefix + "{}");
+  fs::resize_file(huge, (std::uint64_t{9} << 30));  // sparse: no disk used
+  const std::string other = dir.file("other.dsdb");
+  writeText(other, "not a database");
+  fs::resize_file(other, (std::uint64_t{3} << 30));
+  for (const std::string& path : {huge, other}) {
+    SCOPED_TRACE(path);
+    Child child(dir,
+                {"bake", "--db", path, "--driver", sample("test.driver.pc2"), "--frames", "1", "-o",
+                 dir.file("o.####.exr")},
+                {{RLIMIT_AS, rlim_t{1} << 30}});
+    EXPECT_EQ(child.wait(), 3) << child.err();
+    EXPECT_NE(child.err().find(path), std::string::npos) << child.err();
+  }
+}
+
+// The header had no checksum and its content hash was not compared: NaN driver shapes, a cycle
+// of parts, a wrong block shape and an edited length_scale were accepted (NaN in a model block
+// exited 6). Every one is an input error naming the file now; files of earlier versions, which
+// have no checksum, still load.
+TEST(CliSafety, DatabaseChecksumAndContentHashAreVerified) {
+  TempDir dir;
+  const std::string db = testing::buildPoseDb(dir);
+  const std::string bytes = slurp(db);
+  const auto load = [&](const std::string& content) {
+    writeText(dir.file("edited.dsdb"), content);
+    return runCli(dir, {"info", dir.file("edited.dsdb")});
+  };
+  EXPECT_EQ(load(bytes).code, 0);
+  // A flipped byte in the padding after the header (no block covers it).
+  std::uint64_t headerLength = 0;
+  std::memcpy(&headerLength, bytes.data() + 16, 8);
+  std::string padded = bytes;
+  ASSERT_EQ(padded[24 + headerLength], '\0');
+  padded[24 + headerLength] = 'x';
+  expectError(load(padded), 3, "fails its checksum");
+  // length_scale edited (same length), the checksums recomputed: the content hash differs.
+  std::string edited = bytes;
+  const std::size_t scale = edited.find("\"length_scale\": ");
+  ASSERT_NE(scale, std::string::npos);
+  const std::size_t digit = edited.find_first_of("123456789", scale + 16);
+  edited[digit] = edited[digit] == '9' ? '8' : static_cast<char>(edited[digit] + 1);
+  expectError(load(resealed(edited)), 3, "content hashes to");
+  // Shapes and model blocks with NaN, a cycle of parts: the content hash recomputed too.
+  Database loaded = loadDatabase(db);
+  for (const char* name : {"driver_shapes", "model_basis"}) {
+    SCOPED_TRACE(name);
+    std::string poisoned = bytes;
+    const auto [offset, count] = floatBlock(bytes, name);
+    ASSERT_GT(count, 10u);
+    const float nan = std::nanf("");
+    std::memcpy(&poisoned[offset + 4 * 7], &nan, 4);
+    Database same = loaded;
+    std::vector<float>& values =
+        std::string(name) == "driver_shapes" ? same.driverShapes : same.poseModel.basis;
+    values[7] = nan;
+    expectError(load(resealed(poisoned, hashToHex(same.contentHash()))), 3, name);
+  }
+  if (loaded.poseModel.parent.size() >= 2) {
+    std::string cycle = bytes;
+    const auto [offset, count] = floatBlock(bytes, "model_parent");
+    const std::int32_t zero = 0, one = 1;
+    std::memcpy(&cycle[offset], &one, 4);
+    std::memcpy(&cycle[offset + 4], &zero, 4);
+    Database same = loaded;
+    same.poseModel.parent[0] = 1;
+    same.poseModel.parent[1] = 0;
+    expectError(load(resealed(cycle, hashToHex(same.contentHash()))), 3, "cycle");
+  } else {
+    ADD_FAILURE() << "the sample's pose model has one part; no cycle to make";
+  }
+  // A block shape that does not hold the block's values.
+  std::string shaped = bytes;
+  const std::size_t rest = shaped.find("\"name\": \"driven_rest\"");
+  const std::size_t shape = shaped.find("\"shape\": [", rest);
+  const std::size_t three = shaped.find("3\n", shape);
+  ASSERT_LT(three, shaped.find(']', shape));
+  shaped[three] = '4';
+  expectError(load(resealed(shaped)), 3, "driven_rest");
+  // A database of an earlier version (no whole-file checksum) loads.
+  EXPECT_EQ(
+      runCli(dir, {"info", testing::dataDir() + "/../fuzz/corpus/database/pose_model.dsdb"}).code,
+      0);
 }
 
 // ---- Defect 7: a resume removes only its own frames' temporary files ----
