@@ -20,6 +20,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/evaluate.h>
 #include <drivenshape/frames.h>
+#include <drivenshape/point_cache.h>
 #include <drivenshape/position_map.h>
 #include <drivenshape/position_map_sequence.h>
 #include <drivenshape/settings_table.h>
@@ -461,13 +462,15 @@ std::vector<NamedPath> bakeOutputs(const BakeOptions& options, const std::string
 }
 
 /// Refuses a bake whose outputs (frames, report, position maps) name the same file, or would
-/// overwrite one of its inputs.
+/// overwrite one of its inputs: the database, the maps, every frame of the driver and --mix
+/// sequences (history frames before --frames too), by name and by file identity.
 void checkBakePaths(const ArgParser& parser, const BakeOptions& options,
                     const std::string& posmapPattern) {
   const std::vector<NamedPath> outputs = bakeOutputs(options, posmapPattern);
-  std::vector<NamedPath> inputs = givenPaths(parser, {"--db", "--bind", "--regions"});
-  const std::vector<NamedPath> driver = givenPaths(parser, {"--driver"}, true);
-  inputs.insert(inputs.end(), driver.begin(), driver.end());
+  std::vector<NamedPath> inputs =
+      givenPaths(parser, {"--db", "--bind", "--regions", "--mix-weight", "--wind-weight"});
+  const std::vector<NamedPath> caches = givenPaths(parser, {"--driver", "--mix"}, true);
+  inputs.insert(inputs.end(), caches.begin(), caches.end());
   checkDistinctPaths(outputs, options.frames, inputs);
 }
 
@@ -651,12 +654,35 @@ void printStageSeconds(const BakeResult& result) {
   std::cerr.unsetf(std::ios::floatfield);
 }
 
+/// Refuses frames the driver cache does not hold before any work per frame (a typo such as
+/// --frames 1-10000000 fails in a second, not after names for every frame are made). A driver
+/// that cannot be opened is left to the full check, after the usage checks.
+void checkDriverHasFrames(const std::string& path, const std::vector<int>& frames) {
+  std::unique_ptr<PointCacheReader> driver;
+  try {
+    driver = openPointCache(path, 0);
+  } catch (const Error&) {
+    return;
+  }
+  for (int frame : frames) {
+    if (!driver->hasFrame(frame)) {
+      DS_THROW(kInput, "driver cache '", path, "' has no frame ", frame, " (it holds ",
+               formatFrameRange(driver->frames()), "); bake frames within that range");
+    }
+  }
+}
+
 int bakeParsed(const ArgParser& parser) {
   BakeOptions options = bakeOptions(parser);
   const std::string posmapPattern = posmapPatternOf(parser, options);
+  checkDriverHasFrames(parser.get("--driver"), options.frames);
   checkBakePaths(parser, options, posmapPattern);
-  // Missing output folders are created once the inputs have loaded (createBakeFolders).
+  // Missing output folders are created once the inputs have loaded (createBakeFolders); the
+  // report's place is checked now too, not after the bake.
   missingOutputFolders(expandFramePattern(options.outputPattern, options.frames.front()));
+  if (!options.reportPath.empty()) {
+    missingOutputFolders(options.reportPath);
+  }
 
   const Database db = loadDatabase(parser.get("--db"));
   admitDriverMesh(db, parser.get("--db"), parser.has("--untrusted-driver"), options);

@@ -202,6 +202,28 @@ struct DbBuildRequest {
   std::vector<CacheSpec> shots;
 };
 
+/// Every file `db build` reads, for checkDistinctPaths: the meshes, the rig, and every cache
+/// (--driver, --driven, --also, --candidate, --shot), a sequence with all its frames.
+std::vector<NamedPath> dbBuildInputPaths(const ArgParser& parser, const DbBuildRequest& request) {
+  std::vector<NamedPath> inputs = givenPaths(parser, {"--driver-mesh", "--driven-mesh", "--rig"});
+  const auto cache = [&inputs](const char* option, const std::string& path) {
+    inputs.push_back({option, path, hasFramePattern(path)});
+  };
+  cache("--driver", parser.get("--driver"));
+  cache("--driven", parser.get("--driven"));
+  for (const auto& [driver, driven] : request.also) {
+    cache("--also", driver);
+    cache("--also", driven.path);
+  }
+  if (!request.candidate.path.empty()) {
+    cache("--candidate", request.candidate.path);
+  }
+  for (const CacheSpec& shot : request.shots) {
+    cache("--shot", shot.path);
+  }
+  return inputs;
+}
+
 /// Usage errors first: the options, the output folders, distinct paths, then every cache word.
 DbBuildRequest dbBuildRequestFrom(const ArgParser& parser) {
   DbBuildRequest request;
@@ -224,9 +246,6 @@ DbBuildRequest dbBuildRequestFrom(const ArgParser& parser) {
     }
     checkOutputFolderWritable(request.modelJsonPath);
   }
-  checkDistinctPaths(
-      givenPaths(parser, {"-o", "--suggest-json", "--model-json"}), {},
-      givenPaths(parser, {"--driver-mesh", "--driven-mesh", "--driver", "--driven", "--rig"}));
   for (const std::vector<std::string>& words : parser.all("--also")) {
     request.also.emplace_back(words[0], parseCacheSpec(words[1]));
   }
@@ -236,6 +255,8 @@ DbBuildRequest dbBuildRequestFrom(const ArgParser& parser) {
   for (const std::vector<std::string>& words : parser.all("--shot")) {
     request.shots.push_back(parseCacheSpec(words[0]));
   }
+  checkDistinctPaths(givenPaths(parser, {"-o", "--suggest-json", "--model-json"}), {},
+                     dbBuildInputPaths(parser, request));
   return request;
 }
 

@@ -93,6 +93,17 @@ FarmJob jobFrom(const ArgParser& parser) {
   return job;
 }
 
+/// Refuses job files (`outputs`: -O, the OpenJD parameters file) that would overwrite an input
+/// of the job: the database, any frame of the driver, the executable the tasks run.
+void checkFarmPaths(const ArgParser& parser, const FarmJob& job,
+                    const std::vector<NamedPath>& outputs) {
+  std::vector<NamedPath> inputs = givenPaths(parser, {"--db"});
+  const std::vector<NamedPath> driver = givenPaths(parser, {"--driver"}, true);
+  inputs.insert(inputs.end(), driver.begin(), driver.end());
+  inputs.push_back({"--binary", job.binary, false});
+  checkDistinctPaths(outputs, {}, inputs);
+}
+
 /// Creates `folder` (and parents); Error(kOutput) if it cannot be made or written.
 void makeFolder(const std::string& folder, const char* what) {
   std::error_code ec;
@@ -149,6 +160,7 @@ int runFarmSlurm(const std::vector<std::string>& args) {
       slurmScript(job, slurmLogPattern(logDir, job.name, logCulprit), parser.get("--partition"));
   const std::string jobFile = absolute(parser.get("-O"));
   checkOutputFolderWritable(jobFile);
+  checkFarmPaths(parser, job, {{"-O", jobFile, false}});
   // Slurm opens the task logs before the script runs: the folder must exist at submission.
   makeFolder(logDir, "log");
   createOutputFolder(job);
@@ -221,6 +233,8 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
   const std::string valuesFile = openJobParametersPath(jobFile);
   const std::string text = openJobTemplateText(jobTemplate, jobFile);
   checkOutputFolderWritable(jobFile);
+  checkFarmPaths(parser, job,
+                 {{"-O", jobFile, false}, {"-O (its job parameters file)", valuesFile, false}});
   createOutputFolder(job);
   writeFileAtomically(valuesFile, jsonText(values, 2) + "\n");
   writeFileAtomically(jobFile, text);

@@ -131,7 +131,16 @@ int runPosmap(const std::vector<std::string>& args) {
   }
   missingOutputFolders(expandFramePattern(output, frames.front()));  // created once inputs load
   const std::string cachePath = parser.get("--cache");
-  checkDistinctPaths({{"-o", output, true}}, frames,
+  std::vector<NamedPath> outputs = {{"-o", output, true}};
+  if (options.preview) {
+    const std::string previews = positionMapPreviewPath(output);
+    if (!hasFramePattern(previews)) {
+      DS_THROW(kUsage, "--preview: every frame's preview of -o '", output, "' would be '", previews,
+               "' (the frame token is in the extension); put it before the extension");
+    }
+    outputs.push_back({"--preview", previews, true});
+  }
+  checkDistinctPaths(outputs, frames,
                      {{"--cache", cachePath, hasFramePattern(cachePath)},
                       {"--mesh", parser.get("--mesh"), false}});
 

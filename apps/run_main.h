@@ -6,7 +6,11 @@
 // stderr naming the tool: a drivenshape::Error exits with its code, running out of memory and
 // any other exception with kInternal (1). Messages are printed with unprintable bytes escaped
 // and very long ones shortened (a bad input's raw bytes or a path of thousands of bytes).
+// SIGXFSZ is ignored: a write past the file-size limit (`ulimit -f`) then fails with EFBIG like
+// a full disk, and the writer's error path removes its temporary file and exits 4 instead of
+// the process dying with the file left behind.
 
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <new>
@@ -21,6 +25,7 @@ namespace drivenshape::cli {
 
 template <typename Body>
 int runMain(const char* tool, int argc, char** argv, Body&& body) {
+  std::signal(SIGXFSZ, SIG_IGN);
   try {
     return body(std::vector<std::string>(argv + 1, argv + argc));
   } catch (const Error& error) {

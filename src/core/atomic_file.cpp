@@ -17,6 +17,7 @@
 
 #include <drivenshape/error.h>
 
+#include "hash.h"
 #include "text.h"
 
 namespace drivenshape {
@@ -54,14 +55,35 @@ std::size_t nameLimitOf(const std::string& folder) {
   return limit > 0 ? static_cast<std::size_t>(limit) : 255;
 }
 
-/// What every temporary name of `finalPath` starts with: `.<name>.tmp-`, the name cut short
-/// where the whole temporary name would pass the folder's name limit.
+/// What every temporary name of `finalPath` starts with: `.<name>.tmp-`. Where the whole
+/// temporary name would pass the folder's name limit, the name is cut short and ends in `~`
+/// and 16 hex digits of the hash of the whole name, so two long names that share their first
+/// bytes (frames of one sequence) still have prefixes of their own.
 std::string tempPrefixFor(const std::string& finalPath, std::size_t nameLimit) {
   std::string name = std::filesystem::path(finalPath).filename().string();
   if (name.size() + kTempExtraBytes > nameLimit) {
-    name.resize(nameLimit > kTempExtraBytes ? nameLimit - kTempExtraBytes : 0);
+    const std::string tag = "~" + hashToHex(Hasher().addString(name).value());
+    const std::size_t room =
+        nameLimit > kTempExtraBytes + tag.size() ? nameLimit - kTempExtraBytes - tag.size() : 0;
+    name.resize(room);
+    name += tag;
   }
   return "." + name + kTempMarker;
+}
+
+/// Whether `name` is a temporary name with `prefix` exactly: the prefix, then 16 lowercase hex
+/// digits and nothing else (a user's `.x.tmp-notes` is not one).
+bool isTempName(const std::string& name, const std::string& prefix) {
+  if (name.size() != prefix.size() + kRandomDigits || name.compare(0, prefix.size(), prefix) != 0) {
+    return false;
+  }
+  for (std::size_t i = prefix.size(); i < name.size(); ++i) {
+    const char ch = name[i];
+    if (!((ch >= '0' && ch <= '9') || (ch >= 'a' && ch <= 'f'))) {
+      return false;
+    }
+  }
+  return true;
 }
 
 std::string randomDigits() {
@@ -132,6 +154,9 @@ void checkOutputFolderWritable(const std::string& path) {
   const std::string folder = folderOf(path);
   checkPathLength(path);
   struct stat status {};
+  if (::stat(path.c_str(), &status) == 0 && S_ISDIR(status.st_mode)) {
+    DS_THROW(kOutput, "output '", shown(path), "' is a folder; name a file (in it, or beside it)");
+  }
   if (::stat(folder.c_str(), &status) != 0) {
     const int error = errno;
     if (error == ENOENT) {
@@ -326,16 +351,19 @@ int removeStaleTempFiles(const std::vector<std::string>& finalPaths) {
     const std::string folder = folderOf(path);
     wanted[folder].insert(tempPrefixFor(path, nameLimitOf(folder)));
   }
-  const std::size_t markerBytes = std::strlen(kTempMarker);
   int removed = 0;
   for (const auto& [folder, prefixes] : wanted) {
     std::error_code ec;
     for (std::filesystem::directory_iterator it(folder, ec), end; !ec && it != end;
          it.increment(ec)) {
       const std::string name = it->path().filename().string();
-      const std::size_t marker = name.rfind(kTempMarker);
-      if (name.empty() || name[0] != '.' || marker == std::string::npos ||
-          prefixes.count(name.substr(0, marker + markerBytes)) == 0) {
+      if (name.size() <= kRandomDigits) {
+        continue;
+      }
+      const auto prefix = prefixes.find(name.substr(0, name.size() - kRandomDigits));
+      std::error_code typeError;
+      if (prefix == prefixes.end() || !isTempName(name, *prefix) ||
+          !it->is_regular_file(typeError)) {
         continue;
       }
       std::error_code removeError;

@@ -20,7 +20,9 @@ namespace drivenshape {
 /// over the target; rename replaces a symbolic link at the target, it never follows it. If the
 /// object is destroyed without commit() (an exception, a failed write) the temporary file is
 /// removed, so no partial output is ever left behind. A destination name so long that the
-/// temporary name would pass the folder's name limit gets a shortened temporary name.
+/// temporary name would pass the folder's name limit is cut short and tagged with a hash of
+/// the whole name (`.<start of name>~<16 hex digits>.tmp-<16 random hex digits>`), so every
+/// destination has a temporary prefix of its own.
 ///
 ///     AtomicFile file("out/cloth.1001.exr");
 ///     file.stream() << bytes;
@@ -58,9 +60,11 @@ class AtomicFile {
   bool mCommitted = false;
 };
 
-/// Removes the temporary files (`.<name>.tmp-*`) that killed writers left for `finalPaths`,
-/// e.g. the frames a resumed farm task owns, and returns how many it removed. Only call it for
-/// files no other live process is writing.
+/// Removes the temporary files that killed writers left for `finalPaths` (regular files named
+/// exactly as AtomicFile names them: the prefix of that final path, then 16 lowercase hex
+/// digits), e.g. the frames a resumed farm task owns, and returns how many it removed. Files of
+/// other final paths (another task's frames, however long their names) and other names are
+/// left alone. Only call it for files no other live process is writing.
 int removeStaleTempFiles(const std::vector<std::string>& finalPaths);
 
 /// Writes `bytes` to `path` atomically (see AtomicFile).
@@ -78,7 +82,8 @@ void requireRegularFile(const std::string& path, const std::string& what);
 
 /// Throws Error(kOutput) naming the folder of `path` and the reason when a file cannot be
 /// created there (missing, not a folder, not writable, a path or a name past the system's
-/// limits). Call before long work so a bad -o fails in the first second.
+/// limits), or when `path` itself is a folder. Call before long work so a bad -o fails in the
+/// first second.
 void checkOutputFolderWritable(const std::string& path);
 
 /// The folders above the output `path` that do not exist yet, outermost first (empty when its

@@ -9,7 +9,9 @@
 //     24 + H   padding to a multiple of 16, then the blocks, each 16-byte aligned
 //
 // Every block is raw little-endian float32 or int32 data; the header lists its name, dtype,
-// shape, byte offset (from the start of the file) and FNV-1a 64 checksum.
+// shape, byte offset (from the start of the file) and FNV-1a 64 checksum. The header's
+// "file_fnv1a64" is the FNV-1a 64 of the whole file with its own 16 hex digits read as '0's
+// (files written before it have none and load as before; a wrong one is refused).
 
 #include <drivenshape/database.h>
 
@@ -30,6 +32,7 @@
 #include <drivenshape/version.h>
 
 #include "atomic_file.h"
+#include "finite.h"
 #include "hash.h"
 
 #include "json_text.h"
@@ -42,6 +45,12 @@ using nlohmann::json;
 constexpr char kMagic[8] = {'D', 'S', 'H', 'A', 'P', 'E', 'D', 'B'};
 constexpr std::size_t kPrefixBytes = 24;
 constexpr std::size_t kAlign = 16;
+/// Headers are metadata (picks, the block table, settings): far below this, even with a
+/// million shapes. A larger length is damage, refused before anything is allocated for it.
+constexpr std::uint64_t kMaxHeaderBytes = std::uint64_t{1} << 28;
+/// The header key of the whole file's checksum, and its value while the file is laid out.
+constexpr const char* kFileChecksumKey = "file_fnv1a64";
+constexpr const char* kChecksumPlaceholder = "0000000000000000";
 
 struct BlockData {
   std::string name;
@@ -244,6 +253,7 @@ json databaseHeader(const Database& db) {
       {"tool_version", db.toolVersion.empty() ? std::string(kVersion) : db.toolVersion},
       {"created", db.created},
       {"content_hash", hashToHex(db.contentHash())},
+      {kFileChecksumKey, kChecksumPlaceholder},
       {"shape_count", db.shapeCount()},
       {"picks", picks},
       {"driver", meshJson(db.driverMesh)},
@@ -325,6 +335,42 @@ std::string databaseFileBytes(const std::string& headerText, const std::vector<B
   return bytes;
 }
 
+/// Where the 16 hex digits of the header's file checksum start in `bytes` (a database whose
+/// header is `headerLength` bytes), or npos when the header has no such key, or has it more
+/// than once, or its value is not 16 characters in quotes.
+std::size_t fileChecksumDigits(const std::string& bytes, std::size_t headerLength) {
+  const std::string_view header = std::string_view(bytes).substr(kPrefixBytes, headerLength);
+  const std::string key = std::string("\"") + kFileChecksumKey + "\"";
+  const std::size_t at = header.find(key);
+  if (at == std::string_view::npos || header.find(key, at + 1) != std::string_view::npos) {
+    return std::string::npos;
+  }
+  std::size_t i = at + key.size();
+  const auto skipSpace = [&]() {
+    while (i < header.size() && std::strchr(" \t\r\n", header[i]) != nullptr) {
+      ++i;
+    }
+  };
+  skipSpace();
+  if (i >= header.size() || header[i] != ':') {
+    return std::string::npos;
+  }
+  ++i;
+  skipSpace();
+  if (i + 18 > header.size() || header[i] != '"' || header[i + 17] != '"') {
+    return std::string::npos;
+  }
+  return kPrefixBytes + i + 1;
+}
+
+/// FNV-1a 64 of `bytes` with the 16 characters at `digits` read as '0's.
+std::uint64_t fileChecksum(const std::string& bytes, std::size_t digits) {
+  Hasher hasher;
+  hasher.add(bytes.data(), digits).add(kChecksumPlaceholder, 16);
+  hasher.add(bytes.data() + digits + 16, bytes.size() - digits - 16);
+  return hasher.value();
+}
+
 }  // namespace
 
 void saveDatabase(const std::string& path, const Database& db) {
@@ -336,7 +382,13 @@ void saveDatabase(const std::string& path, const Database& db) {
   json header = databaseHeader(db);
   std::vector<std::size_t> offsets;
   const std::string headerText = layOutBlocks(header, blocks, offsets);
-  writeFileAtomically(path, databaseFileBytes(headerText, blocks, offsets));
+  std::string bytes = databaseFileBytes(headerText, blocks, offsets);
+  const std::size_t digits = fileChecksumDigits(bytes, headerText.size());
+  if (digits == std::string::npos) {
+    DS_THROW(kInternal, "saveDatabase: the header's ", kFileChecksumKey, " was not laid out");
+  }
+  bytes.replace(digits, 16, hashToHex(fileChecksum(bytes, digits)));
+  writeFileAtomically(path, bytes);
 }
 
 bool isDatabaseFile(const std::string& path) {
@@ -380,6 +432,7 @@ class BlockReader {
       DS_THROW(kInput, mPath, ": database block '", name, "' runs past the end of the file (",
                mBytes.size(), " bytes); the file is truncated, copy or rebuild it");
     }
+    checkShape(entry, name, expectedCount);
     const std::string expected = entry.at("fnv1a64").get<std::string>();
     const std::string actual = hashToHex(Hasher().add(mBytes.data() + offset, bytes).value());
     if (expected != actual) {
@@ -412,6 +465,25 @@ class BlockReader {
                "; the file is corrupt");
     }
     return static_cast<std::size_t>(value.get<std::uint64_t>());
+  }
+
+  /// Refuses a block whose header shape (when it has one: every file so far) does not hold
+  /// `count` values.
+  void checkShape(const json& entry, const std::string& name, std::size_t count) const {
+    if (!entry.contains("shape")) {
+      return;
+    }
+    const json& shape = entry.at("shape");
+    double values = 1;
+    bool whole = shape.is_array();
+    for (const json& extent : shape) {
+      whole = whole && extent.is_number_unsigned();
+      values *= whole ? static_cast<double>(extent.get<std::uint64_t>()) : 0.0;
+    }
+    if (!whole || values != static_cast<double>(count)) {
+      DS_THROW(kInput, mPath, ": database block '", name, "' has shape ", jsonText(shape),
+               " but holds ", count, " values; the file is corrupt, rebuild it");
+    }
   }
 
   std::string mPath;
@@ -506,6 +578,16 @@ void readPoseModel(const BlockReader& blocks, const json& info, const std::strin
                "; the file is corrupt, rebuild it");
     }
   }
+  for (int p = 0; p < parts; ++p) {
+    int up = p;
+    for (int step = 0; step <= parts && up >= 0; ++step) {
+      up = m.parent[static_cast<std::size_t>(up)];
+    }
+    if (up >= 0) {
+      DS_THROW(kInput, where, ": part ", p,
+               " is its own ancestor (a cycle of parents); the file is corrupt, rebuild it");
+    }
+  }
   if (info.contains("sibling_weight") &&
       !(std::isfinite(m.siblingWeight) && m.siblingWeight > 0.0 && !m.siblingPairs().empty())) {
     DS_THROW(kInput, where, ": sibling_weight ", m.siblingWeight,
@@ -525,16 +607,23 @@ void readPoseModel(const BlockReader& blocks, const json& info, const std::strin
 
 }  // namespace
 
-Database loadDatabase(const std::string& path) {
-  std::string bytes = readWholeFile(path, "database");
-  if (bytes.size() < kPrefixBytes || std::memcmp(bytes.data(), kMagic, 8) != 0) {
+namespace {
+
+/// Checks the 24-byte prefix (magic, format version, header length) against the file's size
+/// before anything of the size the header claims is allocated, then reads the file.
+std::string readDatabaseBytes(const std::string& path, std::uint64_t& headerLength) {
+  requireRegularFile(path, "database");
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  char prefix[kPrefixBytes] = {};
+  std::ifstream in(path, std::ios::binary);
+  if (ec || !in.read(prefix, kPrefixBytes) || std::memcmp(prefix, kMagic, 8) != 0) {
     DS_THROW(kInput, "'", path, "' is not a drivenshape database (no DSHAPEDB magic); build one ",
              "with `drivenshape db build`");
   }
   std::uint32_t version;
-  std::uint64_t headerLength;
-  std::memcpy(&version, bytes.data() + 8, 4);
-  std::memcpy(&headerLength, bytes.data() + 16, 8);
+  std::memcpy(&version, prefix + 8, 4);
+  std::memcpy(&headerLength, prefix + 16, 8);
   if (version != static_cast<std::uint32_t>(Database::kFormatVersion)) {
     DS_THROW(kInput, "'", path, "' is a database of format version ", version,
              "; this drivenshape (", kVersion, ") reads version ", Database::kFormatVersion,
@@ -542,12 +631,86 @@ Database loadDatabase(const std::string& path) {
                  ? ": upgrade drivenshape"
                  : ": rebuild the database with this version");
   }
-  if (headerLength > bytes.size() - kPrefixBytes) {
+  if (headerLength > size - kPrefixBytes) {
     DS_THROW(kInput, "'", path, "' is truncated (header of ", headerLength,
-             " bytes does not fit in the file)");
+             " bytes does not fit in the file of ", size, " bytes)");
   }
+  if (headerLength > kMaxHeaderBytes) {
+    DS_THROW(kInput, "'", path, "' declares a header of ", headerLength, " bytes; a database ",
+             "header has at most ", kMaxHeaderBytes, " bytes, the file is corrupt");
+  }
+  in.close();
+  std::string bytes = readWholeFile(path, "database");
+  if (bytes.size() < kPrefixBytes || headerLength > bytes.size() - kPrefixBytes) {
+    DS_THROW(kInput, "'", path, "' changed while it was read (", bytes.size(), " bytes)");
+  }
+  return bytes;
+}
+
+/// Refuses a file whose header's whole-file checksum is malformed or does not match. A file
+/// without one (written before the checksum was added) is read as before.
+void checkFileChecksum(const std::string& path, const std::string& bytes,
+                       std::uint64_t headerLength, const json& header) {
+  if (!header.is_object() || !header.contains(kFileChecksumKey)) {
+    return;
+  }
+  const json& stored = header.at(kFileChecksumKey);
+  std::uint64_t expected = 0;
+  const std::size_t digits = fileChecksumDigits(bytes, headerLength);
+  if (!stored.is_string() || !hexToHash(stored.get<std::string>(), expected) ||
+      digits == std::string::npos || bytes.compare(digits, 16, stored.get<std::string>()) != 0) {
+    DS_THROW(kInput, "'", path, "': the header's ", kFileChecksumKey, " ", jsonText(stored),
+             " is not one checksum of 16 hex digits; the file is corrupt, rebuild it");
+  }
+  const std::uint64_t actual = fileChecksum(bytes, digits);
+  if (actual != expected) {
+    DS_THROW(kInput, "'", path, "' fails its checksum (", hashToHex(actual),
+             " != ", stored.get<std::string>(),
+             "); the file is corrupted or was edited, rebuild it with `drivenshape db build`");
+  }
+}
+
+/// Throws Error(kInput) naming the block and the value when `values` hold a NaN or infinity.
+void requireFiniteBlock(const std::string& path, const char* block,
+                        const std::vector<float>& values) {
+  const std::size_t bad = firstNonFinite(values.data(), values.size());
+  if (bad < values.size()) {
+    DS_THROW(kInput, "'", path, "': block '", block, "' value ", bad,
+             " is not a finite number; the file is corrupt, rebuild it");
+  }
+}
+
+/// What the blocks' checksums cannot see (a file edited and its checksums recomputed, or a
+/// block that never was valid): non-finite shapes or model values, and a content that
+/// differs from the header's content hash.
+void checkLoadedDatabase(const Database& db, const json& header, const std::string& path) {
+  requireFiniteBlock(path, "driver_shapes", db.driverShapes);
+  requireFiniteBlock(path, "driven_shapes", db.drivenShapes);
+  const PoseModel& m = db.poseModel;
+  if (!m.empty()) {
+    requireFiniteBlock(path, "model_features", m.features);
+    requireFiniteBlock(path, "model_coefficients", m.coefficients);
+    requireFiniteBlock(path, "model_basis", m.basis);
+    requireFiniteBlock(path, "model_clip_coefficients", m.clipCoefficients);
+  }
+  const json& stored = header.at("content_hash");
+  const std::string actual = hashToHex(db.contentHash());
+  if (!stored.is_string() || stored.get<std::string>() != actual) {
+    DS_THROW(kInput, "'", path, "': its content hashes to ", actual, ", not to the header's ",
+             jsonText(stored),
+             "; the database was changed after it was built, rebuild it with `drivenshape db "
+             "build`");
+  }
+}
+
+}  // namespace
+
+Database loadDatabase(const std::string& path) {
+  std::uint64_t headerLength = 0;
+  std::string bytes = readDatabaseBytes(path, headerLength);
   const json header = parseJsonText(std::string_view(bytes).substr(kPrefixBytes, headerLength),
                                     "'" + path + "': database header");
+  checkFileChecksum(path, bytes, headerLength, header);
   Database db;
   try {
     const BlockReader blocks(path, std::move(bytes), header.at("blocks"));
@@ -616,6 +779,7 @@ Database loadDatabase(const std::string& path) {
       }
       db.drivenSides.assign(sides.begin(), sides.end());
     }
+    checkLoadedDatabase(db, header, path);
   } catch (const json::exception& error) {
     DS_THROW(kInput, "'", path, "': database header is incomplete (", error.what(),
              "); the file is damaged or from an incompatible tool");

@@ -5,6 +5,7 @@
 #include <drivenshape/pose_model.h>
 
 #include <algorithm>
+#include <functional>
 #include <map>
 #include <set>
 
@@ -15,6 +16,42 @@
 #include "json_text.h"
 
 namespace drivenshape {
+namespace {
+
+/// Bone parents (by name, "" for a root) from the rig's optional bones list; `fail` refuses a
+/// malformed entry, a bone that is its own parent and a parent that is not one of `names`.
+std::map<std::string, std::string> boneParents(
+    const nlohmann::json& rig, const std::vector<std::string>& names,
+    const std::function<void(const std::string&)>& fail) {
+  std::map<std::string, std::string> parentName;
+  if (!rig.contains("bones")) {
+    return parentName;
+  }
+  if (!rig.at("bones").is_array()) {
+    fail("bones is not an array");
+  }
+  for (const nlohmann::json& b : rig.at("bones")) {
+    if (!b.is_object() || !b.contains("name") || !b.at("name").is_string()) {
+      fail("a bone has no name");
+    }
+    const std::string name = b.at("name").get<std::string>();
+    const nlohmann::json parent = b.value("parent", nlohmann::json());
+    if (!parent.is_null() && !parent.is_string()) {
+      fail("the parent of bone '" + name + "' is not a name");
+    }
+    const std::string parentText = parent.is_null() ? "" : parent.get<std::string>();
+    if (parentText == name) {
+      fail("bone '" + name + "' is its own parent");
+    }
+    if (!parentText.empty() && std::find(names.begin(), names.end(), parentText) == names.end()) {
+      fail("the parent '" + parentText + "' of bone '" + name + "' is not in bone_names");
+    }
+    parentName[name] = parentText;
+  }
+  return parentName;
+}
+
+}  // namespace
 
 void parseRigParts(const std::string& text, const std::string& source, int driverVertexCount,
                    std::vector<int>& partOf, std::vector<int>& parentOf) {
@@ -60,25 +97,12 @@ void parseRigParts(const std::string& text, const std::string& source, int drive
         bone[static_cast<std::size_t>(v)] = static_cast<int>(b);
       }
     }
-  }
-  // Bone parents (by name), from the optional bones list.
-  std::map<std::string, std::string> parentName;
-  if (rig.contains("bones")) {
-    if (!rig.at("bones").is_array()) {
-      fail("bones is not an array");
-    }
-    for (const nlohmann::json& b : rig.at("bones")) {
-      if (!b.is_object() || !b.contains("name") || !b.at("name").is_string()) {
-        fail("a bone has no name");
-      }
-      const nlohmann::json parent = b.value("parent", nlohmann::json());
-      if (!parent.is_null() && !parent.is_string()) {
-        fail("the parent of bone '" + b.at("name").get<std::string>() + "' is not a name");
-      }
-      parentName[b.at("name").get<std::string>()] =
-          parent.is_null() ? "" : parent.get<std::string>();
+    if (!(best > 0.0)) {
+      fail("driver_weights row " + std::to_string(v) + " has no positive weight: driver vertex " +
+           std::to_string(v) + " follows no bone");
     }
   }
+  const std::map<std::string, std::string> parentName = boneParents(rig, names, fail);
   // Parts: the bones some vertex uses, in bone order.
   std::vector<int> partOfBone(names.size(), -1);
   int parts = 0;

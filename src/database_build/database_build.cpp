@@ -15,6 +15,7 @@
 #include <drivenshape/error.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/frames.h>
+#include <drivenshape/point_cache.h>
 #include <drivenshape/version.h>
 
 #include "closest.h"
@@ -117,9 +118,10 @@ std::vector<float> readCandidateShapes(const PointCacheReader& driverCache,
   std::vector<float> shapes = readFrames(driverCache, candidates);
   for (std::size_t c = 0; c < candidates.size(); ++c) {
     for (std::size_t i = 0; i < driverValues; ++i) {
-      if (!std::isfinite(shapes[c * driverValues + i])) {
+      if (!(std::fabs(shapes[c * driverValues + i]) <= kMaxCoordinate)) {
         DS_THROW(kInput, "driver cache '", driverCache.path(), "' frame ", candidates[c],
-                 " vertex ", i / 3, " is not a finite number; fix the cache");
+                 " vertex ", i / 3, " is not a finite number within +/-", kMaxCoordinate,
+                 " scene units; fix the cache or its units");
       }
     }
   }
@@ -244,10 +246,11 @@ void fillPickedShapes(Database& db, const std::vector<float>& shapes,
   }
   db.drivenShapes = readFrames(drivenCache, db.frames);
   for (std::size_t i = 0; i < db.drivenShapes.size(); ++i) {
-    if (!std::isfinite(db.drivenShapes[i])) {
+    if (!(std::fabs(db.drivenShapes[i]) <= kMaxCoordinate)) {
       const std::size_t values = static_cast<std::size_t>(drivenMesh.vertexCount()) * 3;
       DS_THROW(kInput, "driven cache '", drivenCache.path(), "' frame ", db.frames[i / values],
-               " vertex ", (i % values) / 3, " is not a finite number; fix the cache");
+               " vertex ", (i % values) / 3, " is not a finite number within +/-", kMaxCoordinate,
+               " scene units; fix the cache or its units");
     }
   }
 }

@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <drivenshape/frames.h>
 
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <charconv>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
-#include <unordered_set>
 
 #include <drivenshape/error.h>
 
@@ -43,8 +45,7 @@ bool parseInt(const std::string& item, std::size_t& pos, int& value, bool& overf
   return true;
 }
 
-void appendItem(const std::string& item, const std::string& text, std::vector<int>& frames,
-                std::unordered_set<int>& seen) {
+void appendItem(const std::string& item, const std::string& text, std::vector<int>& frames) {
   if (item.empty()) {
     DS_THROW(kUsage, "frame range '", text, "' has an empty item; ", kRangeHelp);
   }
@@ -106,10 +107,31 @@ void appendItem(const std::string& item, const std::string& text, std::vector<in
              " frames; check the numbers");
   }
   for (std::int64_t frame = first; frame <= last; frame += step) {
-    if (seen.insert(static_cast<int>(frame)).second) {
-      frames.push_back(static_cast<int>(frame));
+    frames.push_back(static_cast<int>(frame));
+  }
+}
+
+/// `frames` without repeats, each where it first appears. Costs a sorted copy, not a hash set
+/// per frame (a range of ten million frames is refused later, by the driver, in a second).
+std::vector<int> withoutRepeats(std::vector<int> frames) {
+  std::vector<int> sorted = frames;
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) == sorted.end()) {
+    return frames;
+  }
+  sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+  std::vector<bool> kept(sorted.size(), false);
+  std::vector<int> unique;
+  unique.reserve(sorted.size());
+  for (int frame : frames) {
+    const auto at = static_cast<std::size_t>(std::lower_bound(sorted.begin(), sorted.end(), frame) -
+                                             sorted.begin());
+    if (!kept[at]) {
+      kept[at] = true;
+      unique.push_back(frame);
     }
   }
+  return unique;
 }
 
 }  // namespace
@@ -168,6 +190,42 @@ std::string formatFrameNumber(int frame, int width) {
   return frame < 0 ? "-" + digits : digits;
 }
 
+std::map<int, std::string> listSequenceFiles(const std::string& pattern, std::error_code& ec) {
+  std::map<int, std::string> found;
+  const std::vector<FrameToken> tokens = findFrameTokens(pattern);
+  const std::size_t nameStart =
+      pattern.size() - std::filesystem::path(pattern).filename().string().size();
+  if (tokens.size() != 1 || tokens.front().pos < nameStart) {
+    return found;
+  }
+  const FrameToken& token = tokens.front();
+  const std::string prefix = pattern.substr(nameStart, token.pos - nameStart);
+  const std::string suffix = pattern.substr(token.pos + token.length);
+  const std::string folderText = pattern.substr(0, nameStart);
+  const std::filesystem::path folder = folderText.empty() ? "." : folderText;
+  for (std::filesystem::directory_iterator it(folder, ec), end; !ec && it != end;
+       it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() + suffix.size() || name.compare(0, prefix.size(), prefix) ||
+        name.compare(name.size() - suffix.size(), suffix.size(), suffix)) {
+      continue;
+    }
+    const std::string middle =
+        name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
+    int frame = 0;
+    const auto result = std::from_chars(middle.data(), middle.data() + middle.size(), frame);
+    if (result.ec != std::errc() || result.ptr != middle.data() + middle.size() ||
+        formatFrameNumber(frame, token.width) != middle) {
+      continue;
+    }
+    std::error_code fileEc;
+    if (it->is_regular_file(fileEc)) {
+      found.emplace(frame, folderText + name);
+    }
+  }
+  return found;
+}
+
 }  // namespace io
 
 std::vector<int> parseFrameRange(const std::string& text) {
@@ -175,19 +233,18 @@ std::vector<int> parseFrameRange(const std::string& text) {
     DS_THROW(kUsage, "empty frame range '", text, "'; ", kRangeHelp);
   }
   std::vector<int> frames;
-  std::unordered_set<int> seen;
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = text.find(',', start);
     const std::string item = trimSpaces(
         text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-    appendItem(item, text, frames, seen);
+    appendItem(item, text, frames);
     if (comma == std::string::npos) {
       break;
     }
     start = comma + 1;
   }
-  return frames;
+  return withoutRepeats(std::move(frames));
 }
 
 std::string formatFrameRange(const std::vector<int>& frames) {
@@ -261,6 +318,12 @@ std::string expandFramePattern(const std::string& pattern, int frame) {
              " frame tokens; use exactly one (####, %04d or $F4)");
   }
   const io::FrameToken& token = tokens.front();
+  const std::size_t slash = pattern.find_last_of('/');
+  if (slash != std::string::npos && token.pos < slash) {
+    DS_THROW(kUsage, "'", pattern,
+             "': the frame token is in a folder name (a folder per frame); put it in the file "
+             "name, e.g. out/cloth.####.exr");
+  }
   return pattern.substr(0, token.pos) + io::formatFrameNumber(frame, token.width) +
          pattern.substr(token.pos + token.length);
 }
@@ -299,12 +362,47 @@ std::vector<std::string> namesOf(const NamedPath& named, const std::vector<int>&
   return names;
 }
 
+/// A file by its identity: device and inode after following links, so a link, a hard link or
+/// a path through a linked folder is the file it reaches.
+using FileId = std::pair<std::uint64_t, std::uint64_t>;
+
+bool fileIdOf(const std::string& path, FileId& id) {
+  struct stat status {};
+  if (::stat(path.c_str(), &status) != 0) {
+    return false;
+  }
+  id = {static_cast<std::uint64_t>(status.st_dev), static_cast<std::uint64_t>(status.st_ino)};
+  return true;
+}
+
+/// The files an input may be read from: the file, or every file of a sequence that exists
+/// (whatever its frame: a bake reads driver frames before --frames as history, a cache may be
+/// read at an offset), plus the sequence's names over `frames`.
+std::vector<std::string> inputFilesOf(const NamedPath& input, const std::vector<int>& frames) {
+  std::vector<std::string> names = namesOf(input, frames);
+  if (input.sequence) {
+    std::error_code ec;
+    for (auto& [frame, file] : io::listSequenceFiles(input.path, ec)) {
+      names.push_back(std::move(file));
+    }
+  }
+  return names;
+}
+
+[[noreturn]] void throwOverwrite(const NamedPath& output, const NamedPath& input,
+                                 const std::string& name, const std::string& reached) {
+  DS_THROW(kUsage, output.option, " '", output.path, "' would overwrite the input ", input.option,
+           " '", input.path, "' (file '", name, "'", reached, "); write the output elsewhere");
+}
+
 }  // namespace
 
 void checkDistinctPaths(const std::vector<NamedPath>& outputs, const std::vector<int>& frames,
                         const std::vector<NamedPath>& inputs) {
   PathResolver resolver;
   std::map<std::string, const NamedPath*> written;
+  // The outputs that exist already, by identity: writing one replaces the file it reaches.
+  std::map<FileId, std::pair<const NamedPath*, std::string>> existing;
   for (const NamedPath& output : outputs) {
     for (const std::string& name : namesOf(output, frames)) {
       const auto [at, inserted] = written.emplace(resolver.resolve(name), &output);
@@ -312,15 +410,23 @@ void checkDistinctPaths(const std::vector<NamedPath>& outputs, const std::vector
         DS_THROW(kUsage, at->second->option, " '", at->second->path, "' and ", output.option, " '",
                  output.path, "' both name the file '", name, "'; give each output its own name");
       }
+      FileId id;
+      if (fileIdOf(name, id)) {
+        existing.emplace(id, std::make_pair(&output, name));
+      }
     }
   }
   for (const NamedPath& input : inputs) {
-    for (const std::string& name : namesOf(input, frames)) {
+    for (const std::string& name : inputFilesOf(input, frames)) {
       const auto at = written.find(resolver.resolve(name));
       if (at != written.end()) {
-        DS_THROW(kUsage, at->second->option, " '", at->second->path, "' would overwrite the input ",
-                 input.option, " '", input.path, "' (file '", name,
-                 "'); write the output elsewhere");
+        throwOverwrite(*at->second, input, name, "");
+      }
+      FileId id;
+      const auto same = fileIdOf(name, id) ? existing.find(id) : existing.end();
+      if (same != existing.end()) {
+        throwOverwrite(*same->second.first, input, name,
+                       ", the same file as '" + same->second.second + "' through a link");
       }
     }
   }

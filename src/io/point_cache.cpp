@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <cmath>
 #include <filesystem>
 #include <map>
 
@@ -28,11 +29,8 @@ bool endsWithPc2(const std::string& spec) {
   return tail == ".pc2";
 }
 
-/// A point-cache EXR sequence: one file per frame, found by listing the pattern's folder.
-///
-/// A file belongs to the sequence when its name is the pattern with the token replaced by a
-/// frame number written exactly as expandFramePattern writes that frame: `####` takes
-/// `1001`, `0012`, `-0012` and `12345`, but not `012` or `01001`, so each frame has one name.
+/// A point-cache EXR sequence: one file per frame, found by listing the pattern's folder
+/// (io::listSequenceFiles says which names belong to it).
 class ExrSequenceReader final : public PointCacheReader {
  public:
   ExrSequenceReader(std::string pattern, std::uint64_t expectedTopology)
@@ -50,8 +48,6 @@ class ExrSequenceReader final : public PointCacheReader {
       DS_THROW(kInput, "'", mPattern,
                "': the frame token must be in the file name, not in a folder name");
     }
-    const std::string prefix = mPattern.substr(nameStart, token.pos - nameStart);
-    const std::string suffix = mPattern.substr(token.pos + token.length);
     const std::string folderText = mPattern.substr(0, nameStart);
     const std::filesystem::path folder = folderText.empty() ? "." : folderText;
 
@@ -60,28 +56,7 @@ class ExrSequenceReader final : public PointCacheReader {
       DS_THROW(kInput, "EXR sequence '", mPattern, "': folder '", folder.string(),
                "' does not exist");
     }
-    std::map<int, std::string> found;
-    for (std::filesystem::directory_iterator it(folder, ec), end; !ec && it != end;
-         it.increment(ec)) {
-      const std::string name = it->path().filename().string();
-      if (name.size() <= prefix.size() + suffix.size() || name.compare(0, prefix.size(), prefix) ||
-          name.compare(name.size() - suffix.size(), suffix.size(), suffix)) {
-        continue;
-      }
-      const std::string middle =
-          name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
-      int frame = 0;
-      const auto result = std::from_chars(middle.data(), middle.data() + middle.size(), frame);
-      if (result.ec != std::errc() || result.ptr != middle.data() + middle.size() ||
-          io::formatFrameNumber(frame, token.width) != middle) {
-        continue;
-      }
-      std::error_code fileEc;
-      if (!it->is_regular_file(fileEc)) {
-        continue;
-      }
-      found.emplace(frame, folderText + name);
-    }
+    const std::map<int, std::string> found = io::listSequenceFiles(mPattern, ec);
     if (ec) {
       DS_THROW(kInput, "EXR sequence '", mPattern, "': cannot list folder '", folder.string(),
                "': ", ec.message());
@@ -179,8 +154,15 @@ void readFiniteFrame(const PointCacheReader& cache, int frame, float* xyz,
   cache.readFrame(frame, xyz);
   // The readers refuse non-finite positions themselves, except one opened with
   // allowNonFinite: this contract holds whatever reader it is given.
-  requireFiniteFrame(role + " '" + cache.path() + "'", frame, xyz,
-                     3 * static_cast<std::size_t>(cache.vertexCount()));
+  const std::size_t values = 3 * static_cast<std::size_t>(cache.vertexCount());
+  requireFiniteFrame(role + " '" + cache.path() + "'", frame, xyz, values);
+  for (std::size_t i = 0; i < values; ++i) {
+    if (std::fabs(xyz[i]) > kMaxCoordinate) {
+      DS_THROW(kInput, role, " '", cache.path(), "' frame ", frame, " vertex ", i / 3,
+               " has the coordinate ", xyz[i], ", beyond the ", kMaxCoordinate,
+               " scene units a cache may hold; fix the cache or its units");
+    }
+  }
 }
 
 }  // namespace drivenshape

@@ -441,7 +441,7 @@ void correctionRows(std::vector<SettingRow>& rows) {
   Row(rows, "skin_offset", "skin offset", SettingType::kNumber)
       .flag("--skin-offset", "D")
       .field<&S::skinOffset>()
-      .range(0, kNoLimit, "scene units")
+      .range(0, kMaxCoordinate, "scene units")
       .help(
           "penetration resolution: cloth closer to the driver than D (or inside it) moves "
           "out to D (0.002 = 2 mm in metre scenes)")
@@ -835,8 +835,20 @@ void checkSettingValue(const Setting& setting, const SettingValue& value) {
     if (!std::isfinite(number) || number < setting.minimum || number > setting.maximum) {
       const std::string zero =
           *setting.zero != '\0' ? std::string("0 = ") + setting.zero + "; " : std::string();
-      DS_THROW(kUsage, "the ", names, " must be ", settings_impl::rangeText(setting), " (", zero,
-               "got ", formatSettingValue(value), ")");
+      // The bound the value breaks first, then the whole range when it has two bounds.
+      const char* what = setting.type == SettingType::kInt ? "a whole number" : "a number";
+      const std::string broken =
+          !std::isfinite(number) ? std::string("a finite number")
+          : number < setting.minimum
+              ? what + std::string(" >= ") + formatSettingValue(setting.minimum)
+              : what + std::string(" <= ") + formatSettingValue(setting.maximum);
+      const std::string unit =
+          std::isfinite(number) && *setting.unit != '\0' ? std::string(" ") + setting.unit : "";
+      const std::string range = std::isinf(setting.maximum)
+                                    ? std::string()
+                                    : "; allowed: " + settings_impl::rangeText(setting);
+      DS_THROW(kUsage, "the ", names, " must be ", broken, unit, " (", zero, "got ",
+               formatSettingValue(value), range, ")");
     }
   }
 }

@@ -431,6 +431,23 @@ void writeReport(const std::string& path, const Database& db, const PointCacheRe
   writeFileAtomically(path, bakeReportJson(db, driver.path(), options, evaluator, result));
 }
 
+/// How the bake writes its EXRs.
+ExrWriteOptions exrOptions(const BakeOptions& options, const Evaluator& evaluator,
+                           std::uint64_t topology, std::uint64_t settingsHash) {
+  ExrWriteOptions exr;
+  exr.width = options.exrWidth;
+  exr.compression = options.compression;
+  exr.zipEncoder = options.zipEncoder;
+  exr.topologyHash = topology;
+  exr.settingsHash = settingsHash;
+  exr.framesPerSecond = options.framesPerSecond;
+  exr.syncToDisk = options.syncOutputs;
+  if (!evaluator.settings().layers.empty()) {
+    exr.stringAttributes.emplace_back("dsLayers", evaluator.describeLayers());
+  }
+  return exr;
+}
+
 }  // namespace
 
 std::string admitDriverMesh(const Database& db, const std::string& source, bool allowUntrusted,
@@ -508,17 +525,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   const std::uint64_t topology = topologyHash(db.drivenMesh);
   const std::vector<int> todo = planFrames(result, options, vd, topology, threads);
 
-  ExrWriteOptions exr;
-  exr.width = options.exrWidth;
-  exr.compression = options.compression;
-  exr.zipEncoder = options.zipEncoder;
-  exr.topologyHash = topology;
-  exr.settingsHash = result.settingsHash;
-  exr.framesPerSecond = options.framesPerSecond;
-  exr.syncToDisk = options.syncOutputs;
-  if (!evaluator.settings().layers.empty()) {
-    exr.stringAttributes.emplace_back("dsLayers", evaluator.describeLayers());
-  }
+  const ExrWriteOptions exr = exrOptions(options, evaluator, topology, result.settingsHash);
   std::vector<int> todoFrames;
   for (int index : todo) {
     todoFrames.push_back(result.frames[index].frame);
@@ -531,14 +538,20 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   std::vector<FrameRecord> records;
   result.times.setup = secondsSince(bakeStart);
 
-  for (std::size_t b = 0; b < plan.size(); ++b) {
-    const std::size_t begin = plan[b].first;
+  // A stop request ends the bake before the next batch, and after the last one before the
+  // report (a shot of one batch stops too): the frames written are whole, no report claims
+  // the shot.
+  const auto stopIfAsked = [&]() {
     if (observer != nullptr && observer->stopRequested()) {
       writer.finish();
       DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
                " frames; finished frames are complete, resume by baking again with existing "
                "outputs kept (--skip-existing)");
     }
+  };
+  for (std::size_t b = 0; b < plan.size(); ++b) {
+    const std::size_t begin = plan[b].first;
+    stopIfAsked();
     const auto batchStart = Clock::now();
     const int count = static_cast<int>(plan[b].frames.size());
     auto start = Clock::now();
@@ -578,6 +591,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
     result.times.writeWait += secondsSince(start);
   }
   writer.finish();
+  stopIfAsked();
   result.times.total = secondsSince(bakeStart);
   if (!options.reportPath.empty()) {
     writeReport(options.reportPath, db, driver, options, evaluator, result);

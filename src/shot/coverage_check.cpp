@@ -81,10 +81,16 @@ BakeReportCoverage parseBakeReportCoverage(const std::string& text, const std::s
     }
     out.predicted.push_back({frame, predicted.get<double>(), flaggedOf(entry, where)});
   }
-  if (report.contains("database") && report.at("database").is_object() &&
-      report.at("database").contains("driven_vertices")) {
-    out.clothVertices = jsonInt(report.at("database").at("driven_vertices"),
-                                source + ": database.driven_vertices", 1);
+  if (report.contains("database")) {
+    const nlohmann::json& database = report.at("database");
+    if (!database.is_object()) {
+      DS_THROW(kInput, source, ": database is ", jsonText(database),
+               "; expected the object a bake writes (content_hash, driven_vertices, ...)");
+    }
+    if (database.contains("driven_vertices")) {
+      out.clothVertices =
+          jsonInt(database.at("driven_vertices"), source + ": database.driven_vertices", 1);
+    }
   }
   if (report.contains("settings") && report.at("settings").is_object() &&
       report.at("settings").contains("weights") &&

@@ -133,6 +133,15 @@ long parseTimeLimit(const std::string& text) {
   if (parts.empty() || parts.size() > 3 || (!rest.empty() && rest.back() == ':')) {
     fail();
   }
+  // Each field after the first counts within the one before: 0-59 (hours after days: 0-23).
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const bool hours = days >= 0 && i == 0;
+    const long most = hours ? 23 : 59;
+    if ((i > 0 || hours) && parts[i] > most) {
+      DS_THROW(kUsage, "--time '", text, "': ", hours ? "hours " : "minutes or seconds ", parts[i],
+               " is past ", most, "; use HH:MM:SS, MM or D-HH:MM:SS");
+    }
+  }
   long seconds = 0;
   if (days >= 0) {  // D-HH[:MM[:SS]]
     seconds = days * 86400 + parts[0] * 3600 + (parts.size() > 1 ? parts[1] * 60 : 0) +

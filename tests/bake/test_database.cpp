@@ -294,6 +294,12 @@ std::string withBlockEntry(const std::string& path, const std::string& name, std
     const std::size_t at = bytes.find(oldSum, 24);
     EXPECT_LT(at, 24 + headerLength);
     bytes.replace(at, oldSum.size(), newSum);
+    // The whole file's checksum too: its 16 digits, read as '0's, are part of what it sums.
+    const std::size_t key = bytes.find("\"file_fnv1a64\": \"", 24);
+    EXPECT_LT(key, 24 + headerLength);
+    const std::size_t digits = key + std::string("\"file_fnv1a64\": \"").size();
+    bytes.replace(digits, 16, std::string(16, '0'));
+    bytes.replace(digits, 16, hashToHex(Hasher().add(bytes.data(), bytes.size()).value()));
     return bytes;
   }
   ADD_FAILURE() << "no block " << name;

@@ -224,11 +224,11 @@ TEST(CliRegression, ResumeRemovesTemporaryFilesOfItsOwnFrames) {
   const std::string db = buildDb(dir);
   const std::string out = dir.file("shot");
   fs::create_directory(out);
-  writeText(out + "/.cloth.0002.exr.tmp-99999-0", "half a frame");
-  writeText(out + "/.cloth.0009.exr.tmp-99999-0", "another task's frame");
+  writeText(out + "/.cloth.0002.exr.tmp-00000000000f4f0a", "half a frame");
+  writeText(out + "/.cloth.0009.exr.tmp-00000000000f4f0a", "another task's frame");
   const std::vector<std::string> baked = bakeThree(dir, db, out);
-  EXPECT_FALSE(fs::exists(out + "/.cloth.0002.exr.tmp-99999-0"));
-  EXPECT_TRUE(fs::exists(out + "/.cloth.0009.exr.tmp-99999-0"));
+  EXPECT_FALSE(fs::exists(out + "/.cloth.0002.exr.tmp-00000000000f4f0a"));
+  EXPECT_TRUE(fs::exists(out + "/.cloth.0009.exr.tmp-00000000000f4f0a"));
   EXPECT_NE(baked[3].find("removed 1 temporary file"), std::string::npos) << baked[3];
 }
 

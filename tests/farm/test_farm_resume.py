@@ -88,7 +88,7 @@ def sigkill_then_resume(farm):
     compare_with_reference(farm, out, allow_missing=True)  # renamed files are always whole
     # Whatever temporary file the kill left, plus a planted one (half of a frame) that looks
     # like the leftover of a dead process: neither may be taken for an output.
-    stale = out / f".{frame_name(40)}.tmp-999999-0"
+    stale = out / f".{frame_name(40)}.tmp-00000000000f423f"
     data = farm.ref_frame(40).read_bytes()
     stale.write_bytes(data[: len(data) // 2])
     # A leftover of a frame this bake does not own (another chunk's, say) must stay.

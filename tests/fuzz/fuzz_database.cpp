@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // Database reader (src/database/database.cpp): loadDatabase on the input as it is, then (when its
-// header parses) on the input with every block checksum recomputed, so that mutated block data
-// gets past the checksum test to the code that trusts it. A database that loads is checked
-// (meshes, shape blocks, the bake's driver mesh check) and must survive saveDatabase and
-// loadDatabase unchanged.
+// header parses) on the input with every block checksum and the whole file's checksum
+// recomputed, so that mutated block data gets past the checksum tests to the code that trusts
+// it (the content hash, which only a loaded database can compute, still stops most). A database
+// that loads is checked (meshes, shape blocks, the bake's driver mesh check) and must survive
+// saveDatabase and loadDatabase unchanged.
 
 #include <cstring>
 #include <optional>
@@ -74,6 +75,15 @@ std::optional<std::string> withRepairedChecksums(const std::string& bytes) {
   const std::uint64_t newLength = text.size();
   std::memcpy(repaired.data() + 16, &newLength, 8);
   repaired.replace(kPrefixBytes, text.size(), text);
+  // The whole file's checksum (its own 16 digits read as '0's), when the header has one.
+  const std::string key = "\"file_fnv1a64\":\"";
+  const std::size_t at = text.find(key);
+  if (at != std::string::npos && at + key.size() + 16 <= text.size()) {
+    const std::size_t digits = kPrefixBytes + at + key.size();
+    repaired.replace(digits, 16, std::string(16, '0'));
+    repaired.replace(digits, 16,
+                     ds::hashToHex(ds::Hasher().add(repaired.data(), repaired.size()).value()));
+  }
   return repaired;
 }
 

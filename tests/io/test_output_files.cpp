@@ -72,13 +72,22 @@ TEST(AtomicFile, LongNamesGetShortTemporaryNamesAndTooLongOnesNameTheLimit) {
   const std::string longest = dir.file(std::string(255, 'n'));
   writeFileAtomically(longest, "x");
   EXPECT_EQ(readText(longest), "x");
+  std::string otherTemp;
   {
     AtomicFile file(dir.file(std::string(250, 'm')));
-    EXPECT_LE(fs::path(file.tempPath()).filename().string().size(), 255u);
+    const std::string temp = file.tempPath();
+    EXPECT_LE(fs::path(temp).filename().string().size(), 255u);
     // A stale temporary file of the long name is found by its (shortened) prefix.
-    std::ofstream(dir.file("." + std::string(233, 'm') + ".tmp-1234")) << "stale";
+    std::ofstream(temp.substr(0, temp.size() - 16) + "0123456789abcdef") << "stale";
+    // A long name that starts with the same 240 bytes has a prefix of its own (the hash of
+    // the whole name): its writer's file is not the first name's.
+    AtomicFile other(dir.file(std::string(240, 'm') + std::string(10, 'o')));
+    otherTemp = other.tempPath();
+    std::ofstream(otherTemp.substr(0, otherTemp.size() - 16) + "fedcba9876543210") << "other";
+    EXPECT_NE(otherTemp.substr(0, otherTemp.size() - 16), temp.substr(0, temp.size() - 16));
   }
   EXPECT_EQ(removeStaleTempFiles({dir.file(std::string(250, 'm'))}), 1);
+  EXPECT_TRUE(fs::exists(otherTemp.substr(0, otherTemp.size() - 16) + "fedcba9876543210"));
   testing::expectThrows([&] { AtomicFile file(dir.file(std::string(256, 'n'))); },
                         ErrorCode::kOutput, "255 bytes per name");
 }

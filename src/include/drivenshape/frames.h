@@ -28,8 +28,8 @@ std::size_t framePatternPosition(const std::string& pattern);
 std::string sequenceStem(const std::string& pattern);
 
 /// Replaces the frame token with `frame`, zero padded to the token's width (negative frames
-/// keep the sign before the padding: -0012). Throws Error(kUsage) if there is no token or more
-/// than one.
+/// keep the sign before the padding: -0012). Throws Error(kUsage) if there is no token, more
+/// than one, or the token is in a folder name (out/####/c.exr: a folder per frame).
 std::string expandFramePattern(const std::string& pattern, int frame);
 
 /// One file or file sequence a command reads or writes, by the option that names it.

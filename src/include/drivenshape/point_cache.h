@@ -50,9 +50,15 @@ std::unique_ptr<PointCacheReader> openPointCache(const std::string& spec,
 /// Reads frames [frames] of a cache into one F by (3V) row-major block (frame-major).
 std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<int>& frames);
 
-/// Reads one frame (as PointCacheReader::readFrame) and refuses a NaN or infinite position
-/// with Error(kInput) naming the file, the frame and the vertex (and `role`, "driver cache",
-/// "truth", for a reader opened with allowNonFinite, whose readFrame lets them through).
+/// The largest coordinate (absolute, scene units) a cache may hold where it is evaluated (the
+/// bake's driver, db build's clips): far beyond any scene (10 km in centimetres), and far below
+/// where float32 squared distances overflow and the closest-triangle search fails.
+inline constexpr float kMaxCoordinate = 1e6f;
+
+/// Reads one frame (as PointCacheReader::readFrame) and refuses a NaN or infinite position, or
+/// one beyond +/-kMaxCoordinate, with Error(kInput) naming the file, the frame and the vertex
+/// (and `role`, "driver cache", "truth", for a reader opened with allowNonFinite, whose
+/// readFrame lets NaN through).
 void readFiniteFrame(const PointCacheReader& cache, int frame, float* xyz, const std::string& role);
 
 // ---------------------------------------------------------------------------------------
