@@ -68,11 +68,27 @@ ArgParser& ArgParser::settings(std::initializer_list<const char*> keys) {
   }
   if (keys.size() == 0) {
     for (const Setting& setting : settingsTable()) {
-      if (setting.flag != nullptr) {
+      const bool evaluatorOrBake =
+          setting.scope == SettingScope::kEvaluator || setting.scope == SettingScope::kBake;
+      if (setting.flag != nullptr && evaluatorOrBake) {
         chosen.push_back(&setting);
       }
     }
   }
+  return declareSettings(chosen);
+}
+
+ArgParser& ArgParser::settings(SettingScope scope) {
+  std::vector<const Setting*> chosen;
+  for (const Setting* setting : settingsOfScope(scope)) {
+    if (setting->flag != nullptr) {
+      chosen.push_back(setting);
+    }
+  }
+  return declareSettings(chosen);
+}
+
+ArgParser& ArgParser::declareSettings(const std::vector<const Setting*>& chosen) {
   for (const Setting* setting : chosen) {
     if (setting->flag == nullptr) {
       DS_THROW(kInternal, "the setting ", setting->key, " has no command-line flag");
@@ -82,7 +98,7 @@ ArgParser& ArgParser::settings(std::initializer_list<const char*> keys) {
       flag(setting->flag, settingHelp(*setting));
     } else {
       option(setting->flag, setting->valueName, settingHelp(*setting),
-             formatSettingValue(defaultSettingValue(*setting)));
+             formatSettingValue(*setting, defaultSettingValue(*setting)));
     }
   }
   return *this;
@@ -312,6 +328,20 @@ void readSettings(const ArgParser& parser, EvaluatorSettings& settings) {
         setSetting(setting, settings, value);
       });
   refuseUnusedSettings(unusedSettings({settings}, given));
+}
+
+void readSettings(const ArgParser& parser, LayerOptions& options) {
+  readGiven(parser, [&](const Setting& setting, const SettingValue& value) {
+    if (setting.scope == SettingScope::kLayer) {
+      setSetting(setting, options, value);
+    }
+  });
+}
+
+void readSettings(const ArgParser& parser, DatabaseBuildOptions& options) {
+  readGiven(parser, [&](const Setting& setting, const SettingValue& value) {
+    setSetting(setting, options, value);
+  });
 }
 
 }  // namespace drivenshape::cli

@@ -32,6 +32,9 @@ class ArgParser {
   /// every setting the command line takes (in table order) when `keys` is empty. Their flags,
   /// value names, help and defaults come from the table; readSettings() reads them.
   ArgParser& settings(std::initializer_list<const char*> keys = {});
+  /// The same for every setting of `scope` that the command line takes: the layers'
+  /// (SettingScope::kLayer) or `db build`'s (kBuild).
+  ArgParser& settings(SettingScope scope);
   /// Extra text printed after the options in --help.
   ArgParser& epilog(const std::string& text);
   /// Accept `count` positional arguments described by `names` (e.g. "FILE").
@@ -52,6 +55,8 @@ class ArgParser {
   const std::vector<const Setting*>& declaredSettings() const { return mSettings; }
 
  private:
+  ArgParser& declareSettings(const std::vector<const Setting*>& chosen);
+
   struct Spec {
     std::string valueName;  // empty for flags
     std::string help;
@@ -80,6 +85,9 @@ class ArgParser {
 void readSettings(const ArgParser& parser, BakeOptions& options);
 /// The same for commands that take evaluator settings only.
 void readSettings(const ArgParser& parser, EvaluatorSettings& settings);
+/// The same for the layers' settings (SettingScope::kLayer) and `db build`'s (kBuild).
+void readSettings(const ArgParser& parser, LayerOptions& options);
+void readSettings(const ArgParser& parser, DatabaseBuildOptions& options);
 
 /// `path` made absolute and normalised, for messages and summaries (unchanged if that fails).
 std::string absolute(const std::string& path);

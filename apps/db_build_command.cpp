@@ -11,7 +11,6 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
-#include <drivenshape/build_settings.h>
 #include <drivenshape/database.h>
 #include <drivenshape/database_build.h>
 #include <drivenshape/error.h>
@@ -108,13 +107,9 @@ ArgParser dbBuildParser() {
                 "--driver/--driven")
       .option("--add-frames", "LIST", "frames always kept (they seed the pick)")
       .option("--remove-frames", "LIST", "frames never kept");
-  // The settings (count, duplicate tolerance, the pose model's): one row each in the table the
-  // Python module's build_database reads too.
-  const DatabaseBuildOptions defaults;
-  for (const BuildSetting& setting : buildSettingsTable()) {
-    parser.option(setting.flag, setting.valueName, setting.help, setting.get(defaults));
-  }
-  parser
+  // The settings (count, duplicate tolerance, the pose model's): rows of the settings table,
+  // which the Python module's build_database reads too.
+  parser.settings(SettingScope::kBuild)
       .option("--model-json", "PATH",
               "also write the pose model's fit as JSON: kernel settings, the error line and "
               "the verdict's calibration, every reference frame's cross-validated error, and "
@@ -153,11 +148,7 @@ DatabaseBuildOptions buildOptionsFrom(const ArgParser& parser) {
   if (parser.has("--remove-frames")) {
     options.removeFrames = parseFrameRange(parser.get("--remove-frames"));
   }
-  for (const BuildSetting& setting : buildSettingsTable()) {
-    if (parser.has(setting.flag)) {
-      setting.set(setting, options, parser.get(setting.flag));
-    }
-  }
+  readSettings(parser, options);
   return options;
 }
 

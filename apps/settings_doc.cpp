@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // drivenshape_settings_doc: writes the settings table (drivenshape/settings_table.h) into
-// docs/commands.md between its two marker lines, or checks that the file holds it (CTest
-// settings_doc: a stale table fails CI).
+// docs/commands.md between its marker lines (the evaluator's and bake's settings, the layer
+// options, db build's settings: one pair of lines each), or checks that the file holds it
+// (CTest settings_doc: a stale table fails CI). --json prints the table for the scripts that
+// generate the Blender add-on's settings and the report schema's (scripts/
+// generate_from_settings.py).
 //
 //   drivenshape_settings_doc docs/commands.md --write        (after changing a setting)
 //   drivenshape_settings_doc docs/commands.md --out TMP.md    (regenerate to TMP.md and compare)
@@ -21,10 +24,31 @@ namespace ds = drivenshape;
 
 namespace {
 
-const char* const kBegin =
-    "<!-- settings table: generated from src/pipeline/settings_table.cpp by "
-    "drivenshape_settings_doc; do not edit by hand -->";
-const char* const kEnd = "<!-- end of the settings table -->";
+/// One generated table of the document: its marker lines and its text.
+struct Table {
+  const char* begin;
+  const char* end;
+  std::string (*text)();
+};
+
+std::string layerTable() {
+  return ds::settingsTableMarkdown(ds::SettingScope::kLayer);
+}
+
+std::string buildTable() {
+  return ds::settingsTableMarkdown(ds::SettingScope::kBuild);
+}
+
+const Table kTables[] = {
+    {"<!-- settings table: generated from src/pipeline/settings_table.cpp by "
+     "drivenshape_settings_doc; do not edit by hand -->",
+     "<!-- end of the settings table -->", [] { return ds::settingsTableMarkdown(); }},
+    {"<!-- layer options: generated from src/pipeline/settings_table.cpp by "
+     "drivenshape_settings_doc; do not edit by hand -->",
+     "<!-- end of the layer options -->", &layerTable},
+    {"<!-- db build settings: generated from src/pipeline/settings_table.cpp by "
+     "drivenshape_settings_doc; do not edit by hand -->",
+     "<!-- end of the db build settings -->", &buildTable}};
 
 std::string readText(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -36,15 +60,19 @@ std::string readText(const std::string& path) {
   return text.str();
 }
 
-/// `document` with the text between the marker lines replaced by the table.
-std::string withTable(const std::string& document, const std::string& path) {
-  const std::size_t begin = document.find(kBegin);
-  const std::size_t end = document.find(kEnd);
-  if (begin == std::string::npos || end == std::string::npos || end < begin) {
-    DS_THROW(kInput, "'", path, "' lacks the settings table's marker lines:\n", kBegin, "\n", kEnd);
+/// `document` with the text between each table's marker lines replaced by the table.
+std::string withTables(std::string document, const std::string& path) {
+  for (const Table& table : kTables) {
+    const std::size_t begin = document.find(table.begin);
+    const std::size_t end = document.find(table.end);
+    if (begin == std::string::npos || end == std::string::npos || end < begin) {
+      DS_THROW(kInput, "'", path, "' lacks a settings table's marker lines:\n", table.begin, "\n",
+               table.end);
+    }
+    const std::size_t after = begin + std::string(table.begin).size();
+    document = document.substr(0, after) + "\n" + table.text() + document.substr(end);
   }
-  const std::size_t after = begin + std::string(kBegin).size();
-  return document.substr(0, after) + "\n" + ds::settingsTableMarkdown() + document.substr(end);
+  return document;
 }
 
 /// The 1-based number of the first line where `a` and `b` differ.
@@ -69,7 +97,7 @@ int run(const std::vector<std::string>& args) {
     return 0;
   }
   ds::cli::ArgParser parser("drivenshape_settings_doc DOC.md [--write | --out PATH] | --json",
-                            "Puts the settings table into DOC.md between its marker lines "
+                            "Puts the settings tables into DOC.md between their marker lines "
                             "(--write), or writes the regenerated document to PATH and fails "
                             "when it differs from DOC.md. --json alone prints the table as "
                             "JSON.");
@@ -82,7 +110,7 @@ int run(const std::vector<std::string>& args) {
   }
   const std::string path = parser.positionals().front();
   const std::string current = readText(path);
-  const std::string regenerated = withTable(current, path);
+  const std::string regenerated = withTables(current, path);
   const std::string out = parser.has("--write") ? path : parser.get("--out");
   if (!out.empty()) {
     std::ofstream(out, std::ios::binary) << regenerated;

@@ -38,7 +38,6 @@ PUBLIC_ROOMS = {
     "database.h": "database",
     "pose_model.h": "database",
     "regions.h": "database",
-    "build_settings.h": "database",
     "position_map_tables.h": "database",
     "device.h": "devices",
     "device_cl.h": "devices",

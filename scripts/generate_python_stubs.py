@@ -45,10 +45,12 @@ main(sys.argv[1:])
 # The version is the project's (CMakeLists.txt), not a type: left out so that a release does
 # not make the stubs stale.
 VERSION = re.compile(r"^__version__: str = .*$", re.M)
-# pybind11 (2.10) writes a py::kwargs parameter as a bare `**kwargs`; the one function that takes
-# keywords (build_database: the db build settings, read as text) takes numbers and text.
-KWARGS = "**kwargs)"
-KWARGS_TYPED = "**kwargs: str | int | float)"
+# pybind11 (2.10) writes a py::kwargs parameter as a bare `**kwargs`; the functions that take
+# settings of the settings table as keywords (each value read as its text) take numbers and
+# text, load_layers also the wind's direction as a sequence and None for a default.
+KWARGS = re.compile(r"^def (build_database|load_layers)\((.*)\*\*kwargs\)", re.M)
+KWARGS_TYPES = {"build_database": "str | int | float",
+                "load_layers": "str | int | float | collections.abc.Sequence[float] | None"}
 
 
 def generate() -> str:
@@ -65,7 +67,8 @@ def generate() -> str:
             sys.exit(f"generate_python_stubs: pybind11-stubgen {MODULE} failed "
                      f"({result.returncode}):\n{result.stdout}{result.stderr}")
         text = (Path(folder) / "drivenshape" / "_drivenshape.pyi").read_text()
-    return HEADER + VERSION.sub("__version__: str", text).replace(KWARGS, KWARGS_TYPED)
+    text = KWARGS.sub(lambda m: f"def {m[1]}({m[2]}**kwargs: {KWARGS_TYPES[m[1]]})", text)
+    return HEADER + VERSION.sub("__version__: str", text)
 
 
 def main() -> int:

@@ -7,7 +7,6 @@
 #include <sstream>
 
 #include <drivenshape/binding.h>
-#include <drivenshape/build_settings.h>
 #include <drivenshape/coverage_check.h>
 #include <drivenshape/database.h>
 #include <drivenshape/database_build.h>
@@ -71,6 +70,72 @@ std::shared_ptr<PointCacheReader> cacheArgument(py::handle object, int startFram
 
 std::vector<int> optionalFrames(py::handle object, const std::string& what) {
   return object.is_none() ? std::vector<int>() : frameList(object, what);
+}
+
+// ---- Settings given as keywords (load_layers, build_database) -------------------------------
+
+/// A keyword's value as the text a command line gives for the setting: a str as it is, a
+/// sequence (wind_direction) comma-joined, a number in Python's shortest form (which reads back
+/// to the same double); parseSettingValue reads and checks it.
+std::string keywordText(py::handle value) {
+  if (py::isinstance<py::str>(value)) {
+    return py::str(value);
+  }
+  if (py::isinstance<py::bool_>(value)) {
+    return value.cast<bool>() ? "true" : "false";
+  }
+  if (py::isinstance<py::sequence>(value)) {
+    std::string text;
+    for (py::handle item : value) {
+      text += (text.empty() ? "" : ",") + std::string(py::str(item));
+    }
+    return text;
+  }
+  return py::str(value);
+}
+
+/// Sets the settings given as `keywords` in `options`: each a setting of the table that `takes`
+/// (None leaves it at its default). Error(kUsage) for an unknown keyword, naming the known ones.
+template <typename Options>
+void setKeywordSettings(const py::kwargs& keywords, bool (*takes)(const Setting&), Options& options,
+                        const char* what) {
+  for (const auto& [name, value] : keywords) {
+    const std::string key = py::str(name);
+    const Setting* setting = findSettingByKey(key);
+    if (setting == nullptr || !takes(*setting)) {
+      std::string known;
+      for (const Setting& row : settingsTable()) {
+        known += takes(row) ? (known.empty() ? "" : ", ") + std::string(row.key) : "";
+      }
+      DS_THROW(kUsage, "no ", what, " setting '", key, "' (the settings: ", known, ")");
+    }
+    if (!value.is_none()) {
+      setSetting(*setting, options, parseSettingValue(*setting, keywordText(value)));
+    }
+  }
+}
+
+/// The keywords' part of a docstring: "\n  key (--flag, default X): help" per setting.
+std::string keywordsDoc(bool (*takes)(const Setting&)) {
+  std::string text;
+  for (const Setting& setting : settingsTable()) {
+    if (takes(setting)) {
+      const std::string value = formatSettingValue(setting, defaultSettingValue(setting));
+      text += std::string("\n  ") + setting.key + " (" + setting.flag + ", default " +
+              (value.empty() ? "none" : value) + "): " + setting.help;
+      text += *setting.unit != '\0' ? std::string(" (") + setting.unit + ")" : "";
+      text += *setting.zero != '\0' ? std::string(" (0 = ") + setting.zero + ")" : "";
+    }
+  }
+  return text;
+}
+
+bool isLayerSetting(const Setting& setting) {
+  return hasLayerValue(setting);
+}
+
+bool isBuildSetting(const Setting& setting) {
+  return setting.scope == SettingScope::kBuild;
 }
 
 /// A JSON object (describe_settings, describe_layers) or array (settings_table) as Python.
@@ -479,42 +544,24 @@ void bindSettingLoaders(py::module_& module) {
       },
       py::arg("text"), py::arg("database"), py::arg("source") = "(string)",
       "parseRegions: the same from JSON text");
-  const LayerOptions layerDefaults;
+  // The keywords are the settings table's layer settings (and frames_per_second), as
+  // build_database's are db build's: the bake's --mix, --wind-* and --fps without the dashes.
+  static const std::string layersDoc =
+      "loadLayers: the layers of the bake's --mix, --mix-weight, --mix-falloff, --wind-* and "
+      "--fps, given as keywords named as the settings table names them (a value is read as the "
+      "command line reads its text; None keeps the default; an unknown keyword or a value it "
+      "refuses is an Error); weight maps are .json, .exr or group:NAME specs (see "
+      "docs/commands.md):" +
+      keywordsDoc(&isLayerSetting);
   module.def(
       "load_layers",
-      [](const Database& db, std::optional<std::string> mixCache,
-         std::optional<std::string> mixWeight, int mixFalloff, double windAmplitude,
-         double windFrequency, Vector3 windDirection, double windSpeed, int windOctaves,
-         std::uint32_t windSeed, std::optional<std::string> windWeight, int windFalloff,
-         double framesPerSecond) {
+      [](const Database& db, const py::kwargs& settings) {
         LayerOptions options;
-        options.mixCache = mixCache.value_or("");
-        options.mixWeight = mixWeight.value_or(options.mixWeight);
-        options.mixFalloff = mixFalloff;
-        options.windAmplitude = windAmplitude;
-        options.windFrequency = windFrequency;
-        options.windDirection = windDirection.xyz;
-        options.windSpeed = windSpeed;
-        options.windOctaves = windOctaves;
-        options.windSeed = windSeed;
-        options.windWeight = windWeight.value_or("");
-        options.windFalloff = windFalloff;
-        options.framesPerSecond = framesPerSecond;
+        setKeywordSettings(settings, &isLayerSetting, options, "layer");
         py::gil_scoped_release release;
         return loadLayers(options, db.drivenMesh);
       },
-      py::arg("database"), py::kw_only(), py::arg("mix_cache") = py::none(),
-      py::arg("mix_weight") = py::none(), py::arg("mix_falloff") = layerDefaults.mixFalloff,
-      py::arg("wind_amplitude") = layerDefaults.windAmplitude,
-      py::arg("wind_frequency") = layerDefaults.windFrequency,
-      py::arg("wind_direction") = Vector3{layerDefaults.windDirection},
-      py::arg("wind_speed") = layerDefaults.windSpeed,
-      py::arg("wind_octaves") = layerDefaults.windOctaves,
-      py::arg("wind_seed") = layerDefaults.windSeed, py::arg("wind_weight") = py::none(),
-      py::arg("wind_falloff") = layerDefaults.windFalloff,
-      py::arg("frames_per_second") = layerDefaults.framesPerSecond,
-      "loadLayers: the bake's --mix, --mix-weight, --mix-falloff, --wind-* and --fps as "
-      "keywords; weight maps are .json, .exr or group:NAME specs (see docs/commands.md)");
+      py::arg("database"), layersDoc.c_str());
 }
 
 void bindSettings(py::module_& module) {
@@ -580,7 +627,7 @@ void bindDatabaseClass(py::module_& module) {
 }
 
 /// `build_database`: the inputs of `drivenshape db build`, and its settings as keywords named
-/// by the build settings table (drivenshape/build_settings.h), each value read as its text.
+/// by the settings table (its SettingScope::kBuild rows), each value read as its text.
 Database buildDatabaseFromArguments(types::MeshSource driverMesh, types::MeshSource drivenMesh,
                                     types::CacheSource driverCache, types::CacheSource drivenCache,
                                     types::OptionalFrames frames, types::OptionalFrames addFrames,
@@ -598,9 +645,7 @@ Database buildDatabaseFromArguments(types::MeshSource driverMesh, types::MeshSou
   options.frames = optionalFrames(frames, "frames");
   options.addFrames = optionalFrames(addFrames, "add_frames");
   options.removeFrames = optionalFrames(removeFrames, "remove_frames");
-  for (const auto& [key, value] : settings) {
-    setBuildSetting(options, py::str(key), py::str(value));
-  }
+  setKeywordSettings(settings, &isBuildSetting, options, "database build");
   // Extra reference clips (db build --also): (driver_cache, driven_cache[, frames]).
   std::vector<std::shared_ptr<PointCacheReader>> alsoCaches;
   std::vector<ReferenceClip> clips;
@@ -651,12 +696,7 @@ void bindDatabase(py::module_& module) {
         saveDatabase(file, db);
       },
       py::arg("path"), py::arg("database"));
-  std::string settingsHelp;
-  const DatabaseBuildOptions buildDefaults;
-  for (const BuildSetting& setting : buildSettingsTable()) {
-    settingsHelp += std::string("\n  ") + setting.key + " (" + setting.flag + ", default " +
-                    setting.get(buildDefaults) + "): " + setting.help;
-  }
+  const std::string settingsHelp = keywordsDoc(&isBuildSetting);
   module.def(
       "build_database", &buildDatabaseFromArguments, py::arg("driver_mesh"), py::arg("driven_mesh"),
       py::arg("driver_cache"), py::arg("driven_cache"), py::kw_only(),

@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-// The settings table (drivenshape/settings_table.h): each evaluator and bake setting declared
-// once, below, with its names, range, help, use and how it enters the hash and the report; and
-// the functions every tool reads it through.
+// The settings table (drivenshape/settings_table.h): each setting of every tool declared once,
+// below, with its names, range, help, use, how it enters the hash and the report and how the
+// Blender add-on shows it; and the functions every tool reads it through.
 
 #include <drivenshape/settings_table.h>
 
+#include <array>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -18,6 +19,7 @@
 #include <drivenshape/point_cache.h>
 #include <drivenshape/version.h>
 
+#include <layer_types.h>
 #include "json_text.h"
 #include "settings_rows.h"
 #include "stage.h"
@@ -27,6 +29,7 @@ namespace drivenshape {
 // Helpers in a named namespace: the pipeline's sources are compiled as one unity file.
 namespace settings_impl {
 
+using pipeline::AddonChoice;
 using pipeline::HashInput;
 using pipeline::Model;
 using pipeline::SettingRow;
@@ -56,6 +59,17 @@ SettingValue getField(const ClassOf<Member>& object) {
 template <auto Member>
 void setField(ClassOf<Member>& object, const SettingValue& value) {
   object.*Member = std::get<TypeOf<Member>>(value);
+}
+
+/// The member `Inner` of the member `Outer` (DatabaseBuildOptions::model's PoseModelOptions).
+template <auto Outer, auto Inner>
+SettingValue getNestedField(const ClassOf<Outer>& object) {
+  return SettingValue((object.*Outer).*Inner);
+}
+
+template <auto Outer, auto Inner>
+void setNestedField(ClassOf<Outer>& object, const SettingValue& value) {
+  (object.*Outer).*Inner = std::get<TypeOf<Inner>>(value);
 }
 
 bool sameChoice(const std::string& a, const std::string& b) {
@@ -122,8 +136,79 @@ class Row {
     mRow.setting.whenUnused = policy;
     return *this;
   }
+  /// The report's settings hold the value under `key` (and its schema says so).
   Row& report(const char* key) {
     mRow.setting.reportKey = key;
+    mRow.report.push_back({key});
+    return *this;
+  }
+  /// An entry of the report's settings that a describe function or a stage writes (for the
+  /// schema only): `schema` as JSON text where the row's type does not give it.
+  Row& reportsAlso(const char* path, const char* schema = nullptr, bool required = true) {
+    mRow.report.push_back({path, schema, required});
+    return *this;
+  }
+  /// The report names what `choice` resolved to, never `choice` itself.
+  Row& reportResolves(const char* choice) {
+    mRow.reportResolves = choice;
+    return *this;
+  }
+  /// Words that stand for values (model_history's auto).
+  Row& words(std::vector<std::pair<std::string, double>> list) {
+    mRow.setting.words = std::move(list);
+    return *this;
+  }
+  /// The check beyond the range, and what the setting then takes, in words.
+  Row& takes(const char* text, bool (*accepts)(const SettingValue&)) {
+    mRow.setting.takes = text;
+    mRow.setting.accepts = accepts;
+    return *this;
+  }
+  // ---- The Blender add-on (AddonView) ----
+  /// Shown in the add-on's `panel`, named `name` (nullptr: the label in Title Case), its row
+  /// saying `text` (nullptr: the name).
+  Row& addon(const char* panel, const char* name = nullptr, const char* text = nullptr) {
+    mRow.addon.panel = panel;
+    mRow.addon.name = name;
+    mRow.addon.text = text;
+    return *this;
+  }
+  /// A checkbox's heading in its panel.
+  Row& addonHeading(const char* heading) {
+    mRow.addon.heading = heading;
+    return *this;
+  }
+  /// The property's name where it is not the key (saved .blend files use it).
+  Row& addonProperty(const char* name) {
+    mRow.addon.property = name;
+    return *this;
+  }
+  /// Greyed out while the kBool setting `key` is off.
+  Row& addonActiveWith(const char* key) {
+    mRow.addon.activeWith = key;
+    return *this;
+  }
+  /// A two-choice setting shown as a checkbox that means `choice` when on.
+  Row& addonCheckbox(const char* choice) {
+    mRow.addon.checkbox = choice;
+    return *this;
+  }
+  /// A number's slider: its end, the digits shown and Blender's step (0: Blender's).
+  Row& addonSlider(double softMaximum, int precision = -1, double step = 0) {
+    mRow.addon.softMaximum = softMaximum;
+    mRow.addon.precision = precision;
+    mRow.addon.step = step;
+    return *this;
+  }
+  /// The menu of a choice, in the order of the numbers .blend files store.
+  Row& addonChoices(std::vector<AddonChoice> choices) {
+    mRow.addon.choices = std::move(choices);
+    return *this;
+  }
+  /// The add-on's default where it is not the table's, and why.
+  Row& addonDefault(const SettingValue& value, const char* why) {
+    mRow.addon.defaultValue = value;
+    mRow.addon.defaultWhy = why;
     return *this;
   }
   Row& describe(void (*fn)(const Model&, nlohmann::json&)) {
@@ -144,10 +229,21 @@ class Row {
     mRow.hashAfterVersion = fn;
     return *this;
   }
-  /// The value is the member `Member` of EvaluatorSettings or BakeOptions.
+  /// The value is the member `Member` of EvaluatorSettings, BakeOptions, LayerOptions or
+  /// DatabaseBuildOptions.
   template <auto Member>
   Row& field() {
     return access<ClassOf<Member>>(&getField<Member>, &setField<Member>);
+  }
+  /// The value is the member `Inner` of the member `Outer`.
+  template <auto Outer, auto Inner>
+  Row& field() {
+    return access<ClassOf<Outer>>(&getNestedField<Outer, Inner>, &setNestedField<Outer, Inner>);
+  }
+  /// The spellings of a kChoice whose value is not an enum (access() reads and writes it).
+  Row& choices(std::vector<std::string> spellings) {
+    mRow.setting.choices = std::move(spellings);
+    return *this;
   }
   /// The value is the enum member `Member`, spelled by `Name`, of `Count` values 0 .. Count-1.
   template <auto Member, auto Name, int Count>
@@ -157,15 +253,23 @@ class Row {
     }
     return access<ClassOf<Member>>(&getChoice<Member, Name>, &setChoice<Member, Name, Count>);
   }
-  /// The value through `get` and `set` (nullptr: read-only) of EvaluatorSettings or BakeOptions.
+  /// The value through `get` and `set` (nullptr: read-only) of EvaluatorSettings, BakeOptions,
+  /// LayerOptions or DatabaseBuildOptions.
   template <typename Class>
   Row& access(SettingValue (*get)(const Class&), void (*set)(Class&, const SettingValue&)) {
     if constexpr (std::is_same_v<Class, EvaluatorSettings>) {
       mRow.setting.getEvaluator = get;
       mRow.setting.setEvaluator = set;
-    } else {
+    } else if constexpr (std::is_same_v<Class, BakeOptions>) {
       mRow.setting.getBake = get;
       mRow.setting.setBake = set;
+    } else if constexpr (std::is_same_v<Class, LayerOptions>) {
+      mRow.setting.getLayer = get;
+      mRow.setting.setLayer = set;
+    } else {
+      static_assert(std::is_same_v<Class, DatabaseBuildOptions>);
+      mRow.setting.getBuild = get;
+      mRow.setting.setBuild = set;
     }
     return *this;
   }
@@ -304,6 +408,21 @@ std::uint64_t hashLayers(const HashInput& in, std::uint64_t value) {
 
 // ---- Report entries that are not the plain value --------------------------------------------
 
+/// The report's regions: what the weights stage found for each region it ran.
+constexpr const char* kRegionsSchema = R"({
+  "type": "array",
+  "items": {
+    "type": "object",
+    "additionalProperties": false,
+    "required": ["name", "driver_vertices", "driven_vertices"],
+    "properties": {
+      "name": {"type": "string"},
+      "driver_vertices": {"$ref": "#/$defs/count"},
+      "driven_vertices": {"$ref": "#/$defs/count"}
+    }
+  }
+})";
+
 void describeAlignGroup(const Model& model, nlohmann::json& out) {
   const std::string& group = model.settings.alignGroup;
   out["align_group"] = group.empty() ? std::string("all") : group;
@@ -347,6 +466,58 @@ SettingValue bakeThreads(const BakeOptions& o) {
 void setBakeThreads(BakeOptions& o, const SettingValue& value) {
   o.threads = o.evaluator.threads = std::get<int>(value);
 }
+/// The wind's direction as X,Y,Z (its command-line form).
+SettingValue windDirectionText(const LayerOptions& o) {
+  std::string text;
+  for (const double value : o.windDirection) {
+    text += (text.empty() ? "" : ",") + formatSettingValue(value);
+  }
+  return text;
+}
+void setWindDirection(LayerOptions& o, const SettingValue& value) {
+  const std::string& text = std::get<std::string>(value);
+  std::array<double, 3> direction{};
+  std::stringstream stream(text);
+  std::string part;
+  int count = 0;
+  while (std::getline(stream, part, ',')) {
+    char* end = nullptr;
+    errno = 0;
+    const double number = std::strtod(part.c_str(), &end);
+    if (count >= 3 || part.empty() || *end != '\0' || errno != 0 || !std::isfinite(number)) {
+      count = -1;
+      break;
+    }
+    direction[static_cast<std::size_t>(count++)] = number;
+  }
+  if (count != 3) {
+    DS_THROW(kUsage,
+             "the wind direction (wind_direction, --wind-direction) takes X,Y,Z, three "
+             "numbers (got '",
+             text, "')");
+  }
+  o.windDirection = direction;
+}
+SettingValue windSeed(const LayerOptions& o) {
+  return static_cast<int>(o.windSeed);
+}
+void setWindSeed(LayerOptions& o, const SettingValue& value) {
+  o.windSeed = static_cast<std::uint32_t>(std::get<int>(value));
+}
+SettingValue poseModelChoice(const DatabaseBuildOptions& o) {
+  return std::string(o.poseModel ? "pose" : "none");
+}
+void setPoseModelChoice(DatabaseBuildOptions& o, const SettingValue& value) {
+  o.poseModel = sameChoice(std::get<std::string>(value), "pose");
+}
+/// model_parts: one part is no joint to read.
+bool notOnePart(const SettingValue& value) {
+  return std::get<int>(value) != 1;
+}
+/// verdict_level: a share below 1 (every frame is no level to calibrate to).
+bool belowOne(const SettingValue& value) {
+  return std::get<double>(value) < 1.0;
+}
 
 // ---- The table ------------------------------------------------------------------------------
 // Rows in the order of the settings hash (a file-format contract: never reorder hashed rows),
@@ -363,7 +534,19 @@ void weightAndAlignmentRows(std::vector<SettingRow>& rows) {
           "DrivenShape blend); baselines: nearest (the closest database shape), bind (the rest "
           "cloth bound to the rest driver and carried along, like Point Deform)")
       .hash(&hashWeightMode)
-      .report("weights");
+      .report("weights")
+      .reportResolves("auto")
+      .addon("settings")
+      .addonChoices(
+          {{"auto", "Auto", "The pose model when the database has one, else the DrivenShape QP"},
+           {"model", "Pose Model",
+            "The rest binding plus the pose model's learned correction, fitted over the whole "
+            "reference clip"},
+           {"qp", "QP Blend",
+            "DrivenShape as in the talk: blend weights that best reproduce the pose (a QP)"},
+           {"nearest", "Nearest", "Baseline: all weight on the closest database driver shape"},
+           {"bind", "Bind Only",
+            "Baseline: no database shapes; the rest cloth carried by the driver"}});
   Row(rows, "exr_width", "EXR width", SettingType::kInt, SettingScope::kBake)
       .flag("--exr-width", "W")
       .field<&BakeOptions::exrWidth>()
@@ -376,7 +559,9 @@ void weightAndAlignmentRows(std::vector<SettingRow>& rows) {
       .field<&S::correct>()
       .help("the collision correction: carry the blended cloth onto the shot's driver")
       .hash(&hashCorrect)
-      .report("correct");
+      .report("correct")
+      .addon("collision", nullptr, "Correction")
+      .addonHeading("Collision");
   Row(rows, "binding_mask", "binding mask", SettingType::kObject)
       .flag("--bind", "MAP.json")
       .access<EvaluatorSettings>(&maskText, nullptr)
@@ -389,7 +574,8 @@ void weightAndAlignmentRows(std::vector<SettingRow>& rows) {
                 "fitted on the binding to every triangle)",
                 WhenUnused::kRefuse)
       .hash(&hashMask)
-      .describeBake(&describeMaskFile);
+      .describeBake(&describeMaskFile)
+      .reportsAlso("binding_mask");
   Row(rows, "align", "alignment", SettingType::kChoice)
       .flag("--align", "MODE")
       .choice<&S::align, &alignModeName, 3>()
@@ -400,7 +586,14 @@ void weightAndAlignmentRows(std::vector<SettingRow>& rows) {
           "rigid-all (the same fit, every vertex weighted by its area alone)")
       .usedWhen(&mayAlign, "with the qp or nearest weights", WhenUnused::kWarn)
       .hash(&hashAlign)
-      .report("align");
+      .report("align")
+      .addon("settings", "Align")
+      .addonChoices(
+          {{"rigid", "Rigid",
+            "Fit each frame rigidly to the rest driver, following its most rigid part "
+            "(the pelvis, not the legs) before solving the weights"},
+           {"rigid-all", "Rigid (All)", "The same rigid fit, every vertex weighted alike"},
+           {"none", "None", "Compare world positions, as in the talk"}});
   Row(rows, "align_group", "align group", SettingType::kText)
       .flag("--align-group", "LIST")
       .field<&S::alignGroup>()
@@ -412,7 +605,9 @@ void weightAndAlignmentRows(std::vector<SettingRow>& rows) {
                 "nearest weights",
                 WhenUnused::kRefuse)
       .hash(&hashAlignGroup)
-      .describe(&describeAlignGroup);
+      .describe(&describeAlignGroup)
+      .reportsAlso("align_group", R"({"type": "string", "minLength": 1})")
+      .reportsAlso("align_vertices", R"({"$ref": "#/$defs/count"})");
 }
 
 void correctionRows(std::vector<SettingRow>& rows) {
@@ -429,7 +624,14 @@ void correctionRows(std::vector<SettingRow>& rows) {
                 "positions)",
                 WhenUnused::kRefuse)
       .hash(&hashBlend)
-      .describe(&describeBlend);
+      .describe(&describeBlend)
+      .reportsAlso("blend")
+      .addon("settings")
+      .addonChoices(
+          {{"local", "Local Frames",
+            "Blend the shapes' offsets in the driver's local frames and rebuild them on "
+            "the current pose (no per-frame search)"},
+           {"world", "World", "Blend world positions, then correct onto the pose (the talk)"}});
   Row(rows, "resolve", "penetration resolution", SettingType::kBool)
       .flag("--no-resolve")
       .field<&S::resolve>()
@@ -437,17 +639,22 @@ void correctionRows(std::vector<SettingRow>& rows) {
           "the penetration resolution: cloth inside the driver or closer than the skin "
           "offset moves out to the offset")
       .hash(&hashResolve)
-      .report("resolve");
+      .report("resolve")
+      .addon("collision", nullptr, "Penetrations")
+      .addonHeading("Resolve");
   Row(rows, "skin_offset", "skin offset", SettingType::kNumber)
       .flag("--skin-offset", "D")
       .field<&S::skinOffset>()
       .range(0, kMaxCoordinate, "scene units")
       .help(
-          "penetration resolution: cloth closer to the driver than D (or inside it) moves "
-          "out to D (0.002 = 2 mm in metre scenes)")
+          "penetration resolution: cloth closer to the driver than this distance (or inside "
+          "it) moves out to it (0.002 = 2 mm in metre scenes)")
       .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
       .hash(&hashSkinOffset)
-      .report("skin_offset");
+      .report("skin_offset")
+      .addon("collision", nullptr, "Offset")
+      .addonActiveWith("resolve")
+      .addonSlider(0.05, 4, 0.01);
   Row(rows, "resolve_direction", "resolve direction", SettingType::kChoice)
       .flag("--resolve-direction", "DIR")
       .choice<&S::resolveDirection, &resolveDirectionName, 2>()
@@ -459,19 +666,31 @@ void correctionRows(std::vector<SettingRow>& rows) {
           "onto an edge the cloth jumps by up to half the angle between the two faces)")
       .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
       .hash(&hashResolveDirection)
-      .report("resolve_direction");
+      .report("resolve_direction")
+      .addon("collision", nullptr, "Direction")
+      .addonActiveWith("resolve")
+      .addonChoices({{"nearest", "Nearest",
+                      "Cloth within the offset moves along the line from its closest point on the "
+                      "driver (smooth where that point crosses an edge); cloth inside along the "
+                      "normal"},
+                     {"normal", "Normal",
+                      "Every vertex moves along the driver's normal at its closest point (0.1; "
+                      "jumps where that point crosses from a face onto an edge)"}});
   Row(rows, "exit_fade", "exit fade", SettingType::kNumber)
       .flag("--exit-fade", "K")
       .field<&S::exitFade>()
       .range(0, kNoLimit, "", "off, always all the way")
       .help(
-          "penetration resolution: a vertex deep inside the body whose second-nearest exit "
-          "is within K x its depth of the nearest moves only part of the way, none where "
-          "they tie, so cloth caught in a limb or a bent joint does not jump across it "
+          "penetration resolution: a vertex deep inside the body whose two nearest exits "
+          "differ by at most this factor times its depth moves only part of the way, none "
+          "where they tie, so cloth caught in a limb or a bent joint does not jump across it "
           "between frames")
       .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
       .hash(&hashExitFade)
-      .report("exit_fade");
+      .report("exit_fade")
+      .addon("collision")
+      .addonActiveWith("resolve")
+      .addonSlider(1.0, 2, 1);
   Row(rows, "regions", "regions", SettingType::kObject)
       .flag("--regions", "FILE.json")
       .access<EvaluatorSettings>(&regionsText, nullptr)
@@ -483,17 +702,22 @@ void correctionRows(std::vector<SettingRow>& rows) {
       .usedWhen(&mayRunQp, "with the qp weights", WhenUnused::kRefuse)
       .hash(&hashRegions)
       .describe(&describeRegions)
-      .describeBake(&describeRegionsFile);
+      .describeBake(&describeRegionsFile)
+      .reportsAlso("regions", kRegionsSchema)
+      .reportsAlso("region_falloff", R"({"type": "number", "minimum": 0})")
+      .reportsAlso("regions_file");
   Row(rows, "max_weight_change", "maximum weight change", SettingType::kNumber)
       .flag("--max-weight-change", "TAU")
       .field<&S::maxWeightChange>()
       .range(0, 1, "", "off")
       .help(
-          "temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order "
-          "within each batch")
+          "temporal stability: no shape's weight changes by more than this between "
+          "consecutive frames (|w_t - w_{t-1}|), frames solved in order within each batch")
       .usedWhen(&mayRunQp, "with the qp weights", WhenUnused::kRefuse)
       .hash(&hashMaxWeightChange)
-      .report("max_weight_change");
+      .report("max_weight_change")
+      .addon("settings", "Temporal Bound", "Temporal")
+      .addonSlider(kNoLimit, 3, 1);
 }
 
 void batchAndLayerRows(std::vector<SettingRow>& rows) {
@@ -507,7 +731,8 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
           "each batch; results depend on N and the batch, not on the threads")
       .usedWhen(&boundsWeights, "with a maximum weight change", WhenUnused::kWarn)
       .hash(&hashTemporalWarmup)
-      .describeBake(&describeTemporalWarmup);
+      .describeBake(&describeTemporalWarmup)
+      .reportsAlso("temporal_warmup");
   Row(rows, "batch", "batch", SettingType::kInt, SettingScope::kBake)
       .flag("--batch", "N")
       .field<&BakeOptions::chunkSize>()
@@ -524,23 +749,32 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
           "(command line: the --mix and --wind-* options, see Layer options; Python: "
           "load_layers); none by default")
       .hashAfterVersion(&hashLayers)
-      .describe(&describeLayers);
+      .describe(&describeLayers)
+      .reportsAlso("layers");
   Row(rows, "audit", "audit", SettingType::kBool)
       .flag("--no-audit")
       .field<&S::audit>()
       .help(
           "the per-frame audit: cloth vertices inside the driver before and after the "
           "correction, binding switches, the largest frame-to-frame jump (costs time)")
-      .report("audit");
+      .report("audit")
+      .addon("device")
+      .addonDefault(false,
+                    "live mode evaluates every frame the animator scrubs to; the audit costs time "
+                    "there and its counts are only shown when asked for");
   Row(rows, "coverage_tolerance", "coverage tolerance", SettingType::kNumber)
       .flag("--coverage-tolerance", "D")
       .field<&S::coverageTolerance>()
       .range(0, kNoLimit, "scene units", "2% of the cloth's rest bounding-box diagonal")
       .help(
           "pose model: frames whose error bound (the predicted mean vertex error, scaled to "
-          "hold on the database's verdict level of frames) exceeds D are flagged for "
-          "simulation")
-      .usedWhen(&mayRunModel, "with the pose model (weights model)", WhenUnused::kWarn);
+          "hold on the database's verdict level of frames) exceeds this distance are flagged "
+          "for simulation")
+      .usedWhen(&mayRunModel, "with the pose model (weights model)", WhenUnused::kWarn)
+      // The model stage writes the tolerance it used (the default resolved), with the model.
+      .reportsAlso("coverage_tolerance", R"({"$ref": "#/$defs/positive_length"})", false)
+      .addon("coverage", nullptr, "Tolerance")
+      .addonSlider(0.1, 4, 0.1);
 }
 
 void runRows(std::vector<SettingRow>& rows) {
@@ -552,7 +786,9 @@ void runRows(std::vector<SettingRow>& rows) {
       .range(0, kNoLimit, "", "all cores")
       .help(
           "host threads for the weights, the alignment, the closest-point search and EXR "
-          "writing");
+          "writing")
+      .addon("device")
+      .addonSlider(64);
   Row(rows, "clearance_certificate", "clearance certificate", SettingType::kBool)
       .field<&S::clearanceCertificate>()
       .help(
@@ -575,8 +811,178 @@ void runRows(std::vector<SettingRow>& rows) {
   Row(rows, "frames_per_second", "frames per second", SettingType::kNumber, SettingScope::kBake)
       .flag("--fps", "X")
       .field<&BakeOptions::framesPerSecond>()
+      .field<&LayerOptions::framesPerSecond>()
       .range(1e-3, kNoLimit)
-      .help("written to the EXR headers; the wind's time is frame / X");
+      .help("written to the EXR headers; the wind's time is frame / X")
+      .reportsAlso("layers.wind.fps");
+}
+
+/// The layers' options (LayerOptions; BakeOptions::layers): not hashed one by one, the layers
+/// row hashes what they load. LayerStack checks how they go together.
+void mixRows(std::vector<SettingRow>& rows) {
+  using L = LayerOptions;
+  const SettingScope layer = SettingScope::kLayer;
+  Row(rows, "mix_cache", "mix cache", SettingType::kText, layer)
+      .flag("--mix", "CACHE")
+      .field<&L::mixCache>()
+      .help(
+          "mix the result per vertex with another cache of the driven mesh (a simulated hood, a "
+          "skinned mesh): .pc2 or name.####.exr, every baked frame present; empty: no mix")
+      .reportsAlso("layers.mix.cache");
+  Row(rows, "mix_weight", "mix weight map", SettingType::kText, layer)
+      .flag("--mix-weight", "MAP")
+      .field<&L::mixWeight>()
+      .help(
+          "w of out = w DrivenShape + (1 - w) mix cache per vertex, 1 keeping the DrivenShape "
+          "result: a .json array with one number in [0, 1] per driven vertex, a one-channel "
+          "point-cache .exr, or group:NAME[,NAME] (faces of the driven OBJ's groups); needed "
+          "with a mix cache")
+      .reportsAlso("layers.mix.weight");
+  Row(rows, "mix_falloff", "mix falloff", SettingType::kInt, layer)
+      .flag("--mix-falloff", "RINGS")
+      .field<&L::mixFalloff>()
+      .range(0, 64, "edge rings", "hard edge")
+      .help("soften the mix weight map's edge across this many edge rings")
+      .reportsAlso("layers.mix.falloff");
+}
+
+void windRows(std::vector<SettingRow>& rows) {
+  using L = LayerOptions;
+  const SettingScope layer = SettingScope::kLayer;
+  Row(rows, "wind_amplitude", "wind amplitude", SettingType::kNumber, layer)
+      .flag("--wind-amplitude", "UNITS")
+      .field<&L::windAmplitude>()
+      .range(0, kNoLimit, "scene units", "no wind")
+      .help("procedural wind: the largest displacement per axis")
+      .reportsAlso("layers.wind.amplitude");
+  Row(rows, "wind_frequency", "wind frequency", SettingType::kNumber, layer)
+      .flag("--wind-frequency", "PER_UNIT")
+      .field<&L::windFrequency>()
+      .range(0, kNoLimit)
+      .help("noise cells per scene unit of the first octave (1/size of the largest gusts)")
+      .reportsAlso("layers.wind.frequency");
+  Row(rows, "wind_direction", "wind direction", SettingType::kText, layer)
+      .flag("--wind-direction", "X,Y,Z")
+      .access<L>(&windDirectionText, &setWindDirection)
+      .help("the direction the gusts travel (normalised)")
+      .reportsAlso("layers.wind.direction",
+                   R"({"type": "array", "items": {"type": "number"}, "minItems": 3, )"
+                   R"("maxItems": 3})");
+  Row(rows, "wind_speed", "wind speed", SettingType::kNumber, layer)
+      .flag("--wind-speed", "UNITS_PER_S")
+      .field<&L::windSpeed>()
+      .range(0, kNoLimit, "scene units per second", "a still pattern")
+      .help("how fast the gusts travel")
+      .reportsAlso("layers.wind.speed");
+  Row(rows, "wind_octaves", "wind octaves", SettingType::kInt, layer)
+      .flag("--wind-octaves", "N")
+      .field<&L::windOctaves>()
+      .range(1, DS_WIND_MAX_OCTAVES)
+      .help("noise octaves, each twice as fine and half as strong")
+      .reportsAlso("layers.wind.octaves");
+  Row(rows, "wind_seed", "wind seed", SettingType::kInt, layer)
+      .flag("--wind-seed", "N")
+      .access<L>(&windSeed, &setWindSeed)
+      .range(0, kMaxWhole)
+      .help("noise seed (another seed, another wind)")
+      .reportsAlso("layers.wind.seed");
+  Row(rows, "wind_weight", "wind weight map", SettingType::kText, layer)
+      .flag("--wind-weight", "MAP")
+      .field<&L::windWeight>()
+      .help("where the wind blows (1) or not (0), a weight map as the mix's; empty: everywhere")
+      .reportsAlso("layers.wind.weight", nullptr, false);
+  Row(rows, "wind_falloff", "wind falloff", SettingType::kInt, layer)
+      .flag("--wind-falloff", "RINGS")
+      .field<&L::windFalloff>()
+      .range(0, 64, "edge rings", "hard edge")
+      .help("soften the wind weight map's edge across this many edge rings")
+      .reportsAlso("layers.wind.falloff", nullptr, false);
+}
+
+/// `db build`'s settings (DatabaseBuildOptions): the pick's.
+void buildRows(std::vector<SettingRow>& rows) {
+  using B = DatabaseBuildOptions;
+  const SettingScope build = SettingScope::kBuild;
+  Row(rows, "count", "shape count", SettingType::kInt, build)
+      .flag("--count", "N")
+      .field<&B::count>()
+      .range(1, 100000)
+      .help("shapes to keep (fewer if the clip runs out of distinct ones)")
+      .addon("build", "Shapes")
+      .addonProperty("build_count")
+      .addonSlider(128);
+  Row(rows, "duplicate_tolerance", "duplicate tolerance", SettingType::kNumber, build)
+      .flag("--duplicate-tolerance", "X")
+      .field<&B::duplicateTolerance>()
+      .range(0, 1, "of the driver's bounding-box diagonal")
+      .help("reject shapes within this share of the rest driver's diagonal (RMS) of a kept one");
+  Row(rows, "model", "pose model", SettingType::kChoice, build)
+      .flag("--model", "KIND")
+      .choices({"pose", "none"})
+      .access<B>(&poseModelChoice, &setPoseModelChoice)
+      .help(
+          "pose: also fit the pose model over every candidate frame (the rest binding plus a "
+          "learned correction; what `bake` evaluates by default); none: the picks only")
+      .addon("build", "Pose Model")
+      .addonProperty("build_model")
+      .addonCheckbox("pose");
+}
+
+/// `db build`'s settings of the pose model (DatabaseBuildOptions::model).
+void poseModelRows(std::vector<SettingRow>& rows) {
+  using B = DatabaseBuildOptions;
+  using M = PoseModelOptions;
+  const SettingScope build = SettingScope::kBuild;
+  Row(rows, "model_parts", "model parts", SettingType::kInt, build)
+      .flag("--model-parts", "N")
+      .field<&B::model, &M::parts>()
+      .range(0, 64, "", "as many as the clip shows")
+      .takes("0 (found from the clip) or 2..64", &notOnePart)
+      .help("rigid parts of the driver the pose model reads its joints from");
+  Row(rows, "model_velocity", "model velocity", SettingType::kInt, build)
+      .flag("--model-velocity", "N")
+      .field<&B::model, &M::velocityLag>()
+      .range(0, 60, "frames", "no velocity")
+      .help("frames back the pose model's velocity feature looks");
+  Row(rows, "model_history", "model history", SettingType::kInt, build)
+      .flag("--model-history", "N")
+      .field<&B::model, &M::historyFrames>()
+      .range(0, 120, "frames", "no history")
+      .words({{"auto", kAutoHistory}})
+      .help(
+          "frames the pose model's history feature averages (auto = 15 with one or two "
+          "reference clips, 30 with three or more)");
+  Row(rows, "model_siblings", "model sibling weight", SettingType::kNumber, build)
+      .flag("--model-siblings", "W")
+      .field<&B::model, &M::siblingWeight>()
+      .range(0, 100, "", "off")
+      .help(
+          "weight of the pose model's sibling features: the relative rotation of each pair of "
+          "parts with the same parent (two thighs), so the cloth between them sees both");
+  Row(rows, "model_rank", "model rank", SettingType::kInt, build)
+      .flag("--model-rank", "N")
+      .field<&B::model, &M::rank>()
+      .range(1, 4096)
+      .help("basis shapes the pose model keeps");
+  Row(rows, "model_per_clip", "per-clip model weight", SettingType::kNumber, build)
+      .flag("--model-per-clip", "W")
+      .field<&B::model, &M::clipMixtureWeight>()
+      .range(0, 1000)
+      .words({{"auto", kAutoClipMixture}, {"off", 0.0}})
+      .help(
+          "models of each reference clip mixed into the pose model's prediction by how close a "
+          "pose is to each clip (W = the weight of the model over every clip): auto = with "
+          "three or more clips, the weight of 10, 3 or 1 that best predicts each clip left out "
+          "in turn, when at least 1% better than none; off = none");
+  Row(rows, "verdict_level", "verdict level", SettingType::kNumber, build)
+      .flag("--verdict-level", "P")
+      .field<&B::model, &M::verdictLevel>()
+      .range(0.5, 1)
+      .takes("a share of frames from 0.5 to below 1, e.g. 0.9", &belowOne)
+      .help(
+          "share of frames the coverage verdict's error bound is calibrated to hold for "
+          "(split-conformal on the held-out reference frames; bake --coverage-tolerance flags a "
+          "frame whose bound is over it)");
 }
 
 std::vector<SettingRow> makeRows() {
@@ -585,6 +991,10 @@ std::vector<SettingRow> makeRows() {
   correctionRows(rows);
   batchAndLayerRows(rows);
   runRows(rows);
+  mixRows(rows);
+  windRows(rows);
+  buildRows(rows);
+  poseModelRows(rows);
   return rows;
 }
 
@@ -599,19 +1009,94 @@ std::string settingNames(const Setting& setting) {
   return text + ")";
 }
 
+/// A bound of a range: a whole number in full ("100000", not "1e+05").
+std::string boundText(double value) {
+  if (value == std::floor(value) && std::abs(value) < 1e15) {
+    return std::to_string(static_cast<long long>(value));
+  }
+  return formatSettingValue(value);
+}
+
 std::string rangeText(const Setting& setting) {
   std::ostringstream text;
   const char* what = setting.type == SettingType::kInt ? "a whole number" : "a number";
   if (std::isinf(setting.maximum)) {
-    text << what << " >= " << formatSettingValue(setting.minimum);
+    text << what << " >= " << boundText(setting.minimum);
   } else {
-    text << what << " in [" << formatSettingValue(setting.minimum) << ", "
-         << formatSettingValue(setting.maximum) << "]";
+    text << what << " in [" << boundText(setting.minimum) << ", " << boundText(setting.maximum)
+         << "]";
   }
   if (*setting.unit != '\0') {
     text << " " << setting.unit;
   }
   return text.str();
+}
+
+/// What a number setting takes: "auto or a whole number in [0, 120] frames" (or `takes`).
+std::string takesText(const Setting& setting) {
+  if (setting.takes != nullptr) {
+    return setting.takes;
+  }
+  std::string words;
+  for (std::size_t i = 0; i < setting.words.size(); ++i) {
+    words += setting.words[i].first + (i + 1 < setting.words.size() ? ", " : " or ");
+  }
+  return words + rangeText(setting);
+}
+
+/// Refuses a number outside the range of `setting` (a word's value passes when `words`) or one
+/// its `accepts` refuses, showing it as `shown`.
+void checkNumber(const Setting& setting, double number, const std::string& shown, bool words) {
+  for (const auto& word : setting.words) {
+    if (words && number == word.second) {
+      return;
+    }
+  }
+  const bool inRange =
+      std::isfinite(number) && number >= setting.minimum && number <= setting.maximum;
+  if (inRange && setting.accepts != nullptr) {
+    const SettingValue value = setting.type == SettingType::kInt
+                                   ? SettingValue(static_cast<int>(number))
+                                   : SettingValue(number);
+    if (setting.accepts(value)) {
+      return;
+    }
+  } else if (inRange) {
+    return;
+  }
+  const std::string zero =
+      *setting.zero != '\0' ? std::string("0 = ") + setting.zero + "; " : std::string();
+  if (inRange || setting.takes != nullptr) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " must be ", takesText(setting), " (", zero,
+             "got ", shown, ")");
+  }
+  // Out of range: the bound the value breaks, then all it takes when that is more than one bound.
+  const char* what = setting.type == SettingType::kInt ? "a whole number" : "a number";
+  const std::string broken = !std::isfinite(number) ? std::string("a finite number")
+                             : number < setting.minimum
+                                 ? what + std::string(" >= ") + formatSettingValue(setting.minimum)
+                                 : what + std::string(" <= ") + formatSettingValue(setting.maximum);
+  const std::string unit =
+      std::isfinite(number) && *setting.unit != '\0' ? std::string(" ") + setting.unit : "";
+  const std::string allowed = std::isinf(setting.maximum) && setting.words.empty()
+                                  ? std::string()
+                                  : "; allowed: " + takesText(setting);
+  DS_THROW(kUsage, "the ", settingNames(setting), " must be ", broken, unit, " (", zero, "got ",
+           shown, allowed, ")");
+}
+
+const char* scopeName(SettingScope scope) {
+  switch (scope) {
+    case SettingScope::kEvaluator:
+      return "evaluator";
+    case SettingScope::kBake:
+      return "bake";
+    case SettingScope::kLayer:
+      return "layer";
+    case SettingScope::kBuild:
+      return "build";
+  }
+  return "?";
 }
 
 const char* typeName(SettingType type) {
@@ -753,8 +1238,26 @@ bool hasEvaluatorValue(const Setting& setting) {
 }
 
 bool hasBakeValue(const Setting& setting) {
-  return setting.getBake != nullptr ||
+  return setting.getBake != nullptr || setting.getLayer != nullptr ||
          (setting.scope == SettingScope::kEvaluator && setting.setEvaluator != nullptr);
+}
+
+bool hasLayerValue(const Setting& setting) {
+  return setting.getLayer != nullptr;
+}
+
+bool hasBuildValue(const Setting& setting) {
+  return setting.getBuild != nullptr;
+}
+
+std::vector<const Setting*> settingsOfScope(SettingScope scope) {
+  std::vector<const Setting*> settings;
+  for (const Setting& setting : settingsTable()) {
+    if (setting.scope == scope) {
+      settings.push_back(&setting);
+    }
+  }
+  return settings;
 }
 
 SettingValue settingValue(const Setting& setting, const EvaluatorSettings& settings) {
@@ -768,11 +1271,32 @@ SettingValue settingValue(const Setting& setting, const BakeOptions& options) {
   if (setting.getBake != nullptr) {
     return setting.getBake(options);
   }
+  if (setting.getLayer != nullptr) {
+    return setting.getLayer(options.layers);
+  }
   return settingValue(setting, options.evaluator);
+}
+
+SettingValue settingValue(const Setting& setting, const LayerOptions& options) {
+  if (!hasLayerValue(setting)) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " has no value in LayerOptions");
+  }
+  return setting.getLayer(options);
+}
+
+SettingValue settingValue(const Setting& setting, const DatabaseBuildOptions& options) {
+  if (!hasBuildValue(setting)) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " has no value in DatabaseBuildOptions");
+  }
+  return setting.getBuild(options);
 }
 
 SettingValue defaultSettingValue(const Setting& setting) {
   static const BakeOptions defaults;
+  static const DatabaseBuildOptions buildDefaults;
+  if (hasBuildValue(setting)) {
+    return setting.getBuild(buildDefaults);
+  }
   if (!hasBakeValue(setting)) {
     return std::string();  // an object no tool has loaded
   }
@@ -806,9 +1330,25 @@ void setSetting(const Setting& setting, EvaluatorSettings& settings, const Setti
 void setSetting(const Setting& setting, BakeOptions& options, const SettingValue& value) {
   if (setting.setBake != nullptr) {
     setting.setBake(options, checkedValue(setting, value));
+  } else if (setting.setLayer != nullptr) {
+    setting.setLayer(options.layers, checkedValue(setting, value));
   } else {
     setSetting(setting, options.evaluator, value);
   }
+}
+
+void setSetting(const Setting& setting, LayerOptions& options, const SettingValue& value) {
+  if (setting.setLayer == nullptr) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " cannot be set in LayerOptions");
+  }
+  setting.setLayer(options, checkedValue(setting, value));
+}
+
+void setSetting(const Setting& setting, DatabaseBuildOptions& options, const SettingValue& value) {
+  if (setting.setBuild == nullptr) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " cannot be set in DatabaseBuildOptions");
+  }
+  setting.setBuild(options, checkedValue(setting, value));
 }
 
 void checkSettingValue(const Setting& setting, const SettingValue& value) {
@@ -832,24 +1372,7 @@ void checkSettingValue(const Setting& setting, const SettingValue& value) {
   if (setting.type == SettingType::kInt || setting.type == SettingType::kNumber) {
     const double number =
         setting.type == SettingType::kInt ? std::get<int>(value) : std::get<double>(value);
-    if (!std::isfinite(number) || number < setting.minimum || number > setting.maximum) {
-      const std::string zero =
-          *setting.zero != '\0' ? std::string("0 = ") + setting.zero + "; " : std::string();
-      // The bound the value breaks first, then the whole range when it has two bounds.
-      const char* what = setting.type == SettingType::kInt ? "a whole number" : "a number";
-      const std::string broken =
-          !std::isfinite(number) ? std::string("a finite number")
-          : number < setting.minimum
-              ? what + std::string(" >= ") + formatSettingValue(setting.minimum)
-              : what + std::string(" <= ") + formatSettingValue(setting.maximum);
-      const std::string unit =
-          std::isfinite(number) && *setting.unit != '\0' ? std::string(" ") + setting.unit : "";
-      const std::string range = std::isinf(setting.maximum)
-                                    ? std::string()
-                                    : "; allowed: " + settings_impl::rangeText(setting);
-      DS_THROW(kUsage, "the ", names, " must be ", broken, unit, " (", zero, "got ",
-               formatSettingValue(value), range, ")");
-    }
+    settings_impl::checkNumber(setting, number, formatSettingValue(value), true);
   }
 }
 
@@ -871,6 +1394,12 @@ void checkBakeSettings(const BakeOptions& options) {
 
 SettingValue parseSettingValue(const Setting& setting, const std::string& text) {
   const std::string names = settingNames(setting);
+  for (const auto& [word, value] : setting.words) {
+    if (text == word) {
+      return setting.type == SettingType::kInt ? SettingValue(static_cast<int>(value))
+                                               : SettingValue(value);
+    }
+  }
   char* end = nullptr;
   switch (setting.type) {
     case SettingType::kBool:
@@ -888,6 +1417,8 @@ SettingValue parseSettingValue(const Setting& setting, const std::string& text) 
           value > settings_impl::kMaxWhole) {
         DS_THROW(kUsage, "the ", names, " takes a whole number (got '", text, "')");
       }
+      // A number a word stands for is given as the word ("-1" is not "auto").
+      settings_impl::checkNumber(setting, static_cast<double>(value), "'" + text + "'", false);
       return static_cast<int>(value);
     }
     case SettingType::kNumber: {
@@ -895,6 +1426,7 @@ SettingValue parseSettingValue(const Setting& setting, const std::string& text) 
       if (text.empty() || *end != '\0') {
         DS_THROW(kUsage, "the ", names, " takes a number (got '", text, "')");
       }
+      settings_impl::checkNumber(setting, value, "'" + text + "'", false);
       return value;
     }
     default:
@@ -921,6 +1453,16 @@ std::string formatSettingValue(const SettingValue& value) {
     return text;
   }
   return std::get<std::string>(value);
+}
+
+std::string formatSettingValue(const Setting& setting, const SettingValue& value) {
+  for (const auto& [word, number] : setting.words) {
+    if ((std::holds_alternative<int>(value) && std::get<int>(value) == number) ||
+        (std::holds_alternative<double>(value) && std::get<double>(value) == number)) {
+      return word;
+    }
+  }
+  return formatSettingValue(value);
 }
 
 std::vector<UnusedSetting> unusedSettings(const SettingsView& view,
@@ -968,33 +1510,94 @@ std::string describeBakeSettings(const BakeOptions& options) {
   return jsonText(settings);
 }
 
+namespace settings_impl {
+
+nlohmann::json nullable(const char* text) {
+  return text != nullptr ? nlohmann::json(text) : nlohmann::json();
+}
+
+nlohmann::json finiteOrNull(double value) {
+  return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json();
+}
+
+/// The entries a row writes into the report's settings (ReportEntry), for the schema.
+nlohmann::json reportJson(const pipeline::SettingRow& row) {
+  nlohmann::json entries = nlohmann::json::array();
+  for (const pipeline::ReportEntry& entry : row.report) {
+    entries.push_back(
+        {{"path", entry.path}, {"schema", nullable(entry.schema)}, {"required", entry.required}});
+  }
+  return entries;
+}
+
+/// How the add-on shows the row (AddonView), or null.
+nlohmann::json addonJson(const pipeline::AddonView& view) {
+  if (view.panel == nullptr) {
+    return nlohmann::json();
+  }
+  nlohmann::json choices = nlohmann::json::array();
+  for (const pipeline::AddonChoice& choice : view.choices) {
+    choices.push_back(
+        {{"choice", choice.choice}, {"name", choice.name}, {"description", choice.description}});
+  }
+  return {{"panel", view.panel},
+          {"name", nullable(view.name)},
+          {"text", nullable(view.text)},
+          {"heading", nullable(view.heading)},
+          {"property", nullable(view.property)},
+          {"active_with", nullable(view.activeWith)},
+          {"checkbox", nullable(view.checkbox)},
+          {"soft_maximum", finiteOrNull(view.softMaximum)},
+          {"precision", view.precision},
+          {"step", view.step},
+          {"choices", choices},
+          {"default", view.defaultValue ? valueJson(*view.defaultValue) : nlohmann::json()},
+          {"default_why", view.defaultWhy}};
+}
+
+nlohmann::json rowJson(const pipeline::SettingRow& row) {
+  const Setting& s = row.setting;
+  const bool valued = hasBakeValue(s) || hasEvaluatorValue(s) || hasBuildValue(s);
+  nlohmann::json words = nlohmann::json::array();
+  for (const auto& [word, value] : s.words) {
+    words.push_back({{"word", word}, {"value", value}});
+  }
+  nlohmann::json json{{"key", s.key},
+                      {"label", s.label},
+                      {"flag", nullable(s.flag)},
+                      {"value_name", nullable(s.valueName)},
+                      {"scope", scopeName(s.scope)},
+                      {"type", typeName(s.type)},
+                      {"default", valued ? valueJson(defaultSettingValue(s)) : nlohmann::json()},
+                      {"default_text", valued ? formatSettingValue(s, defaultSettingValue(s)) : ""},
+                      {"choices", s.choices},
+                      {"words", words},
+                      {"takes", nullable(s.takes)},
+                      {"unit", s.unit},
+                      {"zero", s.zero},
+                      {"help", s.help},
+                      {"hashed", s.hashed},
+                      {"report_key", nullable(s.reportKey)},
+                      {"report", reportJson(row)},
+                      {"report_resolves", nullable(row.reportResolves)},
+                      {"used_when", s.usedWhen},
+                      {"when_unused", s.used == nullptr                     ? "always used"
+                                      : s.whenUnused == WhenUnused::kRefuse ? "refused"
+                                                                            : "warned"},
+                      {"addon", addonJson(row.addon)}};
+  if (s.type == SettingType::kInt || s.type == SettingType::kNumber) {
+    json["minimum"] = s.minimum;
+    json["maximum"] = finiteOrNull(s.maximum);
+  }
+  return json;
+}
+
+}  // namespace settings_impl
+
 std::string settingsTableJson() {
   nlohmann::json table = nlohmann::json::array();
-  for (const Setting& s : settingsTable()) {
-    const bool valued = hasBakeValue(s) || hasEvaluatorValue(s);
-    nlohmann::json row{
-        {"key", s.key},
-        {"label", s.label},
-        {"flag", s.flag != nullptr ? nlohmann::json(s.flag) : nlohmann::json()},
-        {"value_name", s.valueName != nullptr ? nlohmann::json(s.valueName) : nlohmann::json()},
-        {"scope", s.scope == SettingScope::kBake ? "bake" : "evaluator"},
-        {"type", settings_impl::typeName(s.type)},
-        {"default", valued ? settings_impl::valueJson(defaultSettingValue(s)) : nlohmann::json()},
-        {"choices", s.choices},
-        {"unit", s.unit},
-        {"zero", s.zero},
-        {"help", s.help},
-        {"hashed", s.hashed},
-        {"report_key", s.reportKey != nullptr ? nlohmann::json(s.reportKey) : nlohmann::json()},
-        {"used_when", s.usedWhen},
-        {"when_unused", s.used == nullptr                     ? "always used"
-                        : s.whenUnused == WhenUnused::kRefuse ? "refused"
-                                                              : "warned"}};
-    if (s.type == SettingType::kInt || s.type == SettingType::kNumber) {
-      row["minimum"] = s.minimum;
-      row["maximum"] = std::isinf(s.maximum) ? nlohmann::json() : nlohmann::json(s.maximum);
-    }
-    table.push_back(row);
+  for (const pipeline::SettingRow& row : pipeline::settingRows()) {
+    table.push_back(settings_impl::rowJson(row));
   }
   return jsonText(table, 1);
 }
@@ -1016,33 +1619,45 @@ std::string markdownRange(const Setting& s) {
     for (const std::string& choice : s.choices) {
       range += (range.empty() ? "`" : ", `") + choice + "`";
     }
+  } else if (s.takes != nullptr) {
+    range = s.takes;
   } else if (s.type == SettingType::kInt || s.type == SettingType::kNumber) {
-    range = std::isinf(s.maximum)
-                ? ">= " + formatSettingValue(s.minimum)
-                : formatSettingValue(s.minimum) + " to " + formatSettingValue(s.maximum);
+    for (const auto& word : s.words) {
+      range += "`" + word.first + "`, ";
+    }
+    range += std::isinf(s.maximum) ? ">= " + boundText(s.minimum)
+                                   : boundText(s.minimum) + " to " + boundText(s.maximum);
     range += *s.unit != '\0' ? std::string(" ") + s.unit : std::string();
     range += *s.zero != '\0' ? std::string(" (0 = ") + s.zero + ")" : std::string();
   }
   return range;
 }
 
-std::string markdownRow(const Setting& s) {
-  std::string flag = "-";
-  if (s.flag != nullptr) {
-    flag = std::string("`") + s.flag +
-           (s.valueName != nullptr ? std::string(" ") + s.valueName : "") + "`";
+/// "`--exit-fade K`", or "-".
+std::string markdownFlag(const Setting& s) {
+  if (s.flag == nullptr) {
+    return "-";
   }
-  const bool valued = hasBakeValue(s) || hasEvaluatorValue(s);
-  const std::string text = valued ? formatSettingValue(defaultSettingValue(s)) : "";
-  const std::string value = text.empty() ? "none" : "`" + text + "`";
+  return std::string("`") + s.flag +
+         (s.valueName != nullptr ? std::string(" ") + s.valueName : "") + "`";
+}
+
+/// "`0.15`", or "none".
+std::string markdownDefault(const Setting& s) {
+  const bool valued = hasBakeValue(s) || hasEvaluatorValue(s) || hasBuildValue(s);
+  const std::string text = valued ? formatSettingValue(s, defaultSettingValue(s)) : "";
+  return text.empty() ? "none" : "`" + text + "`";
+}
+
+std::string markdownRow(const Setting& s) {
   std::string used = "always";
   if (s.used != nullptr) {
     used = std::string(s.usedWhen) +
            (s.whenUnused == WhenUnused::kRefuse ? "; else refused" : "; else warned about");
   }
-  return "| `" + std::string(s.key) + "` | " + flag + " | " + value + " | " +
-         cell(markdownRange(s)) + " | " + (s.hashed ? "yes" : "no") + " | " + cell(used) + " | " +
-         cell(s.help) + " |\n";
+  return "| `" + std::string(s.key) + "` | " + markdownFlag(s) + " | " + markdownDefault(s) +
+         " | " + cell(markdownRange(s)) + " | " + (s.hashed ? "yes" : "no") + " | " + cell(used) +
+         " | " + cell(s.help) + " |\n";
 }
 
 }  // namespace settings_impl
@@ -1052,7 +1667,23 @@ std::string settingsTableMarkdown() {
       "| setting (Python, add-on) | command line | default | range | hashed | used | what it "
       "does |\n|---|---|---|---|---|---|---|\n";
   for (const Setting& setting : settingsTable()) {
-    table += settings_impl::markdownRow(setting);
+    if (setting.scope == SettingScope::kEvaluator || setting.scope == SettingScope::kBake) {
+      table += settings_impl::markdownRow(setting);
+    }
+  }
+  return table;
+}
+
+std::string settingsTableMarkdown(SettingScope scope) {
+  const char* python = scope == SettingScope::kBuild ? "build_database" : "load_layers";
+  std::string table =
+      std::string("| setting (Python: ") + python +
+      ") | command line | default | range | what it does |\n|---|---|---|---|---|\n";
+  for (const Setting* s : settingsOfScope(scope)) {
+    table += "| `" + std::string(s->key) + "` | " + settings_impl::markdownFlag(*s) + " | " +
+             settings_impl::markdownDefault(*s) + " | " +
+             settings_impl::cell(settings_impl::markdownRange(*s)) + " | " +
+             settings_impl::cell(s->help) + " |\n";
   }
   return table;
 }

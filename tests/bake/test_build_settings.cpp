@@ -1,43 +1,57 @@
 // SPDX-License-Identifier: Apache-2.0
-// The table of `db build` settings (drivenshape/build_settings.h): every row's flag is its key
-// spelled with dashes, its default reads back to the default options, each refuses what it
-// does not take with a message naming both spellings, and the values that stand for something
-// (auto, off) set what DatabaseBuildOptions documents.
+// `db build`'s settings, the settings table's SettingScope::kBuild rows (drivenshape/
+// settings_table.h): every row's flag is its key spelled with dashes, its default reads back to
+// the default options, each refuses what it does not take with a message naming both
+// spellings, and the values that stand for something (auto, off) set what DatabaseBuildOptions
+// documents.
 
 #include <gtest/gtest.h>
 
 #include <string>
 
-#include <drivenshape/build_settings.h>
 #include <drivenshape/error.h>
+#include <drivenshape/settings_table.h>
 
 #include "test_support.h"
 
 namespace drivenshape {
 namespace {
 
+/// Sets the build setting `key` from the text a command line gives it.
+void setBuildSetting(DatabaseBuildOptions& options, const std::string& key,
+                     const std::string& text) {
+  const Setting& setting = findSetting(key);
+  setSetting(setting, options, parseSettingValue(setting, text));
+}
+
+/// The build setting's value in `options` as the text a command line gives.
+std::string buildText(const Setting& setting, const DatabaseBuildOptions& options) {
+  return formatSettingValue(setting, settingValue(setting, options));
+}
+
 TEST(BuildSettings, EveryFlagIsItsKeyAndEveryDefaultReadsBack) {
   const DatabaseBuildOptions defaults;
-  ASSERT_FALSE(buildSettingsTable().empty());
-  for (const BuildSetting& setting : buildSettingsTable()) {
-    std::string flag = std::string("--") + setting.key;
+  ASSERT_GE(settingsOfScope(SettingScope::kBuild).size(), 10u);
+  for (const Setting* setting : settingsOfScope(SettingScope::kBuild)) {
+    std::string flag = std::string("--") + setting->key;
     for (char& c : flag) {
       c = c == '_' ? '-' : c;
     }
-    EXPECT_EQ(flag, setting.flag);
-    EXPECT_EQ(&findBuildSetting(setting.key), &setting);
-    EXPECT_GT(std::string(setting.help).size(), 20u) << setting.key;
+    EXPECT_EQ(flag, setting->flag);
+    EXPECT_EQ(&findSetting(setting->key), setting);
+    EXPECT_GT(std::string(setting->help).size(), 20u) << setting->key;
     DatabaseBuildOptions options;
-    setBuildSetting(options, setting.key, setting.get(defaults));
-    for (const BuildSetting& other : buildSettingsTable()) {
-      EXPECT_EQ(other.get(options), other.get(defaults))
-          << "setting " << setting.key << " to its default moved " << other.key;
+    setBuildSetting(options, setting->key, buildText(*setting, defaults));
+    for (const Setting* other : settingsOfScope(SettingScope::kBuild)) {
+      EXPECT_EQ(buildText(*other, options), buildText(*other, defaults))
+          << "setting " << setting->key << " to its default moved " << other->key;
     }
   }
 }
 
 TEST(BuildSettings, EachRefusesWhatItDoesNotTakeNamingBothSpellings) {
-  for (const BuildSetting& setting : buildSettingsTable()) {
+  for (const Setting* row : settingsOfScope(SettingScope::kBuild)) {
+    const Setting& setting = *row;
     for (const char* text : {"", "x", "-1", "1e400", "2000000", "nan"}) {
       DatabaseBuildOptions options;
       try {
@@ -74,6 +88,10 @@ TEST(BuildSettings, WordsAndNumbersSetWhatTheOptionsDocument) {
   EXPECT_EQ(o.model.clipMixtureWeight, kAutoClipMixture);
   setBuildSetting(o, "model", "none");
   EXPECT_FALSE(o.poseModel);
+  // A choice is read as every setting's choices are, whatever the case (--weights QP).
+  setBuildSetting(o, "model", "Pose");
+  EXPECT_TRUE(o.poseModel);
+  setBuildSetting(o, "model", "none");
   setBuildSetting(o, "verdict_level", "0.95");
   EXPECT_EQ(o.model.verdictLevel, 0.95);
   setBuildSetting(o, "duplicate_tolerance", "0.002");
@@ -83,7 +101,7 @@ TEST(BuildSettings, WordsAndNumbersSetWhatTheOptionsDocument) {
                                                         {"model_history", "121"},
                                                         {"verdict_level", "1"},
                                                         {"verdict_level", "0.4"},
-                                                        {"model", "Pose"},
+                                                        {"model", "poses"},
                                                         {"count", "0"}}) {
     testing::expectThrows([&] { setBuildSetting(o, key, text); }, ErrorCode::kUsage, key);
   }

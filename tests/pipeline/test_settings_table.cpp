@@ -4,6 +4,7 @@
 // in test_settings_hash.cpp; the Python keywords and the add-on's properties in
 // tests/python/test_settings.py; docs/commands.md by the CTest settings_doc.
 
+#include <array>
 #include <set>
 #include <string>
 #include <vector>
@@ -35,7 +36,9 @@ TEST(SettingsTable, RowsAreUniqueAndHaveWhatTheToolsRead) {
       continue;
     }
     // The default is the struct's, and passes the table's own check.
-    ASSERT_TRUE(hasBakeValue(setting)) << setting.key;
+    ASSERT_TRUE(setting.scope == SettingScope::kBuild ? hasBuildValue(setting)
+                                                      : hasBakeValue(setting))
+        << setting.key;
     EXPECT_NO_THROW(checkSettingValue(setting, defaultSettingValue(setting))) << setting.key;
   }
   EXPECT_EQ(formatSettingValue(defaultSettingValue(findSetting("exit_fade"))), "0.15");
@@ -91,6 +94,46 @@ TEST(SettingsTable, TextOfACommandLine) {
   EXPECT_EQ(formatSettingValue(false), "false");
 }
 
+// The layers' options and db build's are rows of the same table: in LayerOptions (and a bake's
+// BakeOptions::layers) or DatabaseBuildOptions, checked by the same check, read from the same
+// text, their words (auto) printed as a command line takes them.
+TEST(SettingsTable, LayerAndBuildSettingsAreRowsOfTheSameTable) {
+  const Setting& octaves = findSetting("wind_octaves");
+  EXPECT_EQ(octaves.scope, SettingScope::kLayer);
+  BakeOptions bake;
+  setSetting(octaves, bake, 5);
+  EXPECT_EQ(bake.layers.windOctaves, 5);
+  EXPECT_EQ(std::get<int>(settingValue(octaves, bake)), 5);
+  LayerOptions layers;
+  testing::expectThrows([&] { setSetting(octaves, layers, 9); }, ErrorCode::kUsage,
+                        "wind octaves (wind_octaves, --wind-octaves) must be a whole number <= 8 "
+                        "(got 9; allowed: a whole number in [1, 8])");
+  const Setting& direction = findSetting("wind_direction");
+  EXPECT_EQ(formatSettingValue(defaultSettingValue(direction)), "1,0,0");
+  setSetting(direction, layers, parseSettingValue(direction, "0,-1,0.5"));
+  EXPECT_EQ(layers.windDirection, (std::array<double, 3>{0.0, -1.0, 0.5}));
+  testing::expectThrows([&] { setSetting(direction, layers, std::string("1,0")); },
+                        ErrorCode::kUsage, "--wind-direction) takes X,Y,Z");
+  EXPECT_TRUE(hasLayerValue(findSetting("frames_per_second")));  // the wind's time
+
+  const Setting& history = findSetting("model_history");
+  EXPECT_EQ(history.scope, SettingScope::kBuild);
+  EXPECT_FALSE(hasEvaluatorValue(history) || hasBakeValue(history) || hasLayerValue(history));
+  EXPECT_EQ(formatSettingValue(history, defaultSettingValue(history)), "auto");
+  DatabaseBuildOptions build;
+  setSetting(history, build, parseSettingValue(history, "30"));
+  EXPECT_EQ(build.model.historyFrames, 30);
+  setSetting(history, build, parseSettingValue(history, "auto"));
+  EXPECT_EQ(build.model.historyFrames, kAutoHistory);
+  testing::expectThrows(
+      [&] { parseSettingValue(history, "-1"); }, ErrorCode::kUsage,
+      "must be a whole number >= 0 frames (0 = no history; got '-1'; allowed: auto or a "
+      "whole number in [0, 120] frames)");
+  testing::expectThrows([&] { setSetting(history, bake, 30); }, ErrorCode::kUsage,
+                        "cannot be set from a value in EvaluatorSettings");
+  EXPECT_EQ(settingsOfScope(SettingScope::kLayer).size(), 11u);  // --mix*, --wind-*
+}
+
 std::vector<std::string> unusedKeys(const SettingsView& view,
                                     const std::vector<std::string>& given = {}) {
   std::vector<std::string> keys;
@@ -144,7 +187,10 @@ TEST(SettingsTable, SettingsTheOthersLeaveUnusedAreRefusedOrWarnedAbout) {
 TEST(SettingsTable, JsonAndMarkdownListEveryRow) {
   const nlohmann::json table = nlohmann::json::parse(settingsTableJson());
   ASSERT_EQ(table.size(), settingsTable().size());
-  const std::string markdown = settingsTableMarkdown();
+  // The evaluator's and the bake's settings in one table, the layers' and db build's in theirs.
+  const std::string markdown = settingsTableMarkdown() +
+                               settingsTableMarkdown(SettingScope::kLayer) +
+                               settingsTableMarkdown(SettingScope::kBuild);
   for (std::size_t i = 0; i < table.size(); ++i) {
     const Setting& setting = settingsTable()[i];
     EXPECT_EQ(table[i].at("key"), setting.key);

@@ -1,8 +1,10 @@
 # SPDX-License-Identifier: Apache-2.0
 """The settings table (drivenshape/settings_table.h, issue 27) as the Python module and the
-Blender add-on see it: EvaluatorSettings' keywords, attributes and repr come from the table, and
-the add-on's properties (apps/blender/drivenshape_blender/properties.py, read here as source
-without Blender) have the table's names, defaults, ranges and choices."""
+Blender add-on see it: EvaluatorSettings' keywords, attributes and repr come from the table; so
+do load_layers' and build_database's keywords; the add-on's properties (apps/blender/
+drivenshape_blender/settings_generated.py, generated from the table by
+scripts/generate_from_settings.py, read here without Blender) have the table's names, defaults,
+ranges and choices, and keep the names and menu numbers that saved .blend files hold."""
 
 import ast
 import math
@@ -14,10 +16,19 @@ import drivenshape as ds
 
 ADDON = Path(__file__).resolve().parents[2] / "apps" / "blender" / "drivenshape_blender"
 
-# Where the add-on differs from the table on purpose: the setting, and why.
-ADDON_DEFAULTS = {
-    "audit": (False, "live mode evaluates every frame the animator scrubs to; the audit costs "
-                     "time there and its counts are only shown when asked for"),
+# What .blend files saved by earlier add-ons hold: each property by name, and an enum as the
+# number of its item. A renamed property or a renumbered item would silently reset (or change)
+# the artist's setting: the table may add settings and items, never move these.
+SAVED_PROPERTIES = {
+    "weight_mode": ("EnumProperty", {"auto": 0, "model": 1, "qp": 2, "nearest": 3, "bind": 4}),
+    "align": ("EnumProperty", {"rigid": 0, "rigid-all": 1, "none": 2}),
+    "blend": ("EnumProperty", {"local": 0, "world": 1}),
+    "resolve_direction": ("EnumProperty", {"nearest": 0, "normal": 1}),
+    "correct": ("BoolProperty", None), "resolve": ("BoolProperty", None),
+    "skin_offset": ("FloatProperty", None), "exit_fade": ("FloatProperty", None),
+    "max_weight_change": ("FloatProperty", None), "audit": ("BoolProperty", None),
+    "threads": ("IntProperty", None), "coverage_tolerance": ("FloatProperty", None),
+    "build_count": ("IntProperty", None), "build_model": ("BoolProperty", None),
 }
 
 PROPERTY_TYPES = {"BoolProperty": "bool", "IntProperty": "int", "FloatProperty": "number",
@@ -37,7 +48,9 @@ def test_table_rows_are_complete(table):
     for key, row in table.items():
         assert row["help"] and row["label"], key
         assert row["type"] in ("bool", "int", "number", "text", "choice", "object"), key
-        if row["type"] in ("int", "number"):
+        # A default outside the range is one of the words ("auto" for model_history).
+        words = [word["value"] for word in row["words"]]
+        if row["type"] in ("int", "number") and row["default"] not in words:
             assert row["minimum"] <= row["default"], key
             assert row["maximum"] is None or row["default"] <= row["maximum"], key
         if row["type"] == "choice":
@@ -86,75 +99,66 @@ def test_unused_settings_are_warned_about(cli_database, host_device):
     assert noisy.settings_hash == quiet.settings_hash
 
 
-def _addon_properties():
-    """{name: (property type, {keyword: value})} of DrivenShapeSettings, and the module's
-    constants (the enum items), from the add-on's source."""
-    tree = ast.parse((ADDON / "properties.py").read_text())
-    constants = {}
-    properties = {}
+def _addon_settings():
+    """settings_generated.SETTINGS, read as the literal it is (the add-on needs bpy)."""
+    tree = ast.parse((ADDON / "settings_generated.py").read_text())
     for node in tree.body:
-        if isinstance(node, ast.Assign) and len(node.targets) == 1:
-            try:
-                constants[node.targets[0].id] = ast.literal_eval(node.value)
-            except ValueError:
-                pass
-        if isinstance(node, ast.ClassDef) and node.name == "DrivenShapeSettings":
-            # Blender's properties are annotations: `name: FloatProperty(...)`.
-            for item in node.body:
-                if isinstance(item, ast.AnnAssign) and isinstance(item.annotation, ast.Call):
-                    call = item.annotation
-                    keywords = {}
-                    for keyword in call.keywords:
-                        if isinstance(keyword.value, ast.Name):
-                            keywords[keyword.arg] = constants.get(keyword.value.id)
-                        else:
-                            try:
-                                keywords[keyword.arg] = ast.literal_eval(keyword.value)
-                            except ValueError:
-                                pass  # callbacks, types
-                    properties[item.target.id] = (call.func.id, keywords)
-    return properties
+        if isinstance(node, ast.Assign) and node.targets[0].id == "SETTINGS":
+            return ast.literal_eval(node.value)
+    raise AssertionError("settings_generated.py has no SETTINGS")
 
 
-def _engine_keywords():
-    """The keywords engine.evaluator_kwargs passes to EvaluatorSettings."""
-    tree = ast.parse((ADDON / "engine.py").read_text())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.FunctionDef) and node.name == "evaluator_kwargs":
-            call = next(n for n in ast.walk(node) if isinstance(n, ast.Call))
-            return [keyword.arg for keyword in call.keywords]
-    raise AssertionError("engine.py has no evaluator_kwargs")
-
-
-def test_addon_properties_match_the_table(table):
-    properties = _addon_properties()
-    passed = _engine_keywords()
-    assert passed, "engine.evaluator_kwargs passes no settings"
-    for key in passed:
-        assert key in table, f"the add-on passes '{key}', which is not in the settings table"
-        assert key in properties, f"the add-on passes '{key}' but has no property of that name"
-    checked = sorted(set(properties) & set(table))
-    assert set(passed) <= set(checked)
-    for key in checked:
-        row = table[key]
-        kind, keywords = properties[key]
+def test_addon_properties_match_the_table():
+    table = {row["key"]: row for row in ds.settings_table()}
+    settings = _addon_settings()
+    assert settings, "the add-on shows no setting of the table"
+    shown = [row["key"] for row in table.values() if row["addon"]]
+    assert [setting["key"] for setting in settings] == shown
+    for setting in settings:
+        key, kind, keywords = setting["key"], setting["kind"], setting["keywords"]
+        row, view = table[key], table[key]["addon"]
+        assert setting["scope"] == row["scope"] in ("evaluator", "build"), key
+        assert setting["property"] == (view["property"] or key)
+        default = row["default"] if view["default"] is None else view["default"]
+        if setting["checkbox"]:
+            # A two-choice setting as a checkbox: on is one choice, off the other.
+            assert kind == "BoolProperty" and sorted(row["choices"]) == sorted(
+                [setting["checkbox"], setting["off"]]), key
+            assert keywords["default"] == (default == setting["checkbox"]), key
+            continue
         assert PROPERTY_TYPES[kind] == row["type"], f"{key}: {kind} for a {row['type']} setting"
-        default = ADDON_DEFAULTS.get(key, (row["default"], ""))[0]
-        assert keywords.get("default") == default, (
-            f"{key}: the add-on's default {keywords.get('default')!r}, the table's "
-            f"{row['default']!r}")
+        assert keywords["default"] == default, (
+            f"{key}: the add-on's default {keywords['default']!r}, the table's {default!r}")
         if row["type"] in ("int", "number"):
-            assert keywords.get("min") == row["minimum"], f"{key}: min {keywords.get('min')}"
-            if row["maximum"] is None:
-                assert "max" not in keywords, f"{key}: the table has no maximum"
-            else:
-                assert keywords.get("max") == row["maximum"], f"{key}: max {keywords.get('max')}"
+            assert keywords["min"] == row["minimum"], f"{key}: min {keywords['min']}"
+            assert keywords.get("max") == row["maximum"], f"{key}: max {keywords.get('max')}"
         if row["type"] == "choice":
             items = [item[0] for item in keywords["items"]]
             assert sorted(items) == sorted(row["choices"]), f"{key}: items {items}"
-    # The deliberate differences are still differences (else drop them from ADDON_DEFAULTS).
-    for key, (value, why) in ADDON_DEFAULTS.items():
-        assert table[key]["default"] != value and why, key
+        # A default of the add-on's own differs from the table's and says why.
+        if view["default"] is not None:
+            assert view["default"] != row["default"] and view["default_why"], key
+
+
+def test_addon_keeps_what_saved_blend_files_hold():
+    properties = {setting["property"]: setting for setting in _addon_settings()}
+    for name, (kind, numbers) in SAVED_PROPERTIES.items():
+        assert name in properties, f"the add-on lost the property {name} of saved .blend files"
+        assert properties[name]["kind"] == kind, f"{name}: {properties[name]['kind']}"
+        if numbers is not None:
+            items = {item[0]: item[3] for item in properties[name]["keywords"]["items"]}
+            assert {choice: items.get(choice) for choice in numbers} == numbers, (
+                f"{name}: the menu's numbers {items} moved an item of saved files {numbers}")
+
+
+def test_layer_and_build_keywords_come_from_the_table(table):
+    layer = [key for key, row in table.items() if row["scope"] == "layer"]
+    build = [key for key, row in table.items() if row["scope"] == "build"]
+    assert "wind_octaves" in layer and "mix_falloff" in layer and "model_history" in build
+    for function, keys in ((ds.load_layers, layer + ["frames_per_second"]),
+                           (ds.build_database, build)):
+        for key in keys:
+            assert f"\n  {key} ({table[key]['flag']}, default " in function.__doc__, key
 
 
 def test_table_is_finite_json(table):

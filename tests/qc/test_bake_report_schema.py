@@ -49,6 +49,20 @@ def test_real_reports_validate(shot, validator, name, options, model):
     assert errors_of(validator, report) == []
 
 
+def test_a_layered_bake_validates(shot, validator):
+    # The layers' entries are generated from the layer options' rows of the settings table:
+    # a bake with a mix and a wind (its weight map and falloff too) must validate.
+    report = json.loads(shot.bake(
+        "layers", "--mix", shot.data / "test.driven.pc2", "--mix-weight", "group:sleeve",
+        "--wind-amplitude", "0.003", "--wind-weight", "group:sleeve", "--wind-falloff", "1",
+        "--wind-direction", "0,1,0").read_text(encoding="utf-8"))
+    layers = report["settings"]["layers"]
+    assert set(layers) == {"mix", "wind"} and layers["wind"]["falloff"] == 1
+    assert errors_of(validator, report) == []
+    layers["wind"]["octaves"] = 9  # beyond the table's range of --wind-octaves
+    assert errors_of(validator, report) != []
+
+
 def test_a_resumed_bake_validates(shot, validator):
     shot.bake("resumed", frames="1-6")
     # The same folder again with --skip-existing: frames 1-6 are kept, the rest baked.

@@ -307,8 +307,7 @@ def build_database(context):
                      f"{engine.abspath(settings.build_cloth_pc2)}")
     try:
         database = ds.build_database(driver_mesh, driven_mesh, driver_source, driven_source,
-                                     count=settings.build_count, frames=frames,
-                                     model="pose" if settings.build_model else "none")
+                                     frames=frames, **engine.module_kwargs(settings, "build"))
     except Exception as error:
         raise UserError(f"Cannot build a database from {described}, frames {first}-{last}: "
                         f"{engine.describe_error(error)}") from None

@@ -11,6 +11,7 @@ import bpy
 import numpy as np
 
 from . import module
+from .settings_generated import SETTINGS
 
 
 class UserError(Exception):
@@ -52,22 +53,23 @@ def describe_error(error):
     return f"{type(error).__name__}: {text}" if text else type(error).__name__
 
 
+def module_kwargs(settings, scope):
+    """The scene's settings of the settings table's `scope` as the module's keyword arguments:
+    "evaluator" for drivenshape.EvaluatorSettings, "build" for drivenshape.build_database
+    (settings_generated.SETTINGS: a checkbox passes the choice it stands for)."""
+    kwargs = {}
+    for setting in SETTINGS:
+        if setting["scope"] == scope:
+            value = getattr(settings, setting["property"])
+            if setting["checkbox"]:
+                value = setting["checkbox"] if value else setting["off"]
+            kwargs[setting["key"]] = value
+    return kwargs
+
+
 def evaluator_kwargs(settings):
     """The scene's settings as drivenshape.EvaluatorSettings keyword arguments."""
-    return dict(
-        weight_mode=settings.weight_mode,
-        align=settings.align,
-        blend=settings.blend,
-        correct=settings.correct,
-        resolve=settings.resolve,
-        skin_offset=settings.skin_offset,
-        resolve_direction=settings.resolve_direction,
-        exit_fade=settings.exit_fade,
-        max_weight_change=settings.max_weight_change,
-        audit=settings.audit,
-        coverage_tolerance=settings.coverage_tolerance,
-        threads=settings.threads,
-    )
+    return module_kwargs(settings, "evaluator")
 
 
 def length_text(value, unit_settings):

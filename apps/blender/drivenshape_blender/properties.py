@@ -1,6 +1,11 @@
 # SPDX-License-Identifier: Apache-2.0
 """The add-on's settings: one DrivenShapeSettings per scene (scene.drivenshape) and the
-add-on preference that says where the drivenshape module is."""
+add-on preference that says where the drivenshape module is.
+
+The settings that are the library's (weights, collision, threads, the database build's shape
+count, ...) are not spelled here: they are the settings table's rows, generated into
+settings_generated.py, and become properties of DrivenShapeSettings below (register). Here are
+the add-on's own: objects, files, frame ranges, live mode, the space, the device."""
 
 import bpy
 from bpy.props import (
@@ -13,32 +18,8 @@ from bpy.props import (
     StringProperty,
 )
 
-WEIGHT_MODES = (
-    ("auto", "Auto", "The pose model when the database has one, else the DrivenShape QP"),
-    ("model", "Pose Model", "The rest binding plus the pose model's learned correction, fitted "
-     "over the whole reference clip"),
-    ("qp", "QP Blend", "DrivenShape as in the talk: blend weights that best reproduce the pose "
-     "(a QP)"),
-    ("nearest", "Nearest", "Baseline: all weight on the closest database driver shape"),
-    ("bind", "Bind Only", "Baseline: no database shapes; the rest cloth carried by the driver"),
-)
-ALIGN_MODES = (
-    ("rigid", "Rigid", "Fit each frame rigidly to the rest driver, following its most rigid "
-     "part (the pelvis, not the legs) before solving the weights"),
-    ("rigid-all", "Rigid (All)", "The same rigid fit, every vertex weighted alike"),
-    ("none", "None", "Compare world positions, as in the talk"),
-)
-BLEND_MODES = (
-    ("local", "Local Frames", "Blend the shapes' offsets in the driver's local frames and "
-     "rebuild them on the current pose (no per-frame search)"),
-    ("world", "World", "Blend world positions, then correct onto the pose (the talk)"),
-)
-RESOLVE_DIRECTIONS = (
-    ("nearest", "Nearest", "Cloth within the offset moves along the line from its closest point on "
-     "the driver (smooth where that point crosses an edge); cloth inside along the normal"),
-    ("normal", "Normal", "Every vertex moves along the driver's normal at its closest point "
-     "(0.1; jumps where that point crosses from a face onto an edge)"),
-)
+from .settings_generated import SETTINGS
+
 SPACES = (
     ("LOCAL", "Object", "The driver's object-space positions go in and the cloth's object-space "
      "positions come out, as Mesh Cache modifiers read PC2 files"),
@@ -108,65 +89,17 @@ class DrivenShapeSettings(bpy.types.PropertyGroup):
     build_frame_start: IntProperty(name="Start", default=1,
                                    description="First reference frame")
     build_frame_end: IntProperty(name="End", default=250, description="Last reference frame")
-    build_count: IntProperty(
-        name="Shapes", default=30, min=1, soft_max=128,
-        description="Number of database shapes (driver/cloth pairs) to pick")
-    build_model: BoolProperty(
-        name="Pose Model", default=True,
-        description="Also fit the pose model over every reference frame (what the Auto weights "
-        "evaluate); off keeps the picked shapes only")
     build_output: StringProperty(
         name="Save As", subtype="FILE_PATH", default="//drivenshape.dsdb",
         description="Where the new database is written; it then becomes the scene's database")
 
-    # Evaluator settings (defaults: the command line's bake).
-    weight_mode: EnumProperty(name="Weights", items=WEIGHT_MODES, default="auto",
-                              update=_settings_changed)
-    align: EnumProperty(name="Align", items=ALIGN_MODES, default="rigid",
-                        update=_settings_changed)
-    blend: EnumProperty(name="Blend", items=BLEND_MODES, default="local",
-                        update=_settings_changed)
-    correct: BoolProperty(
-        name="Collision Correction", default=True, update=_settings_changed,
-        description="Carry the blended cloth onto the current pose of the driver")
-    resolve: BoolProperty(
-        name="Resolve Penetrations", default=True, update=_settings_changed,
-        description="Move cloth vertices inside the driver (or closer than the skin offset) out")
-    skin_offset: FloatProperty(
-        name="Skin Offset", default=0.002, min=0.0, soft_max=0.05, precision=4, step=0.01,
-        update=_settings_changed,
-        description="Distance the penetration resolution keeps between cloth and driver "
-        "(scene units)")
-    resolve_direction: EnumProperty(name="Direction", items=RESOLVE_DIRECTIONS, default="nearest",
-                                    update=_settings_changed)
-    exit_fade: FloatProperty(
-        name="Exit Fade", default=0.15, min=0.0, soft_max=1.0, precision=2, step=1,
-        update=_settings_changed,
-        description="Cloth deep in a limb or a bent joint whose two nearest exits are nearly "
-        "equally far moves only part of the way out, so it does not jump across (0: always "
-        "all the way)")
-    max_weight_change: FloatProperty(
-        name="Temporal Bound", default=0.0, min=0.0, max=1.0, precision=3, step=1,
-        update=_settings_changed,
-        description="Largest change of a shape's weight between consecutive frames (0: off)")
-    audit: BoolProperty(
-        name="Audit", default=False, update=_settings_changed,
-        description="Count cloth vertices inside the driver and the largest jump per frame "
-        "(shown in the panel; costs time)")
+    # The evaluator's settings are the table's (register); the device and the space are
+    # the add-on's.
     device: StringProperty(
         name="Device", default="auto", update=_settings_changed,
         description="auto, host, cpu, gpu, an index from `drivenshape devices` or part of a "
         "device name")
-    threads: IntProperty(
-        name="Threads", default=0, min=0, soft_max=64, update=_settings_changed,
-        description="Host threads (0: all cores)")
     space: EnumProperty(name="Space", items=SPACES, default="LOCAL", update=_settings_changed)
-    coverage_tolerance: FloatProperty(
-        name="Tolerance", default=0.0, min=0.0, soft_max=0.1, precision=4, step=0.1,
-        unit="LENGTH", update=_settings_changed,
-        description="Coverage tolerance: a frame whose predicted mean vertex error (pose model) "
-        "is over it is flagged to simulate (0: 2% of the cloth's rest bounding-box diagonal, "
-        "as in the command line)")
 
     # The last bake's or Mark Frames to Simulate's verdicts (coverage.py).
     verdicts: CollectionProperty(type=DrivenShapeVerdict)
@@ -233,7 +166,18 @@ class DrivenShapePreferences(bpy.types.AddonPreferences):
 CLASSES = (DrivenShapeVerdict, DrivenShapeSettings, DrivenShapePreferences)
 
 
+def table_property(setting):
+    """The Blender property of a generated setting (settings_generated.SETTINGS); a change
+    rebuilds the live evaluator."""
+    kind = getattr(bpy.props, setting["kind"])
+    return kind(**setting["keywords"], update=_settings_changed)
+
+
 def register():
+    # The table's settings become properties of DrivenShapeSettings before Blender reads its
+    # annotations (register_class).
+    for setting in SETTINGS:
+        DrivenShapeSettings.__annotations__[setting["property"]] = table_property(setting)
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     bpy.types.Scene.drivenshape = PointerProperty(type=DrivenShapeSettings)

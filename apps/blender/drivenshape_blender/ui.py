@@ -4,11 +4,16 @@
 Everything fits the sidebar's default width (about 190 pixels of text at a UI scale of 1): short
 labels in a property split (the tooltips carry the detail), values that could be long as
 label-value pairs, messages wrapped to the region's width, rarely changed settings in closed
-sub-panels. scripts/blender_screenshot.py shows it at that width."""
+sub-panels. scripts/blender_screenshot.py shows it at that width.
+
+The library's settings are drawn from the settings table (settings_generated.SETTINGS: which
+panel, the row's text and heading, what greys it out), in the table's order; a setting added
+to the table with a panel shows up there without a change here."""
 
 import bpy
 
 from . import coverage, engine, live, module
+from .settings_generated import SETTINGS
 
 # Average width of a character of the UI font at a UI scale of 1, in pixels (for wrapping).
 CHAR_PIXELS = 7.0
@@ -57,6 +62,18 @@ def _pair(layout, label, value, icon="NONE", alert=False):
     right = split.row()
     right.alert = alert
     right.label(text=value, icon=icon)
+
+
+def _table_settings(layout, settings, panel):
+    """The settings table's settings of `panel`, one row each."""
+    for setting in SETTINGS:
+        if setting["panel"] != panel:
+            continue
+        heading = setting["heading"]
+        column = layout.column(heading=heading) if heading else layout.column()
+        if setting["active_with"]:
+            column.active = getattr(settings, setting["active_with"])
+        column.prop(settings, setting["property"], text=setting["text"])
 
 
 def length_text(value, unit_settings):
@@ -162,7 +179,7 @@ class DRIVENSHAPE_PT_coverage(_Panel, bpy.types.Panel):
         scene = context.scene
         settings = scene.drivenshape
         units = scene.unit_settings
-        _split(layout).prop(settings, "coverage_tolerance")
+        _table_settings(_split(layout), settings, "coverage")
         layout.operator("drivenshape.mark_frames", text="Mark Frames", icon="MARKER_HLT")
         lines = verdict_lines(settings, units)
         if not lines:
@@ -196,11 +213,8 @@ class DRIVENSHAPE_PT_settings(_Panel, bpy.types.Panel):
     def draw(self, context):
         layout = _split(self.layout)
         settings = context.scene.drivenshape
-        layout.prop(settings, "weight_mode")
-        layout.prop(settings, "align")
-        layout.prop(settings, "blend")
+        _table_settings(layout, settings, "settings")
         layout.prop(settings, "space")
-        layout.prop(settings, "max_weight_change", text="Temporal")
 
 
 class DRIVENSHAPE_PT_collision(_Panel, bpy.types.Panel):
@@ -209,15 +223,7 @@ class DRIVENSHAPE_PT_collision(_Panel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        layout = _split(self.layout)
-        settings = context.scene.drivenshape
-        layout.column(heading="Collision").prop(settings, "correct", text="Correction")
-        layout.column(heading="Resolve").prop(settings, "resolve", text="Penetrations")
-        column = layout.column()
-        column.active = settings.resolve
-        column.prop(settings, "skin_offset", text="Offset")
-        column.prop(settings, "resolve_direction")
-        column.prop(settings, "exit_fade")
+        _table_settings(_split(self.layout), context.scene.drivenshape, "collision")
 
 
 class DRIVENSHAPE_PT_device(_Panel, bpy.types.Panel):
@@ -229,8 +235,7 @@ class DRIVENSHAPE_PT_device(_Panel, bpy.types.Panel):
         layout = _split(self.layout)
         settings = context.scene.drivenshape
         layout.prop(settings, "device")
-        layout.prop(settings, "threads")
-        layout.prop(settings, "audit")
+        _table_settings(layout, settings, "device")
 
 
 class DRIVENSHAPE_PT_build(_Panel, bpy.types.Panel):
@@ -248,8 +253,7 @@ class DRIVENSHAPE_PT_build(_Panel, bpy.types.Panel):
         column = layout.column(align=True)
         column.prop(settings, "build_frame_start", text="Frame Start")
         column.prop(settings, "build_frame_end", text="End")
-        layout.prop(settings, "build_count")
-        layout.prop(settings, "build_model")
+        _table_settings(layout, settings, "build")
         layout.prop(settings, "build_output")
         layout.operator("drivenshape.build_database", text="Build", icon="IMPORT")
 

@@ -289,14 +289,14 @@ class EvaluatorSettings:
     align_group='': driver vertices of the rigid fit: comma-separated OBJ group names and/or vertex indices and ranges (0-99,250); empty or all = every vertex
     blend='local': world (blend world positions, then correct) or local (bind every cloth vertex once at rest, blend the shapes' offsets in those local frames, rebuild them on the shot's driver: that is the correction)
     resolve=True: the penetration resolution: cloth inside the driver or closer than the skin offset moves out to the offset
-    skin_offset=0.002: penetration resolution: cloth closer to the driver than D (or inside it) moves out to D (0.002 = 2 mm in metre scenes)
+    skin_offset=0.002: penetration resolution: cloth closer to the driver than this distance (or inside it) moves out to it (0.002 = 2 mm in metre scenes)
     resolve_direction='nearest': penetration resolution: nearest (a vertex within the offset on its own side of the skin moves along the line from its closest point on the driver, the shortest way; one on the wrong side along the driver's pseudo-normal) or normal (every vertex along the pseudo-normal, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
-    exit_fade=0.15: penetration resolution: a vertex deep inside the body whose second-nearest exit is within K x its depth of the nearest moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
+    exit_fade=0.15: penetration resolution: a vertex deep inside the body whose two nearest exits differ by at most this factor times its depth moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
     regions=None: region-local weights: one QP per region (driver groups) mixed over the matching driven groups with a smooth falloff (a JSON file: readRegions; Python: load_regions); none = one QP on every driver row
-    max_weight_change=0.0: temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order within each batch
+    max_weight_change=0.0: temporal stability: no shape's weight changes by more than this between consecutive frames (|w_t - w_{t-1}|), frames solved in order within each batch
     layers=None: layers after the correction and the resolution: a mix with another cache, wind (command line: the --mix and --wind-* options, see Layer options; Python: load_layers); none by default
     audit=True: the per-frame audit: cloth vertices inside the driver before and after the correction, binding switches, the largest frame-to-frame jump (costs time)
-    coverage_tolerance=0.0: pose model: frames whose error bound (the predicted mean vertex error, scaled to hold on the database's verdict level of frames) exceeds D are flagged for simulation
+    coverage_tolerance=0.0: pose model: frames whose error bound (the predicted mean vertex error, scaled to hold on the database's verdict level of frames) exceeds this distance are flagged for simulation
     threads=0: host threads for the weights, the alignment, the closest-point search and EXR writing
     clearance_certificate=True: search closest points only where they can matter (the cloth and every count are bitwise the same either way; off only to measure or check the full search)
     """
@@ -365,7 +365,7 @@ class EvaluatorSettings:
     @property
     def coverage_tolerance(self) -> float:
         """
-        pose model: frames whose error bound (the predicted mean vertex error, scaled to hold on the database's verdict level of frames) exceeds D are flagged for simulation
+        pose model: frames whose error bound (the predicted mean vertex error, scaled to hold on the database's verdict level of frames) exceeds this distance are flagged for simulation
         """
     @coverage_tolerance.setter
     def coverage_tolerance(self, value: float) -> None:
@@ -373,7 +373,7 @@ class EvaluatorSettings:
     @property
     def exit_fade(self) -> float:
         """
-        penetration resolution: a vertex deep inside the body whose second-nearest exit is within K x its depth of the nearest moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
+        penetration resolution: a vertex deep inside the body whose two nearest exits differ by at most this factor times its depth moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
         """
     @exit_fade.setter
     def exit_fade(self, value: float) -> None:
@@ -389,7 +389,7 @@ class EvaluatorSettings:
     @property
     def max_weight_change(self) -> float:
         """
-        temporal stability: |w_t - w_{t-1}| <= TAU per shape, frames solved in order within each batch
+        temporal stability: no shape's weight changes by more than this between consecutive frames (|w_t - w_{t-1}|), frames solved in order within each batch
         """
     @max_weight_change.setter
     def max_weight_change(self, value: float) -> None:
@@ -421,7 +421,7 @@ class EvaluatorSettings:
     @property
     def skin_offset(self) -> float:
         """
-        penetration resolution: cloth closer to the driver than D (or inside it) moves out to D (0.002 = 2 mm in metre scenes)
+        penetration resolution: cloth closer to the driver than this distance (or inside it) moves out to it (0.002 = 2 mm in metre scenes)
         """
     @skin_offset.setter
     def skin_offset(self, value: float) -> None:
@@ -650,11 +650,11 @@ def build_database(driver_mesh: Mesh | str | os.PathLike[str], driven_mesh: Mesh
     """
     The database of reference caches (drivenshape db build). Meshes are Mesh objects or OBJ paths; caches are PointCache objects, paths (PC2, EXR pattern) or arrays (F, V, 3) whose first frame is start_frame. frames: candidates (default every frame of the driver cache); add_frames are always kept, remove_frames never. also: more reference clips the pose model is fitted on (db build --also), each (driver_cache, driven_cache) or (driver_cache, driven_cache, frames). log: a file-like object that receives the pick log. The settings are keywords, db build's options without their dashes (a value is read as db build reads its text; an unknown keyword or a value it refuses is an Error):
       count (--count, default 30): shapes to keep (fewer if the clip runs out of distinct ones)
-      duplicate_tolerance (--duplicate-tolerance, default 0.001): reject shapes within X * driver bbox diagonal (RMS) of a kept one
+      duplicate_tolerance (--duplicate-tolerance, default 0.001): reject shapes within this share of the rest driver's diagonal (RMS) of a kept one (of the driver's bounding-box diagonal)
       model (--model, default pose): pose: also fit the pose model over every candidate frame (the rest binding plus a learned correction; what `bake` evaluates by default); none: the picks only
       model_parts (--model-parts, default 0): rigid parts of the driver the pose model reads its joints from (0 = as many as the clip shows)
-      model_velocity (--model-velocity, default 3): frames back the pose model's velocity feature looks (0 = no velocity)
-      model_history (--model-history, default auto): frames the pose model's history feature averages (0 = no history; auto = 15 with one or two reference clips, 30 with three or more)
+      model_velocity (--model-velocity, default 3): frames back the pose model's velocity feature looks (frames) (0 = no velocity)
+      model_history (--model-history, default auto): frames the pose model's history feature averages (auto = 15 with one or two reference clips, 30 with three or more) (frames) (0 = no history)
       model_siblings (--model-siblings, default 0.5): weight of the pose model's sibling features: the relative rotation of each pair of parts with the same parent (two thighs), so the cloth between them sees both (0 = off)
       model_rank (--model-rank, default 64): basis shapes the pose model keeps
       model_per_clip (--model-per-clip, default auto): models of each reference clip mixed into the pose model's prediction by how close a pose is to each clip (W = the weight of the model over every clip): auto = with three or more clips, the weight of 10, 3 or 1 that best predicts each clip left out in turn, when at least 1% better than none; off = none
@@ -686,9 +686,21 @@ def load_database(path: str | os.PathLike[str]) -> Database:
     """
     Reads and verifies a database file.
     """
-def load_layers(database: Database, *, mix_cache: str | None = None, mix_weight: str | None = None, mix_falloff: int = 3, wind_amplitude: float = 0.0, wind_frequency: float = 1.0, wind_direction: collections.abc.Sequence[float] = (1.0, 0.0, 0.0), wind_speed: float = 1.0, wind_octaves: int = 3, wind_seed: int = 1, wind_weight: str | None = None, wind_falloff: int = 0, frames_per_second: float = 24.0) -> LayerSettings:
+def load_layers(database: Database, **kwargs: str | int | float | collections.abc.Sequence[float] | None) -> LayerSettings:
     """
-    loadLayers: the bake's --mix, --mix-weight, --mix-falloff, --wind-* and --fps as keywords; weight maps are .json, .exr or group:NAME specs (see docs/commands.md)
+    loadLayers: the layers of the bake's --mix, --mix-weight, --mix-falloff, --wind-* and --fps, given as keywords named as the settings table names them (a value is read as the command line reads its text; None keeps the default; an unknown keyword or a value it refuses is an Error); weight maps are .json, .exr or group:NAME specs (see docs/commands.md):
+      frames_per_second (--fps, default 24): written to the EXR headers; the wind's time is frame / X
+      mix_cache (--mix, default none): mix the result per vertex with another cache of the driven mesh (a simulated hood, a skinned mesh): .pc2 or name.####.exr, every baked frame present; empty: no mix
+      mix_weight (--mix-weight, default none): w of out = w DrivenShape + (1 - w) mix cache per vertex, 1 keeping the DrivenShape result: a .json array with one number in [0, 1] per driven vertex, a one-channel point-cache .exr, or group:NAME[,NAME] (faces of the driven OBJ's groups); needed with a mix cache
+      mix_falloff (--mix-falloff, default 3): soften the mix weight map's edge across this many edge rings (edge rings) (0 = hard edge)
+      wind_amplitude (--wind-amplitude, default 0): procedural wind: the largest displacement per axis (scene units) (0 = no wind)
+      wind_frequency (--wind-frequency, default 1): noise cells per scene unit of the first octave (1/size of the largest gusts)
+      wind_direction (--wind-direction, default 1,0,0): the direction the gusts travel (normalised)
+      wind_speed (--wind-speed, default 1): how fast the gusts travel (scene units per second) (0 = a still pattern)
+      wind_octaves (--wind-octaves, default 3): noise octaves, each twice as fine and half as strong
+      wind_seed (--wind-seed, default 1): noise seed (another seed, another wind)
+      wind_weight (--wind-weight, default none): where the wind blows (1) or not (0), a weight map as the mix's; empty: everywhere
+      wind_falloff (--wind-falloff, default 0): soften the wind weight map's edge across this many edge rings (edge rings) (0 = hard edge)
     """
 def load_regions(path: str | os.PathLike[str], database: Database) -> RegionSet:
     """

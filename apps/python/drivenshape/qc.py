@@ -49,7 +49,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import (Error, Mesh, PointCache, _files, format_frame_range, open_point_cache, read_obj,
-               verdict_holds)
+               settings_table, verdict_holds)
 
 if TYPE_CHECKING:  # matplotlib is imported where the plots are drawn, not with the module
     from matplotlib.axes import Axes
@@ -1190,41 +1190,55 @@ def on_off(value: object) -> str:
     return "on" if value else "off"
 
 
+def setting_rows() -> dict[str, _Json]:
+    """The settings table's rows (drivenshape.settings_table()) by each entry they write into the
+    report's settings: where the page finds a setting's label and unit."""
+    rows: dict[str, _Json] = {}
+    for row in settings_table():
+        for entry in row["report"]:
+            rows.setdefault(entry["path"], row)
+    return rows
+
+
+def setting_text(key: str, value: object, rows: dict[str, _Json], units: Units) -> str:
+    """"skin offset 2.0 mm": a setting of the report by its label in the settings table, a
+    length (the table's unit: scene units) in the page's unit."""
+    row = rows.get(key)
+    label = row["label"] if row else key.replace("_", " ")
+    if isinstance(value, bool):
+        return f"{label} {on_off(value)}"
+    if row is not None and row["unit"] == "scene units" and isinstance(value, (int, float)):
+        return f"{label} {units.with_unit(float(value))}"
+    if isinstance(value, float):
+        return f"{label} {value:g}"
+    return f"{label} {value}"
+
+
 def settings_text(settings: _Json, units: Units) -> str:
-    """The settings a supervisor asks about, lengths in the page's unit."""
-    parts = [f"weights {settings.get('weights')}"]
-    if "align" in settings:
-        parts.append(f"align {settings['align']}")
-    if "blend" in settings:
-        parts.append(f"blend {settings['blend']}")
-    if "correct" in settings:
-        parts.append(f"correction {on_off(settings['correct'])}")
+    """The settings a supervisor asks about, by the settings table's labels, lengths in the
+    page's unit; the resolution's own settings with it, when it is on."""
+    rows = setting_rows()
+
+    def text(key: str) -> str:
+        return setting_text(key, settings[key], rows, units)
+
+    parts = [text(key) for key in ("weights", "align", "blend", "correct") if key in settings]
     if "resolve" in settings:
-        resolve = f"resolution {on_off(settings['resolve'])}"
-        if settings["resolve"] and is_number(settings.get("skin_offset")):
-            resolve += f" (skin offset {units.with_unit(settings['skin_offset'])}"
-            if settings.get("resolve_direction"):
-                resolve += f", {settings['resolve_direction']} direction"
-            if is_number(settings.get("exit_fade")):
-                resolve += f", exit fade {settings['exit_fade']:g}"
-            resolve += ")"
-        parts.append(resolve)
-    if "audit" in settings:
-        parts.append(f"audit {on_off(settings['audit'])}")
-    if is_number(settings.get("coverage_tolerance")):
-        parts.append(f"coverage tolerance {units.with_unit(settings['coverage_tolerance'])}")
+        resolve = text("resolve")
+        details = [text(key) for key in ("skin_offset", "resolve_direction", "exit_fade")
+                   if settings["resolve"] and key in settings]
+        parts.append(resolve + (f" ({', '.join(details)})" if details else ""))
+    parts += [text(key) for key in ("audit", "coverage_tolerance") if key in settings]
     if settings.get("max_weight_change"):
-        parts.append(f"max weight change {settings['max_weight_change']:g}")
+        parts.append(text("max_weight_change"))
     if settings.get("regions"):
-        parts.append(f"{len(settings['regions'])} regions ({settings.get('regions_file', '')})")
+        parts.append(f"{len(settings['regions'])} {rows['regions']['label']} "
+                     f"({settings.get('regions_file', '')})")
     if settings.get("binding_mask"):
-        parts.append(f"binding mask {settings['binding_mask']}")
+        parts.append(text("binding_mask"))
     if settings.get("layers"):
-        parts.append("layers " + ", ".join(sorted(settings["layers"])))
-    if "batch" in settings:
-        parts.append(f"batch {settings['batch']}")
-    if "compression" in settings:
-        parts.append(f"{settings['compression']} compression")
+        parts.append(f"{rows['layers']['label']} " + ", ".join(sorted(settings["layers"])))
+    parts += [text(key) for key in ("batch", "compression") if key in settings]
     return "; ".join(parts)
 
 

@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// The settings table: every evaluator and bake setting declared once, with its names, type,
-// default, range, unit, help, whether it enters the settings hash and which models use it.
-// The command line's options and --help, the Python module's EvaluatorSettings keywords,
-// attributes and repr, the settings hash, the report's settings block, Evaluator::
-// describeSettings, the add-on's property test and the options table of docs/commands.md all
-// read it (docs/contributing.md: "Adding an evaluator setting").
+// The settings table: every setting of every tool declared once, with its names, type,
+// default, range, unit, help, whether it enters the settings hash and which models use it:
+// the evaluator's and the bake's, the layers' (mix, wind) and `db build`'s. The command line's
+// options and --help, the Python module's EvaluatorSettings, load_layers and build_database
+// keywords, the settings hash, the report's settings block and its schema, Evaluator::
+// describeSettings, the Blender add-on's properties and panels and the options tables of
+// docs/commands.md all read it (docs/contributing.md: "Adding an evaluator setting").
 //
 //   for (const drivenshape::Setting& setting : drivenshape::settingsTable()) {
 //     std::cout << setting.key << " = " << formatSettingValue(defaultSettingValue(setting));
@@ -15,11 +16,14 @@
 //   setSetting(findSetting("skin_offset"), settings, 0.003);  // checked: Error(kUsage) if < 0
 
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
 #include <drivenshape/bake_options.h>
+#include <drivenshape/database.h>
 #include <drivenshape/evaluator.h>
+#include <drivenshape/layers.h>
 
 namespace drivenshape {
 
@@ -35,9 +39,10 @@ enum class SettingType {
             ///< path, where the bake has one (its value is that path, as text)
 };
 
-/// Where a setting lives: EvaluatorSettings (the Evaluator's; also BakeOptions::evaluator) or
-/// BakeOptions alone (what the bake adds around the Evaluator).
-enum class SettingScope { kEvaluator, kBake };
+/// Where a setting lives: EvaluatorSettings (the Evaluator's; also BakeOptions::evaluator),
+/// BakeOptions alone (what the bake adds around the Evaluator), LayerOptions (the layers: mix
+/// and wind; also BakeOptions::layers) or DatabaseBuildOptions (`db build`).
+enum class SettingScope { kEvaluator, kBake, kLayer, kBuild };
 
 /// What becomes of a setting set away from its default that the other settings leave unused
 /// (an exit fade without the resolution): refused (Error(kUsage)) or run with a warning.
@@ -65,6 +70,13 @@ struct Setting {
   SettingType type = SettingType::kNumber;
   double minimum = 0;  ///< kInt and kNumber: the range, inclusive (checkSettingValue)
   double maximum = 0;
+  /// kInt and kNumber: words that stand for a value outside the range or beside it
+  /// (model_history's "auto" for kAutoHistory); a command line gives the word, never the number.
+  std::vector<std::pair<std::string, double>> words;
+  /// What the setting takes, in words, where the range does not say it all (with `accepts`).
+  const char* takes = nullptr;
+  /// The check beyond the range (model_parts: not 1); nullptr: the range is the check.
+  bool (*accepts)(const SettingValue& value) = nullptr;
   const char* unit = "";             ///< "scene units", "frames", ... ("" for none)
   const char* zero = "";             ///< what 0 means ("off", "all cores"), or ""
   const char* help = "";             ///< one or more sentences, for --help, Python and the docs
@@ -76,48 +88,67 @@ struct Setting {
   bool (*used)(const SettingsView& settings) = nullptr;
   const char* usedWhen = "";  ///< `used` in words: "with the penetration resolution (resolve)"
   WhenUnused whenUnused = WhenUnused::kWarn;
-  /// Access to the value (nullptr for kObject in EvaluatorSettings and for the other scope).
+  /// Access to the value (nullptr for kObject in EvaluatorSettings and for the other scopes).
   SettingValue (*getEvaluator)(const EvaluatorSettings&) = nullptr;
   void (*setEvaluator)(EvaluatorSettings&, const SettingValue&) = nullptr;
   SettingValue (*getBake)(const BakeOptions&) = nullptr;
   void (*setBake)(BakeOptions&, const SettingValue&) = nullptr;
+  SettingValue (*getLayer)(const LayerOptions&) = nullptr;
+  void (*setLayer)(LayerOptions&, const SettingValue&) = nullptr;
+  SettingValue (*getBuild)(const DatabaseBuildOptions&) = nullptr;
+  void (*setBuild)(DatabaseBuildOptions&, const SettingValue&) = nullptr;
 };
 
-/// Every setting, in the order of the settings hash (then the ones it does not hash).
+/// Every setting, in the order of the settings hash (then the ones it does not hash, then the
+/// layers' and `db build`'s).
 const std::vector<Setting>& settingsTable();
+/// The settings of `scope`, in table order.
+std::vector<const Setting*> settingsOfScope(SettingScope scope);
 /// The setting named `key` ("exit_fade"), or nullptr.
 const Setting* findSettingByKey(const std::string& key);
 /// The same; Error(kUsage) naming the unknown key.
 const Setting& findSetting(const std::string& key);
 
-/// Whether `setting` has a value in EvaluatorSettings (kObject settings have none) or in
-/// BakeOptions (bake settings, evaluator settings with a value, file paths of kObject ones).
+/// Whether `setting` has a value in EvaluatorSettings (kObject settings have none), in
+/// BakeOptions (bake settings, evaluator settings with a value, file paths of kObject ones, the
+/// layers' through BakeOptions::layers), in LayerOptions or in DatabaseBuildOptions.
 bool hasEvaluatorValue(const Setting& setting);
 bool hasBakeValue(const Setting& setting);
+bool hasLayerValue(const Setting& setting);
+bool hasBuildValue(const Setting& setting);
 
 /// The value of `setting` in `settings` / `options`. Error(kUsage) where it has none there.
 SettingValue settingValue(const Setting& setting, const EvaluatorSettings& settings);
 SettingValue settingValue(const Setting& setting, const BakeOptions& options);
-/// The default (that of a default-constructed BakeOptions).
+SettingValue settingValue(const Setting& setting, const LayerOptions& options);
+SettingValue settingValue(const Setting& setting, const DatabaseBuildOptions& options);
+/// The default (that of a default-constructed BakeOptions, or DatabaseBuildOptions for `db
+/// build`'s).
 SettingValue defaultSettingValue(const Setting& setting);
 /// Sets `setting` to `value` after checkSettingValue. Error(kUsage) naming the setting for a
 /// value of the wrong type or out of range, or a setting without a value there.
 void setSetting(const Setting& setting, EvaluatorSettings& settings, const SettingValue& value);
 void setSetting(const Setting& setting, BakeOptions& options, const SettingValue& value);
+void setSetting(const Setting& setting, LayerOptions& options, const SettingValue& value);
+void setSetting(const Setting& setting, DatabaseBuildOptions& options, const SettingValue& value);
 
 /// The one check of a value, whichever tool set it: its type, a kChoice's spelling, a number's
-/// range (finite). Error(kUsage) naming the setting (label, key and flag) and its range.
+/// range (finite; a word's value passes) and `accepts`. Error(kUsage) naming the setting
+/// (label, key and flag), what it takes and the value.
 void checkSettingValue(const Setting& setting, const SettingValue& value);
 /// checkSettingValue on every value of `settings` (the Evaluator runs it) / of `options`'
 /// bake settings (the bake runs it).
 void checkSettings(const EvaluatorSettings& settings);
 void checkBakeSettings(const BakeOptions& options);
 
-/// Text to a value of `setting`'s type (command lines, farm job files): Error(kUsage) naming
-/// the flag for text that is not a number or not a choice. Not range-checked (setSetting is).
+/// Text to a value of `setting`'s type (command lines, farm job files, build_database's
+/// keywords): one of its words, a number or a choice; Error(kUsage) naming the setting and
+/// quoting the text for anything else, a number out of range included (checkSettingValue).
 SettingValue parseSettingValue(const Setting& setting, const std::string& text);
 /// "0.15", "true", "local", "" (shortest text that reads back to the same value).
 std::string formatSettingValue(const SettingValue& value);
+/// The same, or the word that stands for the value ("auto"): text parseSettingValue reads back.
+std::string formatSettingValue(const Setting& setting, const SettingValue& value);
 
 /// A setting that the other settings leave unused, and what to say about it.
 struct UnusedSetting {
@@ -139,9 +170,14 @@ std::vector<std::string> refuseUnusedSettings(const std::vector<UnusedSetting>& 
 std::string describeBakeSettings(const BakeOptions& options);
 
 /// The table as JSON text: an array of objects (key, label, flag, scope, type, default,
-/// minimum, maximum, unit, zero, choices, help, hashed, report_key, used_when, when_unused).
+/// minimum, maximum, words, takes, unit, zero, choices, help, hashed, report_key, report,
+/// used_when, when_unused, addon: what scripts/generate_from_settings.py makes the add-on's
+/// properties and the report schema's settings from).
 std::string settingsTableJson();
-/// The table as the Markdown table of docs/commands.md ("Settings").
+/// The table as the Markdown table of docs/commands.md ("Settings": the evaluator's and the
+/// bake's settings).
 std::string settingsTableMarkdown();
+/// The layers' (SettingScope::kLayer) or `db build`'s (kBuild) options as a Markdown table.
+std::string settingsTableMarkdown(SettingScope scope);
 
 }  // namespace drivenshape
