@@ -16,7 +16,7 @@ device=${1:?usage: device_check.sh DEVICE_NAME [OUT_DIR]}
 out=${2:-out/device_check}
 build=${DRIVENSHAPE_BUILD:-build}
 ds=$build/apps/drivenshape
-bench=$build/apps/drivenshape_bench
+bench=$build/bench/drivenshape_bench
 data=tests/data/sleeve
 mkdir -p "$out/bake"
 export DS_TEST_DEVICE=$device # the OpenCL tests take the first device whose name contains it

@@ -1,14 +1,18 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: Apache-2.0
-"""Lists the longest functions (lines from signature to closing brace) in C++ sources.
+"""Lists the longest functions in C++ and Python sources (lines from signature to end of body).
 
   scripts/function_sizes.py [--top N] [--rev COMMIT] [--max PATH=N,...] [PATHS...]
                                                      (default: src, or the --max paths)
 
-A brace-matching heuristic, not a parser: a function starts at a line that opens a block after
-a parameter list `(...)` and is not a control statement, a lambda, a class or a namespace; it
-ends at the matching brace. Comments and string literals are stripped first. With --rev the
-files are read from that commit (git show), to compare before and after a change.
+C++ (.cpp, .h): a brace-matching heuristic, not a parser: a function starts at a line that
+opens a block after a parameter list `(...)` and is not a control statement, a lambda, a class
+or a namespace; it ends at the matching brace. Comments and string literals are stripped first.
+Python (.py): parsed with the `ast` module; every function and method (a `def` at module level
+or in a class body, classes nested or not) counts from its `def` line to the last line of its
+body (end_lineno; decorators excluded, its docstring and nested functions included), named
+`Class.method` for methods. With --rev the files are read from that commit (git show), to
+compare before and after a change.
 
 With --max (e.g. `--max apps=80,src=120`, the limits of docs/contributing.md and of the CTest
 function_sizes), every function under a PATH longer than its N lines is listed after the top
@@ -16,6 +20,7 @@ ones, and the exit status is 1 if there is any (the longest PATH that holds a fi
 limit; files under no PATH have none).
 """
 import argparse
+import ast
 import re
 import subprocess
 import sys
@@ -69,6 +74,25 @@ def functions(path, text):
     return found
 
 
+def python_functions(path, text):
+    """(length, path, start line, name) of every function and method of a Python source."""
+    found = []
+
+    def visit(node, prefix):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = child.end_lineno - child.lineno + 1
+                found.append((length, path, child.lineno, f"def {prefix}{child.name}"))
+            elif isinstance(child, ast.ClassDef):
+                visit(child, f"{prefix}{child.name}.")
+
+    visit(ast.parse(text, filename=path), "")
+    return found
+
+
+SOURCES = {".cpp": functions, ".h": functions, ".py": python_functions}
+
+
 def parse_limits(text):
     """`apps=80,src=120` -> {("apps",): 80, ("src",): 120} (paths as their parts)."""
     limits = {}
@@ -119,15 +143,17 @@ def main():
         names = subprocess.run(["git", "ls-tree", "-r", "--name-only", args.rev, *args.paths],
                                capture_output=True, text=True, check=True).stdout.split()
         for name in names:
-            if name.endswith((".cpp", ".h")):
+            reader = SOURCES.get(Path(name).suffix)
+            if reader:
                 text = subprocess.run(["git", "show", f"{args.rev}:{name}"], capture_output=True,
                                       text=True, check=True).stdout
-                results += functions(name, text)
+                results += reader(name, text)
     else:
         for root in args.paths:
             for path in sorted(Path(root).rglob("*")):
-                if path.suffix in (".cpp", ".h"):
-                    results += functions(str(path), path.read_text(errors="replace"))
+                reader = SOURCES.get(path.suffix)
+                if reader and path.is_file():
+                    results += reader(str(path), path.read_text(errors="replace"))
     results.sort(reverse=True)
     for length, path, start, name in results[: args.top]:
         print(f"{length:5d}  {path}:{start}  {name}")

@@ -46,7 +46,7 @@
 //
 // Cost. Refit: one pass over the triangles and nodes per frame. Query: with a seed near the
 // answer, the walk opens the leaves whose boxes reach within the best distance of p; on the
-// W1-like scene of tests/bench/bench_correction (cloth about two triangle sizes off the body)
+// W1-like scene of bench/bench_correction (cloth about two triangle sizes off the body)
 // that is about 24 triangle distances and 40 box distances per point, against about 23
 // candidates per point (each measured twice) plus the KD-tree builds and queries of the host
 // search.

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Live-mode frame rate of the Blender add-on in a real Blender (a benchmark, not a test).
 
-    blender -b --factory-startup --python scripts/blender_live_bench.py -- \
+    blender -b --factory-startup --python bench/blender_live_bench.py -- \
         [--scene sleeve|pants|DIR] [--passes 3] [--audit] [--device auto] [--json OUT.json]
 
 DRIVENSHAPE_PYTHONPATH must name the folder that holds the drivenshape module (build/python).

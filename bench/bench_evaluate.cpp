@@ -161,7 +161,7 @@ int run(const std::vector<std::string>& args) {
   if (device->isOpenCl()) {
     // The same device with every block staged through host memory: the transfers before
     // blocks stayed on the device.
-    ds::cli::HostStagingDevice staging(*device);
+    ds::bench::HostStagingDevice staging(*device);
     json["opencl_host_staging"] =
         report("same, staged on host",
                measure(db, settings, staging, frames, driver, batch, repeat), batch);

@@ -280,7 +280,7 @@ ds::BakeResult bakeOpenCl(const ds::cli::ArgParser& parser, Bench& bench) {
 
 /// The OpenCL device with every block staged through host memory, into the report.
 void bakeHostStaged(Bench& bench) {
-  ds::cli::HostStagingDevice staging(bench.device);
+  ds::bench::HostStagingDevice staging(bench.device);
   ds::BakeOptions options = bench.options;
   options.outputPattern = (bench.root / "cl-host-staging" / "shot.####.exr").string();
   const ds::TransferCounts start = bench.device.transfers();

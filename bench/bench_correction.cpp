@@ -42,6 +42,7 @@
 #include "parallel.h"
 
 #include "cl_backends.h"
+#include "opencl_queue.h"
 
 #include "candidates.h"
 #include "triangle_distance.h"
@@ -214,26 +215,10 @@ int run(const Options& options) {
   std::vector<SurfaceHit> hits(frames * vd);
   std::vector<float> corrected(frames * 3 * vd);
 
-  std::vector<cl::Platform> platforms;
-  cl::Platform::get(&platforms);
-  cl::Device device;
-  bool found = false;
-  for (cl::Platform& platform : platforms) {
-    std::vector<cl::Device> devices;
-    platform.getDevices(CL_DEVICE_TYPE_ALL, &devices);
-    for (cl::Device& candidate : devices) {
-      if (!found && candidate.getInfo<CL_DEVICE_NAME>().find(options.device) != std::string::npos) {
-        device = candidate;
-        found = true;
-      }
-    }
-  }
-  if (!found) {
-    DS_THROW(kDevice, "no OpenCL device", options.device.empty() ? "" : " matching ",
-             options.device);
-  }
-  cl::Context context(device);
-  cl::CommandQueue queue(context, device);
+  drivenshape::bench::OpenClQueue opened = drivenshape::bench::openClQueue(options.device);
+  cl::Device& device = opened.device;
+  cl::Context& context = opened.context;
+  cl::CommandQueue& queue = opened.queue;
 
   drivenshape::ClosestOptions closestOptions;
   closestOptions.threads = options.threads;

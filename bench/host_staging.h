@@ -4,7 +4,7 @@
 // For the benchmarks' before/after transfer counts: a Device whose backends take every block of
 // frames through host memory, as the pipeline did before blocks stayed on the device (every
 // kernel call uploads its inputs and reads its outputs back, and inside counts are made on the
-// host). Results are the same bits.
+// host, by the library's host backend). Results are the same bits.
 
 #include <cstdint>
 #include <memory>
@@ -16,23 +16,23 @@
 #include "closest.h"
 #include "stages.h"
 
-namespace drivenshape::cli {
+namespace drivenshape::bench {
 
 /// A closest-point backend reached only through its host-memory calls: the block calls run
-/// ClosestBackend's defaults on the arrays' host copies, and inside counts use InsideAudit.
+/// ClosestBackend's defaults on the arrays' host copies, and inside counts are the library's
+/// host backend's (makeHostClosest, on one thread, as the pipeline counted them before).
 class HostStagingClosest final : public ClosestBackend {
  public:
-  explicit HostStagingClosest(std::unique_ptr<ClosestBackend> inner) : mInner(std::move(inner)) {}
+  explicit HostStagingClosest(std::unique_ptr<ClosestBackend> inner)
+      : mInner(std::move(inner)), mHost(makeHostClosest(hostOptions())) {}
   std::string name() const override { return mInner->name(); }
   void setSurface(const Mesh& driver, const BindingMask& mask) override {
     mInner->setSurface(driver, mask);
-    mInside = std::make_unique<InsideAudit>(driver);
-    mPointCount = mask.drivenVertexCount();
-    mSides.clear();
+    mHost->setSurface(driver, mask);
   }
   void setSides(const std::vector<std::int8_t>& sides) override {
     mInner->setSides(sides);
-    mSides = sides;
+    mHost->setSides(sides);
   }
   void setExitFade(float fade) override { mInner->setExitFade(fade); }
   void setAlongNormal(bool alongNormal) override { mInner->setAlongNormal(alongNormal); }
@@ -53,16 +53,18 @@ class HostStagingClosest final : public ClosestBackend {
   }
   void countInside(int f, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override {
-    mInside->countInsideFrames(f, poses.read<float>(), mPointCount, points.read<float>(),
-                               hits.read<SurfaceHit>(), inside, 1,
-                               mSides.empty() ? nullptr : mSides.data());
+    mHost->countInside(f, poses, hits, points, inside);
   }
 
  private:
+  static ClosestOptions hostOptions() {
+    ClosestOptions options;
+    options.threads = 1;
+    return options;
+  }
+
   std::unique_ptr<ClosestBackend> mInner;
-  std::unique_ptr<InsideAudit> mInside;
-  int mPointCount = 0;
-  std::vector<std::int8_t> mSides;
+  std::unique_ptr<ClosestBackend> mHost;  ///< the inside counts only
 };
 
 /// Projection and blend through their host-memory calls only.
@@ -104,4 +106,4 @@ class HostStagingDevice final : public Device {
   Device& mDevice;
 };
 
-}  // namespace drivenshape::cli
+}  // namespace drivenshape::bench

@@ -14,6 +14,7 @@
 #include <drivenshape/error.h>
 
 #include "cl_backends.h"
+#include "opencl_queue.h"
 #include "stages.h"
 
 #include <algorithm>
@@ -164,26 +165,10 @@ int run(const Options& options) {
 
   // The device: the first one, or the first whose name contains --device (the library never
   // picks one; this program does).
-  std::vector<cl::Platform> platforms;
-  cl::Platform::get(&platforms);
-  cl::Device device;
-  bool found = false;
-  for (cl::Platform& platform : platforms) {
-    std::vector<cl::Device> devices;
-    platform.getDevices(CL_DEVICE_TYPE_ALL, &devices);
-    for (cl::Device& candidate : devices) {
-      if (!found && candidate.getInfo<CL_DEVICE_NAME>().find(options.device) != std::string::npos) {
-        device = candidate;
-        found = true;
-      }
-    }
-  }
-  if (!found) {
-    DS_THROW(kDevice, "no OpenCL device", options.device.empty() ? "" : " matching ",
-             options.device);
-  }
-  cl::Context context(device);
-  cl::CommandQueue queue(context, device);
+  drivenshape::bench::OpenClQueue opened = drivenshape::bench::openClQueue(options.device);
+  cl::Device& device = opened.device;
+  cl::Context& context = opened.context;
+  cl::CommandQueue& queue = opened.queue;
 
   std::unique_ptr<StageBackend> backends[] = {drivenshape::makeHostStages(),
                                               drivenshape::makeClStages(context, device, queue)};
