@@ -8,7 +8,7 @@ room that implements it, listed in PUBLIC_ROOMS below; a public header missing f
 is an error, so a new one is placed on purpose. The OpenCL kernels' shared headers (kernels/,
 also reached as <drivenshape_kernels/NAME_cl.h>) are plain types every room may see.
 
-Every quoted include in src/, apps/ and tests/ must also name a file inside the repository:
+Every quoted include in src/, apps/, bench/ and tests/ must also name a file inside the repository:
 an absolute path, or a relative one that leaves the clone or names nothing there, is an error.
 
   python3 scripts/check_layers.py              # check; exit 1 naming each offending line
@@ -76,7 +76,7 @@ def room_of(path, src):
 
 def resolve_quoted(source, name, root, private):
     """The file a quoted include names (its own folder, the private path, then any folder of
-    apps/, tests/ or kernels/ that a target adds to its include path), or None."""
+    apps/, bench/, tests/ or kernels/ that a target adds to its include path), or None."""
     if name.startswith("/"):
         return None
     beside = (source.parent / name).resolve()
@@ -84,7 +84,7 @@ def resolve_quoted(source, name, root, private):
         return beside
     if "/" not in name and name in private:
         return private[name][1]
-    for folder in ("kernels", "apps", "tests"):
+    for folder in ("kernels", "apps", "bench", "tests"):
         for candidate in (root / folder).rglob(Path(name).name):
             if candidate.is_file() and candidate.as_posix().endswith("/" + name):
                 return candidate.resolve()
@@ -100,7 +100,7 @@ def check(root):
         if name not in PUBLIC_ROOMS:
             problems.append(f"{header.relative_to(root)}: a public header of no room; add it to "
                             "PUBLIC_ROOMS in scripts/check_layers.py")
-    for folder in ("src", "apps", "tests"):
+    for folder in ("src", "apps", "bench", "tests"):
         for path in sorted((root / folder).rglob("*")):
             if path.suffix not in (".h", ".cpp", ".in") or not path.is_file():
                 continue
@@ -141,7 +141,7 @@ def self_test():
     """Copies the tree, adds an upward include to a core file, and expects the check to fail."""
     with tempfile.TemporaryDirectory() as folder:
         copy = Path(folder) / "tree"
-        for part in ("src", "apps", "tests", "kernels", "scripts"):
+        for part in ("src", "apps", "bench", "tests", "kernels", "scripts"):
             shutil.copytree(ROOT / part, copy / part)
         if check(copy):
             print("check_layers --self-test: the tree fails before the change", file=sys.stderr)
