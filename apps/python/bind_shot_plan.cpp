@@ -62,7 +62,8 @@ std::string describe(const BatchPlan& batch) {
 }
 
 /// The bake result the report of an evaluated shot states: its records (each written to
-/// `output` unless it names its own file), device, settings hash, warnings and seconds ("read", "write", "setup", "total" and the stages by name).
+/// `output` unless it names its own file), device, settings hash, warnings and seconds ("read",
+/// "write", "setup", "total" and the stages by name).
 BakeResult shotResult(const Evaluator& evaluator, const std::vector<FrameRecord>& records,
                       const std::string& output, const std::map<std::string, double>& seconds,
                       const std::vector<std::string>& warnings) {
@@ -88,7 +89,7 @@ BakeResult shotResult(const Evaluator& evaluator, const std::vector<FrameRecord>
   return result;
 }
 
-void bindShotReport(py::module_& module) {
+void bindShotChecks(py::module_& module) {
   module.def(
       "check_driver_scale",
       [](const Database& database, const PointCacheReader& driver, types::Frames frames) {
@@ -112,7 +113,8 @@ void bindShotReport(py::module_& module) {
         std::sort(frames.begin(), frames.end());
         frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
         std::vector<std::tuple<int, int, int>> out;
-        for (const SimulationRun& run : simulationRuns(frames, frameNumber(first, "first"), runUp)) {
+        for (const SimulationRun& run :
+             simulationRuns(frames, frameNumber(first, "first"), runUp)) {
           out.emplace_back(run.from, run.to, run.wanted);
         }
         return out;
@@ -121,14 +123,16 @@ void bindShotReport(py::module_& module) {
       "The flagged frames as cloth simulation runs [(from, to, wanted)], as the bake report's "
       "coverage.simulate_runs gives them: each run of consecutive frames starts `run_up` frames "
       "earlier (never before `first`, the shot's first frame); runs that then touch merge.");
+}
+
+void bindShotReport(py::module_& module) {
   module.def(
       "shot_verdict",
       [](types::EvaluatorObject evaluatorObject,
          const std::vector<FrameRecord>& records) -> std::optional<types::JsonDict> {
         const Evaluator& evaluator = evaluatorOf(evaluatorObject);
-        const std::string text =
-            coverageVerdictJson(records, evaluator.coverageTolerance(),
-                                evaluator.database().poseModel.verdictLevel);
+        const std::string text = coverageVerdictJson(records, evaluator.coverageTolerance(),
+                                                     evaluator.database().poseModel.verdictLevel);
         if (text == "null") {
           return std::nullopt;
         }
@@ -161,18 +165,18 @@ void bindShotReport(py::module_& module) {
       py::arg("evaluator"), py::arg("records"), py::arg("driver"), py::arg("output"),
       py::arg("seconds") = std::map<std::string, double>(),
       py::arg("warnings") = std::vector<std::string>(), py::arg("batch") = kDefaultBatchFrames,
-      py::arg("temporal_warmup") = kDefaultTemporalWarmup,
-      py::arg("frames_per_second") = 24.0,
+      py::arg("temporal_warmup") = kDefaultTemporalWarmup, py::arg("frames_per_second") = 24.0,
       "The JSON text of the bake report `drivenshape bake --report` writes "
       "(docs/schemas/bake_report.schema.json) for `records` evaluated by `evaluator` from the "
       "driver file `driver` into `output` (each record's output unless it names its own): the "
-      "settings, every frame's record and the shot's coverage verdict. settings_hash is the evaluator's (an EXR bake's also covers its file "
-      "options).");
+      "settings, every frame's record and the shot's coverage verdict. settings_hash is the "
+      "evaluator's (an EXR bake's also covers its file options).");
 }
 
 }  // namespace
 
 void bindShotPlan(py::module_& module) {
+  bindShotChecks(module);
   bindShotReport(module);
   py::class_<BatchPlan>(module, "BatchPlan",
                         "One evaluator call of a plan: reset the temporal state when `restart`, "
