@@ -654,6 +654,22 @@ void checkFileChecksum(const std::string& path, const std::string& bytes,
   if (!header.is_object() || !header.contains(kFileChecksumKey)) {
     return;
   }
+  // A short file is said to be truncated (as without a checksum), not merely corrupted.
+  if (header.contains("blocks") && header.at("blocks").is_array()) {
+    for (const json& entry : header.at("blocks")) {
+      const json* offset =
+          entry.is_object() && entry.contains("offset") ? &entry.at("offset") : nullptr;
+      const json* size =
+          entry.is_object() && entry.contains("bytes") ? &entry.at("bytes") : nullptr;
+      if (offset != nullptr && size != nullptr && offset->is_number_unsigned() &&
+          size->is_number_unsigned() &&
+          (offset->get<std::uint64_t>() > bytes.size() ||
+           size->get<std::uint64_t>() > bytes.size() - offset->get<std::uint64_t>())) {
+        DS_THROW(kInput, "'", path, "' is truncated (", bytes.size(),
+                 " bytes; its blocks run past the end); copy or rebuild it");
+      }
+    }
+  }
   const json& stored = header.at(kFileChecksumKey);
   std::uint64_t expected = 0;
   const std::size_t digits = fileChecksumDigits(bytes, headerLength);
