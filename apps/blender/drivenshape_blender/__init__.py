@@ -21,8 +21,8 @@ if "bpy" in locals():
     # F8 / "Reload Scripts": reload the submodules in dependency order.
     import importlib
 
-    for _name in ("module", "engine", "coverage", "live", "bake", "properties", "operators",
-                  "ui"):
+    for _name in ("settings_generated", "module", "engine", "coverage", "live", "bake",
+                  "properties", "operators", "ui"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
@@ -36,6 +36,7 @@ from . import (  # noqa: E402,F401
     module,
     operators,
     properties,
+    settings_generated,
     ui,
 )
 

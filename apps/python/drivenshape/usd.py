@@ -892,18 +892,6 @@ def _bake_parser(commands: Any) -> None:
         help="accept a driver whose faces differ from the database's (the vertex count must "
              "still match)")
     _add_settings(add)
-    add("--mix", metavar="CACHE", help="mix with another cache of the driven mesh")
-    add("--mix-weight", metavar="MAP", help="where DrivenShape is kept (1) or --mix taken (0)")
-    add("--mix-falloff", metavar="RINGS", type=int, default=3, help="[default: 3]")
-    add("--wind-amplitude", metavar="UNITS", type=float, default=0.0,
-        help="[default: 0 = no wind]")
-    add("--wind-frequency", metavar="PER_UNIT", type=float, default=1.0, help="[default: 1]")
-    add("--wind-direction", metavar="X,Y,Z", default="1,0,0", help="[default: 1,0,0]")
-    add("--wind-speed", metavar="UNITS_PER_S", type=float, default=1.0, help="[default: 1]")
-    add("--wind-octaves", metavar="N", type=int, default=3, help="[default: 3]")
-    add("--wind-seed", metavar="N", type=int, default=1, help="[default: 1]")
-    add("--wind-weight", metavar="MAP", help="where the wind blows [default: everywhere]")
-    add("--wind-falloff", metavar="RINGS", type=int, default=0, help="[default: 0]")
     add("--report", metavar="REPORT.json",
         help="the bake report, as `drivenshape bake --report` writes it (every frame's record "
              "and the shot's coverage verdict) [default: OUT's name with .report.json]")
@@ -959,12 +947,12 @@ _LOADERS: dict[str, str] = {"binding_mask": "load_binding_mask", "regions": "loa
 
 
 def _setting_rows() -> list[dict[str, Any]]:
-    """The settings table's rows this tool takes: `drivenshape bake`'s evaluator options, and
-    the batch and warm-up of its loop."""
+    """The settings table's rows this tool takes: `drivenshape bake`'s evaluator and layer
+    options (--mix, --wind-*), and the batch and warm-up of its loop."""
     import drivenshape as ds
 
     return [row for row in ds.settings_table() if row["flag"] and
-            (row["scope"] == "evaluator" or row["key"] in _LOOP_SETTINGS)]
+            (row["scope"] in ("evaluator", "layer") or row["key"] in _LOOP_SETTINGS)]
 
 
 def _add_settings(add: Callable[..., argparse.Action]) -> None:
@@ -981,24 +969,15 @@ def _add_settings(add: Callable[..., argparse.Action]) -> None:
             kind = {"int": int, "number": float}.get(row["type"], str)
             add(row["flag"], dest=row["key"], metavar=row["value_name"], type=kind,
                 default=row["default"], choices=row["choices"] or None,
-                help=f"{help_text} [default: {row['default']}]")
+                help=f"{help_text} [default: {row['default_text'] or 'none'}]")
 
 
 def _settings(args: argparse.Namespace, db: Database) -> EvaluatorSettings:
     import drivenshape as ds
 
-    try:
-        direction = [float(v) for v in args.wind_direction.split(",")]
-    except ValueError:
-        direction = []
-    if len(direction) != 3:
-        raise _error("usage", f"--wind-direction '{args.wind_direction}' is not X,Y,Z")
-    layers = ds.load_layers(
-        db, mix_cache=args.mix, mix_weight=args.mix_weight, mix_falloff=args.mix_falloff,
-        wind_amplitude=args.wind_amplitude, wind_frequency=args.wind_frequency,
-        wind_direction=direction, wind_speed=args.wind_speed, wind_octaves=args.wind_octaves,
-        wind_seed=args.wind_seed, wind_weight=args.wind_weight, wind_falloff=args.wind_falloff,
-        frames_per_second=args.fps or 24.0)
+    layers = ds.load_layers(db, frames_per_second=args.fps or 24.0,
+                            **{row["key"]: getattr(args, row["key"]) for row in _setting_rows()
+                               if row["scope"] == "layer"})  # checked by the settings table
     settings = ds.EvaluatorSettings(layers=layers)
     for row in _setting_rows():
         key = row["key"]
