@@ -124,7 +124,7 @@ typedef struct DsBvhQueryParams {
 // The nearest-way resolution's steadying band (ClosestBackend::setAlongNormal): a point closer to
 // the skin than DS_RESOLVE_STEADY x the offset has the pseudo-normal, weighted by what it lacks
 // of that distance, added to p - q, so a point on the skin itself (p = q) still has a direction;
-// farther points go exactly along p - q (continuity measured in tests/correction).
+// farther points go exactly along p - q (continuity measured in tests/devices/test_resolve.cpp).
 #define DS_RESOLVE_STEADY 1e-4
 
 // A triangle is treated as a segment/point set (no face region) when

@@ -12,6 +12,6 @@ data=${DRIVENSHAPE_DATA:-out/data}
 build=${DRIVENSHAPE_BUILD:-build}
 export POCL_CACHE_DIR="$PWD/$build/pocl-cache"
 for scene in ${*:-pants}; do
-  "$build/tests/correction/check_closest_exact" "$data/$scene/driver_rest.obj" \
+  "$build/tests/devices/check_closest_exact" "$data/$scene/driver_rest.obj" \
     "$data/$scene/test_public.driver.pc2" "$data/$scene/test_public.driven.pc2"
 done

@@ -33,11 +33,11 @@ step() { # step NAME COMMAND...: runs one step, logs it to $out/NAME.log, counts
   [ $rc -eq 0 ] || failed=$((failed + 1))
 }
 "$ds" devices
-for test in stages/test_stages pipeline/test_device_array pipeline/test_evaluator \
-  layers/test_layers layers/test_export_command posmap/test_posmap posmap/test_posmap_command \
-  cli/test_eval cli/test_cli correction/correction_test bake/test_bake bake/test_pose_model \
-  bake/test_bake_sides bake/test_bake_layers bake/test_reference_clips bake/test_coverage_check \
-  bake/test_bake_fidelity; do
+for test in devices/test_stages core/test_device_array pipeline/test_evaluator \
+  pipeline/test_layers cli/test_export_command io/test_posmap cli/test_posmap_command \
+  cli/test_eval cli/test_cli devices/correction_test shot/test_bake database/test_pose_model \
+  database_build/test_bake_sides shot/test_bake_layers database_build/test_reference_clips \
+  shot/test_coverage_check shot/test_bake_fidelity; do
   step "$(basename $test)" "$build/tests/$test"
 done
 step db_build "$ds" db build --driver-mesh $data/driver_rest.obj \

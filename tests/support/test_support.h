@@ -98,7 +98,7 @@ inline constexpr double kEvalDepthRelTol = 1e-6;
 /// values: ranks are exact halves, the sums differ only in their order (~1e-16 per term).
 inline constexpr double kRankCorrelationTol = 1e-12;
 
-// ---- Tolerances of the layer quantities (tests/layers) ----
+// ---- Tolerances of the layer quantities (test_layers) ----
 
 /// Mix of two positions w a + (1 - w) b in float vs the same formula in double, as a fraction
 /// of max(|a|, |b|): two products, one difference and one sum, each rounded once (2^-24),
@@ -142,10 +142,11 @@ inline constexpr double kPartitionOfUnityTol = 1e-6;
 inline constexpr double kWeightBoundTol = 1e-12;
 
 /// A driven mesh offset from its driver along the driver's area-weighted vertex normals (a
-/// muscle 5 mm under the sleeve's skin, tests/bake/test_bake_sides.cpp): mean distance of the
-/// bake of another clip from the offset truth, in scene units (metres). Measured 0.033 mm with
-/// the defaults and with the resolution off; 0.1 mm keeps 3x margin, while a resolution that
-/// pushes the muscle out to the skin offset (2 mm outside) is off by about 7 mm.
+/// muscle 5 mm under the sleeve's skin, tests/database_build/test_bake_sides.cpp): mean
+/// distance of the bake of another clip from the offset truth, in scene units (metres).
+/// Measured 0.033 mm with the defaults and with the resolution off; 0.1 mm keeps 3x margin,
+/// while a resolution that pushes the muscle out to the skin offset (2 mm outside) is off by
+/// about 7 mm.
 inline constexpr double kInsetMeanErrorTol = 1e-4;
 
 /// The pose model's posterior deviation after added observations (db build --suggest): rank-one

@@ -3,9 +3,9 @@
 // plain OpenEXR, the same files through the real readers (exrheader, oiiotool), PNG previews.
 
 #include <drivenshape/position_map.h>
+#include <drivenshape/position_map_backend.h>
 #include <drivenshape/position_map_sequence.h>
 #include <drivenshape/position_map_tables.h>
-#include <drivenshape/position_map_backend.h>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>

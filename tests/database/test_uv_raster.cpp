@@ -3,9 +3,9 @@
 // edges, overlapping islands, padding and the refusal of bad layouts and sizes.
 
 #include <drivenshape/position_map.h>
+#include <drivenshape/position_map_backend.h>
 #include <drivenshape/position_map_sequence.h>
 #include <drivenshape/position_map_tables.h>
-#include <drivenshape/position_map_backend.h>
 
 #include <random>
 #include <set>

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-// Tests for src/io/position_map_writer.cpp: batching, the sequence loop over a cache and
+// Tests for src/shot/position_map_writer.cpp: batching, the sequence loop over a cache and
 // its refusals (vertex count, missing frames, output folder).
 
 #include <drivenshape/position_map.h>
-#include <drivenshape/position_map_sequence.h>
 #include <drivenshape/position_map_backend.h>
+#include <drivenshape/position_map_sequence.h>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>

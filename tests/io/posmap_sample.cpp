@@ -15,8 +15,8 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/position_map.h>
-#include <drivenshape/position_map_tables.h>
 #include <drivenshape/position_map_backend.h>
+#include <drivenshape/position_map_tables.h>
 
 namespace {
 

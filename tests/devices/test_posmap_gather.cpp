@@ -4,8 +4,8 @@
 // src/devices/cl/cl_posmap.cpp) against the host reference.
 
 #include <drivenshape/position_map.h>
-#include <drivenshape/position_map_tables.h>
 #include <drivenshape/position_map_backend.h>
+#include <drivenshape/position_map_tables.h>
 
 #include "cl_backends.h"
 

@@ -29,7 +29,7 @@ inline std::string sample(const std::string& name) {
 
 /// A database of `count` shapes from the sample's train clip, seeded with `addFrames` if any;
 /// without the pose model unless `poseModel` (the default settings then run the QP, what most
-/// bake tests are about; tests/bake/test_pose_model.cpp tests the model).
+/// bake tests are about; tests/database/test_pose_model.cpp tests the model).
 inline Database buildSample(int count, const std::vector<int>& addFrames = {},
                             bool poseModel = false) {
   const Mesh driver = readObj(sample("driver_rest.obj"));

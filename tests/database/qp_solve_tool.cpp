@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // qp_solve_tool: solves blend-weight problems from a file with SimplexLeastSquares, for tests
-// that compare it with other solvers (tests/qp/test_qp_quadprog.py). Built only for tests.
+// that compare it with other solvers (tests/database/test_qp_quadprog.py). Built only for tests.
 //
 //   qp_solve_tool INPUT OUTPUT
 //

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Layers inside the bake (docs/commands.md, "Layering"): the mix and the wind run after the
 // correction, on the device of the bake, and are recorded in the settings hash, the report
-// and the EXR header. The layer maths is tested in tests/layers; these tests check the wiring.
+// and the EXR header. The layer maths is tested in test_layers; these tests check the wiring.
 
 #include <drivenshape/bake.h>
 

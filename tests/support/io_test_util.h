@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-// Small helpers shared by the src/io tests: catching a drivenshape::Error, raw file access.
+// Small helpers shared by the tests of src/io, the layers and the commands: catching a
+// drivenshape::Error, raw file access.
 
 #include <gtest/gtest.h>
 

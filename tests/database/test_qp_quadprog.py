@@ -28,7 +28,7 @@ Both solutions are scored with the same plain evaluation f(w) = |A w - b|^2, and
 with tol = kQpObjectiveRelTol |b|^2 (tests/support/test_support.h), and |sum w - 1| and the
 bound violations within kQpConstraintTol.
 
-Run by CTest (tests/qp/CMakeLists.txt) with the interpreter made by scripts/setup.sh:
+Run by CTest (tests/database/CMakeLists.txt) with the interpreter made by scripts/setup.sh:
     python test_qp_quadprog.py --tool path/to/qp_solve_tool [--seed N]
 DS_SEED=N overrides the seed too.
 """
