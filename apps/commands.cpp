@@ -512,11 +512,11 @@ BakeOptions bakeOptions(const ArgParser& parser) {
   options.syncOutputs = parser.has("--sync");
   if (options.evaluator.maxWeightChange > 0 && parser.has("--chunk-size")) {
     const int farmChunk = parser.getInt("--chunk-size", 1);
-    if (farmChunk % options.chunkSize != 0) {
+    if (farmChunk % options.batchFrames != 0) {
       DS_THROW(kUsage, "with --max-weight-change, --chunk-size (", farmChunk,
-               ") must be a multiple of --batch (", options.chunkSize,
+               ") must be a multiple of --batch (", options.batchFrames,
                ") so that every farm chunk reproduces the single bake; e.g. pass --batch ",
-               std::gcd(farmChunk, options.chunkSize), " to both");
+               std::gcd(farmChunk, options.batchFrames), " to both");
     }
   }
   if (!hasFramePattern(options.outputPattern)) {

@@ -259,7 +259,7 @@ ds::BakeResult bakeOpenCl(const ds::cli::ArgParser& parser, Bench& bench) {
   json["device"] = name;
   json["programs_built"] = bench.device.programsBuilt();
   json["transfers"] =
-      transfersPerBatch("OpenCL", before, after, bench.frames, bench.options.chunkSize);
+      transfersPerBatch("OpenCL", before, after, bench.frames, bench.options.batchFrames);
   for (const std::vector<std::string>& also : parser.all("--also")) {
     const std::size_t equals = also.front().find('=');
     if (equals == std::string::npos) {
@@ -288,7 +288,7 @@ void bakeHostStaged(Bench& bench) {
   printRow("same, staged on host", again, peakRssMiB());
   bench.report["opencl_host_staging"] = timesJson(again, peakRssMiB());
   bench.report["opencl_host_staging"]["transfers"] = transfersPerBatch(
-      "same, staged on host", start, bench.device.transfers(), bench.frames, options.chunkSize);
+      "same, staged on host", start, bench.device.transfers(), bench.frames, options.batchFrames);
 }
 
 /// The host reference bake (and its full search), into the report; prints the speed-ups.
@@ -384,7 +384,7 @@ int runBench(const std::vector<std::string>& args) {
       "workload %s: driver %d, driven %d vertices, %d shapes, %d frames, batch %d, "
       "compression %s (%s), correction %s, audit %s\n",
       w.name.c_str(), db.driverVertexCount(), db.drivenVertexCount(), db.shapeCount(), w.frames,
-      options.chunkSize, ds::exrCompressionName(options.compression),
+      options.batchFrames, ds::exrCompressionName(options.compression),
       ds::zipEncoderName(options.zipEncoder), options.evaluator.correct ? "on" : "off",
       options.evaluator.audit ? "on" : "off");
   printHeader();
@@ -393,7 +393,7 @@ int runBench(const std::vector<std::string>& args) {
                   {"driven_vertices", db.drivenVertexCount()},
                   {"shapes", db.shapeCount()},
                   {"frames", w.frames},
-                  {"batch", options.chunkSize},
+                  {"batch", options.batchFrames},
                   {"correct", options.evaluator.correct},
                   {"audit", options.evaluator.audit}};
   runBakes(parser, bench);

@@ -113,7 +113,7 @@ nlohmann::json measureResolutionFloor(const Database& db, const PointCacheReader
   EvaluatorSettings settings = options.evaluator;
   settings.threads = options.threads;
   const int block =
-      shotPlanSettings(Evaluator(db, settings, device), options.chunkSize, options.temporalWarmup)
+      shotPlanSettings(Evaluator(db, settings, device), options.batchFrames, options.temporalWarmup)
           .batch;
   const std::vector<int>& frames = options.frames;
   for (std::size_t first = 0; first < frames.size(); first += static_cast<std::size_t>(block)) {

@@ -155,7 +155,7 @@ void bindShotReport(py::module_& module) {
           options.frames.push_back(record.frame);
         }
         options.outputPattern = output;
-        options.chunkSize = batch;
+        options.batchFrames = batch;
         options.temporalWarmup = temporalWarmup;
         options.framesPerSecond = framesPerSecond;
         options.evaluator = evaluator.settings();

@@ -735,7 +735,7 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
       .reportsAlso("temporal_warmup");
   Row(rows, "batch", "batch", SettingType::kInt, SettingScope::kBake)
       .flag("--batch", "N")
-      .field<&BakeOptions::chunkSize>()
+      .field<&BakeOptions::batchFrames>()
       .range(1, kNoLimit, "frames")
       .help(
           "frames per kernel launch (bounds device memory; lowered for large meshes except "

@@ -81,7 +81,7 @@ std::uint64_t bakeHash(const Evaluator& evaluator, const BakeOptions& options) {
   OutputHashFields output;
   output.exrWidth = options.exrWidth;
   output.temporalWarmup = options.temporalWarmup;
-  output.batchSize = options.chunkSize;
+  output.batchSize = options.batchFrames;
   return evaluator.settingsHash(output);
 }
 
@@ -125,7 +125,7 @@ std::vector<int> planFrames(BakeResult& result, const BakeOptions& options, int 
 
 /// The driver frames of one launch batch: the warm-up frames (solved, not written), then the
 /// batch's own frames.
-struct BatchInput {
+struct DriverBatch {
   std::vector<int> solveFrames;
   int warm = 0;
   std::vector<float> driver;  ///< solveFrames.size() x 3Vp
@@ -140,8 +140,8 @@ class DriverReader {
       : mDriver(driver), mPlan(plan), mThreads(threads) {}
 
   /// Batch `b` of the plan (read ahead when it was asked for), and the read-ahead of the next.
-  BatchInput take(std::size_t b) {
-    BatchInput input = mNext.valid() ? mNext.get() : read(b);
+  DriverBatch take(std::size_t b) {
+    DriverBatch input = mNext.valid() ? mNext.get() : read(b);
     if (b + 1 < mPlan.size()) {
       mNext = std::async(std::launch::async, [this, b] { return read(b + 1); });
     }
@@ -149,9 +149,9 @@ class DriverReader {
   }
 
  private:
-  BatchInput read(std::size_t b) const {
+  DriverBatch read(std::size_t b) const {
     const auto start = Clock::now();
-    BatchInput in;
+    DriverBatch in;
     in.solveFrames = mPlan[b].solveFrames();
     in.warm = static_cast<int>(mPlan[b].warmup.size());
     const std::size_t values = static_cast<std::size_t>(mDriver.vertexCount()) * 3;
@@ -166,7 +166,7 @@ class DriverReader {
   const PointCacheReader& mDriver;
   const std::vector<BatchPlan>& mPlan;
   const int mThreads;
-  std::future<BatchInput> mNext;
+  std::future<DriverBatch> mNext;
 };
 
 /// Writes batch after batch of EXRs on an I/O task while the next batch is evaluated: two
@@ -532,7 +532,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   }
   const std::vector<BatchPlan> plan =
       planShot(todoFrames, driver.frames(),
-               shotPlanSettings(evaluator, options.chunkSize, options.temporalWarmup));
+               shotPlanSettings(evaluator, options.batchFrames, options.temporalWarmup));
   DriverReader reader(driver, plan, threads);
   BatchWriter writer(result, todo, exr, vd, threads, observer);
   std::vector<FrameRecord> records;
@@ -555,7 +555,7 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
     const auto batchStart = Clock::now();
     const int count = static_cast<int>(plan[b].frames.size());
     auto start = Clock::now();
-    const BatchInput input = reader.take(b);
+    const DriverBatch input = reader.take(b);
     result.times.readWait += secondsSince(start);
     result.times.read += input.seconds;
 

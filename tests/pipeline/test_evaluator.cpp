@@ -204,7 +204,7 @@ TEST_F(EvaluatorTest, TemporalBoundCarriesAcrossCallsUntilReset) {
   options.evaluator.weightMode = WeightMode::kQp;  // the temporal bound is the QP's
   options.evaluator.maxWeightChange = 0.02;
   options.temporalWarmup = 0;
-  options.chunkSize = 48;
+  options.batchFrames = 48;
   options.outputPattern = file("bounded.####.exr");
   const BakeResult bounded = bake(db, *openPointCache(sample("test.driver.pc2")), *host, options);
 

@@ -224,7 +224,7 @@ TEST(SettingsHash, EveryHashedSettingOfTheTableChangesItAndNoOtherDoes) {
   std::unique_ptr<Device> host = makeHostDevice();
   const auto hashOf = [&](const BakeOptions& o) {
     const Evaluator evaluator(db, o.evaluator, *host);
-    return evaluator.settingsHash(OutputHashFields{o.exrWidth, o.temporalWarmup, o.chunkSize});
+    return evaluator.settingsHash(OutputHashFields{o.exrWidth, o.temporalWarmup, o.batchFrames});
   };
   int checked = 0;
   for (const Setting& setting : settingsTable()) {

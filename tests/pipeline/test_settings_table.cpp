@@ -44,7 +44,7 @@ TEST(SettingsTable, RowsAreUniqueAndHaveWhatTheToolsRead) {
   EXPECT_EQ(formatSettingValue(defaultSettingValue(findSetting("exit_fade"))), "0.15");
   EXPECT_EQ(std::get<double>(defaultSettingValue(findSetting("skin_offset"))),
             EvaluatorSettings().skinOffset);
-  EXPECT_EQ(std::get<int>(defaultSettingValue(findSetting("batch"))), BakeOptions().chunkSize);
+  EXPECT_EQ(std::get<int>(defaultSettingValue(findSetting("batch"))), BakeOptions().batchFrames);
   EXPECT_EQ(findSettingByKey("no_such_setting"), nullptr);
   testing::expectThrows([] { findSetting("no_such_setting"); }, ErrorCode::kUsage,
                         "no setting 'no_such_setting'");
@@ -75,7 +75,7 @@ TEST(SettingsTable, OneCheckOfAValueNamesTheSettingAndItsRange) {
   settings.skinOffset = std::numeric_limits<double>::quiet_NaN();
   testing::expectThrows([&] { checkSettings(settings); }, ErrorCode::kUsage, "skin offset");
   BakeOptions options;
-  options.chunkSize = 0;
+  options.batchFrames = 0;
   testing::expectThrows([&] { checkBakeSettings(options); }, ErrorCode::kUsage,
                         "batch (batch, --batch) must be a whole number >= 1");
 }

@@ -68,7 +68,7 @@ TEST_F(BakeTest, OpenClBlendMatchesHostReferenceOnEveryFrame) {
   TempDir dir;
   BakeOptions options;
   options.frames = driver->frames();
-  options.chunkSize = 16;
+  options.batchFrames = 16;
   options.evaluator.correct = false;
   options.outputPattern = dir.file("host.####.exr");
   const Backends host = hostBackends();
@@ -90,7 +90,7 @@ TEST_F(BakeTest, OpenClCorrectionMatchesHostReferenceOnEveryFrame) {
   TempDir dir;
   BakeOptions options;
   options.frames = driver->frames();
-  options.chunkSize = 16;
+  options.batchFrames = 16;
   const Backends cl = clBackends();
   const Backends host = hostBackends();
   // Same blended inputs (OpenCL stages) for both; only the correction backends differ.
@@ -215,11 +215,11 @@ TEST_F(BakeTest, OutputIsBitwiseIdenticalAcrossThreadsAndChunks) {
   options.frames = {1, 2, 3, 5, 8, 13, 21, 34};
   options.outputPattern = dir.file("a.####.exr");
   options.threads = 1;
-  options.chunkSize = 8;
+  options.batchFrames = 8;
   bake(db, *driver, cl.view(), options);
   options.outputPattern = dir.file("b.####.exr");
   options.threads = 2;
-  options.chunkSize = 3;
+  options.batchFrames = 3;
   bake(db, *driver, cl.view(), options);
   EXPECT_EQ(readBake(dir.file("a.####.exr"), options.frames),
             readBake(dir.file("b.####.exr"), options.frames));

@@ -384,7 +384,7 @@ TEST_F(FidelityTest, OpenClMatchesHostWithAlignmentLocalBlendRegionsAndResolutio
 
   BakeOptions options;
   options.frames = driver->frames();
-  options.chunkSize = 16;
+  options.batchFrames = 16;
   options.evaluator.blend = BlendMode::kLocal;
   options.regionsPath = dir.file("regions.json");
   const Backends host = hostBackends();
@@ -668,7 +668,7 @@ TEST_F(FidelityTest, TemporalBoundHoldsAndChunkedBakesEqualTheSingleBake) {
   const Backends cl = clBackends();
   BakeOptions options;
   options.frames = frames;
-  options.chunkSize = 12;
+  options.batchFrames = 12;
   options.evaluator.maxWeightChange = 0.02;
   options.temporalWarmup = 6;
   options.threads = 2;
@@ -678,7 +678,7 @@ TEST_F(FidelityTest, TemporalBoundHoldsAndChunkedBakesEqualTheSingleBake) {
   int bounded = 0;
   double unconstrainedChange = 0;
   for (std::size_t i = 1; i < single.frames.size(); ++i) {
-    if (i % options.chunkSize == 0) {
+    if (i % options.batchFrames == 0) {
       continue;  // the chain restarts (after its warm-up) at every batch
     }
     for (int s = 0; s < k; ++s) {
@@ -708,10 +708,10 @@ TEST_F(FidelityTest, TemporalBoundHoldsAndChunkedBakesEqualTheSingleBake) {
 
   // Farm chunks of two batches each, on one thread, give the single bake bit for bit.
   options.threads = 1;
-  for (std::size_t first = 0; first < frames.size(); first += 2 * options.chunkSize) {
+  for (std::size_t first = 0; first < frames.size(); first += 2 * options.batchFrames) {
     BakeOptions chunk = options;
     chunk.frames.assign(frames.begin() + first,
-                        frames.begin() + std::min(frames.size(), first + 2 * options.chunkSize));
+                        frames.begin() + std::min(frames.size(), first + 2 * options.batchFrames));
     chunk.outputPattern = dir.file("chunked.####.exr");
     const BakeResult part = bake(db, *driver, cl.view(), chunk);
     for (std::size_t i = 0; i < part.frames.size(); ++i) {

@@ -30,7 +30,7 @@ struct BakeOptions {
   /// Frames per kernel launch (`--batch`); lowered for large meshes so that a batch's buffers
   /// stay within kBatchMemoryBudget, except with the temporal bound (which depends on it).
   /// The batches are planShot's (drivenshape/shot_plan.h).
-  int chunkSize = kDefaultBatchFrames;
+  int batchFrames = kDefaultBatchFrames;
   int threads = 0;            ///< host threads (QP, EXR); 0 = all cores
   bool skipExisting = false;  ///< keep complete outputs of this database and settings
   int exrWidth = 1024;
@@ -48,10 +48,10 @@ struct BakeOptions {
   /// that is empty too).
   std::string regionsPath;
   /// With the temporal bound (evaluator.maxWeightChange > 0) frames are solved in order within
-  /// each launch batch (`chunkSize` frames); before each batch, `temporalWarmup` driver-cache
+  /// each launch batch (`batchFrames` frames); before each batch, `temporalWarmup` driver-cache
   /// frames preceding its first frame are solved (the first of them without the bound) but not
-  /// written. The output therefore depends on chunkSize and temporalWarmup, never on the thread
-  /// count, and a farm chunk whose size is a multiple of chunkSize reproduces the single bake
+  /// written. The output therefore depends on batchFrames and temporalWarmup, never on the thread
+  /// count, and a farm chunk whose size is a multiple of batchFrames reproduces the single bake
   /// exactly.
   int temporalWarmup = kDefaultTemporalWarmup;
   /// Layers after the correction and resolution (docs/commands.md, "Layering"): a mix with
