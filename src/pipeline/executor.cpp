@@ -7,6 +7,8 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "stopwatch.h"
+
 namespace drivenshape::pipeline {
 
 void checkWiring(const std::vector<std::unique_ptr<Stage>>& stages) {
@@ -76,8 +78,7 @@ const float* Executor::run(const BatchInput& input, StageSeconds& seconds) {
     batch.open(stage.get());
     const auto start = std::chrono::steady_clock::now();
     stage->run(batch);
-    seconds[stage->name()] +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    seconds[stage->name()] += secondsSince(start);
   }
   batch.open(nullptr);
   // The cloth comes back from the device here unless a stage (the audit) read it already.

@@ -33,6 +33,7 @@
 #include "atomic_file.h"
 #include "hash.h"
 #include "parallel.h"
+#include "stopwatch.h"
 
 #include "json_text.h"
 
@@ -40,10 +41,6 @@ namespace drivenshape {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// The checks of the shot itself (the evaluator checks its settings): frames, output, driver.
 void validate(const Database& db, const PointCacheReader& driver, const BakeOptions& options) {

@@ -5,6 +5,7 @@
 #include <drivenshape/position_map_sequence.h>
 
 #include "parallel.h"
+#include "stopwatch.h"
 
 #include <algorithm>
 #include <chrono>
@@ -25,10 +26,6 @@ namespace {
 /// Maps of one launch are kept within this many bytes (P, plus N when asked for).
 constexpr std::size_t kChunkBytes = std::size_t{256} << 20;
 constexpr int kMaxChunkFrames = 16;
-
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 }  // namespace
 
