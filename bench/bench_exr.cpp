@@ -44,8 +44,8 @@
 #include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 #include <drivenshape/position_map.h>
-#include <drivenshape/position_map_tables.h>
 #include <drivenshape/position_map_backend.h>
+#include <drivenshape/position_map_tables.h>
 
 #include "cli_args.h"
 #include "exr_zip_writer.h"

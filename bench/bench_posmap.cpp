@@ -27,9 +27,9 @@
 
 #include <drivenshape/error.h>
 #include <drivenshape/position_map.h>
+#include <drivenshape/position_map_backend.h>
 #include <drivenshape/position_map_sequence.h>
 #include <drivenshape/position_map_tables.h>
-#include <drivenshape/position_map_backend.h>
 
 #include "cl_backends.h"
 

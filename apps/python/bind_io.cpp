@@ -457,10 +457,9 @@ void bindCacheFiles(py::module_& module) {
                             static_cast<double>(std::max(shape.frames - 1, 0)) * sampleRate;
         if (!(std::abs(static_cast<double>(startFrame)) < kPc2FrameBound) ||
             !(std::abs(last) < kPc2FrameBound)) {
-          DS_THROW(kUsage, "start_frame ", static_cast<double>(startFrame), " with ",
-                   shape.frames, " samples at sample_rate ", sampleRate,
-                   " reaches frame ", last, ", beyond the frames a PC2 reader maps (|frame| < ",
-                   kPc2FrameBound, ")");
+          DS_THROW(kUsage, "start_frame ", static_cast<double>(startFrame), " with ", shape.frames,
+                   " samples at sample_rate ", sampleRate, " reaches frame ", last,
+                   ", beyond the frames a PC2 reader maps (|frame| < ", kPc2FrameBound, ")");
         }
         py::gil_scoped_release release;
         writePc2(file, shape.vertices, startFrame, shape.frames, array.data(), sampleRate);

@@ -13,6 +13,7 @@ the object, file or frame at fault, nothing is left half done, and Blender carri
 """
 
 import os
+import struct
 import subprocess
 import sys
 
@@ -95,7 +96,12 @@ positions, start, rate = ds.read_pc2(os.path.join(args.data, "test.driver.pc2"))
 positions = positions.copy()
 positions[3 - int(start), 7] = np.nan
 broken = os.path.join(out, "nan.driver.pc2")
-ds.write_pc2(broken, positions, start_frame=start, sample_rate=rate)
+# Written byte by byte: the module's writers refuse a NaN (a cache holds finite positions only),
+# but a broken cache from elsewhere is what this case is about.
+with open(broken, "wb") as handle:
+    handle.write(struct.pack("<12siiffi", b"POINTCACHE2\0", 1, positions.shape[1], float(start),
+                             float(rate), positions.shape[0]))
+    handle.write(np.ascontiguousarray(positions, dtype="<f4").tobytes())
 driver.modifiers["reference"].filepath = broken
 scene.frame_set(1)
 ops.live_start()

@@ -991,7 +991,7 @@ def _settings(args: argparse.Namespace, db: Database) -> EvaluatorSettings:
 
 def _layer_inputs(args: argparse.Namespace) -> list[_files.NamedPath]:
     """The files `bake`'s options name besides --db and --usd (mix, maps, mask, regions)."""
-    options = [("--mix", args.mix), ("--mix-weight", args.mix_weight),
+    options = [("--mix", args.mix_cache), ("--mix-weight", args.mix_weight),
                ("--wind-weight", args.wind_weight)]
     options += [(row["flag"], getattr(args, row["key"])) for row in _setting_rows()
                 if row["key"] in _LOADERS]
