@@ -32,15 +32,12 @@
 #include <drivenshape/position_map_tables.h>
 
 #include "cl_backends.h"
+#include "stopwatch.h"
 
 namespace {
 
 using namespace drivenshape;
 using Clock = std::chrono::steady_clock;
-
-double seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 struct Args {
   std::string mesh;
@@ -153,7 +150,7 @@ Stats evaluateTime(PositionMapBackend& backend, const PositionMapTables& tables,
       backend.evaluate(count, xyz.data() + static_cast<std::size_t>(first) * vertexFloats,
                        positions.data(), nullptr);
     }
-    times.push_back(seconds(start));
+    times.push_back(secondsSince(start));
   }
   return stats(times);
 }
@@ -197,7 +194,7 @@ int run(const Args& args) {
   for (int r = 0; r < args.repeats; ++r) {
     const auto start = Clock::now();
     tables = buildPositionMapTables(mesh, args.width, args.height, args.padding, args.mesh);
-    buildTimes.push_back(seconds(start));
+    buildTimes.push_back(secondsSince(start));
   }
   const Stats build = stats(buildTimes);
   std::printf(
@@ -256,7 +253,7 @@ int run(const Args& args) {
       const auto start = Clock::now();
       writePositionMapExr(folder + "/single.exr", tables.width, tables.height, positions.data(),
                           tables.coverage.data(), nullptr, header);
-      oneFile.push_back(seconds(start));
+      oneFile.push_back(secondsSince(start));
     }
     std::filesystem::remove(folder + "/single.exr");
 
@@ -270,7 +267,7 @@ int run(const Args& args) {
     }
     const auto start = Clock::now();
     writer.writeFrames(some, xyz.data(), paths);
-    const double total = seconds(start);
+    const double total = secondsSince(start);
     int files = 0;
     const std::uintmax_t bytes = removeAndMeasure(folder, files);
     std::printf("  %-5s %12.2f %16.3f %18.2f %14.2f\n", exrCompressionName(compression),
@@ -291,7 +288,7 @@ int run(const Args& args) {
     }
     const auto start = Clock::now();
     writer.writeFrames(frames, xyz.data(), paths);
-    const double total = seconds(start);
+    const double total = secondsSince(start);
     int files = 0;
     const std::uintmax_t bytes = removeAndMeasure(folder, files);
     std::printf(
