@@ -211,9 +211,12 @@ std::unique_ptr<ClosestBackend> makeHostClosest(const ClosestOptions& options = 
 /// The whole correction of a chunk: hits on the blended driver, then the transfer of the
 /// blended cloth to the shot's driver.
 ///   blendedDriver, shotDriver  F x 3Vp;  blendedDriven, corrected  F x 3Vd;  hits  F x Vd
-void correct(ClosestBackend& backend, int frameCount, const float* blendedDriver,
-             const float* blendedDriven, const float* shotDriver, float* corrected,
-             SurfaceHit* hits);
+inline void correct(ClosestBackend& backend, int frameCount, const float* blendedDriver,
+                    const float* blendedDriven, const float* shotDriver, float* corrected,
+                    SurfaceHit* hits) {
+  backend.closest(frameCount, blendedDriver, blendedDriven, hits);
+  backend.transfer(frameCount, hits, blendedDriver, shotDriver, blendedDriven, corrected);
+}
 
 /// Inside/outside of points with respect to the driver, from their closest points (Baerentzen
 /// & Aanaes, "Signed distance computation using the angle weighted pseudonormal", 2005): the
