@@ -498,6 +498,7 @@ BakeOptions bakeOptions(const ArgParser& parser) {
   options.threads = options.evaluator.threads = threadsFor(options.threads);
   if (parser.has("--chunk-size") || parser.has("--chunk-index")) {
     int chunkIndex = 0;
+    options.shotFrames = options.frames;
     options.frames = farmChunk(options.frames, parser, chunkIndex);
     if (!parser.has("--report")) {
       // Farm chunks run side by side: one report each (<name>.chunk<I>.report.json).

@@ -173,8 +173,17 @@ int runFarmSlurm(const std::vector<std::string>& args) {
   if (parser.has("--submit")) {
     const std::string id = submitToSlurm(jobFile);
     std::cout << "submitted: job " << id << "\n";
+    const std::string report = submitToSlurm(jobFile, slurmReportOptions(job, id), {"report"});
+    std::cout << "submitted: job " << report << " (the shot's report, after job " << id << ")\n";
   } else {
-    std::cout << "submit with: sbatch " << shellQuote(jobFile) << "\n";
+    std::string reportOptions;
+    for (const std::string& option : slurmReportOptions(job, "${id%%;*}")) {
+      reportOptions +=
+          " " + (option.find('$') == std::string::npos ? shellQuote(option) : "\"" + option + "\"");
+    }
+    std::cout << "submit with: id=$(sbatch --parsable " << shellQuote(jobFile) << ") &&\n"
+              << "             sbatch" << reportOptions << " " << shellQuote(jobFile)
+              << " report\n";
   }
   return 0;
 }

@@ -148,7 +148,7 @@ for scene in scenes:
             continue
         e = json.load(open(base + ".eval.json"))
         r = json.load(open(base + ".report.json"))
-        frames = [f for f in r["frames"] if not f["skipped"]]
+        frames = [f for f in r["frames"] if not f.get("skipped")]
         summary = e.get("summary", {})
         if "mean_inside" in summary.get("bake", {}):
             # `drivenshape eval --driver`: the same measurement on the bake and on the truth.

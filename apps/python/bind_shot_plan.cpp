@@ -143,6 +143,11 @@ void bindShotReport(py::module_& module) {
       "`coverage` object: tolerance, level, frames_checked, covered_fraction, simulate_frames, "
       "simulate_runs, run_up and verdict ('DrivenShape is enough' or 'simulate 12-20'); None "
       "when no record has a pose-model prediction (another model than the pose model).");
+  module.def("merge_bake_reports", &mergeBakeReports, py::arg("texts"), py::arg("sources"),
+             "One bake report (JSON text) from the JSON texts of the reports of parts of one "
+             "shot (farm chunks), `sources` naming them in messages: every frame's record once "
+             "in frame order, the verdict over all of them, the warnings of all, `run` and "
+             "`seconds` summed. drivenshape.Error for reports of another database or settings.");
   module.def(
       "bake_report",
       [](types::EvaluatorObject evaluatorObject, const std::vector<FrameRecord>& records,

@@ -7,16 +7,23 @@
 #include <drivenshape/bake.h>
 
 #include "driver_check.h"
+#include "frame_record_json.h"
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <memory>
 #include <optional>
+#include <set>
+#include <string>
 #include <thread>
+#include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -66,6 +73,15 @@ void validate(const Database& db, const PointCacheReader& driver, const BakeOpti
                "); bake frames within that range");
     }
   }
+  if (!options.shotFrames.empty()) {
+    const std::set<int> shot(options.shotFrames.begin(), options.shotFrames.end());
+    for (int frame : options.frames) {
+      if (shot.count(frame) == 0) {
+        DS_THROW(kUsage, "frame ", frame, " is not a frame of the shot (",
+                 formatFrameRange(options.shotFrames), ") that the bake is a part of");
+      }
+    }
+  }
   checkOutputFolderWritable(expandFramePattern(options.outputPattern, options.frames.front()));
   if (!options.reportPath.empty()) {
     checkOutputFolderWritable(options.reportPath);
@@ -82,42 +98,113 @@ std::uint64_t bakeHash(const Evaluator& evaluator, const BakeOptions& options) {
   return evaluator.settingsHash(output);
 }
 
-/// The frame records of the bake, and which of them to bake: a resume keeps an existing
-/// output only if it decodes completely and matches (reuseProblem), and removes the temporary
-/// files that killed runs left for this task's frames.
-std::vector<int> planFrames(BakeResult& result, const BakeOptions& options, int vd,
-                            std::uint64_t topology, int threads) {
+/// What a kept frame's record must agree with beyond the settings hash: the settings that
+/// change the record but not the cloth.
+struct RecordSettings {
+  std::uint64_t settingsHash = 0;
+  bool audit = true;
+  double coverageTolerance = 0.0;
+};
+
+/// Whether a resume can keep the existing output of `record` (reuseProblem: it decodes
+/// completely and matches) and what it carries: the frame's record (dsRecord), which then
+/// replaces `record`, flagged against this bake's coverage tolerance (which the settings hash
+/// leaves out: it changes no cloth). Returns "" when kept, else why not.
+std::string keepExisting(FrameRecord& record, int vd, std::uint64_t topology,
+                         const RecordSettings& settings) {
+  const std::string problem =
+      reuseProblem(record.output, vd, topology, settings.settingsHash, record.frame);
+  if (!problem.empty()) {
+    return problem;
+  }
+  const std::string where = record.output + " " + kAttrFrameRecord;
+  FrameRecord kept;
+  try {
+    const ExrPointCacheInfo info = readPointCacheExrInfo(record.output);
+    const auto found = info.stringAttributes.find(kAttrFrameRecord);
+    if (found == info.stringAttributes.end()) {
+      return std::string("carries no frame record (") + kAttrFrameRecord + ")";
+    }
+    kept = frameRecordFromJson(parseJsonText(found->second, where), where);
+  } catch (const Error& error) {
+    return std::string("has a frame record that does not read: ") + error.what();
+  }
+  if (kept.frame != record.frame) {
+    return "carries the record of frame " + std::to_string(kept.frame);
+  }
+  if ((kept.insideAfter >= 0) != settings.audit) {
+    return std::string("was baked with the audit ") + (settings.audit ? "off" : "on") +
+           ": its record lacks this bake's figures";
+  }
+  if (kept.predictedError >= 0) {
+    kept.flagged = kept.errorBound > settings.coverageTolerance ? 1 : 0;
+  }
+  kept.output = record.output;
+  kept.skipped = true;
+  record = std::move(kept);
+  return "";
+}
+
+/// The frame records of the bake: a resume keeps an existing output with its record
+/// (keepExisting) and removes the temporary files that killed runs left for this task's frames.
+void planFrames(BakeResult& result, const BakeOptions& options, int vd, std::uint64_t topology,
+                const RecordSettings& settings, int threads) {
   for (int frame : options.frames) {
     FrameRecord record;
     record.frame = frame;
     record.output = expandFramePattern(options.outputPattern, frame);
     result.frames.push_back(std::move(record));
   }
-  if (options.skipExisting) {
-    std::vector<std::string> outputs;
-    for (const FrameRecord& record : result.frames) {
-      outputs.push_back(record.output);
+  if (!options.skipExisting) {
+    return;
+  }
+  std::vector<std::string> outputs;
+  for (const FrameRecord& record : result.frames) {
+    outputs.push_back(record.output);
+  }
+  result.staleTempFilesRemoved = removeStaleTempFiles(outputs);
+  parallelFor(static_cast<int>(result.frames.size()), threads, [&](int i) {
+    FrameRecord& record = result.frames[i];
+    std::error_code ec;
+    if (std::filesystem::exists(record.output, ec)) {
+      record.rebakeReason = keepExisting(record, vd, topology, settings);
     }
-    result.staleTempFilesRemoved = removeStaleTempFiles(outputs);
-    parallelFor(static_cast<int>(result.frames.size()), threads, [&](int i) {
-      FrameRecord& record = result.frames[i];
-      std::error_code ec;
-      if (std::filesystem::exists(record.output, ec)) {
-        record.rebakeReason =
-            reuseProblem(record.output, vd, topology, result.settingsHash, record.frame);
-        record.skipped = record.rebakeReason.empty();
+  });
+  for (const FrameRecord& record : result.frames) {
+    result.skipped += record.skipped ? 1 : 0;
+  }
+}
+
+/// One batch of the shot's plan as this bake runs it: the batch's frames whose records are
+/// result.frames[records[i]] (-1 for a frame of the shot outside options.frames), and the
+/// rows of the batch to write (those not kept). A batch with nothing to write is not run.
+struct BatchWork {
+  std::vector<int> records;
+  std::vector<int> rows;
+};
+
+/// BatchWork for each batch of `plan` (the shot's), from the frames' records.
+std::vector<BatchWork> batchWork(const std::vector<BatchPlan>& plan,
+                                 const std::vector<FrameRecord>& frames) {
+  std::unordered_map<int, std::vector<int>> indexOf;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    indexOf[frames[i].frame].push_back(static_cast<int>(i));
+  }
+  std::vector<BatchWork> work(plan.size());
+  for (std::size_t b = 0; b < plan.size(); ++b) {
+    for (std::size_t row = 0; row < plan[b].frames.size(); ++row) {
+      std::vector<int>& ours = indexOf[plan[b].frames[row]];
+      const int index = ours.empty() ? -1 : ours.front();
+      if (!ours.empty()) {
+        ours.erase(ours.begin());  // a repeated frame: its next record
       }
-    });
-  }
-  std::vector<int> todo;
-  for (std::size_t i = 0; i < result.frames.size(); ++i) {
-    if (result.frames[i].skipped) {
-      ++result.skipped;
-    } else {
-      todo.push_back(static_cast<int>(i));
+      work[b].records.push_back(index);
+      if (index >= 0 && !frames[index].skipped) {
+        work[b].rows.push_back(static_cast<int>(row));
+      }
     }
   }
-  return todo;
+  return work;
 }
 
 /// The driver frames of one launch batch: the warm-up frames (solved, not written), then the
@@ -129,54 +216,60 @@ struct DriverBatch {
   double seconds = 0;         ///< time spent reading them
 };
 
-/// Reads the driver frames of the planned batches (planShot), the next batch on an I/O task
-/// while the current one is evaluated.
+/// Reads the driver frames of `batch` (warm-up, then its frames) on `threads` threads.
+DriverBatch readDriverBatch(const PointCacheReader& driver, const BatchPlan& batch, int threads) {
+  const auto start = Clock::now();
+  DriverBatch in;
+  in.solveFrames = batch.solveFrames();
+  in.warm = static_cast<int>(batch.warmup.size());
+  const std::size_t values = static_cast<std::size_t>(driver.vertexCount()) * 3;
+  in.driver.resize(in.solveFrames.size() * values);
+  parallelFor(static_cast<int>(in.solveFrames.size()), threads, [&](int i) {
+    readFiniteFrame(driver, in.solveFrames[i], &in.driver[i * values], "driver cache");
+  });
+  in.seconds = secondsSince(start);
+  return in;
+}
+
+/// Reads the driver frames of the batches to run, the next one on an I/O task while the
+/// current one is evaluated.
 class DriverReader {
  public:
-  DriverReader(const PointCacheReader& driver, const std::vector<BatchPlan>& plan, int threads)
-      : mDriver(driver), mPlan(plan), mThreads(threads) {}
+  /// `runs`: the indices in `plan` of the batches to run, in order.
+  DriverReader(const PointCacheReader& driver, const std::vector<BatchPlan>& plan,
+               std::vector<std::size_t> runs, int threads)
+      : mDriver(driver), mPlan(plan), mRuns(std::move(runs)), mThreads(threads) {}
 
-  /// Batch `b` of the plan (read ahead when it was asked for), and the read-ahead of the next.
-  DriverBatch take(std::size_t b) {
-    DriverBatch input = mNext.valid() ? mNext.get() : read(b);
-    if (b + 1 < mPlan.size()) {
-      mNext = std::async(std::launch::async, [this, b] { return read(b + 1); });
+  /// Batch runs[k] (read ahead when it was asked for), and the read-ahead of the next.
+  DriverBatch take(std::size_t k) {
+    DriverBatch input = mNext.valid() ? mNext.get() : read(mRuns[k]);
+    if (k + 1 < mRuns.size()) {
+      mNext = std::async(std::launch::async, [this, k] { return read(mRuns[k + 1]); });
     }
     return input;
   }
 
  private:
-  DriverBatch read(std::size_t b) const {
-    const auto start = Clock::now();
-    DriverBatch in;
-    in.solveFrames = mPlan[b].solveFrames();
-    in.warm = static_cast<int>(mPlan[b].warmup.size());
-    const std::size_t values = static_cast<std::size_t>(mDriver.vertexCount()) * 3;
-    in.driver.resize(in.solveFrames.size() * values);
-    parallelFor(static_cast<int>(in.solveFrames.size()), mThreads, [&](int i) {
-      readFiniteFrame(mDriver, in.solveFrames[i], &in.driver[i * values], "driver cache");
-    });
-    in.seconds = secondsSince(start);
-    return in;
-  }
+  DriverBatch read(std::size_t b) const { return readDriverBatch(mDriver, mPlan[b], mThreads); }
 
   const PointCacheReader& mDriver;
   const std::vector<BatchPlan>& mPlan;
+  const std::vector<std::size_t> mRuns;
   const int mThreads;
   std::future<DriverBatch> mNext;
 };
 
 /// Writes batch after batch of EXRs on an I/O task while the next batch is evaluated: two
-/// output blocks take turns. Observer callbacks stay on the bake thread, in frame order, after
-/// a batch's files are complete.
+/// output blocks take turns. Each file carries its frame's record (dsRecord). Observer
+/// callbacks stay on the bake thread, in frame order, after a batch's files are complete.
 class BatchWriter {
  public:
-  BatchWriter(BakeResult& result, const std::vector<int>& todo, ExrWriteOptions exr, int vd,
-              int threads, BakeObserver* observer)
+  BatchWriter(BakeResult& result, ExrWriteOptions exr, int vd, int shapeCount, int threads,
+              BakeObserver* observer)
       : mResult(result),
-        mTodo(todo),
         mExr(std::move(exr)),
         mVd(vd),
+        mShapeCount(shapeCount),
         mThreads(threads),
         mObserver(observer) {}
 
@@ -187,20 +280,27 @@ class BatchWriter {
     return block.data();
   }
 
-  /// Waits for the batch before, then writes frames todo[begin, begin + count) from block().
-  void submit(std::size_t begin, int count, Clock::time_point started) {
+  /// Waits for the batch before, then writes rows `rows` (ascending) of block() as the frames
+  /// of records result.frames[indices[i]].
+  void submit(const std::vector<int>& rows, std::vector<int> indices, Clock::time_point started) {
     finish();
-    const float* positions = mBlocks[mTurn % 2].data();
+    float* positions = mBlocks[mTurn % 2].data();
     ++mTurn;
-    std::vector<std::string> paths;
+    const std::size_t values = static_cast<std::size_t>(mVd) * 3;
+    std::vector<std::string> paths, records;
     std::vector<int> frames;
-    for (int i = 0; i < count; ++i) {
-      paths.push_back(mResult.frames[mTodo[begin + i]].output);
-      frames.push_back(mResult.frames[mTodo[begin + i]].frame);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      if (rows[i] != static_cast<int>(i)) {  // rows ascend: moving down never overwrites one
+        std::copy_n(positions + rows[i] * values, values, positions + i * values);
+      }
+      const FrameRecord& record = mResult.frames[indices[i]];
+      paths.push_back(record.output);
+      frames.push_back(record.frame);
+      records.push_back(jsonText(frameRecordJson(record, mShapeCount)));
     }
-    auto write = [this, paths = std::move(paths), frames = std::move(frames), positions]() {
+    auto write = [this, paths = std::move(paths), frames = std::move(frames),
+                  records = std::move(records), positions, values]() {
       const auto start = Clock::now();
-      const std::size_t values = static_cast<std::size_t>(mVd) * 3;
       // Frames on `workers` threads; the cores left over deflate the chunks within each frame
       // (a batch of one frame of a large mesh still uses every core).
       const int files = static_cast<int>(paths.size());
@@ -210,12 +310,13 @@ class BatchWriter {
         ExrWriteOptions frameExr = mExr;
         frameExr.frame = frames[i];
         frameExr.encodeThreads = encodeThreads;
+        frameExr.stringAttributes.emplace_back(kAttrFrameRecord, records[i]);
         writePointCacheExr(paths[i], mVd, positions + i * values, nullptr, frameExr);
       });
       return secondsSince(start);
     };
-    mPending =
-        Pending{std::async(std::launch::async, std::move(write)), begin, count, positions, started};
+    mPending = Pending{std::async(std::launch::async, std::move(write)), std::move(indices),
+                       positions, started};
   }
 
   /// Waits for the batch being written (rethrowing its error) and reports its frames.
@@ -227,13 +328,13 @@ class BatchWriter {
     mPending.reset();
     mResult.times.write += done.seconds.get();
     std::vector<const FrameRecord*> records;
-    for (int i = 0; i < done.count; ++i) {
-      records.push_back(&mResult.frames[mTodo[done.begin + i]]);
+    for (int index : done.indices) {
+      records.push_back(&mResult.frames[index]);
     }
     if (mObserver != nullptr) {
       mObserver->batchBaked(records, done.positions);
     }
-    const double perFrame = secondsSince(done.started) / done.count;
+    const double perFrame = secondsSince(done.started) / static_cast<double>(records.size());
     for (const FrameRecord* record : records) {
       ++mResult.baked;
       if (mObserver != nullptr) {
@@ -245,16 +346,15 @@ class BatchWriter {
  private:
   struct Pending {
     std::future<double> seconds;
-    std::size_t begin = 0;
-    int count = 0;
+    std::vector<int> indices;
     const float* positions = nullptr;
     Clock::time_point started;
   };
 
   BakeResult& mResult;
-  const std::vector<int>& mTodo;
   const ExrWriteOptions mExr;
   const int mVd;
+  const int mShapeCount;
   const int mThreads;
   BakeObserver* mObserver;
   std::array<std::vector<float>, 2> mBlocks;
@@ -262,164 +362,7 @@ class BatchWriter {
   std::optional<Pending> mPending;
 };
 
-nlohmann::json frameJson(const FrameRecord& record, int shapeCount) {
-  nlohmann::json entry{
-      {"frame", record.frame}, {"output", record.output}, {"skipped", record.skipped}};
-  if (!record.rebakeReason.empty()) {
-    entry["rebaked_because"] = record.rebakeReason;
-  }
-  if (record.skipped) {
-    return entry;
-  }
-  entry["relative_residual"] = record.relativeResidual;
-  if (record.directResidual >= 0.0) {
-    entry["relative_residual_direct"] = record.directResidual;
-  }
-  entry["kkt_residual"] = record.kktResidual;
-  entry["iterations"] = record.iterations;
-  entry["active_at_zero"] = record.atZero;
-  entry["active_at_one"] = record.atOne;
-  entry["weights"] = record.weights;
-  if (record.weights.size() > static_cast<std::size_t>(shapeCount)) {
-    // Regions: one weight vector per region, in the order of settings.regions.
-    nlohmann::json perRegion = nlohmann::json::array();
-    for (std::size_t r = 0; r < record.weights.size(); r += shapeCount) {
-      perRegion.push_back(
-          std::vector<double>(record.weights.begin() + r, record.weights.begin() + r + shapeCount));
-    }
-    entry["weights"] = perRegion;
-  }
-  if (!record.alignRotation.empty()) {
-    entry["align_rotation"] = record.alignRotation;
-    entry["align_translation"] = record.alignTranslation;
-  }
-  const std::pair<const char*, int> counts[] = {{"inside_before", record.insideBefore},
-                                                {"inside_corrected", record.insideCorrected},
-                                                {"inside_after", record.insideAfter},
-                                                {"resolved", record.resolved},
-                                                {"binding_switches", record.bindingSwitches}};
-  for (const auto& [key, value] : counts) {
-    if (value >= 0) {
-      entry[key] = value;
-    }
-  }
-  if (record.closestQueries > 0) {
-    // Work counters (they depend on the batching; the cloth does not).
-    entry["closest_queries"] = record.closestQueries;
-    entry["closest_cleared"] = record.closestCleared;
-  }
-  if (record.maxJump >= 0) {
-    entry["max_jump"] = record.maxJump;
-    entry["max_jump_vertex"] = record.maxJumpVertex;
-  }
-  if (record.predictedError >= 0) {
-    entry["pose_distance"] = record.poseDistance;
-    entry["predicted_error"] = record.predictedError;
-    entry["error_bound"] = record.errorBound;
-    entry["coverage"] = {{"flagged", record.flagged == 1}, {"score", record.errorBound}};
-  }
-  return entry;
-}
-
-nlohmann::json runsJson(const std::vector<SimulationRun>& runs) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const SimulationRun& run : runs) {
-    out.push_back({{"from", run.from}, {"to", run.to}, {"wanted", run.wanted}});
-  }
-  return out;
-}
-
-/// The shot's coverage verdict from the frames' error bounds: the fraction of frames the
-/// pose model covers, the frames to simulate and the runs a simulation of them needs; null
-/// without a pose model.
-nlohmann::json coverageJson(const std::vector<FrameRecord>& records, double tolerance,
-                            double level) {
-  std::vector<int> flagged;
-  int checked = 0, first = 0;
-  for (const FrameRecord& record : records) {
-    if (!record.skipped && record.flagged >= 0) {
-      first = checked == 0 ? record.frame : std::min(first, record.frame);
-      ++checked;
-      if (record.flagged == 1) {
-        flagged.push_back(record.frame);
-      }
-    }
-  }
-  if (checked == 0) {
-    return nullptr;
-  }
-  std::sort(flagged.begin(), flagged.end());
-  const double covered = 1.0 - static_cast<double>(flagged.size()) / checked;
-  return {{"tolerance", tolerance},
-          {"level", level},
-          {"frames_checked", checked},
-          {"covered_fraction", covered},
-          {"simulate_frames", flagged.empty() ? std::string() : formatFrameRange(flagged)},
-          {"simulate_runs", runsJson(simulationRuns(flagged, first))},
-          {"run_up", kSimulationRunUp},
-          {"verdict",
-           flagged.empty() ? "DrivenShape is enough" : "simulate " + formatFrameRange(flagged)}};
-}
-
 }  // namespace
-
-std::string bakeReportJson(const Database& db, const std::string& driverPath,
-                           const BakeOptions& options, const Evaluator& evaluator,
-                           const BakeResult& result) {
-  using nlohmann::json;
-  json settings = parseJsonText(evaluator.describeSettings(), "the evaluator settings");
-  settings.update(parseJsonText(describeBakeSettings(options), "the bake settings"));
-  settings["untrusted_driver"] = !options.untrustedDriver.empty();
-  json seconds{{"read", result.times.read},
-               {"setup", result.times.setup},
-               {"write", result.times.write},
-               {"read_wait", result.times.readWait},
-               {"write_wait", result.times.writeWait},
-               {"total", result.times.total}};
-  for (const char* stage :
-       {"align", "project", "weights", "blend", "correct", "resolve", "layers", "audit"}) {
-    seconds[stage] = 0.0;
-  }
-  for (const auto& [stage, value] : result.times.stages) {
-    seconds[stage] = value;
-  }
-  json frames = json::array();
-  for (const FrameRecord& record : result.frames) {
-    frames.push_back(frameJson(record, db.shapeCount()));
-  }
-  json report{
-      {"tool", "drivenshape"},
-      {"tool_version", kVersion},
-      {"device", result.device},
-      {"database",
-       {{"content_hash", hashToHex(db.contentHash())},
-        {"shape_count", db.shapeCount()},
-        {"driven_vertices", db.drivenVertexCount()},
-        {"frames", db.frames}}},
-      {"driver_cache", driverPath},
-      {"output", options.outputPattern},
-      {"settings_hash", hashToHex(result.settingsHash)},
-      {"settings", settings},
-      {"baked", result.baked},
-      {"skipped", result.skipped},
-      {"seconds", seconds},
-      {"frames", frames},
-  };
-  if (!result.warnings.empty()) {
-    report["warnings"] = result.warnings;
-  }
-  const json coverage =
-      coverageJson(result.frames, evaluator.coverageTolerance(), db.poseModel.verdictLevel);
-  if (!coverage.is_null()) {
-    report["coverage"] = coverage;
-  }
-  return jsonText(report, 1) + "\n";
-}
-
-std::string coverageVerdictJson(const std::vector<FrameRecord>& records, double tolerance,
-                                double level) {
-  return jsonText(coverageJson(records, tolerance, level));
-}
 
 namespace {
 
@@ -484,22 +427,13 @@ EvaluatorSettings evaluatorSettings(const Database& db, const BakeOptions& optio
   return settings;
 }
 
-BakeResult bake(const Database& db, const PointCacheReader& driver, Device& device,
-                const BakeOptions& options, BakeObserver* observer) {
-  const auto bakeStart = Clock::now();
-  validate(db, driver, options);
-  const int threads = resolveThreads(options.threads);
-  const int vd = db.drivenVertexCount();
-  Evaluator evaluator(db, evaluatorSettings(db, options), device);
-  evaluator.checkFrames(options.frames);
+namespace {
 
-  BakeResult result;
-  const auto warn = [&](const std::string& message) {
-    result.warnings.push_back(message);
-    if (observer != nullptr) {
-      observer->warning(message);
-    }
-  };
+/// What a bake warns of before its first frame: the driver's findings (refused unless
+/// forced), an untrusted driver mesh, the evaluator's warnings and bake settings left unused.
+void warnBeforeBaking(const Database& db, const PointCacheReader& driver,
+                      const BakeOptions& options, const Evaluator& evaluator,
+                      const std::function<void(const std::string&)>& warn) {
   for (const DriverFinding& finding : checkDriver(db, driver, options.frames)) {
     if (finding.refuse && !options.force) {
       DS_THROW(kInput, finding.message);
@@ -517,22 +451,166 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
       warn(unused.message);
     }
   }
+}
+
+/// The batches of the shot's plan that a bake runs, and running them: a batch runs when it
+/// has a frame to write, and one whose batch before did not run (kept by a resume, or outside
+/// a farm chunk) first evaluates that batch's last frame, which the audit compares the
+/// batch's first frame with (its largest jump, its binding switches): every frame record is
+/// then the whole bake's, however the shot was chunked or resumed.
+class ShotRun {
+ public:
+  ShotRun(const PointCacheReader& driver, Evaluator& evaluator, const BakeOptions& options,
+          BakeResult& result, int threads)
+      : mDriver(driver),
+        mEvaluator(evaluator),
+        mResult(result),
+        mThreads(threads),
+        mSettings(shotPlanSettings(evaluator, options.batchFrames, options.temporalWarmup)),
+        mPlan(planShot(options.shotFrames.empty() ? options.frames : options.shotFrames,
+                       driver.frames(), mSettings)),
+        mWork(batchWork(mPlan, result.frames)) {
+    for (std::size_t b = 0; b < mPlan.size(); ++b) {
+      if (!mWork[b].rows.empty()) {
+        mRuns.push_back(b);
+        mToBake += static_cast<int>(mWork[b].rows.size());
+      }
+      const auto ours = [](int index) { return index >= 0; };
+      if (!mFitBatch && std::any_of(mWork[b].records.begin(), mWork[b].records.end(), ours)) {
+        mFitBatch = b;
+      }
+    }
+  }
+
+  /// Runs the batches with a frame to write; `stopIfAsked` before each one.
+  void run(BatchWriter& writer, const std::function<void()>& stopIfAsked,
+           const std::function<void(const std::string&)>& warn) {
+    if (mFitBatch && mWork[*mFitBatch].rows.empty()) {
+      warnOfFit(*mFitBatch, warn);  // every frame of it kept
+    }
+    DriverReader reader(mDriver, mPlan, mRuns, mThreads);
+    std::vector<FrameRecord> records;
+    for (std::size_t k = 0; k < mRuns.size(); ++k) {
+      const std::size_t b = mRuns[k];
+      stopIfAsked();
+      const auto batchStart = Clock::now();
+      if (b > 0 && (k == 0 || mRuns[k - 1] != b - 1)) {
+        leadIn(b);
+      }
+      auto start = Clock::now();
+      const DriverBatch input = reader.take(k);
+      mResult.times.readWait += secondsSince(start);
+      mResult.times.read += input.seconds;
+      const int count = static_cast<int>(mPlan[b].frames.size());
+      records.assign(count, FrameRecord{});
+      // Each batch starts the temporal bound afresh (after its warm-up).
+      mEvaluator.resetTemporalBound();
+      addSeconds(mEvaluator.evaluate(static_cast<int>(input.solveFrames.size()),
+                                     input.solveFrames.data(), input.driver.data(),
+                                     writer.block(count), records.data(), input.warm));
+      std::vector<int> indices;
+      for (int row : mWork[b].rows) {
+        const int index = mWork[b].records[row];
+        FrameRecord& record = mResult.frames[index];
+        records[row].output = std::move(record.output);
+        records[row].rebakeReason = std::move(record.rebakeReason);
+        record = std::move(records[row]);
+        indices.push_back(index);
+      }
+      warnOfFit(b, warn);
+      start = Clock::now();
+      writer.submit(mWork[b].rows, std::move(indices), batchStart);
+      mResult.times.writeWait += secondsSince(start);
+    }
+  }
+
+  /// Frames this bake writes.
+  int toBake() const { return mToBake; }
+
+ private:
+  /// Evaluates what the audit of batch b's first frame compares with, as the whole bake
+  /// evaluated it: batch b-1 with the temporal bound (its frames depend on one another), else
+  /// its last frame alone (with its warm-up). Nothing is written, no record kept.
+  void leadIn(std::size_t b) {
+    const BatchPlan lead =
+        mSettings.temporalBound
+            ? mPlan[b - 1]
+            : planShot({mPlan[b - 1].frames.back()}, mDriver.frames(), mSettings).front();
+    const DriverBatch input = readDriverBatch(mDriver, lead, mThreads);
+    mResult.times.read += input.seconds;
+    std::vector<FrameRecord> records(lead.frames.size());
+    std::vector<float> cloth(lead.frames.size() * 3 *
+                             static_cast<std::size_t>(mEvaluator.database().drivenVertexCount()));
+    mEvaluator.resetTemporalBound();
+    addSeconds(mEvaluator.evaluate(static_cast<int>(input.solveFrames.size()),
+                                   input.solveFrames.data(), input.driver.data(), cloth.data(),
+                                   records.data(), input.warm));
+  }
+
+  /// The fit warning (residualWarning) from the records of the first batch of the shot that
+  /// holds a frame of this bake, once they are all known.
+  void warnOfFit(std::size_t b, const std::function<void(const std::string&)>& warn) const {
+    if (b != mFitBatch) {
+      return;
+    }
+    std::vector<const FrameRecord*> first;
+    for (int index : mWork[b].records) {
+      if (index >= 0) {
+        first.push_back(&mResult.frames[index]);
+      }
+    }
+    const std::string fit = residualWarning(first);
+    if (!fit.empty()) {
+      warn(fit);
+    }
+  }
+
+  void addSeconds(const StageSeconds& seconds) {
+    for (const auto& [stage, value] : seconds) {
+      mResult.times.stages[stage] += value;
+    }
+  }
+
+  const PointCacheReader& mDriver;
+  Evaluator& mEvaluator;
+  BakeResult& mResult;
+  const int mThreads;
+  const ShotPlanSettings mSettings;
+  const std::vector<BatchPlan> mPlan;
+  const std::vector<BatchWork> mWork;
+  std::vector<std::size_t> mRuns;
+  std::optional<std::size_t> mFitBatch;
+  int mToBake = 0;
+};
+
+}  // namespace
+
+BakeResult bake(const Database& db, const PointCacheReader& driver, Device& device,
+                const BakeOptions& options, BakeObserver* observer) {
+  const auto bakeStart = Clock::now();
+  validate(db, driver, options);
+  const int threads = resolveThreads(options.threads);
+  const int vd = db.drivenVertexCount();
+  Evaluator evaluator(db, evaluatorSettings(db, options), device);
+  evaluator.checkFrames(options.frames);
+
+  BakeResult result;
+  const auto warn = [&](const std::string& message) {
+    result.warnings.push_back(message);
+    if (observer != nullptr) {
+      observer->warning(message);
+    }
+  };
+  warnBeforeBaking(db, driver, options, evaluator, warn);
   result.device = evaluator.deviceName();
   result.settingsHash = bakeHash(evaluator, options);
   const std::uint64_t topology = topologyHash(db.drivenMesh);
-  const std::vector<int> todo = planFrames(result, options, vd, topology, threads);
-
-  const ExrWriteOptions exr = exrOptions(options, evaluator, topology, result.settingsHash);
-  std::vector<int> todoFrames;
-  for (int index : todo) {
-    todoFrames.push_back(result.frames[index].frame);
-  }
-  const std::vector<BatchPlan> plan =
-      planShot(todoFrames, driver.frames(),
-               shotPlanSettings(evaluator, options.batchFrames, options.temporalWarmup));
-  DriverReader reader(driver, plan, threads);
-  BatchWriter writer(result, todo, exr, vd, threads, observer);
-  std::vector<FrameRecord> records;
+  planFrames(result, options, vd, topology,
+             {result.settingsHash, evaluator.settings().audit, evaluator.coverageTolerance()},
+             threads);
+  ShotRun shot(driver, evaluator, options, result, threads);
+  BatchWriter writer(result, exrOptions(options, evaluator, topology, result.settingsHash), vd,
+                     db.shapeCount(), threads, observer);
   result.times.setup = secondsSince(bakeStart);
 
   // A stop request ends the bake before the next batch, and after the last one before the
@@ -541,52 +619,12 @@ BakeResult bake(const Database& db, const PointCacheReader& driver, Device& devi
   const auto stopIfAsked = [&]() {
     if (observer != nullptr && observer->stopRequested()) {
       writer.finish();
-      DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", todo.size(),
+      DS_THROW(kInterrupted, "stopped after ", result.baked, " of ", shot.toBake(),
                " frames; finished frames are complete, resume by baking again with existing "
                "outputs kept (--skip-existing)");
     }
   };
-  for (std::size_t b = 0; b < plan.size(); ++b) {
-    const std::size_t begin = plan[b].first;
-    stopIfAsked();
-    const auto batchStart = Clock::now();
-    const int count = static_cast<int>(plan[b].frames.size());
-    auto start = Clock::now();
-    const DriverBatch input = reader.take(b);
-    result.times.readWait += secondsSince(start);
-    result.times.read += input.seconds;
-
-    // Each batch starts the temporal bound afresh (after its warm-up), so a farm chunk that
-    // starts on a batch boundary reproduces the single bake; the audit's reference frame
-    // carries over from the batch before.
-    evaluator.resetTemporalBound();
-    records.assign(count, FrameRecord{});
-    for (int i = 0; i < count; ++i) {
-      records[i] = result.frames[todo[begin + i]];
-    }
-    const StageSeconds seconds =
-        evaluator.evaluate(static_cast<int>(input.solveFrames.size()), input.solveFrames.data(),
-                           input.driver.data(), writer.block(count), records.data(), input.warm);
-    for (const auto& [stage, value] : seconds) {
-      result.times.stages[stage] += value;
-    }
-    if (begin == 0) {
-      std::vector<const FrameRecord*> first;
-      for (const FrameRecord& record : records) {
-        first.push_back(&record);
-      }
-      const std::string fit = residualWarning(first);
-      if (!fit.empty()) {
-        warn(fit);
-      }
-    }
-    for (int i = 0; i < count; ++i) {
-      result.frames[todo[begin + i]] = std::move(records[i]);
-    }
-    start = Clock::now();
-    writer.submit(begin, count, batchStart);
-    result.times.writeWait += secondsSince(start);
-  }
+  shot.run(writer, stopIfAsked, warn);
   writer.finish();
   stopIfAsked();
   result.times.total = secondsSince(bakeStart);

@@ -263,13 +263,31 @@ void checkFarmInputs(const FarmJob& job, const std::vector<int>& frames) {
   }
 }
 
+namespace {
+
+/// The bake of the job's shot as argv words, up to its output (the words every task has).
+std::vector<std::string> shotBakeWords(const FarmJob& job) {
+  return {job.binary, "bake",     "--db",     job.database, "--driver",
+          job.driver, "--frames", job.frames, "-o",         job.outputPattern};
+}
+
+}  // namespace
+
 /// The bake of one chunk as argv words; `chunkIndex` is a number, `env` or a template token.
 std::vector<std::string> chunkBakeCommand(const FarmJob& job, const std::string& chunkIndex) {
-  std::vector<std::string> words{job.binary,        "bake",         "--db",
-                                 job.database,      "--driver",     job.driver,
-                                 "--frames",        job.frames,     "-o",
-                                 job.outputPattern, "--chunk-size", std::to_string(job.chunkSize),
-                                 "--chunk-index",   chunkIndex,     "--skip-existing"};
+  std::vector<std::string> words = shotBakeWords(job);
+  for (const std::string& word :
+       {std::string("--chunk-size"), std::to_string(job.chunkSize), std::string("--chunk-index"),
+        chunkIndex, std::string("--skip-existing")}) {
+    words.push_back(word);
+  }
+  words.insert(words.end(), job.extraArgs.begin(), job.extraArgs.end());
+  return words;
+}
+
+std::vector<std::string> shotReportCommand(const FarmJob& job) {
+  std::vector<std::string> words = shotBakeWords(job);
+  words.push_back("--skip-existing");
   words.insert(words.end(), job.extraArgs.begin(), job.extraArgs.end());
   return words;
 }
@@ -352,6 +370,8 @@ std::string slurmScript(const FarmJob& job, const std::string& logPattern,
     << "# resubmitted task keeps its finished frames; resubmit failed chunks with\n"
     << "#   sbatch --array=I,J "
     << "<this file>\n"
+    << "# With the argument `report` (after the chunks: sbatch --dependency=afterok:JOB\n"
+    << "# --array=0 <this file> report) it writes the shot's report from every frame's record.\n"
     << "#SBATCH --job-name=" << sbatchValue(job.name, culprit("--job-name", job.name)) << "\n"
     << "#SBATCH --array=0-" << last << "\n"
     << "#SBATCH --output=" << logPattern << "\n"
@@ -380,22 +400,33 @@ std::string slurmScript(const FarmJob& job, const std::string& logPattern,
     << "fi\n"
     << "export POCL_CACHE_DIR\n"
     << "mkdir -p " << shellQuote(job.outputFolder) << "\n"
-    << "echo \"drivenshape farm: job ${SLURM_ARRAY_JOB_ID:-?} chunk ${SLURM_ARRAY_TASK_ID:-?} "
-    << "of 0-" << last << " on $(hostname) at $(date '+%F %T')\"\n"
-    << "\n"
-    << "# The bake runs in the background so that this shell can pass SIGTERM (scancel, time\n"
-    << "# limit, preemption) and SIGINT on to it; the bake finishes the frames in hand, removes\n"
-    << "# its temporary files and exits 7. The task's exit code is always the bake's.\n";
-  const std::vector<std::string> words = chunkBakeCommand(job, "env");
-  for (std::size_t i = 0; i < words.size(); ++i) {
-    s << (i == 0 ? "" : " ") << shellQuote(words[i]);
+    << "if [ \"${1:-}\" = report ]; then\n"
+    << "  task=\"the shot's report\"\n"
+    << "  set --";
+  for (const std::string& word : shotReportCommand(job)) {
+    s << " " << shellQuote(word);
+  }
+  s << "\n"
+    << "else\n"
+    << "  task=\"chunk ${SLURM_ARRAY_TASK_ID:-?} of 0-" << last << "\"\n"
+    << "  set --";
+  for (const std::string& word : chunkBakeCommand(job, "env")) {
+    s << " " << shellQuote(word);
   }
   if (job.perChunkReport) {
     s << " '--report' "
       << shellQuote(job.outputFolder + "/" + sequenceStem(job.outputPattern) + ".chunk")
       << "\"$SLURM_ARRAY_TASK_ID\"'.report.json'";
   }
-  s << " &\n"
+  s << "\n"
+    << "fi\n"
+    << "echo \"drivenshape farm: job ${SLURM_ARRAY_JOB_ID:-?} $task on $(hostname) at "
+    << "$(date '+%F %T')\"\n"
+    << "\n"
+    << "# The bake runs in the background so that this shell can pass SIGTERM (scancel, time\n"
+    << "# limit, preemption) and SIGINT on to it; the bake finishes the frames in hand, removes\n"
+    << "# its temporary files and exits 7. The task's exit code is always the bake's.\n"
+    << "\"$@\" &\n"
     << "bake=$!\n"
     << "signalled=0\n"
     << "forward() { signalled=1; kill -s \"$1\" \"$bake\" 2>/dev/null || true; }\n"
@@ -409,15 +440,28 @@ std::string slurmScript(const FarmJob& job, const std::string& logPattern,
     << "  wait \"$bake\"\n"
     << "  status=$?\n"
     << "done\n"
-    << "echo \"drivenshape farm: chunk ${SLURM_ARRAY_TASK_ID:-?} exited with $status at "
+    << "echo \"drivenshape farm: $task exited with $status at "
     << "$(date '+%F %T')\"\n"
     << "exit \"$status\"\n";
   return s.str();
 }
 
-/// Runs `sbatch --parsable SCRIPT` and returns the job id it prints.
-std::string submitToSlurm(const std::string& script) {
-  const std::string command = "sbatch --parsable " + shellQuote(script) + " 2>&1";
+std::vector<std::string> slurmReportOptions(const FarmJob& job, const std::string& arrayJob) {
+  return {"--dependency=afterok:" + arrayJob, "--array=0", "--job-name=" + job.name + "_report"};
+}
+
+/// Runs `sbatch --parsable OPTIONS SCRIPT ARGS` and returns the job id it prints.
+std::string submitToSlurm(const std::string& script, const std::vector<std::string>& options,
+                          const std::vector<std::string>& scriptArgs) {
+  std::string command = "sbatch --parsable";
+  for (const std::string& option : options) {
+    command += " " + shellQuote(option);
+  }
+  command += " " + shellQuote(script);
+  for (const std::string& arg : scriptArgs) {
+    command += " " + shellQuote(arg);
+  }
+  command += " 2>&1";
   std::FILE* pipe = ::popen(command.c_str(), "r");
   if (pipe == nullptr) {
     DS_THROW(kOutput, "cannot run sbatch; the job script is at '", script,
@@ -552,8 +596,10 @@ void checkTemplateStep(const nlohmann::ordered_json& step,
   checkTemplateDescription(step, where);
   std::set<std::string> symbols = jobSymbols;
   symbols.insert("Session.WorkingDirectory");
-  for (const json& parameter : step.at("parameterSpace").at("taskParameterDefinitions")) {
-    symbols.insert("Task.Param." + parameter.at("name").get<std::string>());
+  if (step.contains("parameterSpace")) {  // a step without one runs one task
+    for (const json& parameter : step.at("parameterSpace").at("taskParameterDefinitions")) {
+      symbols.insert("Task.Param." + parameter.at("name").get<std::string>());
+    }
   }
   for (const json& environment : step.at("stepEnvironments")) {
     checkTemplateDescription(environment, where + " environment");
@@ -575,12 +621,15 @@ void checkTemplateStep(const nlohmann::ordered_json& step,
   }
 }
 
-/// The step's command arguments: the bake of chunk {{Task.Param.Chunk}} on the job's path
-/// parameters, and its per-chunk report in {{Param.ReportFolder}}.
-nlohmann::ordered_json templateBakeArguments(const FarmJob& job) {
+/// A step's command arguments: `words` (chunkBakeCommand or shotReportCommand) on the job's
+/// path parameters, and the report `reportName` in {{Param.ReportFolder}} (when the job names
+/// the reports: not with a --report of --extra-args).
+nlohmann::ordered_json templateBakeArguments(const FarmJob& job,
+                                             const std::vector<std::string>& words,
+                                             const std::string& reportName) {
   using json = nlohmann::ordered_json;
   json args = json::array();
-  for (const std::string& word : chunkBakeCommand(job, "{{Task.Param.Chunk}}")) {
+  for (const std::string& word : words) {
     args.push_back(word);
   }
   // The paths are job parameters (so a render manager can path-map them); the command uses
@@ -591,34 +640,28 @@ nlohmann::ordered_json templateBakeArguments(const FarmJob& job) {
   args[8] = "{{Param.OutputPattern}}";
   if (job.perChunkReport) {
     args.push_back("--report");
-    args.push_back("{{Param.ReportFolder}}/" + sequenceStem(job.outputPattern) +
-                   ".chunk{{Task.Param.Chunk}}.report.json");
+    args.push_back("{{Param.ReportFolder}}/" + reportName);
   }
   return args;
 }
 
-/// The one step: a task per chunk, the PoCL cache in the session folder, the host needs.
-nlohmann::ordered_json templateBakeStep(const FarmJob& job, long timeoutSeconds,
-                                        int notifySeconds) {
+/// A step running `args`: the PoCL cache in the session folder, the host needs.
+nlohmann::ordered_json templateStep(const FarmJob& job, const char* name,
+                                    const std::string& description,
+                                    const nlohmann::ordered_json& args, long timeoutSeconds,
+                                    int notifySeconds) {
   using json = nlohmann::ordered_json;
   json onRun{{"command", "{{Param.DrivenshapeBinary}}"},
-             {"args", templateBakeArguments(job)},
+             {"args", args},
              {"cancelation",
               {{"mode", "NOTIFY_THEN_TERMINATE"}, {"notifyPeriodInSeconds", notifySeconds}}}};
   if (timeoutSeconds > 0) {
     onRun["timeout"] = timeoutSeconds;
   }
-  json step{{"name", "Bake"},
-            {"description", "One task per chunk of " + std::to_string(job.chunkSize) +
-                                " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " +
-                                job.framesText + ", keeping finished frames (--skip-existing)."},
-            {"parameterSpace",
-             {{"taskParameterDefinitions",
-               json::array({{{"name", "Chunk"},
-                             {"type", "INT"},
-                             {"range", "0-" + std::to_string(job.chunks - 1)}}})}}},
+  json step{{"name", name},
+            {"description", description},
             {"stepEnvironments",
-             json::array({{{"name", "DrivenshapeBakeEnv"},
+             json::array({{{"name", std::string("Drivenshape") + name + "Env"},
                            {"description", "PoCL kernel cache in the session's own folder"},
                            {"variables",
                             {{"POCL_CACHE_DIR", "{{Session.WorkingDirectory}}/pocl-cache"}}}}})},
@@ -634,6 +677,31 @@ nlohmann::ordered_json templateBakeStep(const FarmJob& job, long timeoutSeconds,
     step["hostRequirements"] = {{"amounts", amounts}};
   }
   return step;
+}
+
+/// The steps: Bake, a task per chunk; Report, after every chunk, the shot's report.
+nlohmann::ordered_json templateSteps(const FarmJob& job, long timeoutSeconds, int notifySeconds) {
+  using json = nlohmann::ordered_json;
+  const std::string stem = sequenceStem(job.outputPattern);
+  json bake = templateStep(job, "Bake",
+                           "One task per chunk of " + std::to_string(job.chunkSize) +
+                               " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " +
+                               job.framesText + ", keeping finished frames (--skip-existing).",
+                           templateBakeArguments(job, chunkBakeCommand(job, "{{Task.Param.Chunk}}"),
+                                                 stem + ".chunk{{Task.Param.Chunk}}.report.json"),
+                           timeoutSeconds, notifySeconds);
+  bake["parameterSpace"] = {{"taskParameterDefinitions",
+                             json::array({{{"name", "Chunk"},
+                                           {"type", "INT"},
+                                           {"range", "0-" + std::to_string(job.chunks - 1)}}})}};
+  json report =
+      templateStep(job, "Report",
+                   "After every chunk: the shot's report from the records its frames "
+                   "carry, every frame checked (--skip-existing).",
+                   templateBakeArguments(job, shotReportCommand(job), stem + ".report.json"),
+                   timeoutSeconds, notifySeconds);
+  report["dependencies"] = json::array({{{"dependsOn", "Bake"}}});
+  return json::array({bake, report});
 }
 
 /// A PATH job parameter holding `value`; its default is `value` relative to `templateDir` when
@@ -752,7 +820,6 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
                                        long timeoutSeconds, int notifySeconds,
                                        nlohmann::ordered_json& values) {
   using json = nlohmann::ordered_json;
-  const json step = templateBakeStep(job, timeoutSeconds, notifySeconds);
   return json{
       {"specificationVersion", "jobtemplate-2023-09"},
       {"name", job.name},
@@ -771,8 +838,9 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
                     pathParameter("OutputPattern", job.outputPattern, nullptr, "OUT",
                                   "output EXR sequence", templateDir, values),
                     pathParameter("ReportFolder", job.outputFolder, "DIRECTORY", "OUT",
-                                  "folder of the per-chunk JSON reports", templateDir, values)})},
-      {"steps", json::array({step})}};
+                                  "folder of the JSON reports: each chunk's and the shot's",
+                                  templateDir, values)})},
+      {"steps", templateSteps(job, timeoutSeconds, notifySeconds)}};
 }
 
 /// Block-style YAML of a JSON value. Strings are written as JSON strings, which YAML reads as

@@ -81,6 +81,12 @@ void checkFarmInputs(const FarmJob& job, const std::vector<int>& frames);
 /// The bake of one chunk as argv words; `chunkIndex` is a number, `env` or a template token.
 std::vector<std::string> chunkBakeCommand(const FarmJob& job, const std::string& chunkIndex);
 
+/// The job's last task, after every chunk: the bake of the whole shot with its outputs kept
+/// (--skip-existing), which checks every frame, bakes none when the chunks did theirs, and
+/// writes the shot's report (<output folder>/<stem>.report.json, or the --report of
+/// --extra-args) from the records the frames carry: the report of a one-shot bake.
+std::vector<std::string> shotReportCommand(const FarmJob& job);
+
 // ---- Slurm ---------------------------------------------------------------------------------
 
 /// Slurm's default MaxArraySize: array indices 0..1000.
@@ -102,9 +108,15 @@ std::string slurmLogPattern(const std::string& logDir, const std::string& jobNam
 std::string slurmScript(const FarmJob& job, const std::string& logPattern,
                         const std::string& partition);
 
-/// Runs `sbatch --parsable SCRIPT` (through the shell, waiting for it) and returns the job id
-/// it prints; Error(kOutput) when sbatch cannot run, fails or prints no id.
-std::string submitToSlurm(const std::string& script);
+/// Runs `sbatch --parsable OPTIONS SCRIPT ARGS` (through the shell, each word quoted, waiting
+/// for it) and returns the job id it prints; Error(kOutput) when sbatch cannot run, fails or
+/// prints no id.
+std::string submitToSlurm(const std::string& script, const std::vector<std::string>& options = {},
+                          const std::vector<std::string>& scriptArgs = {});
+
+/// The sbatch options of the shot's report task (the script run with the argument `report`):
+/// after every chunk of array job `arrayJob` succeeded, one task, its own job name.
+std::vector<std::string> slurmReportOptions(const FarmJob& job, const std::string& arrayJob);
 
 // ---- Open Job Description ------------------------------------------------------------------
 

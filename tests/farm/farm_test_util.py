@@ -117,6 +117,34 @@ def compare_with_reference(farm, folder, frames=FRAMES, allow_missing=False):
     return len(frames) - len(missing)
 
 
+def shot_report(path):
+    """The bake report at `path` as the shot's: without what the run that wrote it did (`run`,
+    `seconds`; docs/formats.md) and with each output by its file name (the folders differ)."""
+    report = json.loads(Path(path).read_text())
+    check("run" in report and "seconds" in report, f"{path}: no 'run' or 'seconds'")
+    del report["run"], report["seconds"]
+    report["output"] = Path(report["output"]).name
+    for record in report["frames"]:
+        record["output"] = Path(record["output"]).name
+    return report
+
+
+def compare_report_with_reference(farm, report_path, settings_given=()):
+    """Checks that the report at `report_path` is the reference bake's apart from `run` and
+    `seconds` (shot_report): the same frame records, warnings and verdict, value for value.
+    `settings_given`: settings the bake was given other values of than the reference's (which
+    change no cloth), left out of the comparison."""
+    got, want = shot_report(report_path), shot_report(farm.ref / "c.report.json")
+    for key in settings_given:
+        check(got["settings"].pop(key) != want["settings"].pop(key), f"{key} is the same")
+    if got == want:
+        return
+    differ = [k for k in sorted(set(got) | set(want)) if got.get(k) != want.get(k)]
+    frames = [w["frame"] for g, w in zip(got.get("frames", []), want["frames"]) if g != w]
+    raise CheckFailed(f"{report_path}: differs from the reference bake's report in {differ}"
+                      f"{f' (frames {frames[:10]})' if frames else ''}")
+
+
 def check_template_with_openjd_model(template_path, params_path=None):
     """Validates a written job template with openjd-model from PyPI (what `openjd check` runs):
     decoded as a jobtemplate-2023-09 document and, with the job parameter values written beside

@@ -1,11 +1,15 @@
 # SPDX-License-Identifier: Apache-2.0
 """Chunking determinism: a bake in 3 uneven chunks (17 + 17 + 14 frames of 48) run out of order
 (2, 0, 1), with other thread counts and launch batches than the reference, is bitwise identical
-to one bake of all frames."""
+to one bake of all frames, and the farm's last task (the whole shot with --skip-existing) writes
+that bake's report apart from `run` and `seconds`; a chunk's own report names the shot's
+simulation runs, which may start before the chunk."""
 
+import json
 import sys
 
-from farm_test_util import FRAMES, check, compare_with_reference, exr_files, main, temp_files
+from farm_test_util import (FRAMES, check, compare_report_with_reference,
+                            compare_with_reference, exr_files, main, temp_files)
 
 
 def uneven_chunks_out_of_order(farm):
@@ -26,6 +30,17 @@ def uneven_chunks_out_of_order(farm):
     check(not temp_files(out), f"temporary files left: {temp_files(out)}")
     check(len(exr_files(out)) == len(FRAMES), f"{len(exr_files(out))} outputs, not {len(FRAMES)}")
     compare_with_reference(farm, out)
+    chunk = json.loads((out / "c.chunk1.report.json").read_text())
+    flagged = [r["frame"] for r in chunk["frames"] if r["coverage"]["flagged"]]
+    runs = chunk["coverage"]["simulate_runs"]
+    check(18 in flagged, f"the test needs frame 18 (chunk 1's first) flagged: {flagged}")
+    check(runs[0]["from"] == 1, f"chunk 1's first simulation run should start 20 frames before "
+                                f"frame 18, at the shot's first frame 1, not at the chunk's "
+                                f"edge: {runs}")
+    result = farm.run(*farm.bake_args(out), "--skip-existing")
+    check("baked 0 frames (48 kept)" in result.stdout,
+          f"the report task should keep every frame: {result.stdout}")
+    compare_report_with_reference(farm, out / "c.report.json")
 
 
 def chunk_from_slurm_environment(farm):

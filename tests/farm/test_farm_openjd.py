@@ -17,8 +17,9 @@ import sys
 import time
 from pathlib import Path
 
-from farm_test_util import (FRAMES, check, check_template_with_openjd_model, compare_with_reference,
-                            exr_files, main, temp_files)
+from farm_test_util import (FRAMES, check, check_template_with_openjd_model,
+                            compare_report_with_reference, compare_with_reference, exr_files,
+                            main, temp_files)
 
 
 def openjd_tool():
@@ -75,6 +76,14 @@ def template_checks_and_runs(farm):
     reports = sorted(p.name for p in out.glob("*.report.json"))
     check(reports == [f"c.chunk{i}.report.json" for i in range(3)],
           f"expected one report per chunk, got {reports}")
+    # The Report step, after every chunk: the shot's report, the one-shot bake's.
+    check(template["steps"][1]["dependencies"] == [{"dependsOn": "Bake"}],
+          f"the Report step should depend on Bake: {template['steps'][1]}")
+    result = openjd("run", job, "--step", "Report", "--job-param", f"file://{params}")
+    check("baked 0 frames (48 kept)" in result.stdout,
+          f"the Report step should keep all 48 frames:\n{result.stdout[-3000:]}")
+    # The job's --extra-args give --batch 8: without the temporal bound it changes no cloth.
+    compare_report_with_reference(farm, out / "c.report.json", settings_given=("batch",))
 
     # One task again (a retry): with --skip-existing everything is kept.
     (out / "c.0020.exr").unlink()

@@ -17,7 +17,8 @@ import subprocess
 import sys
 import time
 
-from farm_test_util import (FRAMES, check, compare_with_reference, exr_files, frame_name, main,
+from farm_test_util import (FRAMES, check, compare_report_with_reference,
+                            compare_with_reference, exr_files, frame_name, main, shot_report,
                             temp_files, wait_for_outputs)
 
 
@@ -27,16 +28,17 @@ def kept_and_baked(stdout):
     return int(match.group(2)), int(match.group(1))
 
 
-def interrupt(farm, out, signum, while_writing=False):
-    """Starts a full bake, sends `signum` once 3 frames are on disk (and, `while_writing`, when
-    a temporary file is being written if that is seen within 5 s); returns (code, stderr)."""
+def interrupt(farm, out, signum, while_writing=False, after=3, extra=("--batch", "1")):
+    """Starts a full bake, sends `signum` once `after` frames are on disk (and, `while_writing`,
+    when a temporary file is being written if that is seen within 5 s); returns (code,
+    stderr)."""
     log = out.parent / (out.name + ".stderr")
     with open(log, "w") as stderr:
         process = subprocess.Popen([str(farm.cli)] + [str(w) for w in farm.bake_args(out)] +
-                                   ["--batch", "1"], stdout=subprocess.DEVNULL, stderr=stderr,
+                                   list(extra), stdout=subprocess.DEVNULL, stderr=stderr,
                                    env=farm.env)
         try:
-            running = wait_for_outputs(out, 3, process)
+            running = wait_for_outputs(out, after, process)
             check(running, f"the bake ended (exit {process.poll()}) before it could be "
                            f"signalled; see {log}")
             deadline = time.monotonic() + 5
@@ -59,6 +61,7 @@ def resume(farm, out, expect_kept):
           f"the rerun kept {kept} and baked {baked} frames; expected to keep the {expect_kept} "
           f"finished ones and bake the other {len(FRAMES) - expect_kept}")
     compare_with_reference(farm, out)
+    compare_report_with_reference(farm, out / "c.report.json")
     return result
 
 
@@ -105,6 +108,57 @@ def sigkill_then_resume(farm):
           f"the rerun should say it removed {removed} temporary files:\n{result.stderr[-1000:]}")
 
 
+def killed_at_several_points(farm):
+    """The report is the shot's, not the last run's: a bake killed (SIGKILL) once 2, then 20,
+    then 41 frames are on disk, each time resumed with --skip-existing and batches of 5 (so
+    kills land inside batches), and a last resume (the reference's settings), writes the
+    reference bake's report apart from `run` and `seconds`: every frame's record and the
+    verdict over all 48 frames."""
+    out = farm.scratch("resume-several")
+    for after in (2, 20, 41):
+        code, stderr = interrupt(farm, out, signal.SIGKILL, after=after,
+                                 extra=("--batch", "5", "--skip-existing"))
+        check(code == -signal.SIGKILL, f"SIGKILL after {after}: expected death by signal 9, "
+                                       f"got {code}:\n{stderr[-1000:]}")
+        print(f"killed with {len(exr_files(out))} frames on disk", flush=True)
+    finished = len(exr_files(out))
+    result = farm.run(*farm.bake_args(out), "--skip-existing")
+    kept, baked = kept_and_baked(result.stdout)
+    check(kept == finished and kept + baked == len(FRAMES),
+          f"the last resume kept {kept} and baked {baked}; {finished} were on disk")
+    compare_with_reference(farm, out)
+    compare_report_with_reference(farm, out / "c.report.json")
+    # A rerun that keeps every frame writes the same report again (its verdict included).
+    farm.run(*farm.bake_args(out), "--skip-existing")
+    compare_report_with_reference(farm, out / "c.report.json")
+
+
+def settings_outside_the_hash(farm):
+    """Settings that change a frame's record but not its cloth (so not the settings hash): a
+    resume with the audit on bakes again the frames baked with it off (their records lack its
+    figures); one with another coverage tolerance keeps every frame and flags them against the
+    new tolerance: its report is a fresh bake's with that tolerance."""
+    out = farm.scratch("resume-record-settings")
+    farm.run(*farm.bake_args(out), "--no-audit")
+    result = farm.run(*farm.bake_args(out), "--skip-existing")
+    kept, baked = kept_and_baked(result.stdout)
+    check(kept == 0 and "with the audit off" in result.stderr,
+          f"frames baked without the audit should be baked again: kept {kept}\n"
+          f"{result.stderr[-1000:]}")
+    compare_report_with_reference(farm, out / "c.report.json")
+    tolerance = ["--coverage-tolerance", "0.05"]
+    result = farm.run(*farm.bake_args(out), "--skip-existing", *tolerance)
+    check(kept_and_baked(result.stdout) == (len(FRAMES), 0), "every frame should be kept")
+    fresh = farm.scratch("resume-record-settings-fresh")
+    farm.run(*farm.bake_args(fresh), *tolerance)
+    check(shot_report(out / "c.report.json")["coverage"] ==
+          shot_report(fresh / "c.report.json")["coverage"],
+          "the resumed verdict is not a fresh bake's with the new tolerance")
+    check(shot_report(out / "c.report.json")["frames"] ==
+          shot_report(fresh / "c.report.json")["frames"],
+          "the resumed records are not a fresh bake's with the new tolerance")
+
+
 def truncated_and_foreign_outputs_rebaked(farm):
     out = farm.scratch("resume-truncated")
     for frame in FRAMES:
@@ -125,5 +179,5 @@ def truncated_and_foreign_outputs_rebaked(farm):
 
 
 if __name__ == "__main__":
-    sys.exit(main([sigterm_then_resume, sigkill_then_resume,
-                   truncated_and_foreign_outputs_rebaked]))
+    sys.exit(main([sigterm_then_resume, sigkill_then_resume, killed_at_several_points,
+                   settings_outside_the_hash, truncated_and_foreign_outputs_rebaked]))

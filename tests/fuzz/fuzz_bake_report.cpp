@@ -2,14 +2,23 @@
 // The coverage part of a bake report (src/shot/coverage_check.cpp, `eval --report`): a report
 // that parses holds finite predictions >= 0 on distinct frames and a tolerance >= 0 when it
 // predicts; matched to a fixed evaluation of frames 1-6, every evaluated frame is predicted,
-// missing or unpredicted, and the statistics stay in their ranges.
+// missing or unpredicted, and the statistics stay in their ranges. And the frame records
+// (src/shot/frame_record_json.cpp: what a resume reads back from each EXR's dsRecord, what a
+// merge of chunk reports reads): a report that merges gives a report whose frames ascend, each
+// once, and which merges into itself byte for byte; each record read back writes the same JSON.
 
 #include <cmath>
 #include <set>
+#include <string>
 
+#include <nlohmann/json.hpp>
+
+#include <drivenshape/bake.h>
 #include <drivenshape/coverage_check.h>
 
+#include "frame_record_json.h"
 #include "fuzz_support.h"
+#include "json_text.h"
 
 namespace ds = drivenshape;
 
@@ -64,6 +73,28 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                       "Spearman outside [-1, 1]");
     ds::fuzz::require(c.verdictHolds.has_value() == (c.enough > 0), check,
                       "a verdict without enough frames, or none with them");
+  });
+  ds::fuzz::expectOnlyErrors("mergeBakeReports", [&] {
+    const char* reader = "mergeBakeReports";
+    const std::string merged = ds::mergeBakeReports({text, text}, {"a.json", "b.json"});
+    ds::fuzz::require(ds::mergeBakeReports({merged}, {"merged.json"}) == merged, reader,
+                      "a merged report that does not merge into itself");
+    const nlohmann::json report = ds::parseJsonText(merged, "merged.json");
+    int previous = 0;
+    bool first = true;
+    for (const nlohmann::json& entry : report.at("frames")) {
+      const int frame = entry.at("frame").get<int>();
+      ds::fuzz::require(first || frame > previous, reader, "frames not ascending, or twice");
+      first = false;
+      previous = frame;
+      if (entry.contains("skipped") && entry.at("skipped") == true) {
+        continue;
+      }
+      const nlohmann::json again = ds::frameRecordJson(ds::frameRecordFromJson(entry, "f"), 0);
+      ds::fuzz::require(ds::jsonText(again) == ds::jsonText(ds::frameRecordJson(
+                                                   ds::frameRecordFromJson(again, "g"), 0)),
+                        "frameRecordFromJson", "a record that does not read back as written");
+    }
   });
   return 0;
 }

@@ -95,6 +95,9 @@ DEVICES = ["host", "cpu"]  # cpu = the OpenCL CPU device (PoCL); it must exist (
 
 # Per-frame report keys that are not results.
 FRAME_IGNORED = ("output",)
+# Record fields the recording has that moved to the report's `run` since 0.2.0 (a record is
+# the frame's, whichever run baked it): not compared; the run's counts are, in the summary.
+FRAME_MOVED = ("skipped", "rebaked_because", "closest_queries", "closest_cleared")
 # Settings keys holding paths given on the command line: compared by file name only.
 SETTINGS_PATHS = ("binding_mask", "regions_file")
 
@@ -155,7 +158,8 @@ def strip_report(report):
     """The parts of a bake report that a refactor must reproduce (no timing, no paths)."""
     frames = []
     for record in report["frames"]:
-        frames.append({k: v for k, v in record.items() if k not in FRAME_IGNORED})
+        frames.append({k: v for k, v in record.items()
+                       if k not in FRAME_IGNORED and k not in FRAME_MOVED})
     settings = dict(report["settings"])
     # Added by the Evaluator (c.f. issue 14): which pipeline stages ran. Informational: the
     # settings that decide the result are the other keys, compared exactly.
@@ -179,9 +183,10 @@ def strip_report(report):
     # Added for `eval --report` (issue 17 part 3): the cloth's vertex count, which the recorded
     # reports lack. Informational: it is the database's, whose content hash is compared.
     database.pop("driven_vertices", None)
+    run = report.get("run", {"baked": report.get("baked"), "kept": report.get("skipped")})
     summary = {
-        "baked": report["baked"],
-        "skipped": report["skipped"],
+        "baked": run["baked"],
+        "skipped": run["kept"],
         "database": database,
         "settings": settings,
     }

@@ -39,15 +39,47 @@ except ImportError as error:  # a failure, never a skip
 
 # Header attributes left out of the informational header hash: the settings hash may change
 # legitimately (it names the settings, not the result).
-HEADER_IGNORED = ("dsSettingsHash",)
+HEADER_IGNORED = ("dsSettingsHash", "dsRecord")
+# Attributes added since the recording that the file bytes are compared without: each baked
+# frame's record (dsRecord, after 0.2.0), which the report's records are compared with instead.
+ADDED_ATTRIBUTES = ("dsRecord",)
+
+
+def without_attributes(data, names):
+    """The bytes of a single-part scan-line EXR without the header attributes `names`: the
+    file another version that did not write them would have written. Each attribute is
+    name\\0 type\\0 int32 size, value; the header ends with a 0 byte and the line offset table
+    (uint64 file offsets, the first pointing right after the table) follows, so every offset
+    moves back by the bytes taken out. Other files come back as they are."""
+    if data[:4] != b"\x76\x2f\x31\x01":  # not an OpenEXR file
+        return data
+    at, removed, out = 8, 0, bytearray(data[:8])
+    while data[at] != 0:
+        name_end = data.index(b"\0", at)
+        type_end = data.index(b"\0", name_end + 1)
+        (size,) = struct.unpack_from("<i", data, type_end + 1)
+        end = type_end + 5 + size
+        if data[at:name_end].decode("utf-8", "replace") in names:
+            removed += end - at
+        else:
+            out += data[at:end]
+        at = end
+    table = at + 1
+    (first,) = struct.unpack_from("<Q", data, table)
+    count = (first - table) // 8
+    out += b"\0"
+    for i in range(count):
+        (offset,) = struct.unpack_from("<Q", data, table + 8 * i)
+        out += struct.pack("<Q", offset - removed)
+    out += data[table + 8 * count:]
+    return bytes(out)
 
 
 def file_sha256(path):
-    digest = hashlib.sha256()
+    """sha256 of the file's bytes, without the ADDED_ATTRIBUTES."""
     with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+        data = f.read()
+    return hashlib.sha256(without_attributes(data, ADDED_ATTRIBUTES)).hexdigest()
 
 
 def _attribute_text(value):
@@ -69,7 +101,7 @@ def restamped_sha256(path, values):
     not hold (a position map has no settings hash) is left out; an attribute whose value has
     another length makes it a hash of nothing: None."""
     with open(path, "rb") as f:
-        data = f.read()
+        data = without_attributes(f.read(), ADDED_ATTRIBUTES)
     for name, value in values.items():
         new = value.encode("utf-8")
         key = name.encode("utf-8") + b"\0string\0" + struct.pack("<i", len(new))

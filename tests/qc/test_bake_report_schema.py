@@ -45,7 +45,7 @@ def report_of(shot, name):
 def test_real_reports_validate(shot, validator, name, options, model):
     report = report_of(shot, name)
     assert report["settings"]["weights"] == model, "the bake ran another model than expected"
-    assert report["baked"] == FRAME_COUNT
+    assert report["run"]["baked"] == FRAME_COUNT
     assert errors_of(validator, report) == []
 
 
@@ -68,7 +68,8 @@ def test_a_resumed_bake_validates(shot, validator):
     # The same folder again with --skip-existing: frames 1-6 are kept, the rest baked.
     shot.bakes.pop("resumed")
     report = json.loads(shot.bake("resumed", "--skip-existing").read_text(encoding="utf-8"))
-    assert report["skipped"] == 6 and report["baked"] == FRAME_COUNT - 6
+    assert report["run"]["kept"] == 6 and report["run"]["baked"] == FRAME_COUNT - 6
+    assert all("predicted_error" in r for r in report["frames"]), "a kept frame lost its record"
     assert errors_of(validator, report) == []
 
 

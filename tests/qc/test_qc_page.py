@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 
 from conftest import FRAME_COUNT, HIGH_TOLERANCE, LOW_TOLERANCE, run
+from drivenshape import merge_bake_reports
 
 MM_PER_M = 1000.0
 WINDOW = (1400, 3000)
@@ -273,7 +274,7 @@ def test_page_shows_what_the_model_has(shot, name, options, model):
     assert set(parsed.images) == PAGE_IMAGES[model], parsed.images
     assert "verdict" not in parsed.paragraphs, "a verdict on a bake the pose model did not make"
     assert "predicted" not in parsed.columns
-    baked = [r for r in report["frames"] if not r["skipped"]]
+    baked = [r for r in report["frames"] if not r.get("skipped")]
     if model in ("qp", "nearest"):
         # The direct residual, as printed (3 significant digits).
         residuals = [r["relative_residual_direct"] for r in baked]
@@ -387,18 +388,30 @@ def test_the_bakes_warnings_are_on_the_page(shot, pose):
 
 
 def test_farm_chunks_give_one_verdict(shot):
-    """Two chunk reports (the halves of the flagged bake) give the whole bake's verdict."""
+    """The reports of two real farm chunks (bake --chunk-size 12 --chunk-index 0 and 1), each
+    with the verdict over its own frames, give the whole bake's verdict and runs (the library's
+    merge, not the first chunk's verdict)."""
     _, report = page_of(shot, "flagged", "--coverage-tolerance", LOW_TOLERANCE)
     halves = []
-    for index, part in enumerate((report["frames"][:12], report["frames"][12:])):
-        path = shot.root / f"chunk{index}.report.json"
-        path.write_text(json.dumps(dict(report, frames=part)))
-        halves += ["--report", path]
+    for index in (0, 1):
+        path = shot.bake(f"chunk{index}", "--coverage-tolerance", LOW_TOLERANCE, "--chunk-size",
+                         str(FRAME_COUNT // 2), "--chunk-index", str(index))
+        chunk = shot.root / f"chunk{index}" / f"sleeve.chunk{index}.report.json"
+        assert chunk.is_file() and not path.exists(), "a chunk writes its own report"
+        assert json.loads(chunk.read_text())["coverage"]["verdict"] != \
+            report["coverage"]["verdict"], "the test needs chunks whose verdicts differ"
+        halves += ["--report", chunk]
     out = shot.root / "qc_chunks"
     qc(*halves, "-o", out)
     parsed = parse_page(out / "index.html")
     assert int(parsed.summary["frames_baked"]) == FRAME_COUNT
     assert parsed.summary["verdict"] == report["coverage"]["verdict"]
+    merged = json.loads(merge_bake_reports([chunk.read_text() for chunk in halves[1::2]],
+                                           [str(chunk) for chunk in halves[1::2]]))
+    assert merged["coverage"] == report["coverage"]
+    def records(frames):
+        return [{k: v for k, v in r.items() if k != "output"} for r in frames]
+    assert records(merged["frames"]) == records(report["frames"])
 
 
 def test_lengths_in_mm_and_sensible_digits(pose):

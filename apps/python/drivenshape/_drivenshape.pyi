@@ -10,7 +10,7 @@ import numpy
 import numpy.typing
 import os
 import typing
-__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'expand_frame_pattern', 'format_frame_range', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
+__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'expand_frame_pattern', 'format_frame_range', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'merge_bake_reports', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
 class _Buffer:
     """
     C++ memory shown to numpy without a copy
@@ -705,6 +705,10 @@ def load_layers(database: Database, **kwargs: str | int | float | collections.ab
 def load_regions(path: str | os.PathLike[str], database: Database) -> RegionSet:
     """
     readRegions: a region JSON file (bake --regions)
+    """
+def merge_bake_reports(texts: list[str], sources: list[str]) -> str:
+    """
+    One bake report (JSON text) from the JSON texts of the reports of parts of one shot (farm chunks), `sources` naming them in messages: every frame's record once in frame order, the verdict over all of them, the warnings of all, `run` and `seconds` summed. drivenshape.Error for reports of another database or settings.
     """
 def open_device(spec: str = 'auto') -> Device:
     """

@@ -48,8 +48,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Optional, TypedDict
 import numpy as np
 import numpy.typing as npt
 
-from . import (Error, Mesh, PointCache, _files, format_frame_range, open_point_cache, read_obj,
-               settings_table, verdict_holds)
+from . import (Error, Mesh, PointCache, _files, format_frame_range, merge_bake_reports,
+               open_point_cache, read_obj, settings_table, verdict_holds)
 
 if TYPE_CHECKING:  # matplotlib is imported where the plots are drawn, not with the module
     from matplotlib.axes import Axes
@@ -315,32 +315,16 @@ def check_weights(record: _Json, shape_count: object, path: str) -> None:
 
 
 def merge_reports(paths: Sequence[str]) -> _Json:
-    """One report from farm chunks: the same database and settings, frames in order."""
+    """One report from the reports of parts of one bake (farm chunks), as the library merges
+    them (drivenshape.merge_bake_reports): every frame once, the verdict over all of them."""
     reports = [load_report(path) for path in paths]
-    first = reports[0]
-    frames: dict[int, _Json] = {}
-    for path, report in zip(paths, reports):
-        require(report.get("settings_hash") == first.get("settings_hash"), path,
-                f"settings_hash {report.get('settings_hash')} differs from "
-                f"{first.get('settings_hash')} in '{paths[0]}': merge only the chunk reports "
-                "of one bake")
-        require(report["database"].get("content_hash") == first["database"].get("content_hash"),
-                path, "another database than the first report's: merge only the chunk "
-                      "reports of one bake")
-        for record in report["frames"]:
-            known = frames.get(record["frame"])
-            if known is None or known.get("skipped"):
-                frames[record["frame"]] = record
-    merged = dict(first)
-    warnings = list(dict.fromkeys(w for r in reports for w in r.get("warnings", [])))
-    if warnings:
-        merged["warnings"] = warnings
-    merged["frames"] = [frames[f] for f in sorted(frames)]
-    merged["baked"] = sum(1 for r in merged["frames"] if not r.get("skipped"))
-    merged["skipped"] = len(merged["frames"]) - merged["baked"]
-    if len(reports) > 1:
-        merged["seconds"] = {key: sum(r.get("seconds", {}).get(key, 0.0) for r in reports)
-                             for key in first.get("seconds", {})}
+    if len(reports) == 1:
+        return reports[0]
+    try:
+        text = merge_bake_reports([json.dumps(r) for r in reports], list(paths))
+    except Error as error:
+        raise QcError(EXIT_INPUT, str(error)) from None
+    merged: _Json = json.loads(text)
     return merged
 
 

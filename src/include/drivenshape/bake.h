@@ -38,8 +38,8 @@ struct BakeResult {
   StageTimes times;
   std::string device;
   std::uint64_t settingsHash = 0;
-  int baked = 0;
-  int skipped = 0;
+  int baked = 0;    ///< frames this run wrote
+  int skipped = 0;  ///< frames a resume kept (their records read back from their files)
   int staleTempFilesRemoved = 0;      ///< by a resume (options.skipExisting), of its own frames
   std::vector<std::string> warnings;  ///< checkDriver's findings and fit warnings
 };
@@ -59,8 +59,13 @@ struct BakeObserver {
 };
 
 /// Bakes `options.frames` of `driver` with `database` on `stages` (host or OpenCL) and writes
-/// one point-cache EXR per frame (atomically). Validates everything it can before the first
-/// frame: vertex counts, frames present, output folder writable. Throws drivenshape::Error.
+/// one point-cache EXR per frame (atomically), each carrying its frame's record (the report's
+/// frames[] entry, EXR attribute dsRecord). The batches are planned over the shot
+/// (options.shotFrames, or the frames); a resume (options.skipExisting) keeps complete
+/// outputs with the records they carry and evaluates only the batches that have frames to
+/// write, so a resumed or chunked bake writes the same frames and reports the same records as
+/// one run. Validates everything it can before the first frame: vertex counts, frames
+/// present, output folder writable. Throws drivenshape::Error.
 BakeResult bake(const Database& database, const PointCacheReader& driver, Device& device,
                 const BakeOptions& options, BakeObserver* observer = nullptr);
 
@@ -74,10 +79,19 @@ std::string bakeReportJson(const Database& database, const std::string& driverPa
 
 /// The shot's coverage verdict over `records` (the report's `coverage` object as JSON text:
 /// tolerance, level, frames_checked, covered_fraction, simulate_frames, simulate_runs, run_up,
-/// verdict), or "null" when no record has a pose-model prediction. Skipped records are not
-/// counted.
+/// verdict), or "null" when no record has a pose-model prediction. Records without a
+/// prediction are not counted.
 std::string coverageVerdictJson(const std::vector<FrameRecord>& records, double tolerance,
                                 double level);
+
+/// One bake report from the reports of parts of one shot (`texts`, named `sources` in
+/// messages; farm chunks, or bakes of frame ranges): every frame's record once, in frame
+/// order; the verdict over all of them, its simulation runs from the first frame; the
+/// warnings of all; `run` and `seconds` summed. Reports of another database or other
+/// settings, or two records of one frame that differ, are Error(kInput) naming the report. A
+/// frame kept by a resume up to 0.2.0 (`"skipped": true`) gives way to a record of it.
+std::string mergeBakeReports(const std::vector<std::string>& texts,
+                             const std::vector<std::string>& sources);
 
 /// Checks the database's driver mesh before a bake (checkDriverMesh; `source` names the
 /// database in messages). A mesh that passes changes nothing and returns "". One that does not

@@ -24,7 +24,11 @@ inline constexpr int kDefaultTemporalWarmup = 8;
 inline constexpr std::size_t kBatchMemoryBudget = std::size_t(768) << 20;
 
 struct BakeOptions {
-  std::vector<int> frames;    ///< frames of the driver cache to bake
+  std::vector<int> frames;  ///< frames of the driver cache to bake
+  /// The whole shot when `frames` is a part of it (a farm chunk), else empty (the shot is
+  /// `frames`). The batches are planned over the shot, so a part's frames are the whole
+  /// bake's for any chunking, and the verdict's simulation runs may start before the part.
+  std::vector<int> shotFrames;
   std::string outputPattern;  ///< EXR sequence with a frame token, e.g. out/cloth.####.exr
   std::string reportPath;     ///< per-bake JSON report; empty = none
   /// Frames per kernel launch (`--batch`); lowered for large meshes so that a batch's buffers
@@ -51,8 +55,8 @@ struct BakeOptions {
   /// each launch batch (`batchFrames` frames); before each batch, `temporalWarmup` driver-cache
   /// frames preceding its first frame are solved (the first of them without the bound) but not
   /// written. The output therefore depends on batchFrames and temporalWarmup, never on the thread
-  /// count, and a farm chunk whose size is a multiple of batchFrames reproduces the single bake
-  /// exactly.
+  /// count; a farm chunk (shotFrames) and a resume plan the shot's batches, so they reproduce
+  /// the single bake exactly.
   int temporalWarmup = kDefaultTemporalWarmup;
   /// Layers after the correction and resolution (docs/commands.md, "Layering"): a mix with
   /// another cache of the cloth, procedural wind, from files. Off by default. Recorded in the
