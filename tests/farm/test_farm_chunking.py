@@ -43,6 +43,19 @@ def uneven_chunks_out_of_order(farm):
     compare_report_with_reference(farm, out / "c.report.json")
 
 
+def chunks_on_batch_boundaries(farm):
+    """Chunks of 16 baked in batches of 8: each chunk's first frame starts a batch whose batch
+    before another task baked. Its record (its largest jump is from the frame before) is the
+    one-shot bake's, so the shot's report is too."""
+    out = farm.scratch("chunking-aligned")
+    for index in (2, 1, 0):
+        farm.run(*farm.bake_args(out), "--chunk-size", "16", "--chunk-index", str(index),
+                 "--batch", "8")
+    compare_with_reference(farm, out)
+    farm.run(*farm.bake_args(out), "--skip-existing")
+    compare_report_with_reference(farm, out / "c.report.json")
+
+
 def chunk_from_slurm_environment(farm):
     # --chunk-index env reads SLURM_ARRAY_TASK_ID: chunk 1 of 17 is frames 18-34.
     out = farm.scratch("chunking-env")
@@ -56,4 +69,5 @@ def chunk_from_slurm_environment(farm):
 
 
 if __name__ == "__main__":
-    sys.exit(main([uneven_chunks_out_of_order, chunk_from_slurm_environment]))
+    sys.exit(main([uneven_chunks_out_of_order, chunks_on_batch_boundaries,
+                   chunk_from_slurm_environment]))
