@@ -204,11 +204,12 @@ int runInfo(const std::vector<std::string>& args) {
     requireRegularFile(path, "file");
   }
   if (hasFramePattern(path)) {
-    const auto cache = openPointCache(path);
-    const std::vector<int> frames = cache->frames();
-    std::cout << "EXR sequence " << path << ": " << frames.size() << " frames ("
-              << formatFrameRange(frames) << "), " << cache->vertexCount() << " vertices\n";
-    infoExr(expandFramePattern(path, frames.front()));
+    // Every frame's header, against its name and the others (a copied or foreign frame).
+    const ExrSequenceInfo sequence = checkPointCacheExrSequence(path);
+    std::cout << "EXR sequence " << path << ": " << sequence.frames.size() << " frames ("
+              << formatFrameRange(sequence.frames) << "), " << sequence.first.vertexCount
+              << " vertices; every frame's header matches its name, vertex count and topology\n";
+    infoExr(sequence.files.front());
   } else if (endsWith(path, ".obj")) {
     const Mesh mesh = readObj(path);
     std::cout << "mesh " << path << "\n";
