@@ -236,8 +236,8 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
   checkFarmPaths(parser, job,
                  {{"-O", jobFile, false}, {"-O (its job parameters file)", valuesFile, false}});
   createOutputFolder(job);
-  writeFileAtomically(valuesFile, jsonText(values, 2) + "\n");
-  writeFileAtomically(jobFile, text);
+  // The template names its parameters file: the two change together or not at all.
+  writeFilesTogether({{valuesFile, jsonText(values, 2) + "\n"}, {jobFile, text}});
   std::cout << "openjd template: " << jobFile << " (step Bake, " << job.chunks << " tasks Chunk=0-"
             << job.chunks - 1 << ", " << job.frameCount << " frames in chunks of up to "
             << job.chunkSize << ")\n"

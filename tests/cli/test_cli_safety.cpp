@@ -333,6 +333,50 @@ TEST(CliSafety, FileSizeLimitEndsTheBakeWithAnOutputErrorAndNoTemporaryFile) {
   EXPECT_FALSE(holdsTempFile(out)) << listing(out);
 }
 
+// `farm openjd` wrote the job parameters file and then the template, each renamed into place on
+// its own: when the template's write failed (a full disk), the new parameters file stayed beside
+// the old template, a pair that does not match. Under a file-size limit that the parameters
+// file fits and the template does not, the old pair must stay byte for byte, with no temporary
+// file left beside it.
+TEST(CliSafety, FarmOpenjdChangesTheTemplateAndItsParametersTogetherOrNotAtAll) {
+  TempDir dir;
+  const std::string job = dir.file("job.json");
+  const std::string params = dir.file("job.params.json");
+  const auto args = [&](const std::string& db) {
+    return std::vector<std::string>{"farm",
+                                    "openjd",
+                                    "--db",
+                                    db,
+                                    "--driver",
+                                    dir.file("d.pc2"),
+                                    "--frames",
+                                    "1-48",
+                                    "-o",
+                                    dir.file("out/c.####.exr"),
+                                    "--chunk-size",
+                                    "16",
+                                    "--no-check",
+                                    "-O",
+                                    job};
+  };
+  ASSERT_EQ(runCli(dir, args(dir.file("old.dsdb"))).code, 0);
+  const std::string oldJob = slurp(job);
+  const std::string oldParams = slurp(params);
+  ASSERT_LT(oldParams.size() + 64, 1024u);  // the limit below: the parameters file fits,
+  ASSERT_GT(oldJob.size(), 1024u);          // the template does not
+  Child child(dir, args(dir.file("new.dsdb")), {{RLIMIT_FSIZE, 1024}});
+  const int code = child.wait();
+  EXPECT_EQ(code, 4) << child.err();
+  EXPECT_NE(child.err().find("job.json"), std::string::npos) << child.err();
+  EXPECT_EQ(slurp(params), oldParams) << "the parameters file changed without its template";
+  EXPECT_EQ(slurp(job), oldJob);
+  EXPECT_FALSE(holdsTempFile(dir.path())) << listing(dir.path());
+  // Without the limit both change.
+  ASSERT_EQ(runCli(dir, args(dir.file("new.dsdb"))).code, 0);
+  EXPECT_NE(slurp(params).find("new.dsdb"), std::string::npos);
+  EXPECT_NE(slurp(job), oldJob);
+}
+
 // Ctrl-C or SIGTERM while the only batch of a shot is being written was ignored: the run went
 // on, wrote the report and exited 0. The child is frozen while one of its temporary files
 // exists (so the signal lands mid-batch, deterministically), signalled, and let go: it must
