@@ -757,5 +757,49 @@ TEST(CliRegression, InfoOnAnExrSequenceChecksEveryFramesHeader) {
   expectError(r, 3, "s.0002.exr' (frame 2) has topology hash 0000000000005678 but frame 1");
 }
 
+// ---- farm --extra-args were only checked against the options the farm sets itself ----
+
+// `farm slurm|openjd --extra-args` took any words: a typo, an option without its value or a
+// value the bake refuses made a job whose every task failed on the farm. The words now go
+// through the bake's own parser and checks: exit 2 naming --extra-args and the word, no job file.
+TEST(CliRegression, FarmExtraArgsAreCheckedAsTheBakeTakesThem) {
+  TempDir dir;
+  const auto farm = [&](const std::string& scheduler, const std::string& extra) {
+    return runCli(
+        dir, {"farm", scheduler, "--db", dir.file("db.dsdb"), "--driver", dir.file("d.####.exr"),
+              "--frames", "1-48", "-o", dir.file("out/c.####.exr"), "--chunk-size", "16",
+              "--no-check", "--extra-args", extra, "-O", dir.file("job.json")});
+  };
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {"--batch 8 --bogus", "unknown option '--bogus'"},
+      {"--batch", "option '--batch' needs a value"},
+      {"--batch 0", "--batch"},
+      {"--batch eight", "--batch"},
+      {"--skin-offset -1", "--skin-offset"},
+      {"--no-audit stray", "unexpected argument 'stray'"},
+      {"--posmap 99999", "--posmap"},
+      {"--posmap 64 --posmap-padding 300", "--posmap-padding"},
+      {"--weights qp --max-weight-change 0.1 --batch 7", "--batch (7)"},
+      {"--quiet --verbose", "--quiet and --verbose"},
+      {"--help", "--help"},
+  };
+  for (const std::string scheduler : {"slurm", "openjd"}) {
+    for (const auto& [extra, word] : refused) {
+      SCOPED_TRACE(scheduler + " --extra-args '" + extra + "'");
+      const CliRun r = farm(scheduler, extra);
+      expectError(r, 2, "--extra-args '" + extra + "'");
+      EXPECT_NE(r.err.find(word), std::string::npos) << r.err;
+      EXPECT_FALSE(fs::exists(dir.file("job.json")));
+    }
+    for (const std::string extra :
+         {"--batch 8 --no-audit", "--posmap 64 --posmap-normals",
+          "--weights qp --max-weight-change 0.1 --batch 8", "--report r.json --device host"}) {
+      const CliRun r = farm(scheduler, extra);
+      EXPECT_EQ(r.code, 0) << scheduler << " --extra-args '" << extra << "': " << r.err;
+      fs::remove(dir.file("job.json"));
+    }
+  }
+}
+
 }  // namespace
 }  // namespace drivenshape
