@@ -282,10 +282,15 @@ class Child {
     }
   }
   pid_t pid() const { return mPid; }
-  /// Waits for the exit; the exit code, or 128 + the signal that ended it.
-  int wait() {
+  /// Waits for the exit; the exit code, or 128 + the signal that ended it. `peakKib`, when
+  /// given, receives the child's peak resident memory (KiB).
+  int wait(long* peakKib = nullptr) {
     int status = 0;
-    ::waitpid(mPid, &status, 0);
+    rusage usage{};
+    ::wait4(mPid, &status, 0, &usage);
+    if (peakKib != nullptr) {
+      *peakKib = usage.ru_maxrss;
+    }
     return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   }
   std::string err() const { return slurp(mErr); }
@@ -375,6 +380,23 @@ TEST(CliSafety, FarmOpenjdChangesTheTemplateAndItsParametersTogetherOrNotAtAll) 
   ASSERT_EQ(runCli(dir, args(dir.file("new.dsdb"))).code, 0);
   EXPECT_NE(slurp(params).find("new.dsdb"), std::string::npos);
   EXPECT_NE(slurp(job), oldJob);
+}
+
+// `posmap --res 16384` (the documented maximum) needed about 17 GB for one frame of the sample:
+// the whole map's tables (20 bytes per texel, twice: the backend copied them), its positions and
+// its compressed file were all held at once. A map whose tables pass 1 GiB is now rasterised,
+// evaluated and written a band of rows at a time. 8192 x 3072 texels of the sample (about 1.6 GB
+// before) must stay within 512 MiB.
+TEST(CliSafety, LargePositionMapsAreWrittenWithinAFewHundredMegabytes) {
+  TempDir dir;
+  Child child(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache",
+                    sample("test.driven.pc2"), "--frames", "1", "--res", "8192x3072", "--device",
+                    "host", "--quiet", "-o", dir.file("m.####.exr")});
+  long peakKib = 0;
+  ASSERT_EQ(child.wait(&peakKib), 0) << child.err();
+  EXPECT_LT(peakKib, 512L * 1024) << "peak resident memory " << peakKib / 1024 << " MiB";
+  EXPECT_GT(fs::file_size(dir.file("m.0001.exr")), 100u << 20);
+  EXPECT_FALSE(holdsTempFile(dir.path())) << listing(dir.path());
 }
 
 // Ctrl-C or SIGTERM while the only batch of a shot is being written was ignored: the run went
