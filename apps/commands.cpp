@@ -204,11 +204,12 @@ int runInfo(const std::vector<std::string>& args) {
     requireRegularFile(path, "file");
   }
   if (hasFramePattern(path)) {
-    const auto cache = openPointCache(path);
-    const std::vector<int> frames = cache->frames();
-    std::cout << "EXR sequence " << path << ": " << frames.size() << " frames ("
-              << formatFrameRange(frames) << "), " << cache->vertexCount() << " vertices\n";
-    infoExr(expandFramePattern(path, frames.front()));
+    // Every frame's header, against its name and the others (a copied or foreign frame).
+    const ExrSequenceInfo sequence = checkPointCacheExrSequence(path);
+    std::cout << "EXR sequence " << path << ": " << sequence.frames.size() << " frames ("
+              << formatFrameRange(sequence.frames) << "), " << sequence.first.vertexCount
+              << " vertices; every frame's header matches its name, vertex count and topology\n";
+    infoExr(sequence.files.front());
   } else if (endsWith(path, ".obj")) {
     const Mesh mesh = readObj(path);
     std::cout << "mesh " << path << "\n";
@@ -379,7 +380,7 @@ int bakeParsed(const ArgParser& parser);
 
 }  // namespace
 
-int runBake(const std::vector<std::string>& args) {
+ArgParser bakeParser() {
   ArgParser parser(
       "drivenshape bake --db DB --driver CACHE --frames RANGE -o OUT.####.exr",
       "Bakes a shot: for each frame of the driver cache, fits it rigidly to the database's rest "
@@ -427,6 +428,11 @@ int runBake(const std::vector<std::string>& args) {
           "Exit codes: 0 ok, 2 usage, 3 input, 4 output, 5 OpenCL device, 6 numerical, "
           "7 interrupted.");
   addLayerFlags(parser);
+  return parser;
+}
+
+int runBake(const std::vector<std::string>& args) {
+  ArgParser parser = bakeParser();
   if (!parser.parse(args)) {
     std::cout << parser.help();
     return 0;
@@ -486,8 +492,8 @@ void createBakeFolders(const BakeOptions& options, const std::string& posmapPatt
   createOutputFoldersFor(paths, quiet);
 }
 
-/// The bake's options from its command line (settings through the settings table); opens no
-/// file.
+/// The bake's options from its command line (settings through the settings table), every value
+/// checked; opens no file and leaves the threads as given (threadsFor resolves them).
 BakeOptions bakeOptions(const ArgParser& parser) {
   BakeOptions options;
   options.frames = parseFrameRange(parser.get("--frames"));
@@ -495,7 +501,6 @@ BakeOptions bakeOptions(const ArgParser& parser) {
   options.reportPath =
       parser.has("--report") ? parser.get("--report") : defaultReportPath(options.outputPattern);
   readSettings(parser, options);
-  options.threads = options.evaluator.threads = threadsFor(options.threads);
   if (parser.has("--chunk-size") || parser.has("--chunk-index")) {
     int chunkIndex = 0;
     options.shotFrames = options.frames;
@@ -541,19 +546,29 @@ std::string posmapPatternOf(const ArgParser& parser, const BakeOptions& options)
   return pattern;
 }
 
-/// Position maps straight from the baked positions (bake --posmap) into `pattern`.
-void attachPositionMaps(const ArgParser& parser, const BakeOptions& options, const Database& db,
-                        Device& target, const std::string& pattern, CliObserver& observer) {
+/// The position maps' options of `bake --posmap`, each value checked.
+PositionMapOptions positionMapOptions(const ArgParser& parser, const BakeOptions& options) {
   PositionMapOptions maps;
   std::tie(maps.width, maps.height) =
       parsePositionMapResolution(parser.get("--posmap"), "--posmap");
   maps.padding = parser.getInt("--posmap-padding", 0);
+  if (maps.padding > kMaxPositionMapPadding) {
+    DS_THROW(kUsage, "--posmap-padding ", maps.padding, " is outside 0..", kMaxPositionMapPadding,
+             " texels");
+  }
   maps.normals = parser.has("--posmap-normals");
   maps.channels = parsePositionMapChannels(parser.get("--posmap-channels"), "--posmap-channels");
   maps.compression = options.compression;
   maps.zipEncoder = options.zipEncoder;
   maps.framesPerSecond = options.framesPerSecond;
   maps.threads = options.threads;
+  return maps;
+}
+
+/// Position maps straight from the baked positions (bake --posmap) into `pattern`.
+void attachPositionMaps(const ArgParser& parser, const BakeOptions& options, const Database& db,
+                        Device& target, const std::string& pattern, CliObserver& observer) {
+  const PositionMapOptions maps = positionMapOptions(parser, options);
   observer.setPositionMaps(
       std::make_unique<PositionMapWriter>(db.drivenMesh, maps, target.makePositionMaps(),
                                           "the database's driven mesh", &std::cerr),
@@ -673,9 +688,18 @@ void checkDriverHasFrames(const std::string& path, const std::vector<int>& frame
   }
 }
 
+/// Refuses --quiet with --verbose.
+void checkQuietOrVerbose(const ArgParser& parser) {
+  if (parser.has("--quiet") && parser.has("--verbose")) {
+    DS_THROW(kUsage, "--quiet and --verbose contradict each other; give one");
+  }
+}
+
 int bakeParsed(const ArgParser& parser) {
   BakeOptions options = bakeOptions(parser);
+  options.threads = options.evaluator.threads = threadsFor(options.threads);
   const std::string posmapPattern = posmapPatternOf(parser, options);
+  checkQuietOrVerbose(parser);
   checkDriverHasFrames(parser.get("--driver"), options.frames);
   checkBakePaths(parser, options, posmapPattern);
   // Missing output folders are created once the inputs have loaded (createBakeFolders); the
@@ -697,9 +721,6 @@ int bakeParsed(const ArgParser& parser) {
   const std::string device = target->description();
   const bool quiet = parser.has("--quiet");
   const bool verbose = parser.has("--verbose");
-  if (quiet && verbose) {
-    DS_THROW(kUsage, "--quiet and --verbose contradict each other; give one");
-  }
   createBakeFolders(options, posmapPattern, quiet);
   if (verbose) {
     printSettings(options);
@@ -722,5 +743,17 @@ int bakeParsed(const ArgParser& parser) {
 }
 
 }  // namespace
+
+void checkBakeArguments(const std::vector<std::string>& args) {
+  ArgParser parser = bakeParser();
+  if (!parser.parse(args)) {
+    DS_THROW(kUsage, "--help asks for the bake's help instead of a bake");
+  }
+  const BakeOptions options = bakeOptions(parser);
+  if (!posmapPatternOf(parser, options).empty()) {
+    positionMapOptions(parser, options);
+  }
+  checkQuietOrVerbose(parser);
+}
 
 }  // namespace drivenshape::cli

@@ -13,4 +13,10 @@ int runInfo(const std::vector<std::string>& args);
 int runDbBuild(const std::vector<std::string>& args);
 int runBake(const std::vector<std::string>& args);
 
+/// Checks the words of a bake's command line (what follows `drivenshape bake`) as `bake` reads
+/// them, before it opens any file: its parser (an unknown option, a missing value, a stray word)
+/// and every value it checks there (numbers and their ranges, the settings and the settings they
+/// need, layers, farm chunks, position maps). Throws Error(kUsage) with the bake's message.
+void checkBakeArguments(const std::vector<std::string>& args);
+
 }  // namespace drivenshape::cli

@@ -16,6 +16,7 @@
 #include "json_text.h"
 
 #include "cli_args.h"
+#include "commands.h"
 
 namespace drivenshape::cli {
 namespace {
@@ -63,6 +64,24 @@ std::string drivenshapeBinary(const ArgParser& parser) {
   return self.string();
 }
 
+/// Refuses --extra-args (`text`) that every task's bake would refuse: a task's whole command
+/// line, the farm's options and these words, goes through the bake's own parser and value checks
+/// (checkBakeArguments), so an unknown option, a missing value or a value out of range is a usage
+/// error here, naming --extra-args and the word, rather than a failed task on the farm.
+void checkExtraArgs(const FarmJob& job, const std::string& text) {
+  std::vector<std::string> words = chunkBakeCommand(job, "0");
+  words.erase(words.begin(), words.begin() + 2);  // the executable and `bake`
+  try {
+    checkBakeArguments(words);
+  } catch (const Error& error) {
+    if (error.code() != ErrorCode::kUsage) {
+      throw;
+    }
+    DS_THROW(kUsage, culprit("--extra-args", text),
+             ": every task's bake would refuse it: ", error.what());
+  }
+}
+
 /// The job of the options, each value checked in the order the options are listed.
 FarmJob jobFrom(const ArgParser& parser) {
   FarmJob job;
@@ -86,6 +105,7 @@ FarmJob jobFrom(const ArgParser& parser) {
   job.memoryMb = parser.has("--mem") ? parser.getInt("--mem", 1) : 0;
   if (parser.has("--extra-args")) {
     setFarmExtraArgs(job, parser.get("--extra-args"));
+    checkExtraArgs(job, parser.get("--extra-args"));
   }
   if (!parser.has("--no-check")) {
     checkFarmInputs(job, frames);
@@ -245,8 +265,8 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
   checkFarmPaths(parser, job,
                  {{"-O", jobFile, false}, {"-O (its job parameters file)", valuesFile, false}});
   createOutputFolder(job);
-  writeFileAtomically(valuesFile, jsonText(values, 2) + "\n");
-  writeFileAtomically(jobFile, text);
+  // The template names its parameters file: the two change together or not at all.
+  writeFilesTogether({{valuesFile, jsonText(values, 2) + "\n"}, {jobFile, text}});
   std::cout << "openjd template: " << jobFile << " (step Bake, " << job.chunks << " tasks Chunk=0-"
             << job.chunks - 1 << ", " << job.frameCount << " frames in chunks of up to "
             << job.chunkSize << ")\n"

@@ -261,7 +261,12 @@ std::ostream& AtomicFile::stream() {
 }
 
 void AtomicFile::commit(bool syncToDisk) {
-  if (mFile == nullptr || mCommitted) {
+  finish(syncToDisk);
+  publish();
+}
+
+void AtomicFile::finish(bool syncToDisk) {
+  if (mFile == nullptr || mFinished) {
     DS_THROW(kInternal, "AtomicFile '", shown(mFinalPath), "' committed twice");
   }
   errno = 0;
@@ -280,14 +285,23 @@ void AtomicFile::commit(bool syncToDisk) {
     error = errno;
   }
   mFile = nullptr;
+  mFinished = true;
   if (failed) {
     std::remove(mTempPath.c_str());
+    mTempPath.clear();
     DS_THROW(kOutput, "cannot write '", shown(mFinalPath),
              "': ", std::strerror(error != 0 ? error : EIO), "; is the disk full?");
+  }
+}
+
+void AtomicFile::publish() {
+  if (!mFinished || mCommitted || mTempPath.empty()) {
+    DS_THROW(kInternal, "AtomicFile '", shown(mFinalPath), "' published before finish()");
   }
   if (std::rename(mTempPath.c_str(), mFinalPath.c_str()) != 0) {
     const int renameErrno = errno;
     std::remove(mTempPath.c_str());
+    mTempPath.clear();
     DS_THROW(kOutput, "cannot move the finished file into place at '", shown(mFinalPath),
              "': ", std::strerror(renameErrno));
   }
@@ -375,13 +389,90 @@ int removeStaleTempFiles(const std::vector<std::string>& finalPaths) {
   return removed;
 }
 
-void writeFileAtomically(const std::string& path, const std::string& bytes) {
-  AtomicFile file(path);
+namespace {
+
+void writeBytes(AtomicFile& file, const std::string& bytes) {
   if (std::fwrite(bytes.data(), 1, bytes.size(), file.file()) != bytes.size()) {
-    DS_THROW(kOutput, "cannot write '", shown(path), "' (", bytes.size(),
+    DS_THROW(kOutput, "cannot write '", shown(file.finalPath()), "' (", bytes.size(),
              " bytes): ", std::strerror(errno), "; is the disk full?");
   }
+}
+
+/// The file at a path that writeFilesTogether replaces: whether there was one, and a hard link
+/// to it under a temporary name of that path (empty when there was none or the file system
+/// makes no hard links), so that it can be put back.
+struct Displaced {
+  std::string finalPath;
+  std::string keptPath;
+  bool existed = false;
+};
+
+Displaced keepOldVersion(const std::string& finalPath) {
+  Displaced displaced{finalPath, "", false};
+  struct stat status {};
+  if (::lstat(finalPath.c_str(), &status) != 0) {
+    return displaced;
+  }
+  displaced.existed = true;
+  const std::filesystem::path parent = std::filesystem::path(finalPath).parent_path();
+  const std::string prefix = tempPrefixFor(finalPath, nameLimitOf(folderOf(finalPath)));
+  for (int attempt = 0; attempt < 64; ++attempt) {
+    const std::string candidate = (parent / (prefix + randomDigits())).string();
+    if (::link(finalPath.c_str(), candidate.c_str()) == 0) {
+      displaced.keptPath = candidate;
+      break;
+    }
+    if (errno != EEXIST) {
+      break;
+    }
+  }
+  return displaced;
+}
+
+/// Puts back the old version of each of `moved` (or removes the new file where there was none)
+/// and drops the kept links of the rest.
+void restoreDisplaced(const std::vector<Displaced>& displaced, std::size_t moved) {
+  for (std::size_t i = 0; i < displaced.size(); ++i) {
+    const Displaced& d = displaced[i];
+    if (i < moved && !d.keptPath.empty()) {
+      std::rename(d.keptPath.c_str(), d.finalPath.c_str());
+    } else if (i < moved && !d.existed) {
+      std::remove(d.finalPath.c_str());
+    } else if (!d.keptPath.empty()) {
+      std::remove(d.keptPath.c_str());
+    }
+  }
+}
+
+}  // namespace
+
+void writeFileAtomically(const std::string& path, const std::string& bytes) {
+  AtomicFile file(path);
+  writeBytes(file, bytes);
   file.commit();
+}
+
+void writeFilesTogether(const std::vector<std::pair<std::string, std::string>>& files) {
+  // Every file complete under its temporary name first: a failure here leaves no file changed.
+  std::vector<std::unique_ptr<AtomicFile>> temporaries;
+  for (const auto& [path, bytes] : files) {
+    temporaries.push_back(std::make_unique<AtomicFile>(path));
+    writeBytes(*temporaries.back(), bytes);
+    temporaries.back()->finish();
+  }
+  std::vector<Displaced> displaced;
+  for (const auto& file : files) {
+    displaced.push_back(keepOldVersion(file.first));
+  }
+  for (std::size_t i = 0; i < temporaries.size(); ++i) {
+    try {
+      temporaries[i]->publish();
+    } catch (const Error&) {
+      restoreDisplaced(displaced, i);
+      throw;
+    }
+  }
+  restoreDisplaced(displaced, 0);  // all in place: only the kept links go
 }
 
 }  // namespace drivenshape

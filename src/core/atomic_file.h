@@ -5,6 +5,7 @@
 #include <memory>
 #include <ostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace drivenshape {
@@ -48,6 +49,11 @@ class AtomicFile {
   /// the old file or the whole new one, but after a power loss or kernel crash the new file can
   /// be empty or short (a resumed bake's --skip-existing check takes it for incomplete).
   void commit(bool syncToDisk = true);
+  /// commit() in two steps, for files that must change together (writeFilesTogether): finish()
+  /// flushes, syncs (when `syncToDisk`) and closes the temporary file, throwing Error(kOutput)
+  /// as commit() does; publish() then renames it into place.
+  void finish(bool syncToDisk = true);
+  void publish();
 
  private:
   class Buffer;
@@ -57,6 +63,7 @@ class AtomicFile {
   std::FILE* mFile = nullptr;
   std::unique_ptr<Buffer> mBuffer;
   std::unique_ptr<std::ostream> mStream;
+  bool mFinished = false;
   bool mCommitted = false;
 };
 
@@ -69,6 +76,15 @@ int removeStaleTempFiles(const std::vector<std::string>& finalPaths);
 
 /// Writes `bytes` to `path` atomically (see AtomicFile).
 void writeFileAtomically(const std::string& path, const std::string& bytes);
+
+/// Writes files that belong together (path, bytes), e.g. a job template and its parameters
+/// file, so that they change as a pair: each is written to its temporary file (AtomicFile) and
+/// none is renamed into place before all are complete. On any failure (a full disk, the
+/// file-size limit, a rename that fails) nothing this call made is left: the temporary files are
+/// removed, and a file already renamed is put back as it was (its old version is kept as a hard
+/// link until every rename has succeeded) or removed when it is new. Throws Error(kOutput) naming
+/// the file.
+void writeFilesTogether(const std::vector<std::pair<std::string, std::string>>& files);
 
 /// The whole content of the file at `path`. Throws Error(kInput) "cannot read <what> '<path>':
 /// <reason>" when it is missing, a folder, not a regular file (a FIFO, a device) or unreadable;

@@ -146,11 +146,21 @@ void centreWeights(const PixelTriangle& tri, int x, int y, float& b1, float& b2)
   b2 = static_cast<float>(((sx[1] - sx[0]) * (cy - sy[0]) - (cx - sx[0]) * (sy[1] - sy[0])) / d);
 }
 
-/// Marks the texels whose centres `tri` covers; texels already owned by a lower triangle are
-/// reported as overlaps and kept by their owner.
-void rasterise(const PixelTriangle& tri, int t, int width, int height,
+/// Rows [firstRow, firstRow + rows) of a map: the band a raster holds (owner, distances) and,
+/// within it, the rows it reports (entries, overlaps).
+struct RowWindow {
+  int firstRow = 0;
+  int rows = 0;
+  int firstCounted = 0;  ///< first row whose overlaps are counted (the band proper)
+  int countedRows = 0;
+};
+
+/// Marks the texels of `window` whose centres `tri` covers (`owner` holds the window's rows);
+/// texels already owned by a lower triangle are reported as overlaps, in the counted rows only,
+/// and kept by their owner.
+void rasterise(const PixelTriangle& tri, int t, int width, const RowWindow& window,
                const std::vector<int>& triangleFaces, std::vector<int>& owner,
-               std::vector<std::uint8_t>& overlapped, std::unordered_set<std::uint64_t>& pairs,
+               std::vector<bool>& overlapped, std::unordered_set<std::uint64_t>& pairs,
                UvOverlapReport& overlaps) {
   std::int64_t ax = tri.sx[0], ay = tri.sy[0];
   std::int64_t bx = tri.sx[1], by = tri.sy[1];
@@ -172,11 +182,13 @@ void rasterise(const PixelTriangle& tri, int t, int width, int height,
   // Texel x has its centre at x * S + S/2.
   const std::int64_t x0 = std::max<std::int64_t>(0, ceilDiv(minX - kHalfTexel, kSubpixel));
   const std::int64_t x1 = std::min<std::int64_t>(width - 1, floorDiv(maxX - kHalfTexel, kSubpixel));
-  const std::int64_t y0 = std::max<std::int64_t>(0, ceilDiv(minY - kHalfTexel, kSubpixel));
-  const std::int64_t y1 =
-      std::min<std::int64_t>(height - 1, floorDiv(maxY - kHalfTexel, kSubpixel));
+  const std::int64_t y0 =
+      std::max<std::int64_t>(window.firstRow, ceilDiv(minY - kHalfTexel, kSubpixel));
+  const std::int64_t y1 = std::min<std::int64_t>(window.firstRow + window.rows - 1,
+                                                 floorDiv(maxY - kHalfTexel, kSubpixel));
   for (std::int64_t y = y0; y <= y1; ++y) {
     const std::int64_t sy = y * kSubpixel + kHalfTexel;
+    const bool counted = y >= window.firstCounted && y < window.firstCounted + window.countedRows;
     for (std::int64_t x = x0; x <= x1; ++x) {
       const std::int64_t sx = x * kSubpixel + kHalfTexel;
       bool inside = true;
@@ -191,13 +203,16 @@ void rasterise(const PixelTriangle& tri, int t, int width, int height,
       if (!inside) {
         continue;
       }
-      const std::size_t texel = static_cast<std::size_t>(y * width + x);
+      const std::size_t texel = static_cast<std::size_t>((y - window.firstRow) * width + x);
       if (owner[texel] < 0) {
         owner[texel] = t;
         continue;
       }
+      if (!counted) {
+        continue;
+      }
       if (!overlapped[texel]) {
-        overlapped[texel] = 1;
+        overlapped[texel] = true;
         ++overlaps.texels;
       }
       const int kept = triangleFaces[static_cast<std::size_t>(owner[texel])];
@@ -217,12 +232,13 @@ void rasterise(const PixelTriangle& tri, int t, int width, int height,
 
 /// Chessboard distance (max(|dx|, |dy|)) of every texel to the nearest covered one, capped at
 /// `cap`: the two-pass 8-neighbour chamfer transform, exact for this metric.
-std::vector<int> chessboardDistance(const std::vector<int>& owner, int width, int height, int cap) {
-  std::vector<int> dist(owner.size());
+std::vector<std::uint16_t> chessboardDistance(const std::vector<int>& owner, int width, int height,
+                                              int cap) {
+  std::vector<std::uint16_t> dist(owner.size());
   for (std::size_t i = 0; i < owner.size(); ++i) {
-    dist[i] = owner[i] >= 0 ? 0 : cap;
+    dist[i] = static_cast<std::uint16_t>(owner[i] >= 0 ? 0 : cap);
   }
-  const auto at = [&](int x, int y) -> int& {
+  const auto at = [&](int x, int y) -> std::uint16_t& {
     return dist[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
                 static_cast<std::size_t>(x)];
   };
@@ -237,7 +253,7 @@ std::vector<int> chessboardDistance(const std::vector<int>& owner, int width, in
           d = std::min(d, at(nx, y - 1) + 1);
         }
       }
-      at(x, y) = std::min(d, cap);
+      at(x, y) = static_cast<std::uint16_t>(std::min(d, cap));
     }
   }
   for (int y = height - 1; y >= 0; --y) {
@@ -251,7 +267,7 @@ std::vector<int> chessboardDistance(const std::vector<int>& owner, int width, in
           d = std::min(d, at(nx, y + 1) + 1);
         }
       }
-      at(x, y) = std::min(d, cap);
+      at(x, y) = static_cast<std::uint16_t>(std::min(d, cap));
     }
   }
   return dist;
@@ -302,24 +318,10 @@ void checkMapSize(int width, int height, int padding) {
   }
 }
 
-}  // namespace
-
-PositionMapTables buildPositionMapTables(const Mesh& mesh, int width, int height, int padding,
-                                         const std::string& meshName) {
-  checkMapSize(width, height, padding);
-  if (mesh.vertexCount() <= 0 || mesh.faceStart.size() < 2) {
-    DS_THROW(kInput, meshName, ": the mesh has no faces; a position map needs UV triangles");
-  }
-  checkUvs(mesh, meshName);
-
-  PositionMapTables tables;
-  tables.width = width;
-  tables.height = height;
-  tables.padding = padding;
-  tables.vertexCount = mesh.vertexCount();
-  tables.topologyHash = topologyHash(mesh);
-
-  const std::vector<FanTriangle> fans = fanTriangles(mesh);
+/// The triangle tables of `tables` (triangles, their faces, the incident triangles of each
+/// vertex) from the fan triangles of `mesh`.
+void fillTriangleTables(const Mesh& mesh, const std::vector<FanTriangle>& fans,
+                        PositionMapTables& tables) {
   const std::size_t triangleCount = fans.size();
   tables.triangles.resize(3 * triangleCount);
   tables.triangleFaces.resize(triangleCount);
@@ -330,7 +332,6 @@ PositionMapTables buildPositionMapTables(const Mesh& mesh, int width, int height
     }
     tables.triangleFaces[t] = fans[t].face;
   }
-
   // Incident triangles per vertex (CSR, ascending triangle ids): the normals kernel gathers
   // over them instead of scattering with atomics.
   const std::size_t vertices = static_cast<std::size_t>(tables.vertexCount);
@@ -342,80 +343,203 @@ PositionMapTables buildPositionMapTables(const Mesh& mesh, int width, int height
     tables.vertexTriangleStart[v + 1] += tables.vertexTriangleStart[v];
   }
   tables.vertexTriangles.resize(tables.triangles.size());
-  {
-    std::vector<int> next(tables.vertexTriangleStart.begin(), tables.vertexTriangleStart.end() - 1);
-    for (std::size_t t = 0; t < triangleCount; ++t) {
-      for (int k = 0; k < 3; ++k) {
-        const int v = tables.triangles[3 * t + static_cast<std::size_t>(k)];
-        tables.vertexTriangles[static_cast<std::size_t>(next[static_cast<std::size_t>(v)]++)] =
-            static_cast<int>(t);
-      }
+  std::vector<int> next(tables.vertexTriangleStart.begin(), tables.vertexTriangleStart.end() - 1);
+  for (std::size_t t = 0; t < triangleCount; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = tables.triangles[3 * t + static_cast<std::size_t>(k)];
+      tables.vertexTriangles[static_cast<std::size_t>(next[static_cast<std::size_t>(v)]++)] =
+          static_cast<int>(t);
     }
   }
+}
 
-  // Coverage: owner triangle per texel, lowest index first.
-  const std::size_t texelCount = tables.texelCount();
-  std::vector<int> owner(texelCount, -1);
-  std::vector<std::uint8_t> overlapped(texelCount, 0);
-  std::unordered_set<std::uint64_t> pairs;
-  std::vector<PixelTriangle> pixels(triangleCount);
-  for (std::size_t t = 0; t < triangleCount; ++t) {
-    pixels[t] = pixelTriangle(mesh, fans[t], width, height);
-    rasterise(pixels[t], static_cast<int>(t), width, height, tables.triangleFaces, owner,
-              overlapped, pairs, tables.overlaps);
+/// What a raster keeps between bands: the map's size, its triangles in pixel space and the
+/// tables every band shares (sizes, triangles, no texel).
+struct RasterLayout {
+  PositionMapTables shared;
+  std::vector<PixelTriangle> pixels;
+  std::vector<int> firstRows;  ///< per triangle: the first texel row its box reaches
+  std::vector<int> lastRows;   ///< and the last
+};
+
+/// The owner triangle of every texel of `window` (lowest index first); overlaps in its counted
+/// rows go to `pairs` and `overlaps`.
+std::vector<int> windowOwners(const RasterLayout& layout, const RowWindow& window,
+                              std::unordered_set<std::uint64_t>& pairs, UvOverlapReport& overlaps) {
+  const PositionMapTables& shared = layout.shared;
+  const std::size_t texels =
+      static_cast<std::size_t>(shared.width) * static_cast<std::size_t>(window.rows);
+  std::vector<int> owner(texels, -1);
+  std::vector<bool> overlapped(texels, false);
+  const int lastRow = window.firstRow + window.rows - 1;
+  for (std::size_t t = 0; t < layout.pixels.size(); ++t) {
+    if (layout.lastRows[t] >= window.firstRow && layout.firstRows[t] <= lastRow) {
+      rasterise(layout.pixels[t], static_cast<int>(t), shared.width, window, shared.triangleFaces,
+                owner, overlapped, pairs, overlaps);
+    }
   }
+  return owner;
+}
 
-  const std::vector<int> dist =
-      padding > 0 ? chessboardDistance(owner, width, height, padding + 1) : std::vector<int>{};
-  const auto isActive = [&](std::size_t texel) {
-    return owner[texel] >= 0 || (padding > 0 && dist[texel] <= padding);
-  };
-
-  // Active texels in row-major order; covered ones filled first so padded ones can copy them.
-  std::vector<int> entryOf(texelCount, -1);
+/// The entries of the band rows of `window` (the rows it counts) into `band`: every covered
+/// texel and, with padding, every texel within `padding` of one (copying its nearest covered
+/// texel's triangle and weights), in row-major order, and the band's coverage plane.
+void fillBandEntries(const RasterLayout& layout, const RowWindow& window,
+                     const std::vector<int>& owner, PositionMapTables& band) {
+  const int width = band.width;
+  const int padding = band.padding;
+  const std::vector<std::uint16_t> dist =
+      padding > 0 ? chessboardDistance(owner, width, window.rows, padding + 1)
+                  : std::vector<std::uint16_t>{};
+  const std::size_t rowTexels = static_cast<std::size_t>(width);
+  const std::size_t skipped =
+      static_cast<std::size_t>(window.firstCounted - window.firstRow) * rowTexels;
+  const std::size_t bandTexels = static_cast<std::size_t>(window.countedRows) * rowTexels;
+  // Band texel -> its entry, so that padded texels can name their source's (-1 outside).
+  std::vector<int> entryOf(bandTexels, -1);
   std::size_t active = 0;
-  for (std::size_t texel = 0; texel < texelCount; ++texel) {
-    if (isActive(texel)) {
+  for (std::size_t texel = 0; texel < bandTexels; ++texel) {
+    const std::size_t at = skipped + texel;
+    if (owner[at] >= 0 || (padding > 0 && dist[at] <= padding)) {
       entryOf[texel] = static_cast<int>(active++);
     }
   }
-  tables.texels.resize(active);
-  tables.texelTriangles.resize(active);
-  tables.texelWeights.resize(2 * active);
-  tables.texelSources.resize(active);
-  tables.coverage.assign(texelCount, 0.0f);
-  for (std::size_t texel = 0; texel < texelCount; ++texel) {
-    if (owner[texel] < 0) {
-      continue;
+  band.texels.resize(active);
+  for (std::size_t texel = 0; texel < bandTexels; ++texel) {
+    if (entryOf[texel] >= 0) {
+      band.texels[static_cast<std::size_t>(entryOf[texel])] = static_cast<int>(texel);
     }
-    const std::size_t e = static_cast<std::size_t>(entryOf[texel]);
-    const int x = static_cast<int>(texel % static_cast<std::size_t>(width));
-    const int y = static_cast<int>(texel / static_cast<std::size_t>(width));
-    tables.texels[e] = static_cast<int>(texel);
-    tables.texelTriangles[e] = owner[texel];
-    centreWeights(pixels[static_cast<std::size_t>(owner[texel])], x, y, tables.texelWeights[2 * e],
-                  tables.texelWeights[2 * e + 1]);
-    tables.texelSources[e] = static_cast<int>(e);
-    tables.coverage[texel] = 1.0f;
-    ++tables.coveredCount;
   }
-  for (std::size_t texel = 0; texel < texelCount && padding > 0; ++texel) {
-    if (owner[texel] >= 0 || dist[texel] > padding) {
-      continue;
+  band.texelTriangles.resize(active);
+  band.texelWeights.resize(2 * active);
+  band.texelSources.resize(active);
+  band.coverage.assign(bandTexels, 0.0f);
+  for (std::size_t e = 0; e < active; ++e) {
+    const std::size_t texel = static_cast<std::size_t>(band.texels[e]);
+    const int x = static_cast<int>(texel % rowTexels);
+    const int y = static_cast<int>(texel / rowTexels) + window.firstCounted - window.firstRow;
+    std::size_t source = skipped + texel;  // in the window
+    if (owner[source] >= 0) {
+      band.coverage[texel] = 1.0f;
+      ++band.coveredCount;
+    } else {
+      source = padSource(owner, width, window.rows, x, y, dist[skipped + texel]);
+      ++band.paddedCount;
     }
-    const std::size_t e = static_cast<std::size_t>(entryOf[texel]);
-    const int x = static_cast<int>(texel % static_cast<std::size_t>(width));
-    const int y = static_cast<int>(texel / static_cast<std::size_t>(width));
-    const std::size_t source = padSource(owner, width, height, x, y, dist[texel]);
-    const std::size_t s = static_cast<std::size_t>(entryOf[source]);
-    tables.texels[e] = static_cast<int>(texel);
-    tables.texelTriangles[e] = tables.texelTriangles[s];
-    tables.texelWeights[2 * e] = tables.texelWeights[2 * s];
-    tables.texelWeights[2 * e + 1] = tables.texelWeights[2 * s + 1];
-    tables.texelSources[e] = static_cast<int>(s);
-    ++tables.paddedCount;
+    const int sx = static_cast<int>(source % rowTexels);
+    const int sy = static_cast<int>(source / rowTexels);
+    band.texelTriangles[e] = owner[source];
+    // Window row sy is map row firstRow + sy: the centre's weights in the whole map's pixels.
+    centreWeights(layout.pixels[static_cast<std::size_t>(owner[source])], sx, sy + window.firstRow,
+                  band.texelWeights[2 * e], band.texelWeights[2 * e + 1]);
+    const bool inBand = source >= skipped && source < skipped + bandTexels;
+    band.texelSources[e] = inBand ? entryOf[source - skipped] : -1;
   }
-  return tables;
+}
+
+/// Adds the covered and padded texels of the band rows of `window` to the counts of `tables`
+/// (fillBandEntries' counts, without its entries).
+void countBand(const RowWindow& window, const std::vector<int>& owner, PositionMapTables& tables) {
+  const int padding = tables.padding;
+  const std::vector<std::uint16_t> dist =
+      padding > 0 ? chessboardDistance(owner, tables.width, window.rows, padding + 1)
+                  : std::vector<std::uint16_t>{};
+  const std::size_t rowTexels = static_cast<std::size_t>(tables.width);
+  const std::size_t first =
+      static_cast<std::size_t>(window.firstCounted - window.firstRow) * rowTexels;
+  const std::size_t last = first + static_cast<std::size_t>(window.countedRows) * rowTexels;
+  for (std::size_t texel = first; texel < last; ++texel) {
+    if (owner[texel] >= 0) {
+      ++tables.coveredCount;
+    } else if (padding > 0 && dist[texel] <= padding) {
+      ++tables.paddedCount;
+    }
+  }
+}
+
+/// The window a band of `rows` rows from `firstRow` needs: padding rows on each side (a padded
+/// texel copies a covered texel up to `padding` rows away, and its distance is decided by
+/// those rows alone), within the map.
+RowWindow bandWindow(const PositionMapTables& shared, int firstRow, int rows) {
+  RowWindow window;
+  window.firstRow = std::max(0, firstRow - shared.padding);
+  window.rows = std::min(shared.height, firstRow + rows + shared.padding) - window.firstRow;
+  window.firstCounted = firstRow;
+  window.countedRows = rows;
+  return window;
+}
+
+}  // namespace
+
+struct PositionMapRaster::Layout : RasterLayout {};
+
+PositionMapRaster::PositionMapRaster(const Mesh& mesh, int width, int height, int padding,
+                                     const std::string& meshName)
+    : mLayout(std::make_unique<Layout>()) {
+  checkMapSize(width, height, padding);
+  if (mesh.vertexCount() <= 0 || mesh.faceStart.size() < 2) {
+    DS_THROW(kInput, meshName, ": the mesh has no faces; a position map needs UV triangles");
+  }
+  checkUvs(mesh, meshName);
+  PositionMapTables& shared = mLayout->shared;
+  shared.width = width;
+  shared.height = height;
+  shared.padding = padding;
+  shared.vertexCount = mesh.vertexCount();
+  shared.topologyHash = topologyHash(mesh);
+  const std::vector<FanTriangle> fans = fanTriangles(mesh);
+  fillTriangleTables(mesh, fans, shared);
+  for (const FanTriangle& fan : fans) {
+    const PixelTriangle tri = pixelTriangle(mesh, fan, width, height);
+    const std::int64_t minY = std::min({tri.sy[0], tri.sy[1], tri.sy[2]});
+    const std::int64_t maxY = std::max({tri.sy[0], tri.sy[1], tri.sy[2]});
+    mLayout->pixels.push_back(tri);
+    // Rows whose centres the box can reach (clamped to the map; empty when first > last).
+    mLayout->firstRows.push_back(static_cast<int>(
+        std::clamp<std::int64_t>(ceilDiv(minY - kHalfTexel, kSubpixel), 0, height)));
+    mLayout->lastRows.push_back(static_cast<int>(
+        std::clamp<std::int64_t>(floorDiv(maxY - kHalfTexel, kSubpixel), -1, height - 1)));
+  }
+}
+
+PositionMapRaster::~PositionMapRaster() = default;
+
+const PositionMapTables& PositionMapRaster::shared() const {
+  return mLayout->shared;
+}
+
+PositionMapTables PositionMapRaster::band(int firstRow, int rows) const {
+  const PositionMapTables& shared = mLayout->shared;
+  if (firstRow < 0 || rows < 1 || firstRow + rows > shared.height) {
+    DS_THROW(kInternal, "position map band of rows ", firstRow, "-", firstRow + rows - 1,
+             " is outside the map's ", shared.height, " rows");
+  }
+  PositionMapTables band = shared;
+  band.height = rows;
+  const RowWindow window = bandWindow(shared, firstRow, rows);
+  std::unordered_set<std::uint64_t> pairs;
+  const std::vector<int> owner = windowOwners(*mLayout, window, pairs, band.overlaps);
+  fillBandEntries(*mLayout, window, owner, band);
+  return band;
+}
+
+PositionMapTables PositionMapRaster::survey(int bandRows) const {
+  const PositionMapTables& shared = mLayout->shared;
+  PositionMapTables whole = shared;
+  std::unordered_set<std::uint64_t> pairs;  // each overlapping face pair once, across bands
+  const int step = std::max(1, bandRows);
+  for (int firstRow = 0; firstRow < shared.height; firstRow += step) {
+    const int rows = std::min(step, shared.height - firstRow);
+    const RowWindow window = bandWindow(shared, firstRow, rows);
+    const std::vector<int> owner = windowOwners(*mLayout, window, pairs, whole.overlaps);
+    countBand(window, owner, whole);
+  }
+  return whole;
+}
+
+PositionMapTables buildPositionMapTables(const Mesh& mesh, int width, int height, int padding,
+                                         const std::string& meshName) {
+  return PositionMapRaster(mesh, width, height, padding, meshName).band(0, height);
 }
 
 }  // namespace drivenshape

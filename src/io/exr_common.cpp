@@ -347,27 +347,64 @@ void writeExrAtomically(const std::string& path, const char* kind,
   atomic.commit(syncToDisk);
 }
 
-void writeScanlines(const std::string& path, std::ostream& stream, const Imf::Header& header,
-                    const Imf::FrameBuffer& frameBuffer, int height, ZipEncoder zipEncoder,
-                    int encodeThreads) {
+/// The writer behind ScanlineWriter: our ZIP writer, or OpenEXR's on our own stream.
+struct ScanlineWriter::State {
+  std::unique_ptr<ZipExrWriter> zip;
+  std::unique_ptr<ExrOStream> exrStream;
+  std::unique_ptr<Imf::OutputFile> file;
+};
+
+ScanlineWriter::ScanlineWriter(const std::string& path, std::ostream& stream,
+                               const Imf::Header& header, ZipEncoder zipEncoder, int encodeThreads)
+    : mPath(path), mStream(stream), mState(std::make_unique<State>()) {
   const bool zip =
       header.compression() == Imf::ZIP_COMPRESSION || header.compression() == Imf::ZIPS_COMPRESSION;
   errno = 0;  // the system's reason, should a write fail
   if (zip && zipEncoder == ZipEncoder::kLibdeflate) {
     ZipEncoding encoding;
     encoding.threads = std::max(1, encodeThreads);
-    writeZipExr(stream, header, frameBuffer, encoding);
+    mState->zip = std::make_unique<ZipExrWriter>(stream, header, encoding);
   } else {
-    ExrOStream exrStream(stream, path);
-    Imf::OutputFile file(exrStream, header);
-    file.setFrameBuffer(frameBuffer);
-    file.writePixels(height);
+    mState->exrStream = std::make_unique<ExrOStream>(stream, path);
+    mState->file = std::make_unique<Imf::OutputFile>(*mState->exrStream, header);
   }
-  stream.flush();
-  if (stream.fail()) {
+  checkStream();
+}
+
+ScanlineWriter::~ScanlineWriter() = default;
+
+void ScanlineWriter::write(const Imf::FrameBuffer& frameBuffer, int lines) {
+  if (mState->zip) {
+    mState->zip->writeLines(frameBuffer, lines);
+  } else {
+    mState->file->setFrameBuffer(frameBuffer);
+    mState->file->writePixels(lines);
+  }
+  checkStream();
+}
+
+void ScanlineWriter::finish() {
+  if (mState->zip) {
+    mState->zip->finish();
+  }
+  mState->file.reset();  // OpenEXR writes its offset table here (and swallows a failure)
+  mStream.flush();
+  checkStream();
+}
+
+void ScanlineWriter::checkStream() const {
+  if (mStream.fail()) {
     const int error = errno != 0 ? errno : EIO;
-    DS_THROW(kOutput, "cannot write '", path, "': ", std::strerror(error), "; is the disk full?");
+    DS_THROW(kOutput, "cannot write '", mPath, "': ", std::strerror(error), "; is the disk full?");
   }
+}
+
+void writeScanlines(const std::string& path, std::ostream& stream, const Imf::Header& header,
+                    const Imf::FrameBuffer& frameBuffer, int height, ZipEncoder zipEncoder,
+                    int encodeThreads) {
+  ScanlineWriter writer(path, stream, header, zipEncoder, encodeThreads);
+  writer.write(frameBuffer, height);
+  writer.finish();
 }
 
 }  // namespace drivenshape::exr_detail

@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <functional>
 #include <memory>
+#include <ostream>
 #include <string>
 
 #include <drivenshape/point_cache.h>
@@ -60,11 +61,38 @@ void writeExrAtomically(const std::string& path, const char* kind,
                         const std::function<void(std::ostream& stream)>& body,
                         bool syncToDisk = true);
 
+/// Writes the scan lines of one image to `stream` (the temporary file of `path`) a band at a
+/// time, top to bottom, the bytes writeScanlines writes at once: a large image need never be
+/// whole in memory. ZIP and ZIPS images with ZipEncoder::kLibdeflate go through ZipExrWriter
+/// (io/exr_zip_writer.h; each band but the last whole chunks of 16 lines), everything else
+/// through OpenEXR's writer on our own stream. A failed write is Error(kOutput) naming `path`.
+class ScanlineWriter {
+ public:
+  ScanlineWriter(const std::string& path, std::ostream& stream, const Imf::Header& header,
+                 ZipEncoder zipEncoder, int encodeThreads);
+  ~ScanlineWriter();
+  ScanlineWriter(const ScanlineWriter&) = delete;
+  ScanlineWriter& operator=(const ScanlineWriter&) = delete;
+  /// The next `lines` scan lines, read through `frameBuffer`, whose slices are addressed by
+  /// absolute y (as OpenEXR's).
+  void write(const Imf::FrameBuffer& frameBuffer, int lines);
+  /// After the last line: the offset table, the stream flushed and checked.
+  void finish();
+
+ private:
+  void checkStream() const;
+
+  struct State;
+  std::string mPath;
+  std::ostream& mStream;
+  std::unique_ptr<State> mState;
+};
+
 /// Writes the `height` scan lines of `frameBuffer` with `header` to `stream` (the temporary
-/// file of `path`). ZIP and ZIPS images with ZipEncoder::kLibdeflate go through encodeZipExr
-/// (io/exr_zip_writer.h) on `encodeThreads` threads; everything else through OpenEXR's writer on
-/// our own stream, so that a failure while its destructor writes the offset table (which it
-/// swallows) still shows up as Error(kOutput).
+/// file of `path`) in one band of ScanlineWriter: ZIP and ZIPS images with
+/// ZipEncoder::kLibdeflate through ZipExrWriter (io/exr_zip_writer.h) on `encodeThreads` threads;
+/// everything else through OpenEXR's writer on our own stream, so that a failure while its
+/// destructor writes the offset table (which it swallows) still shows up as Error(kOutput).
 void writeScanlines(const std::string& path, std::ostream& stream, const Imf::Header& header,
                     const Imf::FrameBuffer& frameBuffer, int height, ZipEncoder zipEncoder,
                     int encodeThreads);

@@ -201,26 +201,32 @@ StoredChunk zipChunk(const std::vector<ChannelSource>& sources, std::size_t widt
 
 }  // namespace
 
-void writeZipExr(std::ostream& out, const Imf::Header& header, const Imf::FrameBuffer& frameBuffer,
-                 const ZipEncoding& encoding) {
-  const bool zips = header.compression() == Imf::ZIPS_COMPRESSION;
-  if (!zips && header.compression() != Imf::ZIP_COMPRESSION) {
-    DS_THROW(kInternal, "writeZipExr writes ZIP and ZIPS files only");
-  }
-  const int maxLevel = encoding.deflater == Deflater::kLibdeflate ? 12 : 9;
-  if (encoding.level < 1 || encoding.level > maxLevel) {
-    DS_THROW(kInternal, "deflate level ", encoding.level, " is outside 1..", maxLevel);
-  }
-  if (header.lineOrder() != Imf::INCREASING_Y || header.hasType()) {
-    DS_THROW(kInternal, "writeZipExr writes single-part images in increasing line order only");
-  }
-  header.sanityCheck();  // what Imf::OutputFile checks first (throws Iex exceptions)
+/// What ZipExrWriter keeps between bands of scan lines.
+struct ZipExrWriter::State {
+  std::ostream* out = nullptr;
+  ZipEncoding encoding;
+  const Imf::Header* header = nullptr;
+  Imath::Box2i window;
+  std::size_t width = 0;
+  int linesPerChunk = 16;
+  int nextY = 0;                       ///< the first scan line not written yet
+  std::streamoff tableAt = 0;          ///< where the chunk offset table starts
+  std::vector<std::uint64_t> offsets;  ///< of every chunk, from the start of the file
+  std::uint64_t written = 0;           ///< bytes of the file written so far
+  std::streamoff fileStart = 0;        ///< where the file starts in `out`
+  bool finished = false;
+};
 
+namespace {
+
+/// The channels of `header` in the file's order, each read through its slice of `frameBuffer`
+/// (or `zeros` for a channel without one, as OpenEXR writes). Error(kInternal) for input the
+/// ZIP writer does not take.
+std::vector<ChannelSource> channelSources(const Imf::Header& header,
+                                          const Imf::FrameBuffer& frameBuffer,
+                                          const std::vector<char>& zeros) {
   const Imath::Box2i& window = header.dataWindow();
-  const std::size_t width = static_cast<std::size_t>(window.max.x - window.min.x + 1);
-  const int height = window.max.y - window.min.y + 1;
-  std::vector<ChannelSource> sources;              // in the channel list's (the file's) order
-  const std::vector<char> zeros(width * 4, '\0');  // the row of every channel without a slice
+  std::vector<ChannelSource> sources;
   for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
     const Imf::Channel& channel = it.channel();
     if (channel.xSampling != 1 || channel.ySampling != 1) {
@@ -242,24 +248,40 @@ void writeZipExr(std::ostream& out, const Imf::Header& header, const Imf::FrameB
     }
     sources.push_back(source);
   }
-  std::size_t lineBytes = 0;
-  for (const ChannelSource& source : sources) {
-    lineBytes += width * source.valueBytes;
-  }
+  return sources;
+}
 
-  const int linesPerChunk = zips ? 1 : 16;
-  const int chunkCount = (height + linesPerChunk - 1) / linesPerChunk;
-  std::vector<StoredChunk> chunks(static_cast<std::size_t>(chunkCount));
-  parallelFor(chunkCount, encoding.threads, [&](int c) {
-    const int firstY = window.min.y + c * linesPerChunk;
-    const int lastY = std::min(firstY + linesPerChunk - 1, window.max.y);
-    chunks[static_cast<std::size_t>(c)] =
-        zipChunk(sources, width, window.min.x, firstY, lastY,
-                 lineBytes * static_cast<std::size_t>(lastY - firstY + 1), encoding);
-  });
+}  // namespace
+
+ZipExrWriter::ZipExrWriter(std::ostream& out, const Imf::Header& header,
+                           const ZipEncoding& encoding)
+    : mState(std::make_unique<State>()) {
+  const bool zips = header.compression() == Imf::ZIPS_COMPRESSION;
+  if (!zips && header.compression() != Imf::ZIP_COMPRESSION) {
+    DS_THROW(kInternal, "writeZipExr writes ZIP and ZIPS files only");
+  }
+  const int maxLevel = encoding.deflater == Deflater::kLibdeflate ? 12 : 9;
+  if (encoding.level < 1 || encoding.level > maxLevel) {
+    DS_THROW(kInternal, "deflate level ", encoding.level, " is outside 1..", maxLevel);
+  }
+  if (header.lineOrder() != Imf::INCREASING_Y || header.hasType()) {
+    DS_THROW(kInternal, "writeZipExr writes single-part images in increasing line order only");
+  }
+  header.sanityCheck();  // what Imf::OutputFile checks first (throws Iex exceptions)
+  State& state = *mState;
+  state.out = &out;
+  state.encoding = encoding;
+  state.header = &header;
+  state.window = header.dataWindow();
+  state.width = static_cast<std::size_t>(state.window.max.x - state.window.min.x + 1);
+  state.linesPerChunk = zips ? 1 : 16;
+  state.nextY = state.window.min.y;
+  const int height = state.window.max.y - state.window.min.y + 1;
+  const int chunkCount = (height + state.linesPerChunk - 1) / state.linesPerChunk;
 
   // The layout of Imf::OutputFile: magic number, version field, header (Header::writeTo, the
-  // same bytes), the chunk offset table, then each chunk as y, byte count, data.
+  // same bytes), the chunk offset table (filled in by finish()), then each chunk as y, byte
+  // count, data.
   std::string head;
   appendLe32(head, static_cast<std::uint32_t>(Imf::MAGIC));
   appendLe32(head, static_cast<std::uint32_t>(Imf::EXR_VERSION |
@@ -269,22 +291,74 @@ void writeZipExr(std::ostream& out, const Imf::Header& header, const Imf::FrameB
     header.writeTo(stream);
     head += stream.str();
   }
-  std::uint64_t offset = head.size() + 8 * chunks.size();
-  head.resize(head.size() + 8 * chunks.size());
-  for (std::size_t c = 0; c < chunks.size(); ++c) {
-    storeLe64(&head[head.size() - 8 * (chunks.size() - c)], offset);
-    offset += 8 + chunks[c].size;
-  }
+  state.fileStart = static_cast<std::streamoff>(out.tellp());
+  state.tableAt = static_cast<std::streamoff>(head.size());
+  head.resize(head.size() + 8 * static_cast<std::size_t>(chunkCount));
   out.write(head.data(), static_cast<std::streamsize>(head.size()));
+  state.written = head.size();
+}
+
+ZipExrWriter::~ZipExrWriter() = default;
+
+void ZipExrWriter::writeLines(const Imf::FrameBuffer& frameBuffer, int lines) {
+  State& state = *mState;
+  const int lastY = state.nextY + lines - 1;
+  if (state.finished || lines < 1 || lastY > state.window.max.y ||
+      (lastY < state.window.max.y && lines % state.linesPerChunk != 0)) {
+    DS_THROW(kInternal, "writeZipExr: ", lines, " scan lines from ", state.nextY,
+             " are not whole chunks of the image");
+  }
+  const std::vector<char> zeros(state.width * 4, '\0');  // the row of every channel without a slice
+  const std::vector<ChannelSource> sources = channelSources(*state.header, frameBuffer, zeros);
+  std::size_t lineBytes = 0;
+  for (const ChannelSource& source : sources) {
+    lineBytes += state.width * source.valueBytes;
+  }
+  const int chunkCount = (lines + state.linesPerChunk - 1) / state.linesPerChunk;
+  std::vector<StoredChunk> chunks(static_cast<std::size_t>(chunkCount));
+  parallelFor(chunkCount, state.encoding.threads, [&](int c) {
+    const int firstY = state.nextY + c * state.linesPerChunk;
+    const int chunkLastY = std::min(firstY + state.linesPerChunk - 1, lastY);
+    chunks[static_cast<std::size_t>(c)] =
+        zipChunk(sources, state.width, state.window.min.x, firstY, chunkLastY,
+                 lineBytes * static_cast<std::size_t>(chunkLastY - firstY + 1), state.encoding);
+  });
   for (int c = 0; c < chunkCount; ++c) {
     StoredChunk& chunk = chunks[static_cast<std::size_t>(c)];
+    state.offsets.push_back(state.written);
+    state.written += 8 + chunk.size;
     std::string prefix;
-    appendLe32(prefix, static_cast<std::uint32_t>(window.min.y + c * linesPerChunk));
+    appendLe32(prefix, static_cast<std::uint32_t>(state.nextY + c * state.linesPerChunk));
     appendLe32(prefix, static_cast<std::uint32_t>(chunk.size));
-    out.write(prefix.data(), static_cast<std::streamsize>(prefix.size()));
-    out.write(chunk.bytes.get(), static_cast<std::streamsize>(chunk.size));
+    state.out->write(prefix.data(), static_cast<std::streamsize>(prefix.size()));
+    state.out->write(chunk.bytes.get(), static_cast<std::streamsize>(chunk.size));
     chunk.bytes.reset();  // written: free it
   }
+  state.nextY = lastY + 1;
+}
+
+void ZipExrWriter::finish() {
+  State& state = *mState;
+  if (state.finished || state.nextY != state.window.max.y + 1) {
+    DS_THROW(kInternal, "writeZipExr: finished after ", state.nextY - state.window.min.y, " of ",
+             state.window.max.y - state.window.min.y + 1, " scan lines");
+  }
+  state.finished = true;
+  std::string table(8 * state.offsets.size(), '\0');
+  for (std::size_t c = 0; c < state.offsets.size(); ++c) {
+    storeLe64(&table[8 * c], state.offsets[c]);
+  }
+  state.out->seekp(state.fileStart + state.tableAt);
+  state.out->write(table.data(), static_cast<std::streamsize>(table.size()));
+  state.out->seekp(state.fileStart + static_cast<std::streamoff>(state.written));
+}
+
+void writeZipExr(std::ostream& out, const Imf::Header& header, const Imf::FrameBuffer& frameBuffer,
+                 const ZipEncoding& encoding) {
+  ZipExrWriter writer(out, header, encoding);
+  const Imath::Box2i& window = header.dataWindow();
+  writer.writeLines(frameBuffer, window.max.y - window.min.y + 1);
+  writer.finish();
 }
 
 std::string encodeZipExr(const Imf::Header& header, const Imf::FrameBuffer& frameBuffer,

@@ -9,6 +9,7 @@
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 
+#include <memory>
 #include <ostream>
 #include <string>
 
@@ -27,12 +28,38 @@ struct ZipEncoding {
   int threads = 1;
 };
 
+/// Writes a ZIP or ZIPS file as writeZipExr does, a band of scan lines at a time, so that a large
+/// image need never be whole in memory:
+///
+///     ZipExrWriter writer(out, header, encoding);   // the head, room for the offset table
+///     writer.writeLines(band1, 1344);               // whole chunks, top to bottom
+///     writer.writeLines(band2, 1344); ...
+///     writer.finish();                              // the offset table (`out` seeks back)
+///
+/// The slices of each band's frame buffer are addressed by absolute y, as OpenEXR's are. `out`
+/// must be seekable; the bytes are writeZipExr's. Input writeZipExr refuses, lines that are not
+/// whole chunks (but the last) or a finish() before the last line are Error(kInternal).
+class ZipExrWriter {
+ public:
+  ZipExrWriter(std::ostream& out, const Imf::Header& header, const ZipEncoding& encoding);
+  ~ZipExrWriter();
+  ZipExrWriter(const ZipExrWriter&) = delete;
+  ZipExrWriter& operator=(const ZipExrWriter&) = delete;
+  /// Deflates and writes the next `lines` scan lines; holds only their chunks meanwhile.
+  void writeLines(const Imf::FrameBuffer& frameBuffer, int lines);
+  void finish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> mState;
+};
+
 /// Writes to `out` the whole file that Imf::OutputFile would write for `header` and
 /// `frameBuffer`, with each chunk deflated as `encoding` says. The header's compression must be
 /// ZIP or ZIPS, its line order INCREASING_Y, and every channel's slice of the same pixel type as
 /// the channel (or absent: zeros, as OpenEXR writes); other input is Error(kInternal). The host
 /// must be little-endian (EXR's byte order). Holds the compressed chunks in memory until they
-/// are written; the caller checks `out` for write errors.
+/// are written (one band of ZipExrWriter); the caller checks `out` for write errors.
 void writeZipExr(std::ostream& out, const Imf::Header& header, const Imf::FrameBuffer& frameBuffer,
                  const ZipEncoding& encoding);
 

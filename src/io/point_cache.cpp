@@ -29,43 +29,58 @@ bool endsWithPc2(const std::string& spec) {
   return tail == ".pc2";
 }
 
-/// A point-cache EXR sequence: one file per frame, found by listing the pattern's folder
-/// (io::listSequenceFiles says which names belong to it).
+/// The files of the point-cache EXR sequence `pattern` by frame, found by listing the
+/// pattern's folder (io::listSequenceFiles says which names belong to it). Throws Error(kInput)
+/// for a pattern without exactly one frame token in its file name, a missing folder, or no file.
+std::map<int, std::string> listExrSequence(const std::string& pattern) {
+  const std::vector<io::FrameToken> tokens = io::findFrameTokens(pattern);
+  if (tokens.size() != 1) {
+    DS_THROW(kInput, "'", pattern, "' has ", tokens.size(),
+             " frame tokens; an EXR sequence pattern needs exactly one (name.####.exr)");
+  }
+  const io::FrameToken& token = tokens.front();
+  const std::string fileName = std::filesystem::path(pattern).filename().string();
+  const std::size_t nameStart = pattern.size() - fileName.size();
+  if (token.pos < nameStart) {
+    DS_THROW(kInput, "'", pattern,
+             "': the frame token must be in the file name, not in a folder name");
+  }
+  const std::string folderText = pattern.substr(0, nameStart);
+  const std::filesystem::path folder = folderText.empty() ? "." : folderText;
+
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    DS_THROW(kInput, "EXR sequence '", pattern, "': folder '", folder.string(), "' does not exist");
+  }
+  std::map<int, std::string> found = io::listSequenceFiles(pattern, ec);
+  if (ec) {
+    DS_THROW(kInput, "EXR sequence '", pattern, "': cannot list folder '", folder.string(),
+             "': ", ec.message());
+  }
+  if (found.empty()) {
+    DS_THROW(kInput, "EXR sequence '", pattern, "': no files match in folder '", folder.string(),
+             "' (e.g. ", expandFramePattern(pattern, 1001), ")");
+  }
+  return found;
+}
+
+/// Throws Error(kInput) when the header `info` of `file` holds another frame than `frame`, the
+/// one its name says (a file without the frame attribute is taken at its name).
+void requireNamedFrame(const std::string& file, int frame, const ExrPointCacheInfo& info) {
+  if (info.hasFrame && info.frame != frame) {
+    DS_THROW(kInput, "point-cache EXR '", file, "' holds frame ", info.frame,
+             " (its header's dsFrame), not frame ", frame,
+             " as its name says: it was copied or renamed to the wrong place; rename it or "
+             "bake the frame again");
+  }
+}
+
+/// A point-cache EXR sequence: one file per frame (listExrSequence).
 class ExrSequenceReader final : public PointCacheReader {
  public:
   ExrSequenceReader(std::string pattern, std::uint64_t expectedTopology)
       : mPattern(std::move(pattern)), mExpectedTopology(expectedTopology) {
-    const std::vector<io::FrameToken> tokens = io::findFrameTokens(mPattern);
-    if (tokens.size() != 1) {
-      DS_THROW(kInput, "'", mPattern, "' has ", tokens.size(),
-               " frame tokens; an EXR sequence pattern needs exactly one (name.####.exr)");
-    }
-    const io::FrameToken& token = tokens.front();
-    const std::filesystem::path patternPath(mPattern);
-    const std::string fileName = patternPath.filename().string();
-    const std::size_t nameStart = mPattern.size() - fileName.size();
-    if (token.pos < nameStart) {
-      DS_THROW(kInput, "'", mPattern,
-               "': the frame token must be in the file name, not in a folder name");
-    }
-    const std::string folderText = mPattern.substr(0, nameStart);
-    const std::filesystem::path folder = folderText.empty() ? "." : folderText;
-
-    std::error_code ec;
-    if (!std::filesystem::is_directory(folder, ec)) {
-      DS_THROW(kInput, "EXR sequence '", mPattern, "': folder '", folder.string(),
-               "' does not exist");
-    }
-    const std::map<int, std::string> found = io::listSequenceFiles(mPattern, ec);
-    if (ec) {
-      DS_THROW(kInput, "EXR sequence '", mPattern, "': cannot list folder '", folder.string(),
-               "': ", ec.message());
-    }
-    if (found.empty()) {
-      DS_THROW(kInput, "EXR sequence '", mPattern, "': no files match in folder '", folder.string(),
-               "' (e.g. ", expandFramePattern(mPattern, 1001), ")");
-    }
-    for (const auto& [frame, file] : found) {
+    for (const auto& [frame, file] : listExrSequence(mPattern)) {
       mFrames.push_back(frame);
       mFiles.push_back(file);
     }
@@ -94,12 +109,7 @@ class ExrSequenceReader final : public PointCacheReader {
     std::vector<float> buffer;
     const std::string& file = mFiles[static_cast<std::size_t>(index)];
     const ExrPointCacheInfo info = readPointCacheExr(file, buffer, mVertexCount, mExpectedTopology);
-    if (info.hasFrame && info.frame != frame) {
-      DS_THROW(kInput, "point-cache EXR '", file, "' holds frame ", info.frame,
-               " (its header's dsFrame), not frame ", frame,
-               " as its name says: it was copied or renamed to the wrong place; rename it or "
-               "bake the frame again");
-    }
+    requireNamedFrame(file, frame, info);
     checkFinite("point-cache EXR '" + file + "'", frame, buffer.data());
     std::copy(buffer.begin(), buffer.end(), xyz);
   }
@@ -132,6 +142,30 @@ std::unique_ptr<PointCacheReader> openPointCache(const std::string& spec,
   }
   DS_THROW(kInput, "'", spec,
            "' is neither a .pc2 file nor an EXR sequence pattern (use name.####.exr)");
+}
+
+ExrSequenceInfo checkPointCacheExrSequence(const std::string& pattern) {
+  ExrSequenceInfo sequence;
+  for (const auto& [frame, file] : listExrSequence(pattern)) {
+    const ExrPointCacheInfo info = readPointCacheExrInfo(file);
+    requireNamedFrame(file, frame, info);
+    if (sequence.files.empty()) {
+      sequence.first = info;
+    } else if (info.vertexCount != sequence.first.vertexCount) {
+      DS_THROW(kInput, "point-cache EXR '", file, "' (frame ", frame, ") holds ", info.vertexCount,
+               " vertices but frame ", sequence.frames.front(), " ('", sequence.files.front(),
+               "') holds ", sequence.first.vertexCount,
+               ": the sequence mixes caches of different meshes; bake the frame again");
+    } else if (info.topologyHash != sequence.first.topologyHash) {
+      DS_THROW(kInput, "point-cache EXR '", file, "' (frame ", frame, ") has topology hash ",
+               hashToHex(info.topologyHash), " but frame ", sequence.frames.front(), " ('",
+               sequence.files.front(), "') has ", hashToHex(sequence.first.topologyHash),
+               ": the sequence mixes caches of different meshes; bake the frame again");
+    }
+    sequence.frames.push_back(frame);
+    sequence.files.push_back(file);
+  }
+  return sequence;
 }
 
 std::vector<float> readFrames(const PointCacheReader& cache, const std::vector<int>& frames) {

@@ -17,13 +17,18 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstddef>
+#include <exception>
 #include <filesystem>
+#include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <drivenshape/error.h>
 #include <drivenshape/version.h>
 
+#include "atomic_file.h"
 #include "hash.h"
 
 #include "exr_common.h"
@@ -98,9 +103,124 @@ std::vector<std::string> positionMapChannelNames(PositionMapChannels channels, b
   return out;
 }
 
-void writePositionMapExr(const std::string& path, int width, int height, const float* positions,
-                         const float* coverage, const float* normals,
-                         const PositionMapFrameHeader& header) {
+namespace {
+
+/// The EXR header of a position map (layout and attributes: position_map.h).
+Imf::Header exrHeaderOf(int width, int height, bool normals, const PositionMapFrameHeader& header) {
+  const ChannelNames names = channelNames(header.channels);
+  Imf::Header exrHeader(width, height);
+  exrHeader.compression() = toImf(header.compression);
+  for (int k = 0; k < 3; ++k) {
+    exrHeader.channels().insert(names.position[k], Imf::Channel(Imf::FLOAT));
+  }
+  exrHeader.channels().insert(names.coverage, Imf::Channel(Imf::FLOAT));
+  if (normals) {
+    const Imf::PixelType type = header.halfNormals ? Imf::HALF : Imf::FLOAT;
+    for (int k = 0; k < 3; ++k) {
+      exrHeader.channels().insert(names.normal[k], Imf::Channel(type));
+    }
+  }
+  exrHeader.insert(kAttrKind, Imf::StringAttribute(kKindValue));
+  exrHeader.insert(kAttrFrame, Imf::IntAttribute(header.frame));
+  exrHeader.insert(kAttrTopologyHash, Imf::StringAttribute(hashToHex(header.topologyHash)));
+  exrHeader.insert(kAttrToolVersion, Imf::StringAttribute(kVersion));
+  exrHeader.insert(kAttrMeshVertexCount, Imf::IntAttribute(header.meshVertexCount));
+  const Bounds& b = header.bounds;
+  exrHeader.insert(kAttrBoundsMin, Imf::V3fAttribute(Imath::V3f(b.min.x(), b.min.y(), b.min.z())));
+  exrHeader.insert(kAttrBoundsMax, Imf::V3fAttribute(Imath::V3f(b.max.x(), b.max.y(), b.max.z())));
+  exrHeader.insert(kAttrPadding, Imf::IntAttribute(header.padding));
+  exrHeader.insert(kAttrUvLayout, Imf::StringAttribute(kUvLayoutValue));
+  Imf::addFramesPerSecond(exrHeader, Imf::guessExactFps(header.framesPerSecond));
+  return exrHeader;
+}
+
+/// `data` moved back by `rows` rows of `rowBytes`: the base of a slice addressed by absolute y
+/// whose first row in memory is row `rows` (OpenEXR's way of reading a band).
+char* rowsBack(const void* data, int rows, std::size_t rowBytes) {
+  return const_cast<char*>(static_cast<const char*>(data)) -
+         static_cast<std::ptrdiff_t>(rows) * static_cast<std::ptrdiff_t>(rowBytes);
+}
+
+}  // namespace
+
+/// A position-map file being written: its temporary file, header and scan-line writer.
+struct PositionMapExrWriter::State {
+  std::string path;
+  int width = 0;
+  int height = 0;
+  bool normals = false;
+  PositionMapFrameHeader header;
+  AtomicFile file;
+  Imf::Header exrHeader;
+  std::unique_ptr<ScanlineWriter> writer;
+  int nextRow = 0;
+  std::vector<half> halfNormals;  ///< one band's normals rounded (OpenEXR does not convert)
+
+  State(const std::string& finalPath, int w, int h, bool withNormals,
+        const PositionMapFrameHeader& frameHeader)
+      : path(finalPath),
+        width(w),
+        height(h),
+        normals(withNormals),
+        header(frameHeader),
+        file(finalPath),
+        exrHeader(exrHeaderOf(w, h, withNormals, frameHeader)) {}
+
+  /// The slices of a band of `rows` rows from nextRow.
+  Imf::FrameBuffer band(int rows, const float* positions, const float* coverage,
+                        const float* normalValues) {
+    const ChannelNames names = channelNames(header.channels);
+    const std::size_t rowTexels = static_cast<std::size_t>(width);
+    Imf::FrameBuffer frameBuffer;
+    insertXyzSlices(
+        frameBuffer, names.position,
+        reinterpret_cast<const float*>(rowsBack(positions, nextRow, 3 * sizeof(float) * rowTexels)),
+        rowTexels);
+    frameBuffer.insert(
+        names.coverage,
+        Imf::Slice(Imf::FLOAT, rowsBack(coverage, nextRow, sizeof(float) * rowTexels),
+                   sizeof(float), sizeof(float) * rowTexels));
+    if (normals && header.halfNormals) {
+      const std::size_t count = 3 * rowTexels * static_cast<std::size_t>(rows);
+      halfNormals.resize(count);
+      for (std::size_t i = 0; i < count; ++i) {
+        halfNormals[i] = half(normalValues[i]);
+      }
+      char* bytes = rowsBack(halfNormals.data(), nextRow, 3 * sizeof(half) * rowTexels);
+      for (int k = 0; k < 3; ++k) {
+        frameBuffer.insert(names.normal[k],
+                           Imf::Slice(Imf::HALF, bytes + k * sizeof(half), 3 * sizeof(half),
+                                      3 * sizeof(half) * rowTexels));
+      }
+    } else if (normals) {
+      insertXyzSlices(frameBuffer, names.normal,
+                      reinterpret_cast<const float*>(
+                          rowsBack(normalValues, nextRow, 3 * sizeof(float) * rowTexels)),
+                      rowTexels);
+    }
+    return frameBuffer;
+  }
+};
+
+namespace {
+
+/// Runs `step` of writing `path`; an exception other than drivenshape::Error (OpenEXR's)
+/// becomes Error(kOutput) naming the file.
+template <typename Step>
+void writeStep(const std::string& path, Step&& step) {
+  try {
+    step();
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    DS_THROW(kOutput, "cannot write position-map EXR '", path, "': ", e.what());
+  }
+}
+
+}  // namespace
+
+PositionMapExrWriter::PositionMapExrWriter(const std::string& path, int width, int height,
+                                           bool normals, const PositionMapFrameHeader& header) {
   if (width < 1 || height < 1 || width > kMaxPositionMapSide || height > kMaxPositionMapSide) {
     DS_THROW(kUsage, "position map size ", width, "x", height, " is outside 1..",
              kMaxPositionMapSide, " texels per side (", path, ")");
@@ -109,65 +229,50 @@ void writePositionMapExr(const std::string& path, int width, int height, const f
     DS_THROW(kUsage, "frames per second ", header.framesPerSecond, " must be positive (", path,
              ")");
   }
+  writeStep(path, [&] {
+    mState = std::make_unique<State>(path, width, height, normals, header);
+    mState->writer = std::make_unique<ScanlineWriter>(
+        path, mState->file.stream(), mState->exrHeader, header.zipEncoder, header.encodeThreads);
+  });
+}
+
+PositionMapExrWriter::~PositionMapExrWriter() = default;
+
+void PositionMapExrWriter::writeRows(int rows, const float* positions, const float* coverage,
+                                     const float* normals) {
+  State& state = *mState;
+  if (positions == nullptr || coverage == nullptr || (state.normals && normals == nullptr)) {
+    DS_THROW(kInternal, "PositionMapExrWriter '", state.path, "': no positions or coverage");
+  }
+  if (rows < 1 || state.nextRow + rows > state.height) {
+    DS_THROW(kInternal, "PositionMapExrWriter '", state.path, "': ", rows, " rows from row ",
+             state.nextRow, " pass the map's ", state.height);
+  }
+  writeStep(state.path,
+            [&] { state.writer->write(state.band(rows, positions, coverage, normals), rows); });
+  state.nextRow += rows;
+}
+
+void PositionMapExrWriter::commit() {
+  State& state = *mState;
+  if (state.nextRow != state.height) {
+    DS_THROW(kInternal, "PositionMapExrWriter '", state.path, "': committed after ", state.nextRow,
+             " of ", state.height, " rows");
+  }
+  writeStep(state.path, [&] { state.writer->finish(); });
+  state.writer.reset();
+  state.file.commit();
+}
+
+void writePositionMapExr(const std::string& path, int width, int height, const float* positions,
+                         const float* coverage, const float* normals,
+                         const PositionMapFrameHeader& header) {
   if (positions == nullptr || coverage == nullptr) {
     DS_THROW(kInternal, "writePositionMapExr '", path, "': no positions or coverage");
   }
-  const std::size_t rowTexels = static_cast<std::size_t>(width);
-  const ChannelNames names = channelNames(header.channels);
-
-  writeExrAtomically(path, "position-map", [&](std::ostream& stream) {
-    Imf::Header exrHeader(width, height);
-    exrHeader.compression() = toImf(header.compression);
-    for (int k = 0; k < 3; ++k) {
-      exrHeader.channels().insert(names.position[k], Imf::Channel(Imf::FLOAT));
-    }
-    exrHeader.channels().insert(names.coverage, Imf::Channel(Imf::FLOAT));
-    if (normals != nullptr) {
-      const Imf::PixelType type = header.halfNormals ? Imf::HALF : Imf::FLOAT;
-      for (int k = 0; k < 3; ++k) {
-        exrHeader.channels().insert(names.normal[k], Imf::Channel(type));
-      }
-    }
-    exrHeader.insert(kAttrKind, Imf::StringAttribute(kKindValue));
-    exrHeader.insert(kAttrFrame, Imf::IntAttribute(header.frame));
-    exrHeader.insert(kAttrTopologyHash, Imf::StringAttribute(hashToHex(header.topologyHash)));
-    exrHeader.insert(kAttrToolVersion, Imf::StringAttribute(kVersion));
-    exrHeader.insert(kAttrMeshVertexCount, Imf::IntAttribute(header.meshVertexCount));
-    const Bounds& b = header.bounds;
-    exrHeader.insert(kAttrBoundsMin,
-                     Imf::V3fAttribute(Imath::V3f(b.min.x(), b.min.y(), b.min.z())));
-    exrHeader.insert(kAttrBoundsMax,
-                     Imf::V3fAttribute(Imath::V3f(b.max.x(), b.max.y(), b.max.z())));
-    exrHeader.insert(kAttrPadding, Imf::IntAttribute(header.padding));
-    exrHeader.insert(kAttrUvLayout, Imf::StringAttribute(kUvLayoutValue));
-    Imf::addFramesPerSecond(exrHeader, Imf::guessExactFps(header.framesPerSecond));
-
-    Imf::FrameBuffer frameBuffer;
-    insertXyzSlices(frameBuffer, names.position, positions, rowTexels);
-    frameBuffer.insert(names.coverage,
-                       Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(coverage)),
-                                  sizeof(float), sizeof(float) * rowTexels));
-    // OpenEXR does not convert FLOAT slices to HALF channels on write: round here.
-    std::vector<half> halfNormals;
-    if (normals != nullptr && header.halfNormals) {
-      const std::size_t count = 3 * rowTexels * static_cast<std::size_t>(height);
-      halfNormals.resize(count);
-      for (std::size_t i = 0; i < count; ++i) {
-        halfNormals[i] = half(normals[i]);
-      }
-      char* bytes = reinterpret_cast<char*>(halfNormals.data());
-      for (int k = 0; k < 3; ++k) {
-        frameBuffer.insert(names.normal[k],
-                           Imf::Slice(Imf::HALF, bytes + k * sizeof(half), 3 * sizeof(half),
-                                      3 * sizeof(half) * rowTexels));
-      }
-    } else if (normals != nullptr) {
-      insertXyzSlices(frameBuffer, names.normal, normals, rowTexels);
-    }
-
-    writeScanlines(path, stream, exrHeader, frameBuffer, height, header.zipEncoder,
-                   header.encodeThreads);
-  });
+  PositionMapExrWriter file(path, width, height, normals != nullptr, header);
+  file.writeRows(height, positions, coverage, normals);
+  file.commit();
 }
 
 namespace {

@@ -79,25 +79,48 @@ std::string positionMapPreviewPath(const std::string& exrPath) {
   return exrPath.substr(0, dot) + ".png";
 }
 
+PositionMapPreview::PositionMapPreview(int width, int height, const Bounds& bounds)
+    : mWidth(width), mHeight(height), mBounds(bounds) {
+  if (width < 1 || height < 1) {
+    DS_THROW(kInternal, "a position-map preview of ", width, "x", height, " texels");
+  }
+  const std::size_t rowBytes = 1 + 3 * static_cast<std::size_t>(width);
+  mRows.assign(rowBytes * static_cast<std::size_t>(height), 0);
+}
+
+void PositionMapPreview::draw(const PositionMapTables& band, int firstRow, const float* positions) {
+  if (positions == nullptr || band.width != mWidth || firstRow < 0 ||
+      firstRow + band.height > mHeight) {
+    DS_THROW(kInternal, "PositionMapPreview: no band of rows ", firstRow, "-",
+             firstRow + band.height - 1, " to draw");
+  }
+  const std::size_t width = static_cast<std::size_t>(mWidth);
+  const std::size_t rowBytes = 1 + 3 * width;
+  for (std::size_t e = 0; e < band.texels.size(); ++e) {
+    const std::size_t texel = static_cast<std::size_t>(band.texels[e]);
+    const bool covered = band.texelSources[e] == static_cast<int>(e);
+    const float scale = covered ? 1.0f : 0.5f;
+    const std::size_t row = static_cast<std::size_t>(firstRow) + texel / width;
+    unsigned char* pixel = mRows.data() + row * rowBytes + 1 + 3 * (texel % width);
+    for (int k = 0; k < 3; ++k) {
+      pixel[k] = toByte(positions[3 * texel + static_cast<std::size_t>(k)], mBounds.min[k],
+                        mBounds.max[k], scale);
+    }
+  }
+}
+
+void PositionMapPreview::write(const std::string& path) const {
+  writeFileAtomically(path, encodePng(mWidth, mHeight, mRows));
+}
+
 void writePositionMapPreview(const std::string& path, const PositionMapTables& tables,
                              const float* positions, const Bounds& bounds) {
   if (positions == nullptr || tables.width < 1 || tables.height < 1) {
     DS_THROW(kInternal, "writePositionMapPreview '", path, "': no map to draw");
   }
-  const std::size_t width = static_cast<std::size_t>(tables.width);
-  const std::size_t rowBytes = 1 + 3 * width;
-  std::vector<unsigned char> rows(rowBytes * static_cast<std::size_t>(tables.height), 0);
-  for (std::size_t e = 0; e < tables.texels.size(); ++e) {
-    const std::size_t texel = static_cast<std::size_t>(tables.texels[e]);
-    const bool covered = tables.texelSources[e] == static_cast<int>(e);
-    const float scale = covered ? 1.0f : 0.5f;
-    unsigned char* pixel = rows.data() + (texel / width) * rowBytes + 1 + 3 * (texel % width);
-    for (int k = 0; k < 3; ++k) {
-      pixel[k] = toByte(positions[3 * texel + static_cast<std::size_t>(k)], bounds.min[k],
-                        bounds.max[k], scale);
-    }
-  }
-  writeFileAtomically(path, encodePng(tables.width, tables.height, rows));
+  PositionMapPreview preview(tables.width, tables.height, bounds);
+  preview.draw(tables, 0, positions);
+  preview.write(path);
 }
 
 }  // namespace drivenshape

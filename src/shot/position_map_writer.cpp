@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// PositionMapWriter and writePositionMapSequence: tables once, then chunks of frames through
-// a backend into EXR files (and PNG previews).
+// PositionMapWriter and writePositionMapSequence: tables once (or a band of rows at a time for
+// a map too large to hold them), then chunks of frames through a backend into EXR files (and
+// PNG previews).
 
 #include <drivenshape/position_map_sequence.h>
 
@@ -10,8 +11,9 @@
 #include <algorithm>
 #include <chrono>
 #include <exception>
+#include <memory>
 #include <ostream>
-#include <thread>
+#include <string>
 #include <vector>
 
 #include <drivenshape/error.h>
@@ -23,11 +25,25 @@
 namespace drivenshape {
 namespace {
 
-/// Maps of one launch are kept within this many bytes (P, plus N when asked for).
-constexpr std::size_t kChunkBytes = std::size_t{256} << 20;
 constexpr int kMaxChunkFrames = 16;
+/// Bytes per texel of a map's tables (texels, triangles, weights, sources, coverage) with the
+/// backend's copy and the rasterisation's scratch (owner, distance, entry): what keeping them
+/// whole costs, and what a band's cost besides its maps.
+constexpr std::size_t kTableBytesPerTexel = 64;
+/// A banded map's bands are whole ZIP chunks (16 rows) but the last.
+constexpr int kBandRowStep = 16;
 
 }  // namespace
+
+/// One launch's files being written, a band at a time.
+struct PositionMapWriter::Chunk {
+  int count = 0;
+  const float* xyz = nullptr;
+  std::vector<PositionMapFrameHeader> headers;
+  std::vector<std::unique_ptr<PositionMapExrWriter>> files;
+  std::vector<std::unique_ptr<PositionMapPreview>> previews;
+  std::vector<std::exception_ptr> failures;  ///< per frame: its file is dropped on the first
+};
 
 PositionMapWriter::PositionMapWriter(const Mesh& mesh, const PositionMapOptions& options,
                                      std::unique_ptr<PositionMapBackend> backend,
@@ -46,25 +62,45 @@ PositionMapWriter::PositionMapWriter(const Mesh& mesh, const PositionMapOptions&
   if (!(mOptions.framesPerSecond > 0.0)) {
     DS_THROW(kUsage, "frames per second ", mOptions.framesPerSecond, " must be positive (--fps)");
   }
-  mTables =
-      buildPositionMapTables(mesh, mOptions.width, mOptions.height, mOptions.padding, meshName);
+  mOptions.launchBytes = std::max<std::size_t>(mOptions.launchBytes, 1);
+  auto raster = std::make_unique<PositionMapRaster>(mesh, mOptions.width, mOptions.height,
+                                                    mOptions.padding, meshName);
+  const std::size_t texels = raster->shared().texelCount();
+  const std::size_t limit = std::min(mOptions.launchBytes, mBackend->maxBufferBytes() / 2);
+  if (texels * kTableBytesPerTexel <= 4 * mOptions.launchBytes) {
+    mTables = raster->band(0, mOptions.height);
+    mBackend->upload(mTables);
+    const std::size_t frameBytes = 3 * texels * sizeof(float) * (mOptions.normals ? 2 : 1);
+    const int fit = static_cast<int>(std::min<std::size_t>(
+        kMaxChunkFrames, std::max<std::size_t>(1, limit / std::max<std::size_t>(1, frameBytes))));
+    mChunkSize = mOptions.chunkSize > 0 ? mOptions.chunkSize : fit;
+  } else {
+    mRaster = std::move(raster);
+    mChunkSize = mOptions.chunkSize > 0 ? mOptions.chunkSize : kMaxChunkFrames;
+    mTables = mRaster->survey(bandRows(0));
+  }
   if (log != nullptr && !mTables.overlaps.empty()) {
     *log << "warning: " << meshName << ": " << mTables.overlaps.describe() << "\n";
   }
-  mBackend->upload(mTables);
-
-  const std::size_t frameBytes =
-      3 * mTables.texelCount() * sizeof(float) * (mOptions.normals ? 2 : 1);
-  const std::size_t limit = std::min(kChunkBytes, mBackend->maxBufferBytes() / 2);
-  const int fit = static_cast<int>(std::min<std::size_t>(
-      kMaxChunkFrames, std::max<std::size_t>(1, limit / std::max<std::size_t>(1, frameBytes))));
-  mChunkSize = mOptions.chunkSize > 0 ? mOptions.chunkSize : fit;
 }
 
 PositionMapWriter::~PositionMapWriter() = default;
 
 std::string PositionMapWriter::backendName() const {
   return mBackend->name();
+}
+
+int PositionMapWriter::bandRows(int frames) const {
+  if (!mRaster) {
+    return mTables.height;
+  }
+  const std::size_t mapBytes = 3 * sizeof(float) * (mOptions.normals ? 2 : 1);
+  const std::size_t rowBytes = static_cast<std::size_t>(mOptions.width) *
+                               (kTableBytesPerTexel + static_cast<std::size_t>(frames) * mapBytes);
+  const std::size_t limit = std::min(mOptions.launchBytes, mBackend->maxBufferBytes() / 2);
+  const std::size_t rows = limit / rowBytes / kBandRowStep * kBandRowStep;
+  return static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(mOptions.height),
+                                                std::max<std::size_t>(kBandRowStep, rows)));
 }
 
 void PositionMapWriter::writeFrame(int frame, const float* xyz, const std::string& path) {
@@ -94,27 +130,22 @@ void PositionMapWriter::writeChunk(int count, const int* frames, const float* xy
   if (xyz == nullptr) {
     DS_THROW(kInternal, "PositionMapWriter: no positions for frame ", frames[0]);
   }
-  const std::size_t mapFloats = 3 * mTables.texelCount();
+  const auto openStart = std::chrono::steady_clock::now();
   const std::size_t vertexFloats = 3 * static_cast<std::size_t>(mTables.vertexCount);
-  const std::size_t needed = static_cast<std::size_t>(count) * mapFloats;
-  if (mPositions.size() < needed) {
-    mPositions.resize(needed);
-  }
-  if (mOptions.normals && mNormals.size() < needed) {
-    mNormals.resize(needed);
-  }
-  const auto evaluateStart = std::chrono::steady_clock::now();
-  mBackend->evaluate(count, xyz, mPositions.data(), mOptions.normals ? mNormals.data() : nullptr);
-  mEvaluateSeconds += secondsSince(evaluateStart);
-
-  const auto writeStart = std::chrono::steady_clock::now();
-  // Files on `threads` threads; the cores left over deflate the chunks within each file (one
-  // frame per call, as `bake --posmap` writes with --batch 1, still uses every core).
-  const int threads = resolveThreads(mOptions.threads, count);
-  const int encodeThreads = std::max(1, resolveThreads(mOptions.threads) / threads);
-  parallelFor(count, threads, [&](int i) {
+  Chunk chunk;
+  chunk.count = count;
+  chunk.xyz = xyz;
+  chunk.headers.resize(static_cast<std::size_t>(count));
+  chunk.files.resize(static_cast<std::size_t>(count));
+  chunk.previews.resize(static_cast<std::size_t>(count));
+  chunk.failures.resize(static_cast<std::size_t>(count));
+  // The cores left over by the files deflate the chunks within each file (one frame per call,
+  // as `bake --posmap` writes with --batch 1, still uses every core).
+  const int encodeThreads =
+      std::max(1, resolveThreads(mOptions.threads) / resolveThreads(mOptions.threads, count));
+  for (int i = 0; i < count; ++i) {
     const std::size_t f = static_cast<std::size_t>(i);
-    PositionMapFrameHeader header;
+    PositionMapFrameHeader& header = chunk.headers[f];
     header.frame = frames[i];
     header.topologyHash = mTables.topologyHash;
     header.meshVertexCount = mTables.vertexCount;
@@ -126,11 +157,89 @@ void PositionMapWriter::writeChunk(int count, const int* frames, const float* xy
     header.framesPerSecond = mOptions.framesPerSecond;
     header.halfNormals = mOptions.halfNormals;
     header.channels = mOptions.channels;
+    try {
+      chunk.files[f] = std::make_unique<PositionMapExrWriter>(
+          paths[i], mOptions.width, mOptions.height, mOptions.normals, header);
+      if (mOptions.preview) {
+        chunk.previews[f] =
+            std::make_unique<PositionMapPreview>(mOptions.width, mOptions.height, header.bounds);
+      }
+    } catch (...) {
+      chunk.failures[f] = std::current_exception();
+      chunk.files[f].reset();
+    }
+  }
+  mWriteSeconds += secondsSince(openStart);
+  const int rows = bandRows(count);
+  for (int firstRow = 0; firstRow < mOptions.height; firstRow += rows) {
+    writeBand(chunk, firstRow, std::min(rows, mOptions.height - firstRow));
+  }
+  const auto commitStart = std::chrono::steady_clock::now();
+  parallelFor(count, resolveThreads(mOptions.threads, count), [&](int i) {
+    const std::size_t f = static_cast<std::size_t>(i);
+    if (!chunk.files[f]) {
+      return;
+    }
+    try {
+      chunk.files[f]->commit();
+      if (chunk.previews[f]) {
+        chunk.previews[f]->write(positionMapPreviewPath(paths[i]));
+      }
+    } catch (...) {
+      chunk.failures[f] = std::current_exception();
+    }
+    chunk.files[f].reset();
+    chunk.previews[f].reset();
+  });
+  mWriteSeconds += secondsSince(commitStart);
+  for (const std::exception_ptr& failure : chunk.failures) {
+    if (failure) {
+      std::rethrow_exception(failure);  // the first frame's; the others are written
+    }
+  }
+}
+
+void PositionMapWriter::writeBand(Chunk& chunk, int firstRow, int rows) {
+  if (std::none_of(chunk.files.begin(), chunk.files.end(),
+                   [](const auto& file) { return file != nullptr; })) {
+    return;  // every file of the launch failed
+  }
+  const auto evaluateStart = std::chrono::steady_clock::now();
+  PositionMapTables bandTables;
+  if (mRaster) {
+    bandTables = mRaster->band(firstRow, rows);
+    mBackend->upload(bandTables);
+  }
+  const PositionMapTables& band = mRaster ? bandTables : mTables;
+  const std::size_t mapFloats = 3 * band.texelCount();
+  const std::size_t needed = static_cast<std::size_t>(chunk.count) * mapFloats;
+  if (mPositions.size() < needed) {
+    mPositions.resize(needed);
+  }
+  if (mOptions.normals && mNormals.size() < needed) {
+    mNormals.resize(needed);
+  }
+  mBackend->evaluate(chunk.count, chunk.xyz, mPositions.data(),
+                     mOptions.normals ? mNormals.data() : nullptr);
+  mEvaluateSeconds += secondsSince(evaluateStart);
+
+  const auto writeStart = std::chrono::steady_clock::now();
+  parallelFor(chunk.count, resolveThreads(mOptions.threads, chunk.count), [&](int i) {
+    const std::size_t f = static_cast<std::size_t>(i);
+    if (!chunk.files[f]) {
+      return;
+    }
     const float* positions = mPositions.data() + f * mapFloats;
-    writePositionMapExr(paths[i], mTables.width, mTables.height, positions, mTables.coverage.data(),
-                        mOptions.normals ? mNormals.data() + f * mapFloats : nullptr, header);
-    if (mOptions.preview) {
-      writePositionMapPreview(positionMapPreviewPath(paths[i]), mTables, positions, header.bounds);
+    try {
+      chunk.files[f]->writeRows(rows, positions, band.coverage.data(),
+                                mOptions.normals ? mNormals.data() + f * mapFloats : nullptr);
+      if (chunk.previews[f]) {
+        chunk.previews[f]->draw(band, firstRow, positions);
+      }
+    } catch (...) {
+      chunk.failures[f] = std::current_exception();
+      chunk.files[f].reset();  // its temporary file goes
+      chunk.previews[f].reset();
     }
   });
   mWriteSeconds += secondsSince(writeStart);

@@ -19,9 +19,11 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <drivenshape/database.h>
+#include <drivenshape/frames.h>
 #include <drivenshape/point_cache.h>
 
 #include "cli_test_util.h"
@@ -701,6 +703,102 @@ TEST(CliRegression, SampleDriverBakesTrusted) {
   EXPECT_FALSE(report["settings"]["untrusted_driver"].get<bool>());
   EXPECT_TRUE(report["settings"]["audit"].get<bool>());
   EXPECT_TRUE(report["settings"]["resolve"].get<bool>());
+}
+
+// ---- info on a point-cache EXR sequence read the first frame's header only ----
+
+/// The sample's test driver as the point-cache EXR sequence `pattern`, frames 1-4.
+void writeExrSequence(const std::string& pattern) {
+  const auto cache = openPc2(sample("test.driver.pc2"));
+  std::vector<float> xyz(static_cast<std::size_t>(cache->vertexCount()) * 3);
+  for (int frame = 1; frame <= 4; ++frame) {
+    cache->readFrame(frame, xyz.data());
+    ExrWriteOptions options;
+    options.frame = frame;
+    options.topologyHash = 0x1234;
+    options.syncToDisk = false;
+    writePointCacheExr(expandFramePattern(pattern, frame), cache->vertexCount(), xyz.data(),
+                       nullptr, options);
+  }
+}
+
+// `info 's.####.exr'` exited 0 on a sequence where s.0003.exr had been copied to s.0004.exr
+// (its header says frame 3), or where one frame held another mesh: it read the first frame's
+// header only. Every frame's header is checked against its name and the first frame's.
+TEST(CliRegression, InfoOnAnExrSequenceChecksEveryFramesHeader) {
+  TempDir dir;
+  const std::string pattern = dir.file("s.####.exr");
+  writeExrSequence(pattern);
+  CliRun r = runCli(dir, {"info", pattern});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("4 frames (1-4)"), std::string::npos) << r.out;
+
+  fs::copy_file(dir.file("s.0003.exr"), dir.file("s.0004.exr"),
+                fs::copy_options::overwrite_existing);
+  r = runCli(dir, {"info", pattern});
+  expectError(r, 3, "s.0004.exr' holds frame 3 (its header's dsFrame), not frame 4");
+
+  // Frame 2 of another mesh (fewer vertices), then of another topology (same vertex count).
+  writeExrSequence(pattern);
+  std::vector<float> xyz(30, 0.5f);
+  ExrWriteOptions options;
+  options.frame = 2;
+  options.topologyHash = 0x1234;
+  options.syncToDisk = false;
+  writePointCacheExr(dir.file("s.0002.exr"), 10, xyz.data(), nullptr, options);
+  r = runCli(dir, {"info", pattern});
+  expectError(r, 3, "s.0002.exr' (frame 2) holds 10 vertices but frame 1");
+  writeExrSequence(pattern);
+  const auto cache = openPc2(sample("test.driver.pc2"));
+  xyz.assign(static_cast<std::size_t>(cache->vertexCount()) * 3, 0.5f);
+  options.topologyHash = 0x5678;
+  writePointCacheExr(dir.file("s.0002.exr"), cache->vertexCount(), xyz.data(), nullptr, options);
+  r = runCli(dir, {"info", pattern});
+  expectError(r, 3, "s.0002.exr' (frame 2) has topology hash 0000000000005678 but frame 1");
+}
+
+// ---- farm --extra-args were only checked against the options the farm sets itself ----
+
+// `farm slurm|openjd --extra-args` took any words: a typo, an option without its value or a
+// value the bake refuses made a job whose every task failed on the farm. The words now go
+// through the bake's own parser and checks: exit 2 naming --extra-args and the word, no job file.
+TEST(CliRegression, FarmExtraArgsAreCheckedAsTheBakeTakesThem) {
+  TempDir dir;
+  const auto farm = [&](const std::string& scheduler, const std::string& extra) {
+    return runCli(
+        dir, {"farm", scheduler, "--db", dir.file("db.dsdb"), "--driver", dir.file("d.####.exr"),
+              "--frames", "1-48", "-o", dir.file("out/c.####.exr"), "--chunk-size", "16",
+              "--no-check", "--extra-args", extra, "-O", dir.file("job.json")});
+  };
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {"--batch 8 --bogus", "unknown option '--bogus'"},
+      {"--batch", "option '--batch' needs a value"},
+      {"--batch 0", "--batch"},
+      {"--batch eight", "--batch"},
+      {"--skin-offset -1", "--skin-offset"},
+      {"--no-audit stray", "unexpected argument 'stray'"},
+      {"--posmap 99999", "--posmap"},
+      {"--posmap 64 --posmap-padding 300", "--posmap-padding"},
+      {"--weights qp --max-weight-change 0.1 --batch 7", "--batch (7)"},
+      {"--quiet --verbose", "--quiet and --verbose"},
+      {"--help", "--help"},
+  };
+  for (const std::string scheduler : {"slurm", "openjd"}) {
+    for (const auto& [extra, word] : refused) {
+      SCOPED_TRACE(scheduler + " --extra-args '" + extra + "'");
+      const CliRun r = farm(scheduler, extra);
+      expectError(r, 2, "--extra-args '" + extra + "'");
+      EXPECT_NE(r.err.find(word), std::string::npos) << r.err;
+      EXPECT_FALSE(fs::exists(dir.file("job.json")));
+    }
+    for (const std::string extra :
+         {"--batch 8 --no-audit", "--posmap 64 --posmap-normals",
+          "--weights qp --max-weight-change 0.1 --batch 8", "--report r.json --device host"}) {
+      const CliRun r = farm(scheduler, extra);
+      EXPECT_EQ(r.code, 0) << scheduler << " --extra-args '" << extra << "': " << r.err;
+      fs::remove(dir.file("job.json"));
+    }
+  }
 }
 
 }  // namespace

@@ -282,10 +282,15 @@ class Child {
     }
   }
   pid_t pid() const { return mPid; }
-  /// Waits for the exit; the exit code, or 128 + the signal that ended it.
-  int wait() {
+  /// Waits for the exit; the exit code, or 128 + the signal that ended it. `peakKib`, when
+  /// given, receives the child's peak resident memory (KiB).
+  int wait(long* peakKib = nullptr) {
     int status = 0;
-    ::waitpid(mPid, &status, 0);
+    rusage usage{};
+    ::wait4(mPid, &status, 0, &usage);
+    if (peakKib != nullptr) {
+      *peakKib = usage.ru_maxrss;
+    }
     return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   }
   std::string err() const { return slurp(mErr); }
@@ -331,6 +336,67 @@ TEST(CliSafety, FileSizeLimitEndsTheBakeWithAnOutputErrorAndNoTemporaryFile) {
   EXPECT_EQ(code, 4) << child.err();
   EXPECT_NE(child.err().find("output"), std::string::npos) << child.err();
   EXPECT_FALSE(holdsTempFile(out)) << listing(out);
+}
+
+// `farm openjd` wrote the job parameters file and then the template, each renamed into place on
+// its own: when the template's write failed (a full disk), the new parameters file stayed beside
+// the old template, a pair that does not match. Under a file-size limit that the parameters
+// file fits and the template does not, the old pair must stay byte for byte, with no temporary
+// file left beside it.
+TEST(CliSafety, FarmOpenjdChangesTheTemplateAndItsParametersTogetherOrNotAtAll) {
+  TempDir dir;
+  const std::string job = dir.file("job.json");
+  const std::string params = dir.file("job.params.json");
+  const auto args = [&](const std::string& db) {
+    return std::vector<std::string>{"farm",
+                                    "openjd",
+                                    "--db",
+                                    db,
+                                    "--driver",
+                                    dir.file("d.pc2"),
+                                    "--frames",
+                                    "1-48",
+                                    "-o",
+                                    dir.file("out/c.####.exr"),
+                                    "--chunk-size",
+                                    "16",
+                                    "--no-check",
+                                    "-O",
+                                    job};
+  };
+  ASSERT_EQ(runCli(dir, args(dir.file("old.dsdb"))).code, 0);
+  const std::string oldJob = slurp(job);
+  const std::string oldParams = slurp(params);
+  ASSERT_LT(oldParams.size() + 64, 1024u);  // the limit below: the parameters file fits,
+  ASSERT_GT(oldJob.size(), 1024u);          // the template does not
+  Child child(dir, args(dir.file("new.dsdb")), {{RLIMIT_FSIZE, 1024}});
+  const int code = child.wait();
+  EXPECT_EQ(code, 4) << child.err();
+  EXPECT_NE(child.err().find("job.json"), std::string::npos) << child.err();
+  EXPECT_EQ(slurp(params), oldParams) << "the parameters file changed without its template";
+  EXPECT_EQ(slurp(job), oldJob);
+  EXPECT_FALSE(holdsTempFile(dir.path())) << listing(dir.path());
+  // Without the limit both change.
+  ASSERT_EQ(runCli(dir, args(dir.file("new.dsdb"))).code, 0);
+  EXPECT_NE(slurp(params).find("new.dsdb"), std::string::npos);
+  EXPECT_NE(slurp(job), oldJob);
+}
+
+// `posmap --res 16384` (the documented maximum) needed about 17 GB for one frame of the sample:
+// the whole map's tables (20 bytes per texel, twice: the backend copied them), its positions and
+// its compressed file were all held at once. A map whose tables pass 1 GiB is now rasterised,
+// evaluated and written a band of rows at a time. 8192 x 3072 texels of the sample (about 1.6 GB
+// before) must stay within 512 MiB.
+TEST(CliSafety, LargePositionMapsAreWrittenWithinAFewHundredMegabytes) {
+  TempDir dir;
+  Child child(dir, {"posmap", "--mesh", sample("driven_rest.obj"), "--cache",
+                    sample("test.driven.pc2"), "--frames", "1", "--res", "8192x3072", "--device",
+                    "host", "--quiet", "-o", dir.file("m.####.exr")});
+  long peakKib = 0;
+  ASSERT_EQ(child.wait(&peakKib), 0) << child.err();
+  EXPECT_LT(peakKib, 512L * 1024) << "peak resident memory " << peakKib / 1024 << " MiB";
+  EXPECT_GT(fs::file_size(dir.file("m.0001.exr")), 100u << 20);
+  EXPECT_FALSE(holdsTempFile(dir.path())) << listing(dir.path());
 }
 
 // Ctrl-C or SIGTERM while the only batch of a shot is being written was ignored: the run went

@@ -67,6 +67,43 @@ TEST(AtomicFile, ALinkAtTheTargetIsReplacedAndItsTargetKept) {
   EXPECT_EQ(readText(dir.file("stream.bin")), "abXYef");
 }
 
+/// The names in `folder`, sorted.
+std::set<std::string> namesIn(const std::string& folder) {
+  std::set<std::string> names;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    names.insert(entry.path().filename().string());
+  }
+  return names;
+}
+
+// A job template and its parameters file change together: both replaced, or neither.
+TEST(AtomicFile, FilesWrittenTogetherChangeAsAPairOrNotAtAll) {
+  TempDir dir;
+  const std::string first = dir.file("job.params.json");
+  const std::string second = dir.file("job.json");
+  writeFilesTogether({{first, "old params"}, {second, "old job"}});
+  const std::string victim = dir.file("victim.txt");
+  std::ofstream(victim) << "keep me";
+  fs::remove(second);
+  fs::create_symlink(victim, second);
+  writeFilesTogether({{first, "new params"}, {second, "new job"}});
+  EXPECT_EQ(readText(first), "new params");
+  EXPECT_EQ(readText(second), "new job");
+  EXPECT_EQ(readText(victim), "keep me");
+  EXPECT_EQ(namesIn(dir.path()),
+            (std::set<std::string>{"job.json", "job.params.json", "victim.txt"}));  // no kept links
+
+  // The second cannot be made (its folder is missing): the first stays as it was.
+  testing::expectThrows(
+      [&] {
+        writeFilesTogether({{first, "newer params"}, {dir.file("none/job.json"), "x"}});
+      },
+      ErrorCode::kOutput, "none");
+  EXPECT_EQ(readText(first), "new params");
+  EXPECT_EQ(namesIn(dir.path()),
+            (std::set<std::string>{"job.json", "job.params.json", "victim.txt"}));
+}
+
 TEST(AtomicFile, LongNamesGetShortTemporaryNamesAndTooLongOnesNameTheLimit) {
   TempDir dir;
   const std::string longest = dir.file(std::string(255, 'n'));

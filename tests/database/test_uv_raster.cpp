@@ -148,6 +148,10 @@ TEST(UvRaster, OverlappingIslandsKeepTheLowestTriangleAndAreReported) {
   EXPECT_NE(text.find("1/2"), std::string::npos) << text;
   EXPECT_NE(text.find(std::to_string(tables.overlaps.texels) + " texels"), std::string::npos)
       << text;
+  // Counted band by band, each overlapped texel and each face pair once.
+  const PositionMapTables survey = PositionMapRaster(mesh, 40, 40, 0).survey(5);
+  EXPECT_EQ(survey.overlaps.texels, tables.overlaps.texels);
+  EXPECT_EQ(survey.overlaps.facePairs, tables.overlaps.facePairs);
   // Face 1 (z = 0) wins every shared texel, face 2 (z = 5) none.
   for (std::size_t e = 0; e < tables.texels.size(); ++e) {
     EXPECT_NE(tables.triangleFaces[tables.texelTriangles[e]], 1) << "texel " << tables.texels[e];
@@ -269,6 +273,65 @@ TEST(UvRaster, PaddedTexelsCopyTheirNearestCoveredTexel) {
   EXPECT_EQ(padded, tables.paddedCount);
   EXPECT_GT(static_cast<long long>(tables.texelCount()) - tables.coveredCount - padded, 1000)
       << "texels beyond the padding must exist for this test to mean something";
+}
+
+// A map too large to hold its tables is rasterised a band of rows at a time: each band holds
+// the whole map's texels of its rows (padding reaching across band edges included), whatever
+// the band's height, and the survey counts the whole map.
+TEST(UvRaster, BandsHoldTheWholeMapsRows) {
+  Sleeve sleeve = loadSleeve();
+  for (Eigen::Vector2f& uv : sleeve.mesh.uvs) {  // islands with room for the padding
+    uv = Eigen::Vector2f(0.1f, 0.3f) + 0.6f * uv;
+  }
+  const int width = 96;
+  const int height = 80;
+  const int padding = 4;
+  const PositionMapTables whole = buildPositionMapTables(sleeve.mesh, width, height, padding);
+  ASSERT_GT(whole.paddedCount, 0);
+  const PositionMapRaster raster(sleeve.mesh, width, height, padding);
+  for (int bandRows : {1, 3, 7, 32, height}) {
+    SCOPED_TRACE("bands of " + std::to_string(bandRows) + " rows");
+    std::size_t e = 0;  // the whole map's entry of the band's next entry
+    long long covered = 0;
+    long long padded = 0;
+    for (int firstRow = 0; firstRow < height; firstRow += bandRows) {
+      const int rows = std::min(bandRows, height - firstRow);
+      const PositionMapTables band = raster.band(firstRow, rows);
+      ASSERT_EQ(band.width, width);
+      ASSERT_EQ(band.height, rows);
+      ASSERT_EQ(band.triangles, whole.triangles);
+      const std::size_t offset = static_cast<std::size_t>(firstRow) * width;
+      for (std::size_t texel = 0; texel < band.texelCount(); ++texel) {
+        ASSERT_EQ(band.coverage[texel], whole.coverage[offset + texel]) << "texel " << texel;
+      }
+      for (std::size_t b = 0; b < band.activeCount(); ++b, ++e) {
+        ASSERT_LT(e, whole.activeCount());
+        ASSERT_EQ(static_cast<std::size_t>(band.texels[b]) + offset,
+                  static_cast<std::size_t>(whole.texels[e]));
+        ASSERT_EQ(band.texelTriangles[b], whole.texelTriangles[e]);
+        ASSERT_EQ(band.texelWeights[2 * b], whole.texelWeights[2 * e]);
+        ASSERT_EQ(band.texelWeights[2 * b + 1], whole.texelWeights[2 * e + 1]);
+        const int source = band.texelSources[b];
+        const std::size_t wholeSource = static_cast<std::size_t>(whole.texelSources[e]);
+        if (source >= 0) {
+          ASSERT_EQ(static_cast<std::size_t>(band.texels[source]) + offset,
+                    static_cast<std::size_t>(whole.texels[wholeSource]));
+        } else {  // a source in another band
+          const int sourceRow = whole.texels[wholeSource] / width;
+          ASSERT_TRUE(sourceRow < firstRow || sourceRow >= firstRow + rows);
+        }
+      }
+      covered += band.coveredCount;
+      padded += band.paddedCount;
+    }
+    EXPECT_EQ(e, whole.activeCount());
+    EXPECT_EQ(covered, whole.coveredCount);
+    EXPECT_EQ(padded, whole.paddedCount);
+    const PositionMapTables survey = raster.survey(bandRows);
+    EXPECT_EQ(survey.coveredCount, whole.coveredCount);
+    EXPECT_EQ(survey.paddedCount, whole.paddedCount);
+    EXPECT_TRUE(survey.texels.empty());
+  }
 }
 
 TEST(UvRaster, TablesAreConsistent) {

@@ -104,7 +104,7 @@ def hostile_values(farm):
     long_frames = ",".join(str(f) for f in range(1, 3000, 2))
     accepted = [
         ["-o", folder / "out" / "c.####.exr", "--job-name", 'shot 10 #"x" {a} }b{ it\'s'],
-        ["-o", folder / "out" / "c.####.exr", "--extra-args", "--batch 8 --note '{a}'"],
+        ["-o", folder / "out" / "c.####.exr", "--extra-args", "--batch 8 --device '{a}'"],
         ["-o", folder / "out {{a}}" / "c.####.exr", "--cancel-grace", "600"],
         ["-o", folder / "out" / "c{{x}}.####.exr", "--extra-args", "--report r.json"],
         ["-o", folder / "out" / "c.####.exr", "--job-name", "caf\u00e9 \u2014 \u00fc"],
@@ -125,8 +125,8 @@ def hostile_values(farm):
         (["--job-name", "shot {{Param.Database}}"], ["--job-name 'shot {{Param.Database}}'",
                                                      "{{"]),
         (["--job-name", "a }} b"], ["--job-name 'a }} b'"]),
-        (["--extra-args", "--batch 8 --note {{x}}"], ["--extra-args '--batch 8 --note {{x}}'"]),
-        (["--extra-args", "--note 'a\tb'"], ["--extra-args '--note 'a\\x09b''",
+        (["--extra-args", "--batch 8 --device {{x}}"], ["--extra-args '--batch 8 --device {{x}}'"]),
+        (["--extra-args", "--device 'a\tb'"], ["--extra-args '--device 'a\\x09b''",
                                             "control character"]),
         (["--job-name", "a\u0085b"], ["--job-name 'a\\xc2\\x85b'"]),
         (["--cancel-grace", "601"], ["--cancel-grace 601", "1..600"]),

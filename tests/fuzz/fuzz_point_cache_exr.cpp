@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Point-cache EXR reader (src/io/exr_point_cache.cpp, src/io/exr_common.cpp): the header alone,
 // the positions, the checks a resumed bake (--skip-existing) trusts (isCompleteExr,
-// reuseProblem), and the file read as a one-frame sequence through openPointCache
-// (src/io/point_cache.cpp).
+// reuseProblem), and the file read as a one-frame sequence through openPointCache and
+// checkPointCacheExrSequence (src/io/point_cache.cpp).
 
 #include <vector>
 
@@ -28,6 +28,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   ds::fuzz::expectOnlyErrors("reuseProblem", [&] {
     ds::reuseProblem(path, read ? info.vertexCount : 12, read ? info.topologyHash : 0,
                      read ? info.settingsHash : 0, read ? info.frame : 1001);
+  });
+
+  // `drivenshape info` on the sequence: every header against its name and the first one's.
+  ds::fuzz::expectOnlyErrors("checkPointCacheExrSequence", [&] {
+    ds::checkPointCacheExrSequence(ds::fuzz::scratchPath("cache.####.exr"));
   });
 
   std::unique_ptr<ds::PointCacheReader> sequence;

@@ -12,6 +12,12 @@
 #include <OpenEXR/ImfInputFile.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
 
 #include <drivenshape/error.h>
 
@@ -84,6 +90,131 @@ TEST_F(PositionMapWriterCl, BatchedFramesMatchSingleFramesAndTheHost) {
     }
   }
   EXPECT_GE(batched.evaluateSeconds(), 0.0);
+}
+
+/// The sleeve with its UV islands squeezed into part of the square: padded texels and texels
+/// beyond the padding, so that padding reaches across the edges of bands.
+Sleeve squeezedSleeve() {
+  Sleeve sleeve = loadSleeve();
+  for (Eigen::Vector2f& uv : sleeve.mesh.uvs) {
+    uv = Eigen::Vector2f(0.1f, 0.3f) + 0.6f * uv;
+  }
+  return sleeve;
+}
+
+/// The bytes of the file at `path` (empty when it cannot be read).
+std::string slurpFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+/// Names of the regular files in `folder` (temporary files included).
+std::set<std::string> filesOf(const std::string& folder) {
+  std::set<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    names.insert(entry.path().filename().string());
+  }
+  return names;
+}
+
+/// Writes `frames` of `sleeve` with `options` as `prefix`.<frame>.exr in `dir`; their paths.
+std::vector<std::string> writeMaps(const Sleeve& sleeve, const PositionMapOptions& options,
+                                   std::unique_ptr<PositionMapBackend> backend, bool banded,
+                                   const TempDir& dir, const std::string& prefix) {
+  const std::vector<int> frames{3, 4, 5};
+  const std::vector<float> xyz = readSleeveFrames(sleeve, frames);
+  PositionMapWriter writer(sleeve.mesh, options, std::move(backend));
+  EXPECT_EQ(writer.banded(), banded);
+  EXPECT_GT(writer.tables().paddedCount, 0);
+  std::vector<std::string> paths;
+  for (int frame : frames) {
+    paths.push_back(dir.file(prefix + "." + std::to_string(frame) + ".exr"));
+  }
+  writer.writeFrames(frames, xyz.data(), paths);
+  return paths;
+}
+
+// A map whose tables pass 4 * launchBytes (16384 x 16384 by default) is rasterised, evaluated
+// and written a band of rows at a time: the files are the same bytes as those of the whole map,
+// for every compression, with normals (FLOAT and HALF) and previews.
+TEST(PositionMapWriter, BandedMapsAreTheSameFilesAsWholeOnes) {
+  const Sleeve sleeve = squeezedSleeve();
+  struct Case {
+    ExrCompression compression;
+    ZipEncoder encoder;
+    bool normals;
+    bool halfNormals;
+  };
+  const std::vector<Case> cases = {{ExrCompression::kZip, ZipEncoder::kLibdeflate, false, false},
+                                   {ExrCompression::kZip, ZipEncoder::kOpenExr, true, false},
+                                   {ExrCompression::kZips, ZipEncoder::kLibdeflate, true, true},
+                                   {ExrCompression::kPiz, ZipEncoder::kLibdeflate, true, false},
+                                   {ExrCompression::kNone, ZipEncoder::kLibdeflate, false, false}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string(exrCompressionName(c.compression)) + " " + zipEncoderName(c.encoder) +
+                 (c.normals ? " normals" : "") + (c.halfNormals ? " half" : ""));
+    TempDir dir;
+    PositionMapOptions options;
+    options.width = 72;
+    options.height = 70;  // bands of 16 rows: four and 6 rows
+    options.padding = 3;
+    options.normals = c.normals;
+    options.halfNormals = c.halfNormals;
+    options.preview = true;
+    options.compression = c.compression;
+    options.zipEncoder = c.encoder;
+    options.threads = 2;
+    const std::vector<std::string> whole =
+        writeMaps(sleeve, options, makeHostPositionMaps(), false, dir, "whole");
+    options.launchBytes = 1;  // bands of the fewest rows
+    const std::vector<std::string> banded =
+        writeMaps(sleeve, options, makeHostPositionMaps(), true, dir, "banded");
+    for (std::size_t i = 0; i < whole.size(); ++i) {
+      EXPECT_EQ(slurpFile(banded[i]), slurpFile(whole[i])) << banded[i];
+      EXPECT_EQ(slurpFile(positionMapPreviewPath(banded[i])),
+                slurpFile(positionMapPreviewPath(whole[i])));
+    }
+    EXPECT_EQ(filesOf(dir.path()).size(), 12u) << "no temporary file is left";
+  }
+}
+
+TEST_F(PositionMapWriterCl, BandedMapsAreTheSameFilesAsWholeOnes) {
+  const Sleeve sleeve = squeezedSleeve();
+  TempDir dir;
+  PositionMapOptions options;
+  options.width = 64;
+  options.height = 50;
+  options.padding = 3;
+  options.normals = true;
+  const std::vector<std::string> whole = writeMaps(
+      sleeve, options, makeClPositionMaps(context(), device(), queue()), false, dir, "whole");
+  options.launchBytes = 1;
+  const std::vector<std::string> banded = writeMaps(
+      sleeve, options, makeClPositionMaps(context(), device(), queue()), true, dir, "banded");
+  for (std::size_t i = 0; i < whole.size(); ++i) {
+    EXPECT_EQ(slurpFile(banded[i]), slurpFile(whole[i])) << banded[i];
+  }
+}
+
+// A frame whose file cannot be made does not stop the others of its launch: they are written,
+// then its error is thrown, and no temporary file is left.
+TEST(PositionMapWriter, AFailedFileLeavesTheOthersOfItsLaunchWritten) {
+  const Sleeve sleeve = squeezedSleeve();
+  for (const std::size_t launchBytes : {std::size_t{256} << 20, std::size_t{1}}) {
+    TempDir dir;
+    PositionMapOptions options = smallOptions();
+    options.launchBytes = launchBytes;
+    PositionMapWriter writer(sleeve.mesh, options, makeHostPositionMaps());
+    const std::vector<int> frames{3, 4, 5};
+    const std::vector<float> xyz = readSleeveFrames(sleeve, frames);
+    const std::vector<std::string> paths{dir.file("a.exr"), dir.file("missing/b.exr"),
+                                         dir.file("c.exr")};
+    std::string message;
+    EXPECT_EQ(codeOf([&] { writer.writeFrames(frames, xyz.data(), paths); }, message),
+              ErrorCode::kOutput);
+    EXPECT_NE(message.find("missing"), std::string::npos) << message;
+    EXPECT_EQ(filesOf(dir.path()), (std::set<std::string>{"a.exr", "c.exr"}));
+  }
 }
 
 TEST(PositionMapWriter, SequenceWritesEveryFrameFromTheCache) {

@@ -201,6 +201,20 @@ ExrPointCacheInfo readPointCacheExr(const std::string& path, std::vector<float>&
                                     int expectedVertexCount = 0,
                                     std::uint64_t expectedTopology = 0);
 
+/// The headers of a point-cache EXR sequence (checkPointCacheExrSequence).
+struct ExrSequenceInfo {
+  std::vector<int> frames;         ///< ascending
+  std::vector<std::string> files;  ///< files[i] holds frames[i]
+  ExrPointCacheInfo first;         ///< the header of the first frame's file
+};
+
+/// Reads the header of every file of the point-cache EXR sequence `pattern` (headers only: no
+/// pixel is decoded) and checks them against their names and each other: each file's frame
+/// attribute (dsFrame, where present) is the frame its name says, and every file has the first
+/// one's vertex count and topology hash. Throws Error(kInput) naming the file and the frame of
+/// the first mismatch, or as openPointCache does for a pattern that matches no file.
+ExrSequenceInfo checkPointCacheExrSequence(const std::string& pattern);
+
 /// True if the file exists and OpenEXR reports it complete (all scanlines present).
 bool isCompleteExr(const std::string& path);
 

@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -53,7 +54,8 @@ namespace drivenshape {
 // row-major index. Padded texels carry P (and N) but A = 0: A is 1 exactly on covered texels,
 // so a compositor can matte with it while the padding keeps filtered lookups clean.
 
-/// Largest width or height accepted for a map (a 16384^2 map already holds 3 GiB of P).
+/// Largest width or height accepted for a map (a 16384^2 map holds 3 GiB of P: PositionMapWriter
+/// writes one that large a band of rows at a time).
 inline constexpr int kMaxPositionMapSide = 16384;
 /// Largest padding accepted, in texels (the dilation costs time in its square).
 inline constexpr int kMaxPositionMapPadding = 256;
@@ -90,7 +92,8 @@ struct UvOverlapReport {
 ///   texelWeights         E x 2   barycentric weights (b1, b2) of corners 1 and 2; corner 0
 ///                                has 1 - b1 - b2
 ///   texelSources         E       active index of the covered texel this one copies
-///                                (itself when covered)
+///                                (itself when covered; -1 in a band of rows whose source
+///                                lies in another band: PositionMapRaster::band)
 ///   coverage             W x H   the A channel: 1 on covered texels, 0 elsewhere
 struct PositionMapTables {
   int width = 0;
@@ -165,8 +168,16 @@ struct PositionMapOptions {
   ExrCompression compression = ExrCompression::kZip;
   ZipEncoder zipEncoder = ZipEncoder::kLibdeflate;
   double framesPerSecond = 24.0;
-  int threads = 0;    ///< files written at once (0 = all cores)
-  int chunkSize = 0;  ///< frames per launch (0 = as many as fit in 256 MiB of maps, <= 16)
+  int threads = 0;  ///< files written at once (0 = all cores)
+  /// Frames per launch (0 = as many as fit in launchBytes of maps, at most 16; 16 for a map
+  /// written in bands).
+  int chunkSize = 0;
+  /// Memory for the maps of one launch (P, plus N), in bytes. A map whose tables would pass four
+  /// times this (counted at 64 bytes per texel with the backend's copy and the rasterisation's
+  /// scratch: maps past 4096 x 4096 by default) is rasterised, evaluated and written a band of
+  /// rows at a time, its tables built again for each launch, so that the maps and the band's
+  /// tables stay within this bound at any size (16384 x 16384 included).
+  std::size_t launchBytes = std::size_t{256} << 20;
   /// Channel names: R G B, A, N.R N.G N.B by default; kLegacy for P.X P.Y P.Z, A, N.X N.Y N.Z.
   PositionMapChannels channels = PositionMapChannels::kRgba;
 };
@@ -191,6 +202,36 @@ struct PositionMapFrameHeader {
 void writePositionMapExr(const std::string& path, int width, int height, const float* positions,
                          const float* coverage, const float* normals,
                          const PositionMapFrameHeader& header);
+
+/// Writes one position-map EXR a band of rows at a time, top to bottom: the bytes
+/// writePositionMapExr writes for the whole map, through the same atomic temporary file, so that
+/// a large map need never be whole in memory (PositionMapWriter writes its banded maps so). Without
+/// commit() (an exception, a failed band) the temporary file is removed.
+///
+///     PositionMapExrWriter file(path, width, height, false, header);
+///     file.writeRows(256, positions, coverage, nullptr);  // rows 0-255
+///     ...                                                 // the rest, in order
+///     file.commit();
+class PositionMapExrWriter {
+ public:
+  /// Creates the temporary file; Error(kUsage) for a size or rate writePositionMapExr refuses,
+  /// Error(kOutput) when the file cannot be created.
+  PositionMapExrWriter(const std::string& path, int width, int height, bool normals,
+                       const PositionMapFrameHeader& header);
+  ~PositionMapExrWriter();
+  PositionMapExrWriter(const PositionMapExrWriter&) = delete;
+  PositionMapExrWriter& operator=(const PositionMapExrWriter&) = delete;
+  /// The next `rows` rows: `positions` (and `normals`, when the file has them) 3 * width * rows
+  /// interleaved floats, `coverage` width * rows. A ZIP file's bands but the last hold whole
+  /// chunks (multiples of 16 rows). Error(kOutput) when the write fails.
+  void writeRows(int rows, const float* positions, const float* coverage, const float* normals);
+  /// After the last row: completes the file and renames it into place (Error(kOutput)).
+  void commit();
+
+ private:
+  struct State;
+  std::unique_ptr<State> mState;
+};
 
 /// What a position-map EXR's header says (`drivenshape info`).
 struct PositionMapInfo : ExrSharedHeader {
@@ -218,6 +259,24 @@ PositionMapInfo readPositionMapExrInfo(const std::string& path);
 /// the rest black. For eyeballing a map, not for data.
 void writePositionMapPreview(const std::string& path, const PositionMapTables& tables,
                              const float* positions, const Bounds& bounds);
+
+/// The preview of writePositionMapPreview drawn a band of rows at a time (a map written band by
+/// band): the 8-bit image (3 bytes per texel) is held until write().
+class PositionMapPreview {
+ public:
+  PositionMapPreview(int width, int height, const Bounds& bounds);
+  /// Draws the band.height rows from `firstRow` from the band's tables (PositionMapRaster::band)
+  /// and `positions` (3 * band.width * band.height floats).
+  void draw(const PositionMapTables& band, int firstRow, const float* positions);
+  /// Writes the PNG atomically.
+  void write(const std::string& path) const;
+
+ private:
+  int mWidth = 0;
+  int mHeight = 0;
+  Bounds mBounds;
+  std::vector<unsigned char> mRows;  ///< PNG rows: a filter byte, then RGB per texel
+};
 
 /// "out/cloth.1001.exr" -> "out/cloth.1001.png" (the extension replaced or appended).
 std::string positionMapPreviewPath(const std::string& exrPath);

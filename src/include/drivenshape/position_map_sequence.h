@@ -14,6 +14,7 @@
 #include <drivenshape/point_cache.h>
 #include <drivenshape/position_map.h>
 #include <drivenshape/position_map_backend.h>
+#include <drivenshape/position_map_tables.h>
 
 namespace drivenshape {
 
@@ -23,9 +24,15 @@ namespace drivenshape {
 ///
 ///     PositionMapWriter writer(mesh, options, makeHostPositionMaps(), "cloth.obj", &std::cerr);
 ///     writer.writeFrame(1001, xyz, "maps/cloth.1001.exr");
+///
+/// A map whose tables pass 4 * options.launchBytes (PositionMapOptions) is banded: each launch
+/// rasterises, evaluates and writes it a band of rows at a time (PositionMapRaster,
+/// PositionMapExrWriter), so that memory stays near options.launchBytes however large the map.
+/// The files are the same bytes either way.
 class PositionMapWriter {
  public:
-  /// Builds the tables (buildPositionMapTables: may throw kUsage / kInput) and uploads them.
+  /// Builds the tables (buildPositionMapTables: may throw kUsage / kInput) and uploads them; a
+  /// banded map counts its texels and overlaps band by band instead (tables() has no texels).
   /// An overlap of UV islands is reported on `log` as a warning line (when `log` is set).
   PositionMapWriter(const Mesh& mesh, const PositionMapOptions& options,
                     std::unique_ptr<PositionMapBackend> backend,
@@ -34,7 +41,10 @@ class PositionMapWriter {
   PositionMapWriter(const PositionMapWriter&) = delete;
   PositionMapWriter& operator=(const PositionMapWriter&) = delete;
 
+  /// The map's tables; for a banded map its sizes, triangles and counts only (no texels).
   const PositionMapTables& tables() const { return mTables; }
+  /// Whether the map is written a band of rows at a time (see above).
+  bool banded() const { return mRaster != nullptr; }
   const PositionMapOptions& options() const { return mOptions; }
   std::string backendName() const;
   /// Frames per writeFrames() call that one launch handles (from options and memory).
@@ -54,9 +64,15 @@ class PositionMapWriter {
   double writeSeconds() const { return mWriteSeconds; }
 
  private:
+  struct Chunk;
   void writeChunk(int count, const int* frames, const float* xyz, const std::string* paths);
+  /// Evaluates and writes rows [firstRow, firstRow + rows) of every map of `chunk`.
+  void writeBand(Chunk& chunk, int firstRow, int rows);
+  /// Rows per band of a launch of `frames` frames (the height when the map is not banded).
+  int bandRows(int frames) const;
 
   PositionMapOptions mOptions;
+  std::unique_ptr<PositionMapRaster> mRaster;  ///< banded maps only
   PositionMapTables mTables;
   std::unique_ptr<PositionMapBackend> mBackend;
   int mChunkSize = 1;
