@@ -269,10 +269,12 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
   writeFilesTogether({{valuesFile, jsonText(values, 2) + "\n"}, {jobFile, text}});
   std::cout << "openjd template: " << jobFile << " (step Bake, " << job.chunks << " tasks Chunk=0-"
             << job.chunks - 1 << ", " << job.frameCount << " frames in chunks of up to "
-            << job.chunkSize << ")\n"
+            << job.chunkSize << "; then step Report, the shot's report)\n"
             << "job parameters: " << valuesFile << "\n"
             << "check with: openjd check " << shellQuote(jobFile) << "\n"
             << "run with:   openjd run " << shellQuote(jobFile) << " --step Bake --job-param "
+            << shellQuote("file://" + valuesFile) << "\n"
+            << "  and then: openjd run " << shellQuote(jobFile) << " --step Report --job-param "
             << shellQuote("file://" + valuesFile) << "\n";
   return 0;
 }

@@ -15,7 +15,9 @@
 #include <drivenshape/error.h>
 
 namespace drivenshape {
-namespace {
+// Named, not anonymous: classes declared in headers hold these types (GCC's
+// -Wsubobject-linkage in unity builds).
+namespace uv_raster_parts {
 
 // Coverage is decided on UVs snapped to 1/256 texel, in 64-bit integers: exact, so the
 // top-left rule below gives every texel centre on a shared edge to exactly one triangle.
@@ -469,7 +471,8 @@ RowWindow bandWindow(const PositionMapTables& shared, int firstRow, int rows) {
   return window;
 }
 
-}  // namespace
+}  // namespace uv_raster_parts
+using namespace uv_raster_parts;
 
 struct PositionMapRaster::Layout : RasterLayout {};
 

@@ -26,7 +26,9 @@
 #include "hash.h"
 
 namespace drivenshape::exr_detail {
-namespace {
+// Named, not anonymous: classes declared in headers hold these types (GCC's
+// -Wsubobject-linkage in unity builds).
+namespace exr_streams {
 
 /// OpenEXR's output stream over a std::ostream (Imf::StdOFStream takes only a std::ofstream,
 /// which would have to open the file by its name again).
@@ -233,7 +235,8 @@ class HeaderScan {
   std::ifstream mIn;
 };
 
-}  // namespace
+}  // namespace exr_streams
+using namespace exr_streams;
 
 std::unique_ptr<Imf::InputFile> openExr(const std::string& path, const char* kind) {
   std::error_code ec;
