@@ -36,6 +36,11 @@ std::string cell(double value, bool known = true, int digits = 6) {
   return out.str();
 }
 
+/// A strain figure (a fraction) as a percentage for the table: "3.214%".
+std::string percent(double fraction) {
+  return cell(100.0 * fraction, true, 4) + "%";
+}
+
 /// The rows of the side-by-side table: one column per sequence (bake, baseline, truth).
 void printTable(const ShotEvaluation& e, std::ostream& out) {
   std::vector<const ClothMetrics*> columns{&e.bake};
@@ -66,6 +71,11 @@ void printTable(const ShotEvaluation& e, std::ostream& out) {
     row("  at frame",
         [](const ClothMetrics& c) { return cell(c.maxDepthFrame, c.maxDepth > 0.0); });
   }
+  if (e.strain) {
+    row("mean |strain|", [](const ClothMetrics& c) { return percent(c.strain.mean); });
+    row("strain p95", [](const ClothMetrics& c) { return percent(c.strain.p95); });
+    row("edges > 10%", [](const ClothMetrics& c) { return percent(c.strain.overShare); });
+  }
   row("largest frame jump", [&](const ClothMetrics& c) { return cell(c.maxJump, jumps); });
   row("  at frame", [&](const ClothMetrics& c) { return cell(c.maxJumpFrame, jumps); });
   if (jumps && e.truth.maxJump > 0.0) {
@@ -94,6 +104,9 @@ void printPerFrame(const ShotEvaluation& e, const std::optional<CoverageCheck>& 
   if (e.penetrations) {
     out << "  inside       depth  truth inside  truth depth";
   }
+  if (e.strain) {
+    out << "  mean |strain| %  edges > 10% %  truth mean |strain| %";
+  }
   if (e.hasBaseline) {
     out << "  baseline mean  baseline jump";
     if (e.penetrations) {
@@ -114,6 +127,11 @@ void printPerFrame(const ShotEvaluation& e, const std::optional<CoverageCheck>& 
     if (e.penetrations) {
       out << "  " << std::setw(6) << b.inside << "  " << std::setw(10) << b.maxDepth << "  "
           << std::setw(12) << t.inside << "  " << std::setw(11) << t.maxDepth;
+    }
+    if (e.strain) {
+      out << "  " << std::setw(15) << cell(100.0 * b.strain.mean, true, 4) << "  " << std::setw(13)
+          << cell(100.0 * b.strain.overShare, true, 4) << "  " << std::setw(21)
+          << cell(100.0 * t.strain.mean, true, 4);
     }
     if (e.hasBaseline) {
       const ClothFrameMetrics& l = e.baseline.frames[f];
@@ -138,7 +156,15 @@ nlohmann::json orNull(double value, bool known) {
   return known ? nlohmann::json(value) : nlohmann::json(nullptr);
 }
 
-nlohmann::json frameJson(const ClothFrameMetrics& m, bool penetrations, bool withError) {
+/// The strain figures of a frame or a sequence, as fractions (0.1 is 10%).
+void addStrainJson(nlohmann::json& j, const StrainFigures& strain) {
+  j["strain_mean"] = strain.mean;
+  j["strain_p95"] = strain.p95;
+  j["strain_share_over_10pct"] = strain.overShare;
+}
+
+nlohmann::json frameJson(const ClothFrameMetrics& m, const ShotEvaluation& e, bool withError) {
+  const bool penetrations = e.penetrations;
   nlohmann::json j;
   if (withError) {
     j["mean"] = m.error.mean;
@@ -154,10 +180,14 @@ nlohmann::json frameJson(const ClothFrameMetrics& m, bool penetrations, bool wit
     j["max_depth_vertex"] =
         m.maxDepthVertex >= 0 ? nlohmann::json(m.maxDepthVertex) : nlohmann::json(nullptr);
   }
+  if (e.strain) {
+    addStrainJson(j, m.strain);
+  }
   return j;
 }
 
-nlohmann::json summaryJson(const ClothMetrics& c, bool penetrations, bool withError) {
+nlohmann::json summaryJson(const ClothMetrics& c, const ShotEvaluation& e, bool withError) {
+  const bool penetrations = e.penetrations;
   nlohmann::json j;
   j["source"] = c.source.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.source);
   if (withError) {
@@ -177,6 +207,9 @@ nlohmann::json summaryJson(const ClothMetrics& c, bool penetrations, bool withEr
     j["max_depth"] = c.maxDepth;
     j["max_depth_frame"] =
         c.maxDepth > 0.0 ? nlohmann::json(c.maxDepthFrame) : nlohmann::json(nullptr);
+  }
+  if (e.strain) {
+    addStrainJson(j, c.strain);
   }
   return j;
 }
@@ -261,10 +294,10 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
                          {"rms", b.error.rms},
                          {"max", b.error.max},
                          {"max_vertex", b.error.maxVertex}};
-    entry["bake"] = frameJson(b, e.penetrations, true);
-    entry["truth"] = frameJson(e.truth.frames[f], e.penetrations, false);
+    entry["bake"] = frameJson(b, e, true);
+    entry["truth"] = frameJson(e.truth.frames[f], e, false);
     if (e.hasBaseline) {
-      entry["baseline"] = frameJson(e.baseline.frames[f], e.penetrations, true);
+      entry["baseline"] = frameJson(e.baseline.frames[f], e, true);
     }
     if (coverage) {
       const auto p = predicted.find(b.frame);
@@ -276,10 +309,10 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
     }
     frames.push_back(entry);
   }
-  nlohmann::json summary{{"bake", summaryJson(e.bake, e.penetrations, true)},
-                         {"truth", summaryJson(e.truth, e.penetrations, false)}};
+  nlohmann::json summary{{"bake", summaryJson(e.bake, e, true)},
+                         {"truth", summaryJson(e.truth, e, false)}};
   if (e.hasBaseline) {
-    summary["baseline"] = summaryJson(e.baseline, e.penetrations, true);
+    summary["baseline"] = summaryJson(e.baseline, e, true);
   }
   return nlohmann::json{
       {"truth", e.truth.source},
@@ -294,6 +327,9 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
       {"device", device},
       {"penetrations", e.penetrations},
       {"untrusted_driver", !e.untrustedDriver.empty()},
+      {"strain", e.strain},
+      {"edges", e.edgeCount},
+      {"zero_length_edges", e.zeroLengthEdges},
       {"baseline", e.hasBaseline},
       {"summary", summary},
       {"coverage", coverage ? coverageJson(*coverage, reportPath) : nlohmann::json(nullptr)},
@@ -302,10 +338,13 @@ nlohmann::json reportJson(const ShotEvaluation& e, const std::string& driverPath
 
 ArgParser evalParser() {
   ArgParser parser(
-      "drivenshape eval --truth CACHE --bake CACHE --frames RANGE [--driver CACHE "
-      "(--driver-mesh M.obj [--driven-mesh M.obj] | --db DB)] [--baseline] [--report PATH]",
+      "drivenshape eval --truth CACHE --bake CACHE --frames RANGE [--db DB | --driven-mesh "
+      "M.obj] [--driver CACHE (--driver-mesh M.obj | --db DB)] [--baseline] [--report PATH]",
       "Compares a bake with a truth cache (e.g. the simulation it replaces): mean, RMS and max "
       "per-vertex distance, and the largest frame-to-frame jump of the bake and of the truth. "
+      "With the cloth's rest mesh (--db or --driven-mesh): the strain of the cloth's edges "
+      "(|edge| / |rest edge| - 1) of every sequence: mean |strain|, its nearest-rank "
+      "95th percentile and the share of edges over 10%. "
       "With the shot's driver: cloth vertices inside the driver per frame and the deepest one, "
       "for the bake and the truth (exact closest triangle, angle-weighted pseudo-normal sign). "
       "With --baseline: the same figures for the binding baseline (the rest cloth bound to the "
@@ -318,8 +357,8 @@ ArgParser evalParser() {
       .flag("--per-frame", "print every frame, not only the summary")
       .option("--driver", "CACHE", "the shot's driver cache: penetration figures")
       .option("--driver-mesh", "M.obj", "the driver's rest mesh (its triangles; rest pose)")
-      .option("--driven-mesh", "M.obj", "the cloth's rest mesh (for --baseline)")
-      .option("--db", "DB", "take both rest meshes from this database instead")
+      .option("--driven-mesh", "M.obj", "the cloth's rest mesh (strain; for --baseline)")
+      .option("--db", "DB", "take both rest meshes from this database instead (strain on)")
       .flag("--baseline", "add the binding baseline for the same frames (needs --driver)")
       .option("--bind", "MAP", "binding mask (JSON) for the baseline, as in bake --bind")
       .flag("--untrusted-driver",
@@ -346,8 +385,7 @@ void checkEvalUsage(const ArgParser& parser) {
              "--db");
   }
   if (!parser.has("--driver")) {
-    for (const char* flag :
-         {"--driver-mesh", "--driven-mesh", "--db", "--bind", "--untrusted-driver"}) {
+    for (const char* flag : {"--driver-mesh", "--bind", "--untrusted-driver"}) {
       if (parser.has(flag)) {
         DS_THROW(kUsage, flag,
                  " is only used with --driver (penetrations, baseline); pass "
@@ -398,24 +436,31 @@ struct EvalInputs {
   ShotEvaluationInput input;
 };
 
-/// With --driver: the rest meshes (of --db or the OBJs), the driver cache, the binding mask
-/// and the closest-triangle search on --device.
-void openShotDriver(const ArgParser& parser, EvalInputs& in) {
+/// The rest meshes given: both of --db, or the OBJs of --driver-mesh and --driven-mesh. The
+/// cloth's turns on the strain figures.
+void openRestMeshes(const ArgParser& parser, EvalInputs& in) {
   if (parser.has("--db")) {
     in.db = loadDatabase(parser.get("--db"));
     in.input.driverMesh = &in.db->driverMesh;
     in.input.drivenMesh = &in.db->drivenMesh;
     in.input.driverMeshName = in.input.drivenMeshName = parser.get("--db");
-  } else {
+    return;
+  }
+  if (parser.has("--driver-mesh")) {
     in.driverMesh = readObj(parser.get("--driver-mesh"));
     in.input.driverMesh = &in.driverMesh;
     in.input.driverMeshName = parser.get("--driver-mesh");
-    if (parser.has("--driven-mesh")) {
-      in.drivenMesh = readObj(parser.get("--driven-mesh"));
-      in.input.drivenMesh = &in.drivenMesh;
-      in.input.drivenMeshName = parser.get("--driven-mesh");
-    }
   }
+  if (parser.has("--driven-mesh")) {
+    in.drivenMesh = readObj(parser.get("--driven-mesh"));
+    in.input.drivenMesh = &in.drivenMesh;
+    in.input.drivenMeshName = parser.get("--driven-mesh");
+  }
+}
+
+/// With --driver: the driver cache, the binding mask and the closest-triangle search on
+/// --device.
+void openShotDriver(const ArgParser& parser, EvalInputs& in) {
   // EXR driver caches carry a topology hash: it must be the driver mesh's.
   in.driver = openPointCache(parser.get("--driver"), topologyHash(*in.input.driverMesh));
   in.input.driver = in.driver.get();
@@ -436,6 +481,7 @@ void openEvalInputs(const ArgParser& parser, EvalInputs& in) {
   in.input.batch = parser.getInt("--batch", 1);
   in.input.threads = parser.getInt("--threads", 0);
   in.input.untrustedDriver = parser.has("--untrusted-driver");
+  openRestMeshes(parser, in);
   if (parser.has("--driver")) {
     openShotDriver(parser, in);
   } else {
@@ -443,10 +489,32 @@ void openEvalInputs(const ArgParser& parser, EvalInputs& in) {
   }
 }
 
+/// What the strain figures cover, or why there are none.
+void printStrainNote(const ShotEvaluation& e, const std::string& drivenMeshName,
+                     std::ostream& out) {
+  if (!e.strain) {
+    out << "strain: not measured ("
+        << (drivenMeshName.empty()
+                ? "no cloth rest mesh: pass --db DB or --driven-mesh M.obj"
+                : "the cloth's rest mesh '" + drivenMeshName + "' has no edge of non-zero length")
+        << ")\n";
+    return;
+  }
+  out << "strain: |edge| / |rest edge| - 1 over the " << e.edgeCount
+      << " edges of the cloth's rest mesh '" << drivenMeshName
+      << "', in %; p95 the nearest-rank 95th percentile of |strain| (per frame over its edges, "
+         "in the table over every edge of every frame)";
+  if (e.zeroLengthEdges > 0) {
+    out << "; " << e.zeroLengthEdges << " edges of zero rest length left out";
+  }
+  out << "\n";
+}
+
 /// The summary on stdout: the sizes, every frame with --per-frame, the side-by-side table, the
 /// overall figures and the coverage verdict.
 void printEvaluation(const ShotEvaluation& result, const std::optional<CoverageCheck>& coverage,
-                     const std::vector<int>& frames, const std::string& deviceName, bool perFrame,
+                     const std::vector<int>& frames, const std::string& deviceName,
+                     const std::string& drivenMeshName, bool perFrame,
                      const std::string& reportPath) {
   std::cout << "eval: " << frames.size() << " frames (" << formatFrameRange(frames) << ") x "
             << result.vertexCount << " cloth vertices";
@@ -456,6 +524,7 @@ void printEvaluation(const ShotEvaluation& result, const std::optional<CoverageC
   }
   std::cout << "\nlengths (errors, depths, jumps) in scene units, the caches' own (metres in a "
                "Blender scene with its default units); counts in cloth vertices\n";
+  printStrainNote(result, drivenMeshName, std::cout);
   std::cout << std::setprecision(6);
   if (perFrame) {
     printPerFrame(result, coverage, std::cout);
@@ -496,7 +565,8 @@ int runEval(const std::vector<std::string>& args) {
     coverage = checkCoverage(*report, result);
   }
   const std::string reportPath = parser.has("--report") ? parser.get("--report") : std::string();
-  printEvaluation(result, coverage, frames, in.deviceName, parser.has("--per-frame"), reportPath);
+  printEvaluation(result, coverage, frames, in.deviceName, in.input.drivenMeshName,
+                  parser.has("--per-frame"), reportPath);
   if (parser.has("--json")) {
     const nlohmann::json json =
         reportJson(result, parser.has("--driver") ? parser.get("--driver") : std::string(),

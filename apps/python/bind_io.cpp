@@ -550,7 +550,20 @@ void bindMeshes(py::module_& module) {
                   "group ids) with group_names. Validated like an OBJ (Error kind 'input').")
       .def_property_readonly("vertex_count", &Mesh::vertexCount)
       .def_property_readonly("face_count", &Mesh::faceCount)
-      .def_property_readonly("triangle_count", &Mesh::triangleCount);
+      .def_property_readonly("triangle_count", &Mesh::triangleCount)
+      .def_property_readonly(
+          "edges",
+          [](const Mesh& mesh) {
+            std::vector<int> ids;
+            for (const MeshEdge& edge : meshEdges(mesh)) {
+              ids.insert(ids.end(), edge.begin(), edge.end());
+            }
+            const auto count = static_cast<py::ssize_t>(ids.size() / 2);
+            return types::Int32Array(ownedArray(std::move(ids), {count, 2}));
+          },
+          "(E, 2) int32: the unique edges of the faces (polygon sides, not the fan "
+          "triangulation's diagonals), the smaller vertex id first, sorted; computed anew on "
+          "each access (the edges eval's strain measures)");
   bindMeshArrays(meshClass);
   meshClass.def_readonly("group_names", &Mesh::groupNames)
       .def_property_readonly("has_uvs", &Mesh::hasUvs)

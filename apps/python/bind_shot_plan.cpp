@@ -3,11 +3,13 @@
 // add-on's bake) and PlaybackPlanner for a timeline played frame by frame (live mode); and what
 // a bake says of its shot: the driver check, the coverage verdict, its simulation runs and the
 // bake report (drivenshape/bake.h, coverage_check.h), so that a tool evaluating a shot itself
-// (the USD bake) checks and reports it as `drivenshape bake` does.
+// (the USD bake) checks and reports it as `drivenshape bake` does; and the strain of a frame's
+// edges, as `drivenshape eval` measures it (drivenshape/evaluate.h).
 #include "binding.h"
 
 #include <algorithm>
 #include <climits>
+#include <cmath>
 #include <map>
 #include <numeric>
 #include <optional>
@@ -17,7 +19,9 @@
 #include <drivenshape/bake.h>
 #include <drivenshape/coverage_check.h>
 #include <drivenshape/database.h>
+#include <drivenshape/evaluate.h>
 #include <drivenshape/evaluator.h>
+#include <drivenshape/mesh.h>
 #include <drivenshape/shot_plan.h>
 
 #include "driver_check.h"
@@ -178,11 +182,112 @@ void bindShotReport(py::module_& module) {
       "evaluator's (an EXR bake's also covers its file options).");
 }
 
+/// The vertex count of a (V, 3) block of finite positions; Error(kUsage) for another shape,
+/// Error(kInput) naming the first value that is not finite.
+int finiteVertexBlock(const FloatArray& array, const char* what) {
+  if (array.ndim() != 2 || array.dim(1) != 3) {
+    DS_THROW(kUsage, what, " must be shaped (vertices, 3); got ", array.describe());
+  }
+  const float* values = array.data();
+  for (py::ssize_t i = 0; i < array.size(); ++i) {
+    if (!std::isfinite(values[i])) {
+      DS_THROW(kInput, what, ": vertex ", i / 3, " is not finite (", values[i], ")");
+    }
+  }
+  return static_cast<int>(array.dim(0));
+}
+
+/// Edges (E, 2) of integer vertex ids within [0, vertexCount); Error(kUsage) for another shape
+/// or type, Error(kInput) for an id out of range (before any conversion could wrap it).
+std::vector<MeshEdge> edgeList(py::handle object, int vertexCount) {
+  py::module_ numpy = py::module_::import("numpy");
+  const py::object array = numpy.attr("asarray")(object);
+  const auto shape = array.attr("shape").cast<std::vector<py::ssize_t>>();
+  const auto kind = array.attr("dtype").attr("kind").cast<std::string>();
+  if (shape.size() != 2 || shape[1] != 2 || (kind != "i" && kind != "u" && shape[0] > 0)) {
+    DS_THROW(kUsage,
+             "edges must be integer vertex ids shaped (edges, 2), as Mesh.edges gives; "
+             "got shape ",
+             py::str(array.attr("shape")).cast<std::string>(), " of ",
+             py::str(array.attr("dtype")).cast<std::string>());
+  }
+  if (shape[0] > 0 && (array.attr("min")().cast<double>() < 0.0 ||
+                       array.attr("max")().cast<double>() >= vertexCount)) {
+    DS_THROW(kInput, "edges name vertices outside the ", vertexCount, " of the positions");
+  }
+  const std::vector<int> ids = intVector(array, "edges");
+  std::vector<MeshEdge> edges(ids.size() / 2);
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    edges[e] = {ids[2 * e], ids[2 * e + 1]};
+  }
+  return edges;
+}
+
+/// edge_strain's and frame_strain's arguments, checked: rest and positions of one vertex count.
+struct StrainArguments {
+  StrainArguments(py::handle restObject, py::handle positionsObject, py::handle edgesObject)
+      : rest(restObject, "rest"), positions(positionsObject, "positions") {
+    vertexCount = finiteVertexBlock(rest, "rest");
+    if (finiteVertexBlock(positions, "positions") != vertexCount) {
+      DS_THROW(kUsage, "positions ", positions.describe(), " and rest ", rest.describe(),
+               " must hold the same vertices");
+    }
+    edges = edgeList(edgesObject, vertexCount);
+  }
+  FloatArray rest;
+  FloatArray positions;
+  int vertexCount = 0;
+  std::vector<MeshEdge> edges;
+};
+
+void bindShotStrain(py::module_& module) {
+  module.def(
+      "edge_strain",
+      [](types::ArrayLike rest, types::ArrayLike positions, types::ArrayLike edges) {
+        const StrainArguments in(rest, positions, edges);
+        std::vector<double> strains;
+        {
+          py::gil_scoped_release release;
+          strains = edgeStrains(in.rest.data(), in.positions.data(), in.vertexCount, in.edges);
+        }
+        const auto count = static_cast<py::ssize_t>(strains.size());
+        return types::Float64Array(ownedArray(std::move(strains), {count}));
+      },
+      py::arg("rest"), py::arg("positions"), py::arg("edges"),
+      "The strain of each edge, (E,) float64: |edge| / |rest edge| - 1 of `positions` (V, 3) "
+      "against `rest` (V, 3) over `edges` (E, 2) vertex ids (Mesh.edges of the rest mesh). "
+      "0.2 is an edge stretched by 20%, -0.2 one shrunk by 20%. Error kind 'input' for an "
+      "edge of zero rest length, a vertex id out of range or a value that is not finite.");
+  module.def(
+      "frame_strain",
+      [](types::ArrayLike rest, types::ArrayLike positions, types::ArrayLike edges) {
+        const StrainArguments in(rest, positions, edges);
+        StrainFigures f;
+        {
+          py::gil_scoped_release release;
+          f = frameStrain(in.rest.data(), in.positions.data(), in.vertexCount, in.edges);
+        }
+        py::dict out;
+        out["edges"] = f.values;
+        out["strain_mean"] = f.mean;
+        out["strain_p95"] = f.p95;
+        out["strain_share_over_10pct"] = f.overShare;
+        return types::StrainDict(std::move(out));
+      },
+      py::arg("rest"), py::arg("positions"), py::arg("edges"),
+      "One frame's strain figures, as `drivenshape eval` gives them per frame (its JSON's keys): "
+      "edges (how many), strain_mean (mean |strain|), strain_p95 (the nearest-rank 95th "
+      "percentile of |strain|: the value at rank ceil(0.95 E) of the E values sorted "
+      "ascending) and strain_share_over_10pct (the share of edges with |strain| > 0.1), as "
+      "fractions (0.1 is 10%); all 0 without edges. Arguments as edge_strain.");
+}
+
 }  // namespace
 
 void bindShotPlan(py::module_& module) {
   bindShotChecks(module);
   bindShotReport(module);
+  bindShotStrain(module);
   py::class_<BatchPlan>(module, "BatchPlan",
                         "One evaluator call of a plan: reset the temporal state when `restart`, "
                         "evaluate solve_frames (warmup then frames) with warmup=len(warmup), "

@@ -54,6 +54,7 @@ namespace type_names {
 #define DS_PYTHON_CACHE "PointCache | str | os.PathLike[str] | numpy.typing.ArrayLike"
 #define DS_PYTHON_FLOAT32 "numpy.typing.NDArray[numpy.float32]"
 #define DS_PYTHON_INT32 "numpy.typing.NDArray[numpy.int32]"
+#define DS_PYTHON_FLOAT64 "numpy.typing.NDArray[numpy.float64]"
 // Inputs: one frame or several (frameNumber, frameList); arrays that are read as float32 or
 // int32, any array-like converted once (FloatArray, intVector).
 DS_PYTHON_TYPE(Path, "str | os.PathLike[str]");
@@ -73,6 +74,7 @@ DS_PYTHON_TYPE(EvaluatorObject, "Evaluator");
 // Outputs, and evaluate_into's `out` (which must already be float32).
 DS_PYTHON_TYPE(Float32Array, DS_PYTHON_FLOAT32);
 DS_PYTHON_TYPE(Int32Array, DS_PYTHON_INT32);
+DS_PYTHON_TYPE(Float64Array, DS_PYTHON_FLOAT64);
 DS_PYTHON_TYPE(Faces, "tuple[" DS_PYTHON_INT32 ", " DS_PYTHON_INT32 "]");
 DS_PYTHON_TYPE(Pc2Samples, "tuple[" DS_PYTHON_FLOAT32 ", float, float]");
 DS_PYTHON_TYPE(ExrFrame, "tuple[" DS_PYTHON_FLOAT32 ", dict[str, typing.Any]]");
@@ -81,11 +83,13 @@ DS_PYTHON_TYPE(Records, "list[FrameRecord]");
 DS_PYTHON_TYPE(JsonDict, "dict[str, typing.Any]");
 DS_PYTHON_TYPE(JsonList, "list[dict[str, typing.Any]]");
 DS_PYTHON_TYPE(TransferCounts, "dict[str, int]");
+DS_PYTHON_TYPE(StrainDict, "dict[str, float]");
 #undef DS_PYTHON_TYPE
 #undef DS_PYTHON_FRAMES
 #undef DS_PYTHON_CACHE
 #undef DS_PYTHON_FLOAT32
 #undef DS_PYTHON_INT32
+#undef DS_PYTHON_FLOAT64
 }  // namespace type_names
 
 /// Arguments and results by their Python type: `types::Path path`.
@@ -104,6 +108,7 @@ using TextOutput = Typed<type_names::TextOutput>;
 using EvaluatorObject = Typed<type_names::EvaluatorObject>;
 using Float32Array = Typed<type_names::Float32Array>;
 using Int32Array = Typed<type_names::Int32Array>;
+using Float64Array = Typed<type_names::Float64Array>;
 using Faces = Typed<type_names::Faces>;
 using Pc2Samples = Typed<type_names::Pc2Samples>;
 using ExrFrame = Typed<type_names::ExrFrame>;
@@ -112,6 +117,7 @@ using Records = Typed<type_names::Records>;
 using JsonDict = Typed<type_names::JsonDict>;
 using JsonList = Typed<type_names::JsonList>;
 using TransferCounts = Typed<type_names::TransferCounts>;
+using StrainDict = Typed<type_names::StrainDict>;
 }  // namespace types
 
 /// A direction (x, y, z): read as pybind11 reads std::array<double, 3> (a sequence of three

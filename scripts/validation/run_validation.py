@@ -20,9 +20,12 @@ generate_clips.sh --link-data).
 
 Prints one Markdown table (mean vertex error in mm per mode, the defaults against the better of
 talk and binding, cloth inside the body per frame against the truth's, the largest frame jump
-against the truth's, the coverage verdict), then the coverage figures: Spearman rank correlation
-of the predicted error with the true per-frame error over every validation frame, and the true
-mean error of the frames the verdict calls covered. Writes everything under --out.
+against the truth's, the coverage verdict), then the strain table (issue 43: per clip and mode,
+the bake's mean |strain| of the cloth's edges, its nearest-rank 95th percentile and the share of
+edges over 10%, each beside the simulation's, from eval's JSON), then the coverage figures:
+Spearman rank correlation of the predicted error with the true per-frame error over every
+validation frame, and the true mean error of the frames the verdict calls covered. Writes
+everything under --out.
 
 Usage: scripts/validation/run_validation.py [--clips DIR] [--reference DIR]
        [--build build] [--out out/validation] [--modes talk,bind,qp,defaults] [--only NAME...]
@@ -44,6 +47,12 @@ MODES = {
     "qp": ["--weights", "qp"],
     "defaults": [],
 }
+
+# The strain figures of eval's JSON (fractions; the table shows them in %), with their column
+# headings: per clip and mode, the bake's and, in brackets, the simulation's (the truth's).
+STRAIN_COLUMNS = (("strain_mean", "mean \\|strain\\| % (truth)"),
+                  ("strain_p95", "strain p95 % (truth)"),
+                  ("strain_share_over_10pct", "edges > 10% strain, % (truth)"))
 
 
 # The public clips of clips.txt, by character: the database's `train` clip and the public
@@ -175,7 +184,9 @@ def main():
                 twin = os.path.join(a.spread, r["clip"].split()[0] + "_q10", r["scene"])
                 metres = spread(r["dir"], r["family"], twin, meta, a.build)
                 r["spread"] = None if metres is None else metres * 1e3
-        print_table(rows, [m for m in a.modes.split(",") if all(m in r for r in rows)], a)
+        modes = [m for m in a.modes.split(",") if all(m in r for r in rows)]
+        print_table(rows, modes, a)
+        print_strain_table(rows, modes)
         print_summary(rows)
         return
     ds = os.path.join(a.build, "apps", "drivenshape")
@@ -219,7 +230,7 @@ def main():
             run([ds, "eval", "--truth", f"{d}/{family}.driven.pc2", "--bake",
                  f"{out}/cloth.####.exr", "--frames", frames, "--driver",
                  f"{d}/{family}.driver.pc2", "--driver-mesh", f"{src}/driver_rest.obj",
-                 "--json", ev], log)
+                 "--driven-mesh", f"{src}/driven_rest.obj", "--json", ev], log)
             e = json.load(open(ev))
             s = e["summary"]
             row[mode] = {"mean": e["mean"] * 1e3, "inside": s["bake"]["mean_inside"],
@@ -228,6 +239,7 @@ def main():
                          "truth_inside": s["truth"]["mean_inside"],
                          "truth_jump": s["truth"]["max_jump"] * 1e3,
                          "vertices": e["vertices"]}
+            row[mode].update(strain_of(e))
             rep = json.load(open(report))
             if "coverage" in rep:
                 true_err = {f["frame"]: f["mean"] for f in e["frames"]}
@@ -254,7 +266,33 @@ def main():
         modes = [m for m in MODES if all(m in r for r in rows)]
     json.dump(rows, open(os.path.join(a.out, "table.json"), "w"), indent=1)
     print_table(rows, modes, a)
+    print_strain_table(rows, modes)
     print_summary(rows)
+
+
+def strain_of(e):
+    """The strain figures of an eval JSON over its frames, in %: {"strain": bake's,
+    "truth_strain": the simulation's}; empty when eval measured no strain."""
+    if not e.get("strain"):
+        return {}
+    s = e["summary"]
+    return {"strain": {key: 100.0 * s["bake"][key] for key, _ in STRAIN_COLUMNS},
+            "truth_strain": {key: 100.0 * s["truth"][key] for key, _ in STRAIN_COLUMNS}}
+
+
+def print_strain_table(rows, modes):
+    """One row per clip and mode with a strain (tables of runs before issue 43 have none): the
+    bake's three figures, each with the simulation's in brackets."""
+    cells = [(r["clip"], m, r[m]) for r in rows for m in modes if "strain" in r.get(m, {})]
+    if not cells:
+        return
+    print()
+    print("| clip | mode | " + " | ".join(head for _, head in STRAIN_COLUMNS) + " |")
+    print("|" + "---|" * (2 + len(STRAIN_COLUMNS)))
+    for clip, mode, figures in cells:
+        print(f"| {clip} | {mode} | " + " | ".join(
+            f"{figures['strain'][key]:.2f} ({figures['truth_strain'][key]:.2f})"
+            for key, _ in STRAIN_COLUMNS) + " |")
 
 
 def print_summary(rows):

@@ -165,4 +165,23 @@ double boundsDiagonal(const Mesh& mesh) {
   return computeBounds(mesh.positions.data(), mesh.vertexCount()).diagonal();
 }
 
+std::vector<MeshEdge> meshEdges(const Mesh& mesh) {
+  std::vector<MeshEdge> edges;
+  edges.reserve(mesh.faceVertices.size());
+  for (std::size_t f = 0; f + 1 < mesh.faceStart.size(); ++f) {
+    const auto begin = static_cast<std::size_t>(mesh.faceStart[f]);
+    const auto end = static_cast<std::size_t>(mesh.faceStart[f + 1]);
+    for (std::size_t c = begin; c < end; ++c) {
+      const int a = mesh.faceVertices[c];
+      const int b = mesh.faceVertices[c + 1 < end ? c + 1 : begin];
+      if (a != b) {
+        edges.push_back({std::min(a, b), std::max(a, b)});
+      }
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  return edges;
+}
+
 }  // namespace drivenshape

@@ -6,30 +6,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <set>
 #include <sstream>
 #include <utility>
 
 #include <drivenshape/error.h>
+#include <drivenshape/mesh.h>
 
 namespace drivenshape {
 namespace {
-
-/// The unique edges of the mesh's polygons (vertex pairs, smaller index first).
-std::vector<std::pair<int, int>> meshEdges(const Mesh& mesh) {
-  std::set<std::pair<int, int>> edges;
-  for (int f = 0; f < mesh.faceCount(); ++f) {
-    const int first = mesh.faceStart[f], last = mesh.faceStart[f + 1];
-    for (int i = first; i < last; ++i) {
-      const int a = mesh.faceVertices[i];
-      const int b = mesh.faceVertices[i + 1 < last ? i + 1 : first];
-      if (a != b) {
-        edges.emplace(std::min(a, b), std::max(a, b));
-      }
-    }
-  }
-  return {edges.begin(), edges.end()};
-}
 
 double length(const float* xyz, int a, int b) {
   const double dx = xyz[3 * a] - xyz[3 * b], dy = xyz[3 * a + 1] - xyz[3 * b + 1],

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <optional>
 
 #include <drivenshape/device.h>
 #include <drivenshape/error.h>
@@ -11,6 +13,7 @@
 
 #include "closest.h"
 #include "parallel.h"
+#include "strain_total.h"
 
 namespace drivenshape {
 namespace {
@@ -57,15 +60,18 @@ struct Accumulator {
   ClothMetrics* metrics = nullptr;
   std::vector<float> previous;  // last frame's positions (empty before the first)
   double sumDistance = 0.0, sumSquares = 0.0;
+  std::optional<StrainTotal> strain;  // every edge of every frame, when strain is measured
 };
 
-/// Sizes shared by the batch steps of evaluateShot.
+/// Sizes shared by the batch steps of evaluateShot, and the strain's rest edges.
 struct ShotLayout {
   int vd = 0;                    // cloth vertices
   std::size_t drivenValues = 0;  // vd x 3
   std::size_t driverValues = 0;  // driver vertices x 3 (0 without a driver)
   bool driver = false;           // driver frames are read (penetrations or the baseline)
   bool penetrations = false;
+  const float* restCloth = nullptr;  // the cloth's rest positions (null: no strain)
+  std::vector<MeshEdge> edges;       // its edges of non-zero rest length
 };
 
 /// The sequences of evaluateShot, in the order of ShotBatch::cloth.
@@ -128,7 +134,7 @@ void checkShotInput(const ShotEvaluationInput& input, const std::vector<int>& fr
     }
     checkFramesPresent(*input.driver, frames, "driver");
   }
-  if (input.baseline && input.drivenMesh->vertexCount() != vd) {
+  if (input.drivenMesh != nullptr && input.drivenMesh->vertexCount() != vd) {
     DS_THROW(kInput, "the cloth's rest mesh '", input.drivenMeshName, "' has ",
              input.drivenMesh->vertexCount(), " vertices but the truth '", truth.path(), "' has ",
              vd, "; pass the rest mesh of the cloth those caches animate");
@@ -147,6 +153,8 @@ ShotEvaluation emptyShotEvaluation(const ShotEvaluationInput& input, const std::
   result.vertexCount = layout.vd;
   result.driverVertexCount = vp;
   result.penetrations = layout.penetrations;
+  result.strain = layout.restCloth != nullptr;
+  result.edgeCount = static_cast<int>(layout.edges.size());
   result.hasBaseline = input.baseline;
   result.bake.name = "bake";
   result.bake.source = input.bake->path();
@@ -154,6 +162,27 @@ ShotEvaluation emptyShotEvaluation(const ShotEvaluationInput& input, const std::
   result.truth.source = input.truth->path();
   result.baseline.name = "baseline";
   return result;
+}
+
+/// The strain's inputs into `layout`: the rest cloth and its edges, those of zero rest length
+/// left out (their count returned). Strain is measured (restCloth set) when an edge is left.
+int prepareStrain(const ShotEvaluationInput& input, ShotLayout& layout) {
+  if (input.drivenMesh == nullptr) {
+    return 0;
+  }
+  const float* rest = input.drivenMesh->positions.data();
+  int zeroLength = 0;
+  for (const MeshEdge& edge : meshEdges(*input.drivenMesh)) {
+    const float* a = rest + 3 * std::size_t(edge[0]);
+    const float* b = rest + 3 * std::size_t(edge[1]);
+    if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) {
+      ++zeroLength;
+    } else {
+      layout.edges.push_back(edge);
+    }
+  }
+  layout.restCloth = layout.edges.empty() ? nullptr : rest;
+  return zeroLength;
 }
 
 /// The baseline's binding: the closest hits of the rest cloth on the rest driver, once (the
@@ -271,14 +300,19 @@ void addSequenceBatch(Accumulator& acc, const std::vector<float>& block,
     if (layout.penetrations) {
       measureInside(vd, &batch.signedDistance[std::size_t(i) * vd], m);
     }
+    if (acc.strain) {
+      const std::vector<double> strains = edgeStrains(layout.restCloth, now, vd, layout.edges);
+      m.strain = strainFigures(strains);
+      acc.strain->add(strains);
+    }
     acc.metrics->frames.push_back(m);
   }
   acc.previous.assign(block.end() - drivenValues, block.end());
 }
 
 /// The sequence's totals over the frame list: mean and RMS error, the worst frames of error,
-/// jump, inside count and depth, and the mean inside count.
-void summarizeSequence(const Accumulator& acc, int vd, int frameCount, bool penetrations) {
+/// jump, inside count and depth, the mean inside count and the strain over every frame.
+void summarizeSequence(Accumulator& acc, int vd, int frameCount, bool penetrations) {
   const double total = static_cast<double>(vd) * frameCount;
   ClothMetrics& c = *acc.metrics;
   c.mean = total > 0 ? acc.sumDistance / total : 0.0;
@@ -308,6 +342,9 @@ void summarizeSequence(const Accumulator& acc, int vd, int frameCount, bool pene
   }
   if (penetrations) {
     c.meanInside = static_cast<double>(insideTotal) / frameCount;
+  }
+  if (acc.strain) {
+    c.strain = acc.strain->figures();
   }
 }
 
@@ -365,8 +402,10 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
   const int vp = layout.driver ? input.driverMesh->vertexCount() : 0;
   layout.drivenValues = static_cast<std::size_t>(layout.vd) * 3;
   layout.driverValues = static_cast<std::size_t>(vp) * 3;
+  const int zeroLengthEdges = prepareStrain(input, layout);
   ShotEvaluation result = emptyShotEvaluation(input, frames, layout, vp);
   result.untrustedDriver = untrusted;
+  result.zeroLengthEdges = zeroLengthEdges;
 
   const std::vector<SurfaceHit> restHits = bindRestCloth(input, layout.vd, closest);
   std::unique_ptr<InsideAudit> audit;
@@ -379,9 +418,14 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
   if (input.baseline) {
     sequences.emplace_back(&result.baseline);
   }
+  const auto frameCount = static_cast<int>(frames.size());
+  if (result.strain) {
+    for (Accumulator& acc : sequences) {
+      acc.strain.emplace(static_cast<long long>(layout.edges.size()) * frameCount);
+    }
+  }
 
   const int batchSize = std::max(1, input.batch);
-  const auto frameCount = static_cast<int>(frames.size());
   ShotBatch batch;
   batch.cloth.resize(sequences.size());
   for (int begin = 0; begin < frameCount; begin += batchSize) {
@@ -400,7 +444,7 @@ ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<
     }
   }
 
-  for (const Accumulator& acc : sequences) {
+  for (Accumulator& acc : sequences) {
     summarizeSequence(acc, layout.vd, frameCount, layout.penetrations);
   }
   return result;

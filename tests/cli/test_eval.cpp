@@ -19,6 +19,7 @@
 #include <random>
 #include <sstream>
 #include <tuple>
+#include <utility>
 
 #include <Eigen/Geometry>
 
@@ -33,6 +34,7 @@
 #include "cl_backends.h"
 
 #include "cli_test_util.h"
+#include "io_test_util.h"
 #include "test_support.h"
 
 namespace drivenshape {
@@ -43,12 +45,14 @@ using testing::CliRun;
 using testing::expectThrows;
 using testing::kEvalDepthRelTol;
 using testing::kEvalErrorRelTol;
+using testing::kStrainTol;
 using testing::kTransferRelTol;
 using testing::referenceSpearman;
 using testing::runCli;
 using testing::sample;
 using testing::slurp;
 using testing::TempDir;
+using testing::writeTextFile;
 
 // ---- The cube scene ----
 
@@ -242,6 +246,49 @@ void expectRel(double value, double expected, double tolerance, const std::strin
       << what << ": " << value << " vs " << expected << " (relative tolerance " << tolerance << ")";
 }
 
+/// Brute-force strain figures of cloth frames against the rest cloth of the cube scene: its
+/// mesh (pointMesh) is separate triangles (3k, 3k + 1, 3k + 2), so its edges are those three
+/// pairs of every triangle. Every |strain| is kept and sorted; the 95th percentile is the value
+/// at rank ceil(0.95 n), which is n - n / 20 for the n here (multiples of 20).
+StrainFigures bruteStrain(const std::vector<float>& rest, const std::vector<const float*>& frames,
+                          int vertices) {
+  std::vector<double> all;
+  for (const float* p : frames) {
+    for (int t = 0; t + 2 < vertices; t += 3) {
+      for (const auto& [a, b] :
+           {std::pair{t, t + 1}, std::pair{t + 1, t + 2}, std::pair{t, t + 2}}) {
+        const double now =
+            Eigen::Vector3d(double(p[3 * b]) - p[3 * a], double(p[3 * b + 1]) - p[3 * a + 1],
+                            double(p[3 * b + 2]) - p[3 * a + 2])
+                .norm();
+        const double before = Eigen::Vector3d(double(rest[3 * b]) - rest[3 * a],
+                                              double(rest[3 * b + 1]) - rest[3 * a + 1],
+                                              double(rest[3 * b + 2]) - rest[3 * a + 2])
+                                  .norm();
+        all.push_back(std::abs(now / before - 1.0));
+      }
+    }
+  }
+  EXPECT_EQ(all.size() % 20, 0u);
+  StrainFigures f;
+  f.values = static_cast<long long>(all.size());
+  for (double value : all) {
+    f.mean += value / double(all.size());
+    f.overShare += value > 0.1 ? 1.0 / double(all.size()) : 0.0;
+  }
+  std::sort(all.begin(), all.end());
+  f.p95 = all[all.size() - all.size() / 20 - 1];
+  return f;
+}
+
+void expectStrain(const StrainFigures& value, const StrainFigures& expected,
+                  const std::string& what) {
+  EXPECT_EQ(value.values, expected.values) << what;
+  expectRel(value.mean, expected.mean, kEvalErrorRelTol, what + " strain mean");
+  expectRel(value.p95, expected.p95, kEvalErrorRelTol, what + " strain p95");
+  EXPECT_NEAR(value.overShare, expected.overShare, 1e-12) << what << " strain share over 10%";
+}
+
 /// Files for the cube scene in `dir`: driver.obj, cloth.obj, driver.pc2, truth.pc2, bake.pc2.
 void writeCubeFiles(const CubeScene& scene, const TempDir& dir) {
   writeObj(dir.file("driver.obj"), scene.driver);
@@ -254,6 +301,34 @@ void writeCubeFiles(const CubeScene& scene, const TempDir& dir) {
   writePc2(dir.file("truth.pc2"), CubeScene::kClothVertices, 1.0f, CubeScene::kFrames,
            truth.data());
   writePc2(dir.file("bake.pc2"), CubeScene::kClothVertices, 1.0f, CubeScene::kFrames, bake.data());
+}
+
+/// The strain of the cube scene's bake and truth, per frame and over the shot, against
+/// bruteStrain; the baseline carries the rest cloth rigidly, so its strain is only the
+/// transfer's float rounding (well under 0.1%).
+void checkCubeStrain(const CubeScene& scene, const ShotEvaluation& e) {
+  const int vd = CubeScene::kClothVertices;
+  const Mesh cloth = pointMesh(scene.restLocal);
+  const std::vector<float> rest(cloth.positions.data(),
+                                cloth.positions.data() + cloth.positions.size());
+  const std::vector<float> truth = scene.world(scene.truthLocal);
+  const std::vector<float> bake = scene.world(scene.bakeLocal);
+  ASSERT_TRUE(e.strain);
+  EXPECT_EQ(e.edgeCount, vd);  // three edges per triangle of three vertices
+  std::vector<const float*> bakeFrames, truthFrames;
+  for (int f = 0; f < CubeScene::kFrames; ++f) {
+    const std::string where = "frame " + std::to_string(f + 1);
+    bakeFrames.push_back(&bake[f * 3 * vd]);
+    truthFrames.push_back(&truth[f * 3 * vd]);
+    expectStrain(e.bake.frames[f].strain, bruteStrain(rest, {bakeFrames.back()}, vd),
+                 where + " bake");
+    expectStrain(e.truth.frames[f].strain, bruteStrain(rest, {truthFrames.back()}, vd),
+                 where + " truth");
+  }
+  expectStrain(e.bake.strain, bruteStrain(rest, bakeFrames, vd), "shot bake");
+  expectStrain(e.truth.strain, bruteStrain(rest, truthFrames, vd), "shot truth");
+  EXPECT_GT(e.bake.strain.overShare, 0.5);  // random cloth: the figures test something
+  EXPECT_LT(e.baseline.strain.p95, 1e-3);
 }
 
 /// Checks an evaluation of the cube scene against the analytic figures and brute force.
@@ -307,6 +382,7 @@ void checkCubeEvaluation(const CubeScene& scene, const ShotEvaluation& e) {
       truthJump = std::max(truthJump, truthMove.max);
     }
   }
+  checkCubeStrain(scene, e);
   const double total = double(vd) * CubeScene::kFrames;
   expectRel(e.bake.mean, sum / total, kEvalErrorRelTol, "overall mean");
   expectRel(e.bake.rms, std::sqrt(squares / total), kEvalErrorRelTol, "overall rms");
@@ -489,7 +565,14 @@ TEST(EvalCommand, SleeveBaselineEqualsTheBindBakeAndTruthAgainstItself) {
             sample("test.driver.pc2"), "--db", db, "--baseline", "--json", dir.file("bind.json")});
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json bind = readJson(dir.file("bind.json"));
-  for (const char* key : {"mean", "rms", "max", "max_jump", "mean_inside", "max_depth"}) {
+  // --db gives the cloth's rest mesh: strain is measured by default, the sleeve's 4444 quad
+  // sides (2200 quads).
+  EXPECT_TRUE(bind["strain"].get<bool>());
+  EXPECT_EQ(bind["edges"].get<int>(), 4444);
+  EXPECT_NE(r.out.find("mean |strain|"), std::string::npos) << r.out;
+  for (const char* key : {"mean", "rms", "max", "max_jump", "mean_inside", "max_depth",
+                          "strain_mean", "strain_p95", "strain_share_over_10pct"}) {
+    ASSERT_TRUE(bind["summary"]["baseline"].contains(key)) << key;
     EXPECT_EQ(bind["summary"]["baseline"][key], bind["summary"]["bake"][key]) << key;
   }
   for (const nlohmann::json& frame : bind["frames"]) {
@@ -531,6 +614,20 @@ TEST(EvalCommand, SleeveBaselineEqualsTheBindBakeAndTruthAgainstItself) {
     EXPECT_EQ(frame["bake"]["jump"], frame["truth"]["jump"]);
   }
   EXPECT_NE(r.out.find("/ truth's"), std::string::npos) << r.out;
+  for (const char* key : {"strain_mean", "strain_p95", "strain_share_over_10pct"}) {
+    EXPECT_GT(self["summary"]["truth"][key].get<double>(), 0.0) << key;
+    EXPECT_EQ(self["summary"]["bake"][key], self["summary"]["truth"][key]) << key;
+  }
+
+  // --db alone (no driver): the strain, without penetrations.
+  r = runCli(dir,
+             {"eval", "--truth", sample("test.driven.pc2"), "--bake", sample("test.driven.pc2"),
+              "--frames", frames, "--db", db, "--json", dir.file("strain_only.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json strainOnly = readJson(dir.file("strain_only.json"));
+  EXPECT_TRUE(strainOnly["strain"].get<bool>());
+  EXPECT_FALSE(strainOnly["penetrations"].get<bool>());
+  EXPECT_EQ(strainOnly["summary"]["truth"]["strain_p95"], self["summary"]["truth"]["strain_p95"]);
 }
 
 TEST(EvalCommand, OldFlagsStillWork) {
@@ -548,6 +645,73 @@ TEST(EvalCommand, OldFlagsStillWork) {
   }
   EXPECT_FALSE(j["penetrations"].get<bool>());
   EXPECT_EQ(j["frames"][0]["max_vertex"].get<int>(), 0);
+  // No cloth rest mesh: no strain, and the output says so.
+  EXPECT_FALSE(j["strain"].get<bool>());
+  EXPECT_FALSE(j["summary"]["bake"].contains("strain_mean"));
+  EXPECT_NE(r.out.find("strain: not measured (no cloth rest mesh"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("mean |strain|"), std::string::npos) << r.out;
+}
+
+/// The row of the table whose label is `label`: its cells after the label.
+std::vector<std::string> tableRow(const std::string& out, const std::string& label) {
+  std::istringstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind(label + "  ", 0) == 0) {
+      std::istringstream cells(line.substr(label.size()));
+      std::vector<std::string> row;
+      for (std::string cell; cells >> cell;) {
+        row.push_back(cell);
+      }
+      return row;
+    }
+  }
+  return {};
+}
+
+// Issue 43: the unit square of two triangles, stretched by 20% in x on frame 1 and at rest on
+// frame 2 (the truth), against a bake at rest. By hand: the two sides along x +20%, the two
+// along y 0, the diagonal sqrt(1.44 + 1) / sqrt(2) - 1 = 10.45%.
+TEST(EvalCommand, StrainInTheTableAndTheJson) {
+  TempDir dir;
+  writeTextFile(dir.file("square.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n");
+  const std::vector<float> rest = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  std::vector<float> truth = {0, 0, 0, 1.2f, 0, 0, 1.2f, 1, 0, 0, 1, 0};
+  truth.insert(truth.end(), rest.begin(), rest.end());
+  std::vector<float> bake = rest;
+  bake.insert(bake.end(), rest.begin(), rest.end());
+  writePc2(dir.file("truth.pc2"), 4, 1.0f, 2, truth.data());
+  writePc2(dir.file("bake.pc2"), 4, 1.0f, 2, bake.data());
+  const CliRun r =
+      runCli(dir, {"eval", "--truth", dir.file("truth.pc2"), "--bake", dir.file("bake.pc2"),
+                   "--frames", "1-2", "--driven-mesh", dir.file("square.obj"), "--per-frame",
+                   "--json", dir.file("eval.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const double diagonal = std::sqrt(2.44 / 2.0) - 1.0;
+  // Over both frames: 10 values, the largest (rank 10) is 0.2; 3 of 10 over 10%.
+  const double mean = (0.4 + diagonal) / 10.0;
+  EXPECT_NE(r.out.find("over the 5 edges of the cloth's rest mesh"), std::string::npos) << r.out;
+  // (0.4 + 0.104536) / 10 = 5.045% to the table's 4 digits.
+  EXPECT_EQ(tableRow(r.out, "mean |strain|"), (std::vector<std::string>{"0%", "5.045%"})) << r.out;
+  EXPECT_EQ(tableRow(r.out, "strain p95"), (std::vector<std::string>{"0%", "20%"})) << r.out;
+  EXPECT_EQ(tableRow(r.out, "edges > 10%"), (std::vector<std::string>{"0%", "30%"})) << r.out;
+
+  const nlohmann::json j = readJson(dir.file("eval.json"));
+  EXPECT_TRUE(j["strain"].get<bool>());
+  EXPECT_EQ(j["edges"].get<int>(), 5);
+  EXPECT_EQ(j["zero_length_edges"].get<int>(), 0);
+  const nlohmann::json& t = j["summary"]["truth"];
+  EXPECT_NEAR(t["strain_mean"].get<double>(), mean, kStrainTol);
+  EXPECT_NEAR(t["strain_p95"].get<double>(), 0.2, kStrainTol);
+  EXPECT_NEAR(t["strain_share_over_10pct"].get<double>(), 0.3, 1e-15);
+  const nlohmann::json& first = j["frames"][0]["truth"];
+  EXPECT_NEAR(first["strain_mean"].get<double>(), (0.4 + diagonal) / 5.0, kStrainTol);
+  EXPECT_NEAR(first["strain_p95"].get<double>(), 0.2, kStrainTol);
+  EXPECT_NEAR(first["strain_share_over_10pct"].get<double>(), 0.6, 1e-15);
+  EXPECT_EQ(j["frames"][1]["truth"]["strain_mean"].get<double>(), 0.0);
+  for (const nlohmann::json& frame : j["frames"]) {
+    EXPECT_EQ(frame["bake"]["strain_p95"].get<double>(), 0.0);
+  }
+  EXPECT_EQ(j["summary"]["bake"]["strain_mean"].get<double>(), 0.0);
 }
 
 TEST(EvalCommand, ClearErrors) {
@@ -575,6 +739,8 @@ TEST(EvalCommand, ClearErrors) {
       with({"--driver", sample("test.driver.pc2"), "--driver-mesh", sample("driver_rest.obj"),
             "--driven-mesh", sample("driver_rest.obj"), "--baseline"}),
       3, "cloth's rest mesh");
+  // The cloth's rest mesh must be the truth's, with or without the baseline (strain).
+  expectCliError(with({"--driven-mesh", sample("driver_rest.obj")}), 3, "cloth's rest mesh");
   // A frame the driver does not hold.
   CliRun r = runCli(dir, {"eval", "--truth", sample("test.driven.pc2"), "--bake",
                           sample("test.driven.pc2"), "--frames", "1-3,500", "--driver",

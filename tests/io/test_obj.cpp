@@ -128,6 +128,22 @@ TEST(Obj, FileWithoutUvsHasNone) {
   EXPECT_EQ(mesh.groupNames, (std::vector<std::string>{"default"}));
 }
 
+// Issue 43: the edges eval's strain measures. Two quads sharing a side, then a face that
+// repeats a vertex (its sides add nothing new, and its side from a vertex to itself is none).
+TEST(Mesh, EdgesAreThePolygonSidesOnceEach) {
+  TempDir dir;
+  const std::string path = dir.file("quads.obj");
+  writeTextFile(path,
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
+                "f 1 2 3 4\nf 2 5 6 3\nf 3 6 6\n");
+  const Mesh mesh = readObj(path);
+  // By hand, 0-based, smaller id first, sorted: the first quad's four sides, the second's
+  // three others (1-2 is shared); not the fan diagonals 0-2 and 1-5.
+  const std::vector<MeshEdge> expected = {{0, 1}, {0, 3}, {1, 2}, {1, 4}, {2, 3}, {2, 5}, {4, 5}};
+  EXPECT_EQ(meshEdges(mesh), expected);
+  EXPECT_TRUE(meshEdges(Mesh()).empty());
+}
+
 Error objError(const std::string& text, std::string& path, TempDir& dir) {
   path = dir.file("bad.obj");
   writeTextFile(path, text);

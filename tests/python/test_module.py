@@ -97,6 +97,100 @@ def test_mesh_from_polygons_refuses_bad_faces():
     assert error.value.kind == "usage" and "(vertices, 3)" in str(error.value)
 
 
+# ---- Strain (issue 43): Mesh.edges, edge_strain, frame_strain -----------------------------
+
+def unit_square():
+    """The unit square (0,0) (1,0) (1,1) (0,1) as two triangles sharing the diagonal 0-2."""
+    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+    return ds.Mesh.from_polygons(positions, [0, 3, 6], [0, 1, 2, 0, 2, 3])
+
+
+def stretched_x(positions, factor):
+    out = np.array(positions, np.float32)
+    out[:, 0] *= factor
+    return out
+
+
+def test_mesh_edges_are_the_polygon_sides_once_each():
+    # Two quads sharing the side 1-4; by hand: 2 sides along x per row, 3 upright ones.
+    positions = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0], [1, 1, 0], [2, 1, 0]],
+                         np.float32)
+    mesh = ds.Mesh.from_polygons(positions, [0, 4, 8], [0, 1, 4, 3, 1, 2, 5, 4])
+    assert mesh.edges.dtype == np.int32
+    assert mesh.edges.tolist() == [[0, 1], [0, 3], [1, 2], [1, 4], [2, 5], [3, 4], [4, 5]]
+    assert unit_square().edges.tolist() == [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
+    figures = ds.frame_strain(positions, stretched_x(positions, 1.2), mesh.edges)
+    assert figures["edges"] == 7
+    assert figures["strain_mean"] == pytest.approx(4 * 0.2 / 7, abs=1e-6)
+    assert figures["strain_p95"] == pytest.approx(0.2, abs=1e-6)  # rank ceil(6.65) = 7 of 7
+    assert figures["strain_share_over_10pct"] == 4 / 7
+
+
+def test_strain_of_a_stretched_and_a_shrunk_square():
+    square = unit_square()
+    stretched = stretched_x(square.positions, 1.2)
+    strains = ds.edge_strain(square.positions, stretched, square.edges)
+    assert strains.dtype == np.float64 and strains.shape == (5,)
+    # Along x +20%, along y 0, the diagonal sqrt(1.2^2 + 1) / sqrt(2) - 1 = 10.45%.
+    diagonal = np.sqrt(2.44 / 2) - 1
+    assert strains == pytest.approx([0.2, diagonal, 0.0, 0.0, 0.2], abs=1e-6)
+    figures = ds.frame_strain(square.positions, stretched, square.edges)
+    assert figures == pytest.approx({"edges": 5, "strain_mean": (0.4 + diagonal) / 5,
+                                     "strain_p95": 0.2, "strain_share_over_10pct": 0.6},
+                                    abs=1e-6)
+    # Shrunk by 20%: the magnitudes count; the diagonal shrinks by 9.45%, under 10%.
+    shrunk = ds.frame_strain(square.positions, stretched_x(square.positions, 0.8), square.edges)
+    assert shrunk["strain_mean"] == pytest.approx((0.4 + 1 - np.sqrt(0.82)) / 5, abs=1e-6)
+    assert shrunk["strain_share_over_10pct"] == 0.4
+
+
+def test_frame_strain_matches_numpy_on_the_sleeve(data):
+    """An independent computation with numpy over the sample's truth: every edge's strain, the
+    mean of the magnitudes, the value at rank ceil(0.95 n) of them sorted, the share over 0.1."""
+    mesh = ds.read_obj(data / "driven_rest.obj")
+    rest = np.asarray(mesh.positions, np.float64)
+    edges = mesh.edges
+    frames = parse_pc2(data / "test.driven.pc2")[0]
+    for frame in (0, 20, 47):
+        positions = frames[frame]
+        now = np.linalg.norm(positions[edges[:, 1]].astype(np.float64)
+                             - positions[edges[:, 0]], axis=1)
+        before = np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=1)
+        strain = np.abs(now / before - 1.0)
+        rank = int(np.ceil(0.95 * len(strain) - 1e-9))
+        figures = ds.frame_strain(mesh.positions, positions, edges)
+        assert figures["edges"] == len(edges) == 4444
+        assert figures["strain_mean"] == pytest.approx(strain.mean(), rel=1e-12)
+        assert figures["strain_p95"] == pytest.approx(np.sort(strain)[rank - 1], rel=1e-12)
+        assert figures["strain_share_over_10pct"] == np.count_nonzero(strain > 0.1) / len(strain)
+        assert ds.edge_strain(mesh.positions, positions, edges) == pytest.approx(
+            now / before - 1.0, rel=1e-12, abs=1e-15)
+
+
+def test_strain_refuses_bad_arguments():
+    square = unit_square()
+    rest = square.positions
+
+    def error_of(*arguments):
+        with pytest.raises(ds.Error) as error:
+            ds.frame_strain(*arguments)
+        return error.value
+
+    bad = error_of(rest, rest, square.edges.astype(np.float64))
+    assert bad.kind == "usage" and "(edges, 2)" in str(bad)
+    assert error_of(rest, rest[:3], square.edges).kind == "usage"
+    assert error_of(rest, rest, [[0, 4]]).kind == "input"
+    assert error_of(rest, rest, [[0, 2**32]]).kind == "input"  # not wrapped to 0
+    broken = np.array(rest)
+    broken[2, 1] = np.nan
+    bad = error_of(rest, broken, square.edges)
+    assert bad.kind == "input" and "vertex 2" in str(bad)
+    twice = np.zeros((2, 3), np.float32)
+    bad = error_of(twice, twice, [[0, 1]])
+    assert bad.kind == "input" and "zero length at rest" in str(bad)
+    assert ds.frame_strain(rest, rest, np.zeros((0, 2), np.int32))["edges"] == 0
+
+
 # ---- Point caches ------------------------------------------------------------------------
 
 def test_read_pc2_matches_the_bytes(data):

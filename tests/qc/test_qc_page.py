@@ -43,7 +43,8 @@ MAX_SIGNIFICANT_DIGITS = 4
 MODEL_NAMES = {"model": "the pose model", "qp": "the QP blend",
                "nearest": "the nearest database shape", "bind": "the rest binding"}
 PAGE_IMAGES = {
-    "model": {"coverage.png", "error.png", "heatmap.png", "audit.png", "jump.png"},
+    "model": {"coverage.png", "error.png", "strain.png", "heatmap.png", "strainmap.png",
+              "audit.png", "jump.png"},
     "qp": {"weights.png", "residual.png", "audit.png", "jump.png"},
     "nearest": {"weights.png", "residual.png", "audit.png", "jump.png"},
     "bind": {"audit.png", "jump.png"},
@@ -471,6 +472,88 @@ def test_worst_frames_and_vertex(pose, data):
             r["inside_after"] for r in pose["report"]["frames"] if r["frame"] == record["frame"])
 
 
+# ---- strain (issue 43) -----------------------------------------------------------------------
+
+STRAIN_KEYS = ("strain_mean", "strain_p95", "strain_share_over_10pct")
+
+
+def test_strain_plot_and_figures(pose):
+    """The eval measured the strain (eval --db): the page draws it per frame and states the
+    bake's figures over the shot, with the truth's and the baseline's beside them."""
+    parsed, evaluation = parse_page(pose["page"]), pose["eval"]
+    assert evaluation["strain"] is True and evaluation["edges"] == 4444
+    assert "strain.png" in parsed.images and "strainmap.png" in parsed.images
+    assert "4444 edges" in parsed.paragraphs["strain-note"]
+    shot = evaluation["summary"]
+    for key in STRAIN_KEYS:
+        assert_printed(parsed.summary[key], 100 * shot["bake"][key], key)
+    text = pose["page"].read_text(encoding="utf-8")
+    assert f"simulation (truth) {100 * shot['truth']['strain_mean']:.3g}; binding baseline " \
+           f"{100 * shot['baseline']['strain_mean']:.3g}" in text
+    # The sample's bake stretches: its edges over 10% are many times the simulation's.
+    assert shot["bake"]["strain_share_over_10pct"] > 3 * shot["truth"]["strain_share_over_10pct"]
+
+
+def vertex_strain(rest, frames, edges):
+    """Per vertex, the largest |strain| of its edges on each frame, averaged over the frames:
+    computed here with a loop over the edges, apart from the module."""
+    rest = rest.astype(np.float64)
+    total = np.zeros(len(rest))
+    before = np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=1)
+    for positions in frames.astype(np.float64):
+        now = np.linalg.norm(positions[edges[:, 1]] - positions[edges[:, 0]], axis=1)
+        largest = np.zeros(len(rest))
+        for (a, b), strain in zip(edges, np.abs(now / before - 1.0)):
+            largest[a] = max(largest[a], strain)
+            largest[b] = max(largest[b], strain)
+        total += largest
+    return total / len(frames)
+
+
+def obj_edges(path):
+    """The unique sides of the OBJ's faces, parsed here."""
+    edges = set()
+    for line in Path(path).read_text().splitlines():
+        if line.startswith("f "):
+            corners = [int(c.split("/")[0]) - 1 for c in line.split()[1:]]
+            for a, b in zip(corners, corners[1:] + corners[:1]):
+                edges.add((min(a, b), max(a, b)))
+    return np.array(sorted(edges))
+
+
+def test_strain_per_vertex(pose, data):
+    """The figures under the strain heat map, from the truth PC2 and the baked EXRs read here."""
+    evaluation = pose["eval"]
+    frames = [r["frame"] for r in evaluation["frames"]]
+    truth, start = parse_pc2(data / "test.driven.pc2")
+    baked = np.stack([read_exr(pose["folder"] / f"sleeve.{f:04d}.exr") for f in frames])
+    rest = np.array([[float(v) for v in line.split()[1:4]] for line in
+                     (data / "driven_rest.obj").read_text().splitlines()
+                     if line.startswith("v ")])
+    edges = obj_edges(data / "driven_rest.obj")
+    assert len(edges) == evaluation["edges"]
+    text = parse_page(pose["page"]).paragraphs["strain-vertices"]
+    printed = [float(n) for n in re.findall(r"([0-9.]+)%", text)]
+    bake = vertex_strain(rest, baked, edges)
+    simulated = vertex_strain(rest, truth[[f - start for f in frames]], edges)
+    assert len(printed) == 4, text
+    for shown, expected, what in zip(printed, (bake.mean(), bake.max(), simulated.mean(),
+                                               simulated.max()),
+                                     ("bake mean", "bake max", "truth mean", "truth max")):
+        assert shown == pytest.approx(100 * expected, rel=6e-3), f"{what}: {text}"
+
+
+def test_a_page_says_when_the_eval_has_no_strain(shot, pose, tmp_path):
+    evaluation = eval_of(pose)
+    evaluation["strain"] = False
+    path = tmp_path / "nostrain.eval.json"
+    path.write_text(json.dumps(evaluation))
+    qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc")
+    parsed = parse_page(tmp_path / "qc" / "index.html")
+    assert "strain.png" not in parsed.images and "strain_mean" not in parsed.summary
+    assert "No strain in the eval" in (tmp_path / "qc" / "index.html").read_text()
+
+
 # ---- errors ----------------------------------------------------------------------------------
 
 def test_help_and_usage():
@@ -543,7 +626,8 @@ def test_the_page_in_the_shot_folder_leaves_the_bake_alone(shot, pose, data, tmp
         assert after.get(name) == content, f"{name} was changed or removed"
     page = {name for name in after if name not in before}
     assert page == {"index.html", ".drivenshape-qc.json"} | PAGE_IMAGES["model"] - {
-        "heatmap.png", "error.png"}, page  # the earlier page's heat map went with it
+        "heatmap.png", "error.png", "strain.png", "strainmap.png"}, page  # the earlier page's
+    # heat maps and eval plots went with it
     assert "<title>refreshed</title>" in (folder / "index.html").read_text(encoding="utf-8")
     assert not [p for p in folder.iterdir() if p.name.startswith(".qc.tmp")], "temp left"
     # A file of the page that someone changed is no longer the page's: refused, kept.
@@ -772,6 +856,20 @@ DAMAGED_EVALS = [
     ("frames.0.baseline.mean", -2, "frame 1: baseline.mean is -2"),
     ("frames.0.max_vertex", 1.5, "frame 1: max_vertex is 1.5"),
     ("frames", [], "an empty one"),
+    ("strain", 1, "strain is 1; expected a boolean"),
+    ("edges", 0, "edges is 0"),
+    ("edges", -3, "edges is -3"),
+    ("baseline", "yes", "baseline is \"yes\""),
+    ("summary.bake.strain_mean", -0.1, "summary.bake.strain_mean is -0.1"),
+    ("summary.truth.strain_p95", "5%", "summary.truth.strain_p95 is \"5%\""),
+    ("summary.baseline.strain_share_over_10pct", 1.5,
+     "summary.baseline.strain_share_over_10pct is 1.5; expected a share"),
+    ("summary.bake.strain_mean", None, "summary.bake.strain_mean is null"),
+    ("frames.0.bake", [], "frame 1: bake is []"),
+    ("frames.0.bake.strain_p95", -1, "frame 1: bake.strain_p95 is -1"),
+    ("frames.2.truth.strain_share_over_10pct", True,
+     "frame 3: truth.strain_share_over_10pct is true"),
+    ("frames.0.baseline.strain_mean", "x", "frame 1: baseline.strain_mean is \"x\""),
 ]
 
 
@@ -801,6 +899,48 @@ def test_an_eval_of_other_frames_figures_is_refused(shot, pose, tmp_path):
         assert named in result.stderr, result.stderr
 
 
+def test_an_eval_whose_strain_is_missing_or_not_its_frames_is_refused(shot, pose, tmp_path):
+    """With `strain` true every sequence has every strain field, in its summary and on every
+    frame, and the summary's figures are its frames': the mean and the share their average,
+    the percentile between theirs."""
+    def drop(where, key):
+        return lambda e: where(e).pop(key)
+
+    def scale(where, key, factor):
+        return lambda e: where(e).update({key: where(e)[key] * factor})
+
+    cases = (
+        (drop(lambda e: e["summary"]["truth"], "strain_p95"), "no 'summary.truth.strain_p95'"),
+        (drop(lambda e: e["frames"][3]["baseline"], "strain_mean"),
+         "frame 4: no 'baseline.strain_mean'"),
+        (drop(lambda e: e, "edges"), "edges is null"),
+        (scale(lambda e: e["summary"]["bake"], "strain_mean", 1.01),
+         "summary.bake.strain_mean is"),
+        (scale(lambda e: e["summary"]["truth"], "strain_share_over_10pct", 0.5),
+         "summary.truth.strain_share_over_10pct is"),
+        (scale(lambda e: e["summary"]["bake"], "strain_p95", 10.0),
+         "summary.bake.strain_p95 is"),
+        (lambda e: e["summary"]["bake"].update(strain_p95=0.0), "outside its frames'"),
+    )
+    for change, named in cases:
+        damaged = eval_of(pose)
+        change(damaged)
+        path = tmp_path / "strain.eval.json"
+        path.write_text(json.dumps(damaged))
+        result = qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc",
+                    expect=3)
+        assert named in result.stderr and "Traceback" not in result.stderr, result.stderr
+    # An eval written before the strain (no `strain`, no strain fields) is still read.
+    older = eval_of(pose)
+    for holder in [older] + list(older["summary"].values()) + [
+            r[s] for r in older["frames"] for s in ("bake", "truth", "baseline")]:
+        for key in ("strain", "edges", "zero_length_edges") + STRAIN_KEYS:
+            holder.pop(key, None)
+    path = tmp_path / "older.eval.json"
+    path.write_text(json.dumps(older))
+    qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc_older")
+
+
 def test_deeply_nested_json_is_refused(shot, tmp_path):
     path = tmp_path / "deep.json"
     path.write_text("[" * 100000 + "]" * 100000)
@@ -824,6 +964,10 @@ def test_mutated_evals_are_drawn_or_refused_never_crash(tmp_path, pose, shot):
     base["rms"] = float(np.sqrt(np.mean([r["rms"] ** 2 for r in frames])))
     worst = max(frames, key=lambda r: r["max"])
     base["max"], base["max_frame"] = worst["max"], worst["frame"]
+    for name, shot_strain in base["summary"].items():
+        for key in ("strain_mean", "strain_share_over_10pct"):
+            shot_strain[key] = sum(r[name][key] for r in frames) / len(frames)
+        shot_strain["strain_p95"] = max(r[name]["strain_p95"] for r in frames)
     path = tmp_path / "base.eval.json"
     path.write_text(json.dumps(base))
     page.load_eval(str(path))  # the undamaged six frames are read

@@ -94,6 +94,10 @@ inline constexpr double kEvalErrorRelTol = 1e-12;
 /// scale S: float world positions (6e-8 of coordinates up to S) and the closest point's float
 /// (u, v) (kHitPointRelTol's 1.2e-7 S) make a few 1e-7 S.
 inline constexpr double kEvalDepthRelTol = 1e-6;
+/// Edge strain (|edge| / |rest edge| - 1, eval's strain figures) of hand-made meshes vs its
+/// closed form: float positions of coordinates up to ~10 (6e-8 relative each) make edge
+/// lengths good to a few 1e-7 relative, and so the strains.
+inline constexpr double kStrainTol = 1e-6;
 /// Spearman rank correlation (eval --report) vs an independent computation from the same
 /// values: ranks are exact halves, the sums differ only in their order (~1e-16 per term).
 inline constexpr double kRankCorrelationTol = 1e-12;

@@ -10,7 +10,7 @@ import numpy
 import numpy.typing
 import os
 import typing
-__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'expand_frame_pattern', 'format_frame_range', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'merge_bake_reports', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
+__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'edge_strain', 'expand_frame_pattern', 'format_frame_range', 'frame_strain', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'merge_bake_reports', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
 class _Buffer:
     """
     C++ memory shown to numpy without a copy
@@ -32,6 +32,11 @@ class Mesh:
         """
     def __repr__(self) -> str:
         ...
+    @property
+    def edges(self) -> numpy.typing.NDArray[numpy.int32]:
+        """
+        (E, 2) int32: the unique edges of the faces (polygon sides, not the fan triangulation's diagonals), the smaller vertex id first, sorted; computed anew on each access (the edges eval's strain measures)
+        """
     @property
     def face_count(self) -> int:
         ...
@@ -668,12 +673,20 @@ def convert_up_axis(positions: numpy.typing.ArrayLike, from_axis: str, to_axis: 
     """
     A float32 copy of positions (..., 3) rotated from the up axis from_axis to to_axis ('Y' or 'Z'): Z -> Y is (x, y, z) -> (x, z, -y), Y -> Z its inverse (x, y, z) -> (x, -z, y). Values are only moved and negated, never rounded: the conversion is exact.
     """
+def edge_strain(rest: numpy.typing.ArrayLike, positions: numpy.typing.ArrayLike, edges: numpy.typing.ArrayLike) -> numpy.typing.NDArray[numpy.float64]:
+    """
+    The strain of each edge, (E,) float64: |edge| / |rest edge| - 1 of `positions` (V, 3) against `rest` (V, 3) over `edges` (E, 2) vertex ids (Mesh.edges of the rest mesh). 0.2 is an edge stretched by 20%, -0.2 one shrunk by 20%. Error kind 'input' for an edge of zero rest length, a vertex id out of range or a value that is not finite.
+    """
 def expand_frame_pattern(pattern: str, frame: typing.SupportsIndex) -> str:
     """
     'out.####.exr', 12 -> 'out.0012.exr' (also %04d and $F4)
     """
 def format_frame_range(frames: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]]) -> str:
     ...
+def frame_strain(rest: numpy.typing.ArrayLike, positions: numpy.typing.ArrayLike, edges: numpy.typing.ArrayLike) -> dict[str, float]:
+    """
+    One frame's strain figures, as `drivenshape eval` gives them per frame (its JSON's keys): edges (how many), strain_mean (mean |strain|), strain_p95 (the nearest-rank 95th percentile of |strain|: the value at rank ceil(0.95 E) of the E values sorted ascending) and strain_share_over_10pct (the share of edges with |strain| > 0.1), as fractions (0.1 is 10%); all 0 without edges. Arguments as edge_strain.
+    """
 def list_devices() -> list[dict[str, typing.Any]]:
     """
     Every OpenCL device as a dict (index, name, type, platform, version, ...); the host path is always there too, as open_device('host').

@@ -16,8 +16,10 @@ which one made the bake:
 
 Whatever the model: the audit counts (cloth inside the driver after the correction and after
 the resolution, vertices resolved) and the largest frame-to-frame jump per frame; with
-`drivenshape eval --json` (--eval) the error to the truth per frame; with --mesh (the driven rest
-OBJ) and a truth, the mean error per vertex over the frames as a heat map on the mesh. Caches
+`drivenshape eval --json` (--eval) the error to the truth per frame and, when eval had the
+cloth's rest mesh, the strain of its edges per frame (bake, baseline, truth); with --mesh (the
+driven rest OBJ) and a truth, the mean error per vertex over the frames and the bake's strain
+per vertex as heat maps on the mesh. Caches
 and meshes are read with the module's readers (open_point_cache, read_obj). Lengths are shown in
 mm (--units names the scene's unit, metres by default; --units scene shows them as stored).
 
@@ -48,8 +50,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Optional, TypedDict
 import numpy as np
 import numpy.typing as npt
 
-from . import (Error, Mesh, PointCache, _files, format_frame_range, merge_bake_reports,
-               open_point_cache, read_obj, settings_table, verdict_holds)
+from . import (Error, Mesh, PointCache, _files, edge_strain, format_frame_range,
+               merge_bake_reports, open_point_cache, read_obj, settings_table, verdict_holds)
 
 if TYPE_CHECKING:  # matplotlib is imported where the plots are drawn, not with the module
     from matplotlib.axes import Axes
@@ -73,11 +75,13 @@ _FrameArray = npt.NDArray[Any]  # frame numbers: integers (float64 when empty)
 
 
 class _VertexErrors(TypedDict):
-    """vertex_errors(): the caches' distance per vertex and per frame."""
+    """vertex_errors(): the caches' distance per vertex and per frame, and their strain."""
 
     mesh: Mesh
     mean: _Float64Array  # (V,) mean over the frames
     per_frame: dict[int, tuple[float, float, int]]  # {frame: (mean, max, argmax)}
+    strain: _Float64Array  # (V,) the bake's VertexStrain over the frames
+    truth_strain: _Float64Array  # (V,) the truth's
     truth: str
     bake: str
     frames: list[int]
@@ -143,6 +147,11 @@ def count_text(value: Optional[float]) -> str:
 
 def percent_text(fraction: float) -> str:
     return f"{100.0 * fraction:.0f}%"
+
+
+def strain_text(fraction: float) -> str:
+    """A strain figure (a fraction) in percent, 3 significant digits, without the sign."""
+    return f"{100.0 * fraction:.3g}"
 
 
 # ---- inputs ----------------------------------------------------------------------------------
@@ -334,20 +343,30 @@ _LENGTH = "a length (a number >= 0)"
 _LENGTH_OR_NULL = "a length or null"
 _COUNT = "a count (an integer >= 0)"
 _TEXT_OR_NULL = "a string or null"
+_BOOLEAN = "a boolean"
+_STRAIN = "a strain magnitude (a number >= 0)"
+_SHARE = "a share (a number from 0 to 1)"
+# A sequence's strain figures (issue 43), in its summary and in each frame's record: fractions,
+# mean |strain|, its nearest-rank 95th percentile, the share of edges with |strain| > 0.1.
+STRAIN_FIELDS: dict[str, str] = {"strain_mean": _STRAIN, "strain_p95": _STRAIN,
+                                 "strain_share_over_10pct": _SHARE}
 EVAL_FIELDS: dict[str, dict[str, str]] = {
     "": {"mean": _LENGTH, "rms": _LENGTH, "max": _LENGTH, "vertices": "an integer >= 1",
          "truth": _TEXT_OR_NULL, "bake": _TEXT_OR_NULL, "device": _TEXT_OR_NULL,
-         "summary": "an object"},
+         "summary": "an object", "baseline": _BOOLEAN, "strain": _BOOLEAN, "edges": _COUNT,
+         "zero_length_edges": _COUNT},
     "summary": {"bake": "an object", "truth": "an object", "baseline": "an object"},
-    "summary.bake": {"max_jump": _LENGTH_OR_NULL, "mean_inside": "a number >= 0 or null"},
-    "summary.truth": {"max_jump": _LENGTH_OR_NULL},
-    "summary.baseline": {"mean": _LENGTH},
+    "summary.bake": {"max_jump": _LENGTH_OR_NULL, "mean_inside": "a number >= 0 or null",
+                     **STRAIN_FIELDS},
+    "summary.truth": {"max_jump": _LENGTH_OR_NULL, **STRAIN_FIELDS},
+    "summary.baseline": {"mean": _LENGTH, **STRAIN_FIELDS},
 }
 EVAL_RECORD_FIELDS: dict[str, dict[str, str]] = {
     "": {"mean": _LENGTH, "max": _LENGTH, "rms": _LENGTH, "max_vertex": _COUNT,
-         "truth": "an object", "baseline": "an object"},
-    "truth": {"jump": _LENGTH_OR_NULL},
-    "baseline": {"mean": _LENGTH},
+         "bake": "an object", "truth": "an object", "baseline": "an object"},
+    "bake": dict(STRAIN_FIELDS),
+    "truth": {"jump": _LENGTH_OR_NULL, **STRAIN_FIELDS},
+    "baseline": {"mean": _LENGTH, **STRAIN_FIELDS},
 }
 # Room for rounding between figures eval computes in double from the same distances, and
 # between its mean over every vertex of every frame and the average of its frames' means.
@@ -363,6 +382,10 @@ def _fits(value: object, kind: str) -> bool:
         return isinstance(value, str)
     if kind == "an object":
         return isinstance(value, dict)
+    if kind == _BOOLEAN:
+        return isinstance(value, bool)
+    if kind == _SHARE:
+        return is_number(value) and 0 <= value <= 1  # type: ignore[operator]
     if kind.startswith(("an integer", "a count")):
         return isinstance(value, int) and not isinstance(value, bool) and \
             value >= (1 if ">= 1" in kind else 0)
@@ -427,7 +450,46 @@ def load_eval(path: str) -> _Json:
             and data["rms"] <= data["max"] * (1 + _ROUNDING), path,
             f"mean {data['mean']}, rms {data['rms']} and max {data['max']} are not in that "
             "order")
+    if data.get("strain") is True:
+        check_eval_strain(data, path)
     return data
+
+
+def strain_sequences(evaluation: _Json) -> tuple[str, ...]:
+    """The sequences an eval JSON measured the strain of: none without `strain`; the bake and
+    the truth, and the baseline when it has one."""
+    if evaluation.get("strain") is not True:
+        return ()
+    return ("bake", "truth", "baseline") if evaluation.get("baseline") is True else (
+        "bake", "truth")
+
+
+def check_eval_strain(data: _Json, path: str) -> None:
+    """An eval with `strain` true: every strain field of every sequence, in its summary and in
+    each frame, and the summary's figures those of its frames (each frame covers every edge
+    once: the summary's mean and share are the frames' averaged, and its percentile lies
+    between theirs)."""
+    require(is_number(data.get("edges")) and data["edges"] >= 1, path,
+            f"edges is {json.dumps(data.get('edges'))[:60]}; expected the edges the strain "
+            "covers (an integer >= 1)")
+    for sequence in strain_sequences(data):
+        place = f"summary.{sequence}"
+        check_eval_fields(data, {place: STRAIN_FIELDS}, "", path,
+                          [f"{place}.{key}" for key in STRAIN_FIELDS])
+        for record in data["frames"]:
+            check_eval_fields(record, {sequence: STRAIN_FIELDS}, f"frame {record['frame']}: ",
+                              path, [f"{sequence}.{key}" for key in STRAIN_FIELDS])
+        shot = data["summary"][sequence]
+        frames = [r[sequence] for r in data["frames"]]
+        for key, agreement in (("strain_mean", _MEAN_AGREEMENT), ("strain_share_over_10pct",
+                                                                   _ROUNDING)):
+            average = mean_of([f[key] for f in frames])
+            require(abs(shot[key] - average) <= agreement * average + 1e-12, path,
+                    f"{place}.{key} is {shot[key]} but its frames' average {average}")
+        p95 = [f["strain_p95"] for f in frames]
+        require(min(p95) * (1 - _ROUNDING) <= shot["strain_p95"] <= max(p95) * (1 + _ROUNDING),
+                path, f"{place}.strain_p95 is {shot['strain_p95']}, outside its frames' "
+                      f"{min(p95)} to {max(p95)}")
 
 
 def check_eval_matches(report: _Json, evaluation: _Json, eval_path: str) -> None:
@@ -524,6 +586,36 @@ def beside(path: str, json_path: str) -> list[str]:
     return candidates
 
 
+class VertexStrain:
+    """The strain per vertex of a cloth over frames: on each frame, the largest |strain| of the
+    vertex's edges (|edge| / |rest edge| - 1 against the rest mesh, the module's edge_strain
+    over Mesh.edges, those of zero rest length left out as eval leaves them out); mean() is its
+    mean over the frames added. A vertex on no edge has 0."""
+
+    def __init__(self, mesh: Mesh) -> None:
+        rest = np.asarray(mesh.positions, dtype=np.float64)
+        edges = np.asarray(mesh.edges)
+        length = np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=1)
+        self.rest = mesh.positions
+        self.edges = np.ascontiguousarray(edges[length > 0])
+        # Both ends of every edge, grouped by vertex: one maximum.reduceat per frame.
+        ends = self.edges.T.reshape(-1)
+        self.order = np.argsort(ends, kind="stable")
+        self.vertices, self.starts = np.unique(ends[self.order], return_index=True)
+        self.total = np.zeros(mesh.vertex_count)
+        self.frames = 0
+
+    def add(self, positions: npt.NDArray[np.float32]) -> None:
+        self.frames += 1
+        if len(self.edges):
+            magnitude = np.abs(edge_strain(self.rest, positions, self.edges))
+            both = np.concatenate([magnitude, magnitude])[self.order]
+            self.total[self.vertices] += np.maximum.reduceat(both, self.starts)
+
+    def mean(self) -> _Float64Array:
+        return self.total / max(self.frames, 1)
+
+
 def vertex_errors(args: argparse.Namespace, report: _Json, evaluation: Optional[_Json],
                   frames: list[int]) -> _VertexErrors:
     """Per-vertex mean error over `frames` and the per-frame mean/max/argmax, from the caches
@@ -554,18 +646,23 @@ def vertex_errors(args: argparse.Namespace, report: _Json, evaluation: Optional[
                                       f"mesh '{args.mesh}' has {mesh.vertex_count}")
     total = np.zeros(mesh.vertex_count)
     per_frame: dict[int, tuple[float, float, int]] = {}
+    strain, truth_strain = VertexStrain(mesh), VertexStrain(mesh)
     for start in range(0, len(frames), FRAMES_PER_READ):
         chunk = frames[start:start + FRAMES_PER_READ]
         try:
-            a = bake.read_frames(chunk).astype(np.float64)
-            b = truth.read_frames(chunk).astype(np.float64)
+            a = bake.read_frames(chunk)
+            b = truth.read_frames(chunk)
+            for i in range(len(chunk)):
+                strain.add(a[i])
+                truth_strain.add(b[i])
         except Error as error:
             raise QcError(EXIT_INPUT, str(error))
-        distance = np.linalg.norm(a - b, axis=2)
+        distance = np.linalg.norm(a.astype(np.float64) - b, axis=2)
         total += distance.sum(axis=0)
         for frame, row in zip(chunk, distance):
             per_frame[frame] = (float(row.mean()), float(row.max()), int(row.argmax()))
     return {"mesh": mesh, "mean": total / len(frames), "per_frame": per_frame,
+            "strain": strain.mean(), "truth_strain": truth_strain.mean(),
             "truth": truth_path, "bake": bake_path, "frames": frames}
 
 
@@ -785,12 +882,49 @@ class Plots:
         self.dress(axes, f"error ({unit})", "Distance to the truth per frame")
         return self.save(fig, axes, "error.png")
 
+    def strain(self, evaluation: Optional[_Json]) -> Optional[str]:
+        """Per frame, the mean |strain| of the cloth's edges and the share of them over 10%,
+        for every sequence the eval measured (bake, truth, baseline), in percent."""
+        sequences = strain_sequences(evaluation) if evaluation else ()
+        if not sequences:
+            return None
+        assert evaluation is not None
+        frames = np.array([r["frame"] for r in evaluation["frames"]])
+        fig, (top, bottom) = self.figure(6.0, rows=2)
+        for name, label, colour, style in STRAIN_SERIES:
+            if name in sequences:
+                figures = [r[name] for r in evaluation["frames"]]
+                for axes, key in ((top, "strain_mean"), (bottom, "strain_share_over_10pct")):
+                    axes.plot(frames, [100.0 * f[key] for f in figures], style, marker=".",
+                              color=colour, label=label)
+        for axes in (top, bottom):
+            axes.set_ylim(bottom=0)
+        self.dress(top, "mean |strain| (%)",
+                   "Edge strain per frame: mean |strain| over the cloth's edges "
+                   "(strain = |edge| / |rest edge| - 1)")
+        self.dress(bottom, "edges with |strain| > 10% (%)",
+                   "Share of the cloth's edges stretched or shrunk by more than 10%")
+        return self.save(fig, bottom, "strain.png")
+
     def heat_map(self, errors: _VertexErrors, up_axis: str) -> str:
+        return self.mesh_map(errors["mesh"], errors["mean"] * self.units.scale, up_axis,
+                             "heatmap.png", "inferno", f"mean error ({self.units.unit})",
+                             f"Mean distance to the truth per vertex over "
+                             f"{len(errors['frames'])} frames, on the rest mesh")
+
+    def strain_map(self, errors: _VertexErrors, up_axis: str) -> str:
+        return self.mesh_map(errors["mesh"], errors["strain"] * 100.0, up_axis, "strainmap.png",
+                             "viridis", "largest |strain| of its edges (%), mean over frames",
+                             f"The bake's strain per vertex: the largest |strain| of its edges, "
+                             f"mean over {len(errors['frames'])} frames, on the rest mesh")
+
+    def mesh_map(self, mesh: Mesh, values: _Float64Array, up_axis: str, name: str, cmap: str,
+                 bar_label: str, title: str) -> str:
+        """`values` per vertex drawn on the rest mesh from two opposite sides, in colour from 0
+        to their largest, with a colour bar."""
         from matplotlib.colors import Normalize
-        mesh = errors["mesh"]
         positions = np.asarray(mesh.positions, dtype=np.float64)
         triangles = np.asarray(mesh.triangles)
-        values = errors["mean"] * self.units.scale
         norm = Normalize(vmin=0.0, vmax=max(float(values.max()), 1e-12))
         views = view_axes(positions, up_axis)
         right, up = views[0][1], views[0][2]
@@ -813,18 +947,17 @@ class Plots:
             depth = (positions @ toward)[triangles].mean(axis=1)
             order = np.argsort(-depth, kind="stable")
             image = axes.tripcolor(x, y, triangles[order], values, shading="gouraud",
-                                   cmap="inferno", norm=norm)
+                                   cmap=cmap, norm=norm)
             axes.set_aspect("equal")
             axes.set_axis_off()
             axes.set_title(label, fontsize=10)
-        fig.suptitle(f"Mean distance to the truth per vertex over {len(errors['frames'])} "
-                     "frames, on the rest mesh", x=0.02, ha="left")
+        fig.suptitle(title, x=0.02, ha="left")
         bar_axes = fig.add_axes((0.89, 0.1, 0.016, 0.75))
         assert image is not None  # drawn in both views
-        fig.colorbar(image, cax=bar_axes).set_label(f"mean error ({self.units.unit})")
-        fig.savefig(os.path.join(self.folder, "heatmap.png"), dpi=100)
+        fig.colorbar(image, cax=bar_axes).set_label(bar_label)
+        fig.savefig(os.path.join(self.folder, name), dpi=100)
         self.plt.close(fig)
-        return "heatmap.png"
+        return name
 
 
 def weight_blocks(report: _Json) -> list[tuple[str, _FrameArray, _Float64Array]]:
@@ -853,6 +986,13 @@ def records_series(report: _Json, key: str) -> tuple[_FrameArray, _Float64Array]
             frames.append(record["frame"])
             values.append(record[key])
     return np.array(frames), np.array(values, dtype=float)
+
+
+# (eval sequence, label, colour, line style) of the strain plot's series.
+STRAIN_SERIES: tuple[tuple[str, str, str, str], ...] = (
+    ("bake", "bake", "tab:blue", "-"),
+    ("baseline", "binding baseline", "tab:orange", ":"),
+    ("truth", "truth (simulation)", "0.3", "--"))
 
 
 # (report key, label, colour, line style) of the audit plot's series.
@@ -1052,6 +1192,24 @@ def _summary_eval(summary: Summary, evaluation: _Json, units: Units) -> None:
                     f"{bake['mean_inside']:.3g}")
 
 
+# How the page names the eval's sequences.
+SEQUENCE_NAMES: dict[str, str] = {"bake": "bake", "truth": "simulation (truth)",
+                                  "baseline": "binding baseline"}
+
+
+def _summary_strain(summary: Summary, evaluation: _Json) -> None:
+    """The eval's strain over every edge of every frame: the bake's, the others beside it."""
+    sequences = strain_sequences(evaluation)
+    shot = evaluation["summary"] if sequences else {}
+    for key, label in (("strain_mean", "edge strain, mean |strain| (%)"),
+                       ("strain_p95", "edge strain, 95th percentile of |strain| (%)"),
+                       ("strain_share_over_10pct", "edges over 10% strain (% of edges)")):
+        if sequences:
+            others = "; ".join(f"{SEQUENCE_NAMES[s]} {strain_text(shot[s][key])}"
+                               for s in sequences if s != "bake")
+            summary.add(key, label, strain_text(shot["bake"][key]), html.escape(others))
+
+
 def _summary_truth(summary: Summary, error_frames: _ErrorFrames,
                    errors: Optional[_VertexErrors], units: Units) -> None:
     """Without an eval, the error to the truth computed from the caches; the worst vertex."""
@@ -1083,6 +1241,7 @@ def summary_rows(report: _Json, model: str, coverage: Optional[Coverage],
     _summary_records(summary, report, model, baked, units)
     if evaluation:
         _summary_eval(summary, evaluation, units)
+        _summary_strain(summary, evaluation)
     _summary_truth(summary, {} if evaluation else error_frames, errors, units)
     return summary
 
@@ -1354,6 +1513,65 @@ def coverage_section(parts: list[str], plots: Plots, model: str, coverage: Optio
                         "predicted error and error bound per frame against the tolerance", ""))
 
 
+def strain_section(parts: list[str], plots: Plots, evaluation: Optional[_Json],
+                   eval_path: Optional[str]) -> None:
+    """The eval's strain per frame, or why there is none."""
+    parts.append('<h2 id="strain">Strain</h2>')
+    if not evaluation:
+        parts.append('<p class="sub">No strain: give --eval, the JSON of <code>drivenshape eval'
+                     "</code> run with the cloth's rest mesh (--db or --driven-mesh).</p>")
+        return
+    if not strain_sequences(evaluation):
+        parts.append('<p class="sub">No strain in the eval: it was run without the cloth\'s '
+                     "rest mesh; run <code>drivenshape eval</code> with --db DB or "
+                     "--driven-mesh M.obj.</p>")
+        return
+    text = (f"How far the cloth's {evaluation['edges']} edges stretch or shrink against its rest "
+            "mesh, per frame: strain = |edge| / |rest edge| - 1 of each edge (+10%: 10% longer "
+            "than at rest), from " + str(eval_path) + ". A simulated garment stays within a "
+            "few percent; a bake far above the truth (the dashed line) stretches like rubber. "
+            "The summary gives the figures over every edge of every frame.")
+    parts.append(f'<p class="sub" id="strain-note">{html.escape(text)}</p>')
+    parts.append(figure(plots.strain(evaluation), "edge strain per frame", ""))
+
+
+def error_map_section(parts: list[str], plots: Plots, args: argparse.Namespace,
+                      errors: Optional[_VertexErrors]) -> None:
+    """The error per vertex on the rest mesh (--mesh), or why there is none."""
+    parts.append("<h2>Error per vertex</h2>")
+    if not errors:
+        parts.append('<p class="sub">No heat map: give --mesh (the driven rest OBJ) with a '
+                     "truth (--eval or --truth).</p>")
+        return
+    frames = errors["frames"]
+    parts.append(f'<p class="sub">Mean over frames {frames[0]}-{frames[-1]} ({len(frames)} '
+                 f'frames) of the distance between {html.escape(errors["bake"])} and '
+                 f'{html.escape(errors["truth"])}, drawn on {html.escape(args.mesh)}.</p>')
+    parts.append(figure(plots.heat_map(errors, args.up_axis), "per-vertex error heat map", ""))
+
+
+def strain_map_section(parts: list[str], plots: Plots, args: argparse.Namespace,
+                       errors: Optional[_VertexErrors]) -> None:
+    """The bake's strain per vertex on the rest mesh (--mesh), beside the truth's figures."""
+    parts.append('<h2 id="strain-per-vertex">Strain per vertex</h2>')
+    if not errors:
+        parts.append('<p class="sub">No strain heat map: give --mesh (the driven rest OBJ) '
+                     "with a truth (--eval or --truth).</p>")
+        return
+    frames = errors["frames"]
+    bake, truth = errors["strain"], errors["truth_strain"]
+    parts.append(f'<p class="sub" id="strain-vertices">On each frame, the largest |strain| of '
+                 f'the vertex\'s edges in '
+                 f'{html.escape(errors["bake"])} against the rest mesh {html.escape(args.mesh)}'
+                 f", averaged over the same {len(frames)} frames: over the vertices "
+                 f"{strain_text(float(bake.mean()))}% on average and "
+                 f"{strain_text(float(bake.max()))}% at most, where the truth has "
+                 f"{strain_text(float(truth.mean()))}% and {strain_text(float(truth.max()))}%."
+                 "</p>")
+    parts.append(figure(plots.strain_map(errors, args.up_axis), "per-vertex strain heat map",
+                        ""))
+
+
 def solve_sections(parts: list[str], plots: Plots, report: _Json, model: str) -> None:
     """Weights and residual: only where the model solves for them."""
     parts.append("<h2>Weights</h2>")
@@ -1399,17 +1617,9 @@ def build_page(args: argparse.Namespace, report: _Json, evaluation: Optional[_Js
                      "</p>")
         parts.append(figure(plots.error(error_frames, baseline),
                             "error per frame", "No frames in the eval."))
-    parts.append("<h2>Error per vertex</h2>")
-    if errors:
-        parts.append(f'<p class="sub">Mean over frames {errors["frames"][0]}-'
-                     f'{errors["frames"][-1]} ({len(errors["frames"])} frames) of the distance '
-                     f'between {html.escape(errors["bake"])} and {html.escape(errors["truth"])}, '
-                     f'drawn on {html.escape(args.mesh)}.</p>')
-        parts.append(figure(plots.heat_map(errors, args.up_axis),
-                            "per-vertex error heat map", ""))
-    else:
-        parts.append('<p class="sub">No heat map: give --mesh (the driven rest OBJ) with a '
-                     "truth (--eval or --truth).</p>")
+    error_map_section(parts, plots, args, errors)
+    strain_section(parts, plots, evaluation, args.eval)
+    strain_map_section(parts, plots, args, errors)
     solve_sections(parts, plots, report, model)
     parts.append("<h2>Penetrations</h2>")
     parts.append(figure(plots.audit(report), "inside counts",
@@ -1648,7 +1858,7 @@ def parse_args(argv: Optional[Sequence[str]]) -> argparse.Namespace:
         description="Write a QC page (DIR/index.html and PNG plots) for a drivenshape bake: "
                     "which model made it, the pose model's coverage verdict or the QP's weights "
                     "and residual, penetrations, popping, and with --eval/--mesh the error to "
-                    "the truth per frame and per vertex.",
+                    "the truth and the edges' strain per frame and per vertex.",
         epilog="Exit codes: 0 ok, 2 usage, 3 input (a file missing or malformed), 4 output.")
     parser.add_argument("--report", required=True, action="append", metavar="REPORT.json",
                         help="the bake report (repeat for the chunk reports of a farm bake)")

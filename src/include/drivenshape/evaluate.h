@@ -32,6 +32,46 @@ struct EvaluationResult {
 EvaluationResult evaluateCaches(const PointCacheReader& truth, const PointCacheReader& baked,
                                 const std::vector<int>& frames);
 
+// ---- Strain: how far the cloth's edges stretch or shrink against its rest mesh ----
+
+/// The |strain| limit of StrainFigures::overShare: 0.1, an edge 10% longer or shorter than at
+/// rest.
+constexpr double kStrainLimit = 0.1;
+
+/// Figures of the |strain| of a set of edge values: one frame's edges, or every edge of every
+/// frame of a shot (ClothMetrics::strain). An edge's strain is |edge| / |rest edge| - 1 (the
+/// edge's length on the frame over its length on the rest mesh, less 1: +0.2 is stretched by
+/// 20%, -0.2 shrunk by 20%).
+///
+/// The percentile, the one definition used everywhere (eval's table and JSON, the Python
+/// module): the nearest-rank 95th percentile of the n values (a frame's: its n edges; a
+/// shot's: every edge of every frame, n = edges x frames): the |strain| values sorted
+/// ascending, the one at 1-based rank ceil(0.95 n). It is a value that occurs, and at least
+/// 95% of the values are at most it.
+struct StrainFigures {
+  long long values = 0;    ///< values the figures cover (edges; edges x frames for a shot)
+  double mean = 0.0;       ///< mean |strain|
+  double p95 = 0.0;        ///< nearest-rank 95th percentile of |strain|
+  double overShare = 0.0;  ///< share of the values with |strain| > kStrainLimit, in [0, 1]
+};
+
+/// The 1-based rank of the 95th percentile of n values: ceil(0.95 n), in integers (no
+/// rounding); 0 for n = 0.
+long long strainPercentileRank(long long n);
+
+/// The strain of each edge of `edges` (vertex ids into both V x 3 blocks) on `positions`
+/// against `rest`: |p[b] - p[a]| / |r[b] - r[a]| - 1, in double, in the order of `edges`.
+/// Throws Error(kInput) for an edge naming a vertex outside [0, vertexCount) or of zero rest
+/// length (no strain is defined for it).
+std::vector<double> edgeStrains(const float* rest, const float* positions, int vertexCount,
+                                const std::vector<MeshEdge>& edges);
+
+/// The figures of one frame: edgeStrains, then the mean, the nearest-rank 95th percentile and
+/// the share over kStrainLimit of their magnitudes (all 0 without edges). Throws as
+/// edgeStrains.
+StrainFigures frameStrain(const float* rest, const float* positions, int vertexCount,
+                          const std::vector<MeshEdge>& edges);
+
 // ---- Whole-shot evaluation (`drivenshape eval`): bake, truth and binding baseline ----
 
 /// One cloth sequence's figures for one frame.
@@ -45,6 +85,7 @@ struct ClothFrameMetrics {
                             ///< -1 when not measured (no driver)
   double maxDepth = 0.0;    ///< the deepest of them (>= 0, scene units; 0 when none)
   int maxDepthVertex = -1;  ///< where `maxDepth` occurs (-1 when none is inside)
+  StrainFigures strain;     ///< the frame's edges (all 0 when not measured)
 };
 
 /// One cloth sequence over the whole frame list.
@@ -61,10 +102,15 @@ struct ClothMetrics {
   int maxInsideFrame = 0;
   double maxDepth = 0.0;  ///< deepest penetration over the list
   int maxDepthFrame = 0;
+  /// Every edge of every frame of the list as one set of values (the percentile over all of
+  /// them, not an average of the frames'); all 0 when not measured.
+  StrainFigures strain;
 };
 
 /// What evaluateShot reads. The truth and the bake are required; the rest turns on metrics:
 ///
+///   drivenMesh                          strain of every sequence (its faces' edges, its rest
+///                                       positions)
 ///   driver + driverMesh                 penetrations of every sequence
 ///   driver + driverMesh + drivenMesh    and, with `baseline`, the binding baseline
 ///
@@ -77,7 +123,7 @@ struct ShotEvaluationInput {
   const PointCacheReader* bake = nullptr;
   const PointCacheReader* driver = nullptr;  ///< the shot's driver cache
   const Mesh* driverMesh = nullptr;          ///< rest driver: topology, rest pose
-  const Mesh* drivenMesh = nullptr;          ///< rest cloth (baseline only)
+  const Mesh* drivenMesh = nullptr;          ///< rest cloth (strain, baseline)
   std::string driverMeshName;                ///< where the meshes came from, for messages
   std::string drivenMeshName;
   bool baseline = false;
@@ -95,6 +141,11 @@ struct ShotEvaluation {
   int vertexCount = 0;        ///< cloth vertices
   int driverVertexCount = 0;  ///< 0 without a driver
   bool penetrations = false;  ///< whether `inside` and depths were measured
+  /// Whether strain was measured: with a drivenMesh that has an edge of non-zero rest length.
+  bool strain = false;
+  int edgeCount = 0;  ///< the rest mesh's edges the strain covers (meshEdges of drivenMesh)
+  /// Edges of drivenMesh left out of the strain for a zero rest length (coincident corners).
+  int zeroLengthEdges = 0;
   /// checkDriverMesh's warning when the driver mesh was evaluated untrusted (no penetration
   /// figures); empty otherwise.
   std::string untrustedDriver;
@@ -105,12 +156,14 @@ struct ShotEvaluation {
 };
 
 /// Evaluates a shot: per frame, the bake's (and the baseline's) error against the truth, the
-/// largest frame-to-frame jump of every sequence, and with a driver the vertices of every
-/// sequence inside it with the deepest one (exact closest triangle over every triangle, then
-/// InsideAudit's signed distance). `closest` is any ClosestBackend (host or OpenCL); its surface
-/// is set here. Throws Error(kUsage) for an empty frame list or a metric without the inputs it
-/// needs, and Error(kInput) for mismatched vertex counts, missing frames, non-finite positions
-/// or a driver mesh checkDriverMesh refuses (see `untrustedDriver`).
+/// largest frame-to-frame jump of every sequence, with the cloth's rest mesh the strain of
+/// every sequence's edges (StrainFigures, per frame and over the shot), and with a driver the
+/// vertices of every sequence inside it with the deepest one (exact closest triangle over every
+/// triangle, then InsideAudit's signed distance). `closest` is any ClosestBackend (host or OpenCL);
+/// its surface is set here. Throws Error(kUsage) for an empty frame list or a metric without the
+/// inputs it needs, and Error(kInput) for mismatched vertex counts (the cloth's rest mesh
+/// included), missing frames, non-finite positions or a driver mesh checkDriverMesh refuses (see
+/// `untrustedDriver`).
 ShotEvaluation evaluateShot(const ShotEvaluationInput& input, const std::vector<int>& frames,
                             ClosestBackend& closest);
 

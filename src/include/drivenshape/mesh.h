@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -52,6 +53,15 @@ void validateMesh(const Mesh& mesh, const std::string& source);
 std::uint64_t topologyHash(const Mesh& mesh);
 /// Topology hash of a bare vertex count (for caches read without a mesh).
 std::uint64_t topologyHash(int vertexCount);
+
+/// One edge of a mesh: two 0-based vertex ids, the smaller first.
+using MeshEdge = std::array<int, 2>;
+
+/// The unique edges of the mesh's faces: the sides of every polygon (each corner with the next,
+/// the last with the first), each once however many faces share it, as (a, b) with a < b,
+/// sorted. The fan triangulation's diagonals are not edges; a side naming one vertex twice
+/// (`f 1 1 2`) is no edge. Linear in the corners, plus a sort.
+std::vector<MeshEdge> meshEdges(const Mesh& mesh);
 
 /// Axis-aligned bounds of V by 3 positions; `diagonal` is the length of max - min.
 struct Bounds {
