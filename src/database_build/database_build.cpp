@@ -266,6 +266,28 @@ int historyNeeded(const PoseModelOptions& options) {
 
 /// Throws unless every extra clip has both caches, matches the rest meshes and comes with the
 /// pose model.
+/// Refuses a clip in other units than the rest meshes: on its first, middle and last frames,
+/// each cache's median edge length against its rest mesh's (medianEdgeScale) must be within a
+/// factor of 2 (the reference clips stay within 1.05; cloth a few percent).
+void checkClipUnits(const PointCacheReader& cache, const Mesh& mesh, const char* kind,
+                    const std::string& what) {
+  const std::vector<int> frames = cache.frames();
+  if (frames.empty() || cache.vertexCount() != mesh.vertexCount()) {
+    return;  // the other checks name these
+  }
+  std::vector<float> xyz(static_cast<std::size_t>(cache.vertexCount()) * 3);
+  for (const int frame : {frames.front(), frames[frames.size() / 2], frames.back()}) {
+    cache.readFrame(frame, xyz.data());
+    const double scale = medianEdgeScale(mesh, xyz.data());
+    if (scale > 0.0 && !(scale >= 0.5 && scale <= 2.0)) {
+      DS_THROW(kInput, kind, " cache '", cache.path(), "' (", what, ") frame ", frame, " is ",
+               scale, " times the size of the rest ", kind,
+               " mesh (median edge length): another unit (100: centimetres against metres)? "
+               "Give every clip in the rest meshes' units");
+    }
+  }
+}
+
 void checkExtraClips(const Mesh& driverMesh, const Mesh& drivenMesh,
                      const std::vector<ReferenceClip>& extraClips,
                      const DatabaseBuildOptions& options) {
@@ -281,6 +303,8 @@ void checkExtraClips(const Mesh& driverMesh, const Mesh& drivenMesh,
     }
     checkClipVertexCount(*extraClips[c].driver, driverMesh, "driver", what);
     checkClipVertexCount(*extraClips[c].driven, drivenMesh, "driven", what);
+    checkClipUnits(*extraClips[c].driver, driverMesh, "driver", what);
+    checkClipUnits(*extraClips[c].driven, drivenMesh, "driven", what);
   }
 }
 
@@ -458,6 +482,8 @@ Database buildDatabase(const Mesh& driverMesh, const Mesh& drivenMesh,
                        const DatabaseBuildOptions& options, std::ostream* log) {
   checkBuildInputs(driverMesh, drivenMesh, driverCache, drivenCache, options);
   checkExtraClips(driverMesh, drivenMesh, extraClips, options);
+  checkClipUnits(driverCache, driverMesh, "driver", "the main reference clip");
+  checkClipUnits(drivenCache, drivenMesh, "driven", "the main reference clip");
   const std::vector<int> candidates = candidateFrames(driverCache, drivenCache, options);
   const std::size_t driverValues = static_cast<std::size_t>(driverMesh.vertexCount()) * 3;
   const std::vector<float> shapes = readCandidateShapes(driverCache, candidates, driverValues);

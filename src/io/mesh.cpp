@@ -2,8 +2,10 @@
 #include <drivenshape/mesh.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include <drivenshape/error.h>
 
@@ -182,6 +184,26 @@ std::vector<MeshEdge> meshEdges(const Mesh& mesh) {
   std::sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   return edges;
+}
+
+double medianEdgeScale(const Mesh& mesh, const float* xyz) {
+  const auto length = [](const float* p, int a, int b) {
+    const double dx = p[3 * a] - p[3 * b], dy = p[3 * a + 1] - p[3 * b + 1],
+                 dz = p[3 * a + 2] - p[3 * b + 2];
+    return std::sqrt(dx * dx + dy * dy + dz * dz);
+  };
+  std::vector<double> ratios;
+  for (const auto& [a, b] : meshEdges(mesh)) {
+    const double rest = length(mesh.positions.data(), a, b);
+    if (rest > 0.0) {
+      ratios.push_back(length(xyz, a, b) / rest);
+    }
+  }
+  if (ratios.empty()) {
+    return 0.0;
+  }
+  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+  return ratios[ratios.size() / 2];
 }
 
 }  // namespace drivenshape

@@ -675,6 +675,41 @@ TEST(CliSafety, HugeFiniteValuesAreUsageOrInputErrors) {
   EXPECT_FALSE(fs::exists(dir.file("x.dsdb")));
 }
 
+// `db build --also` took a clip in other units (a 61 m model error): every clip's caches, the
+// main clip's too, are measured against the rest meshes (median edge length).
+TEST(CliSafety, DbBuildRefusesAClipInOtherUnits) {
+  TempDir dir;
+  const std::vector<std::string> build{"db",
+                                       "build",
+                                       "--driver-mesh",
+                                       sample("driver_rest.obj"),
+                                       "--driven-mesh",
+                                       sample("driven_rest.obj"),
+                                       "--driver",
+                                       sample("train.driver.pc2"),
+                                       "--driven",
+                                       sample("train.driven.pc2"),
+                                       "--count",
+                                       "3",
+                                       "--quiet",
+                                       "-o",
+                                       dir.file("x.dsdb")};
+  const std::string driverCm = scaledPc2(sample("test.driver.pc2"), dir.file("cm.pc2"), 100.0f);
+  const std::string drivenCm = scaledPc2(sample("test.driven.pc2"), dir.file("cmd.pc2"), 100.0f);
+  expectError(runCli(dir, with(build, {"--also", driverCm, drivenCm})), 3,
+              "cm.pc2' (reference clip 2) frame 1 is 100");
+  expectError(runCli(dir, with(build, {"--also", sample("test.driver.pc2"), drivenCm})), 3,
+              "cmd.pc2' (reference clip 2) frame 1 is 100.0");
+  std::vector<std::string> main = build;
+  main[7] = driverCm;
+  main[9] = drivenCm;
+  expectError(runCli(dir, main), 3, "(the main reference clip)");
+  EXPECT_FALSE(fs::exists(dir.file("x.dsdb")));
+  // Within a few percent (a clip of the same character in the same units) is built.
+  const std::string slightly = scaledPc2(sample("test.driven.pc2"), dir.file("near.pc2"), 1.03f);
+  EXPECT_EQ(runCli(dir, with(build, {"--also", sample("test.driver.pc2"), slightly})).code, 0);
+}
+
 // ---- Defect list, medium and low ----
 
 // `--frames 1-10000000` took 30-80 s and 2.7 GB before "no frame 49"; `-o out/####/c.exr` made a
