@@ -149,6 +149,10 @@ ExrSequenceInfo checkPointCacheExrSequence(const std::string& pattern) {
   for (const auto& [frame, file] : listExrSequence(pattern)) {
     const ExrPointCacheInfo info = readPointCacheExrInfo(file);
     requireNamedFrame(file, frame, info);
+    if (!isCompleteExr(file)) {
+      DS_THROW(kInput, "point-cache EXR '", file, "' (frame ", frame,
+               ") is incomplete: scan lines are missing or cut short; bake the frame again");
+    }
     if (sequence.files.empty()) {
       sequence.first = info;
     } else if (info.vertexCount != sequence.first.vertexCount) {

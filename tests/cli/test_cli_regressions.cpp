@@ -755,6 +755,14 @@ TEST(CliRegression, InfoOnAnExrSequenceChecksEveryFramesHeader) {
   writePointCacheExr(dir.file("s.0002.exr"), cache->vertexCount(), xyz.data(), nullptr, options);
   r = runCli(dir, {"info", pattern});
   expectError(r, 3, "s.0002.exr' (frame 2) has topology hash 0000000000005678 but frame 1");
+
+  // A frame cut short (a copy that lost its tail): its header still reads.
+  writeExrSequence(pattern);
+  const std::string whole = slurp(dir.file("s.0003.exr"));
+  std::ofstream(dir.file("s.0003.exr"), std::ios::binary | std::ios::trunc)
+      << whole.substr(0, whole.size() / 2);
+  r = runCli(dir, {"info", pattern});
+  expectError(r, 3, "s.0003.exr' (frame 3) is incomplete");
 }
 
 // ---- farm --extra-args were only checked against the options the farm sets itself ----

@@ -210,9 +210,11 @@ struct ExrSequenceInfo {
 
 /// Reads the header of every file of the point-cache EXR sequence `pattern` (headers only: no
 /// pixel is decoded) and checks them against their names and each other: each file's frame
-/// attribute (dsFrame, where present) is the frame its name says, and every file has the first
-/// one's vertex count and topology hash. Throws Error(kInput) naming the file and the frame of
-/// the first mismatch, or as openPointCache does for a pattern that matches no file.
+/// attribute (dsFrame, where present) is the frame its name says, every file is complete
+/// (isCompleteExr: its offset table and first and last chunks, not its pixels), and every file
+/// has the first one's vertex count and topology hash. Throws Error(kInput) naming the file and
+/// the frame of the first mismatch, or as openPointCache does for a pattern that matches no
+/// file.
 ExrSequenceInfo checkPointCacheExrSequence(const std::string& pattern);
 
 /// True if the file exists and OpenEXR reports it complete (all scanlines present).
