@@ -15,6 +15,7 @@
 
 #include "closest.h"
 #include "stages.h"
+#include "strain_limit.h"
 
 namespace drivenshape::bench {
 
@@ -99,6 +100,9 @@ class HostStagingDevice final : public Device {
   std::unique_ptr<LayerBackend> makeLayers() override { return mDevice.makeLayers(); }
   std::unique_ptr<PositionMapBackend> makePositionMaps() override {
     return mDevice.makePositionMaps();
+  }
+  std::unique_ptr<StrainLimitBackend> makeStrainLimit(int threads) override {
+    return mDevice.makeStrainLimit(threads);
   }
   TransferCounts transfers() const override { return mDevice.transfers(); }
 

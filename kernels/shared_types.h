@@ -38,10 +38,20 @@ typedef struct {
   int weightStride;  // floats per frame in the weights block: k + 1 (the last is sum(w) - 1)
 } DsBlendParams;
 
+// ---- strain_limit.cl ----
+
+// Arguments of dsStrainLimit, passed by value.
+typedef struct {
+  int vertexCount;  // V
+  int frameCount;   // F in this chunk
+} DsStrainLimitParams;
+
 #ifdef __cplusplus
 static_assert(sizeof(int) == 4, "OpenCL int is 32 bits; the shared structs assume the same");
 static_assert(sizeof(DsProjectParams) == 20, "DsProjectParams layout differs from the device");
 static_assert(sizeof(DsBlendParams) == 16, "DsBlendParams layout differs from the device");
+static_assert(sizeof(DsStrainLimitParams) == 8,
+              "DsStrainLimitParams layout differs from the device");
 #endif
 
 #endif

@@ -312,6 +312,9 @@ bool searchesClosest(const SettingsView& v) {
 bool boundsWeights(const SettingsView& v) {
   return v.evaluator.maxWeightChange > 0;
 }
+bool limitsStrain(const SettingsView& v) {
+  return v.evaluator.strainLimit > 0;
+}
 bool zips(const SettingsView& v) {
   return v.bake == nullptr || v.bake->compression == ExrCompression::kZip ||
          v.bake->compression == ExrCompression::kZips;
@@ -394,6 +397,17 @@ void hashTemporalWarmup(const HashInput& in, Hasher& h) {
 void hashBatch(const HashInput& in, Hasher& h) {
   if (in.output != nullptr && in.model.settings.maxWeightChange > 0) {
     h.addValue(in.output->batchSize);
+  }
+}
+/// Off, the strain limit leaves the hash of the bakes before it.
+void hashStrainLimit(const HashInput& in, Hasher& h) {
+  if (in.model.settings.strainLimit > 0) {
+    h.addValue(in.model.settings.strainLimit);
+  }
+}
+void hashStrainIterations(const HashInput& in, Hasher& h) {
+  if (in.model.settings.strainLimit > 0) {
+    h.addValue(in.model.settings.strainIterations);
   }
 }
 std::uint64_t hashLayers(const HashInput& in, std::uint64_t value) {
@@ -742,6 +756,26 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
           "with a maximum weight change, whose results depend on it)")
       .hash(&hashBatch)
       .report("batch");
+  Row(rows, "strain_limit", "strain limit", SettingType::kNumber)
+      .flag("--strain-limit", "S")
+      .field<&S::strainLimit>()
+      .range(0, 0.5, "", "off")
+      .help(
+          "after the correction and before the penetration resolution, each frame's cloth "
+          "edges are brought back within this fraction of their rest lengths (0.05: 95% to "
+          "105%) by iterations of edge projections")
+      .hash(&hashStrainLimit)
+      .report("strain_limit");
+  Row(rows, "strain_iterations", "strain iterations", SettingType::kInt)
+      .flag("--strain-iterations", "N")
+      .field<&S::strainIterations>()
+      .range(1, 10000, "iterations")
+      .help(
+          "strain limit: Jacobi iterations per frame, each one pass over the edges (more: edges "
+          "closer to the band)")
+      .usedWhen(&limitsStrain, "with a strain limit (strain_limit above 0)", WhenUnused::kWarn)
+      .hash(&hashStrainIterations)
+      .report("strain_iterations");
   Row(rows, "layers", "layers", SettingType::kObject)
       .access<EvaluatorSettings>(&layersText, nullptr)
       .help(

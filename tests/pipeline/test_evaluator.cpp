@@ -3,6 +3,8 @@
 // bitwise, whatever the batch size or thread count; its temporal state; its device use.
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -15,7 +17,9 @@
 #include <drivenshape/device.h>
 #include <drivenshape/device_cl.h>
 #include <drivenshape/error.h>
+#include <drivenshape/evaluate.h>
 #include <drivenshape/evaluator.h>
+#include <drivenshape/mesh.h>
 #include <drivenshape/point_cache.h>
 
 #include "cli_test_util.h"
@@ -281,6 +285,86 @@ TEST_F(EvaluatorTest, KeepsABlockOnTheDeviceFromProjectionToTheLastKernel) {
     EXPECT_LE(after.downloadBytes - before.downloadBytes, clothBytes + recordBytes)
         << alignModeName(align);
   }
+}
+
+/// The mean over `cloth`'s frames of each frame's mean |strain| against the database's rest
+/// cloth.
+double meanStrain(const Database& db, const std::vector<float>& cloth) {
+  const std::vector<MeshEdge> edges = meshEdges(db.drivenMesh);
+  const std::size_t values = 3 * static_cast<std::size_t>(db.drivenVertexCount());
+  double sum = 0.0;
+  for (std::size_t at = 0; at < cloth.size(); at += values) {
+    sum += frameStrain(db.drivenMesh.positions.data(), cloth.data() + at, db.drivenVertexCount(),
+                       edges)
+               .mean;
+  }
+  return sum / static_cast<double>(cloth.size() / values);
+}
+
+// The strain limit (off by default) runs between the correction and the resolution: the cloth's
+// strain falls, the resolution still leaves no vertex inside, the frames are the same bitwise on
+// every batch size and thread count, and the host path agrees with the device.
+TEST_F(EvaluatorTest, StrainLimitRunsBetweenTheCorrectionAndTheResolution) {
+  const Database db = loadDatabase(file("sleeve.dsdb"));
+  const std::vector<int> frames = shotFrames();
+  const std::vector<float> driver = readFrames(*openPointCache(sample("test.driver.pc2")), frames);
+  const std::vector<float> defaults = readFrames(*openPointCache(file("cli.####.exr")), frames);
+  const std::size_t vp = 3 * static_cast<std::size_t>(db.driverVertexCount());
+  std::unique_ptr<Device> device = makeOpenClDevice(context(), this->device(), queue());
+  EvaluatorSettings settings;
+  settings.strainLimit = 0.03;
+  settings.strainIterations = 30;
+  std::vector<float> reference;
+  for (const int threads : {1, 2}) {
+    settings.threads = threads;
+    Evaluator evaluator(db, settings, *device);
+    const std::vector<std::string> names = evaluator.stageNames();
+    const auto at = [&](const char* name) {
+      return std::find(names.begin(), names.end(), name) - names.begin();
+    };
+    EXPECT_EQ(at("strain"), at("correct") + 1);
+    EXPECT_EQ(at("resolve"), at("strain") + 1);
+    EXPECT_NE(evaluator.settingsHash(), Evaluator(db, EvaluatorSettings(), *device).settingsHash());
+    for (const int batch : {1, 7, 48}) {
+      std::vector<float> cloth;
+      for (int begin = 0; begin < static_cast<int>(frames.size()); begin += batch) {
+        const int count = std::min<int>(batch, static_cast<int>(frames.size()) - begin);
+        const Evaluation out = evaluator.evaluate(
+            std::vector<int>(frames.begin() + begin, frames.begin() + begin + count),
+            slice(driver, vp, begin, count));
+        for (const FrameRecord& record : out.records) {
+          EXPECT_EQ(record.insideAfter, 0) << "frame " << record.frame;
+        }
+        cloth.insert(cloth.end(), out.cloth.begin(), out.cloth.end());
+      }
+      if (reference.empty()) {
+        reference = cloth;
+      }
+      EXPECT_EQ(bitDifferences(cloth, reference), 0)
+          << "batch " << batch << ", threads " << threads;
+    }
+  }
+  const double limited = meanStrain(db, reference);
+  const double unlimited = meanStrain(db, defaults);
+  std::printf("  mean |strain|: %.4f%% limited to 3%%, %.4f%% without\n", 100 * limited,
+              100 * unlimited);
+  EXPECT_LT(limited, 0.6 * unlimited);
+
+  std::unique_ptr<Device> host = makeHostDevice();
+  Evaluator onHost(db, settings, *host);
+  const std::vector<float> hostCloth = onHost.evaluate(frames, driver).cloth;
+  const double diagonal = boundsDiagonal(db.drivenMesh);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < hostCloth.size(); i += 3) {
+    double d2 = 0.0;
+    for (std::size_t a = 0; a < 3; ++a) {
+      d2 += (double(hostCloth[i + a]) - reference[i + a]) *
+            (double(hostCloth[i + a]) - reference[i + a]);
+    }
+    worst = std::max(worst, std::sqrt(d2) / diagonal);
+  }
+  std::printf("  host vs OpenCL with the strain limit: %.3g of the diagonal\n", worst);
+  EXPECT_LE(worst, testing::kDeviceVsHostRelTol + testing::kStrainLimitDeviceVsHostRelTol);
 }
 
 TEST_F(EvaluatorTest, MessagesNameSettingsAndTheFrameAtFault) {

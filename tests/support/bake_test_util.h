@@ -18,6 +18,7 @@
 #include "closest.h"
 
 #include "stages.h"
+#include "strain_limit.h"
 #include "test_support.h"
 
 namespace drivenshape::testing {
@@ -92,6 +93,9 @@ class MixedDevice final : public Device {
   std::unique_ptr<LayerBackend> makeLayers() override { return mStages.makeLayers(); }
   std::unique_ptr<PositionMapBackend> makePositionMaps() override {
     return mStages.makePositionMaps();
+  }
+  std::unique_ptr<StrainLimitBackend> makeStrainLimit(int threads) override {
+    return mStages.makeStrainLimit(threads);
   }
 
  private:

@@ -18,6 +18,7 @@
 
 #include "closest.h"
 #include "stages.h"
+#include "strain_limit.h"
 
 #include "cl_program.h"
 
@@ -33,6 +34,8 @@ std::unique_ptr<ClosestBackend> makeClClosest(const cl_util::ClTarget& target,
 std::unique_ptr<LayerBackend> makeClLayers(const cl_util::ClTarget& target);
 /// Position maps (kernels/posmap.cl; cl_posmap.cpp).
 std::unique_ptr<PositionMapBackend> makeClPositionMaps(const cl_util::ClTarget& target);
+/// The strain limit (kernels/strain_limit.cl; cl_strain_limit.cpp).
+std::unique_ptr<StrainLimitBackend> makeClStrainLimit(const cl_util::ClTarget& target);
 
 // The same on a bare context, device and queue (no program cache, no transfer counts): for
 // tests of one backend.
@@ -46,6 +49,9 @@ std::unique_ptr<LayerBackend> makeClLayers(const cl::Context& context, const cl:
 std::unique_ptr<PositionMapBackend> makeClPositionMaps(const cl::Context& context,
                                                        const cl::Device& device,
                                                        const cl::CommandQueue& queue);
+std::unique_ptr<StrainLimitBackend> makeClStrainLimit(const cl::Context& context,
+                                                      const cl::Device& device,
+                                                      const cl::CommandQueue& queue);
 
 /// A Device on the caller's context (drivenshape/device_cl.h) with the description openDevice()
 /// makes for it.

@@ -36,6 +36,9 @@ class ClDevice final : public Device {
   std::unique_ptr<PositionMapBackend> makePositionMaps() override {
     return makeClPositionMaps(mTarget);
   }
+  std::unique_ptr<StrainLimitBackend> makeStrainLimit(int /*threads*/) override {
+    return makeClStrainLimit(mTarget);
+  }
   DeviceArray makeArray() override {
     return DeviceArray(
         std::make_unique<cl_util::ClStorage>(mTarget.context, mTarget.queue, &mTransfers));

@@ -5,6 +5,7 @@
 
 #include "closest.h"
 #include "stages.h"
+#include "strain_limit.h"
 
 namespace drivenshape {
 namespace {
@@ -19,6 +20,9 @@ class HostDevice final : public Device {
   }
   std::unique_ptr<LayerBackend> makeLayers() override { return makeHostLayers(); }
   std::unique_ptr<PositionMapBackend> makePositionMaps() override { return makeHostPositionMaps(); }
+  std::unique_ptr<StrainLimitBackend> makeStrainLimit(int threads) override {
+    return makeHostStrainLimit(threads);
+  }
 };
 
 }  // namespace

@@ -22,6 +22,7 @@ namespace drivenshape {
 // a Device and hands it to the Evaluator, the bake or the position maps.
 class StageBackend;
 class ClosestBackend;
+class StrainLimitBackend;
 struct ClosestOptions;
 class DeviceArray;
 
@@ -53,6 +54,9 @@ class Device {
   virtual std::unique_ptr<LayerBackend> makeLayers() = 0;
   /// Position maps.
   virtual std::unique_ptr<PositionMapBackend> makePositionMaps() = 0;
+  /// The strain limit; `threads` host threads for the host reference (0 = one per hardware
+  /// thread).
+  virtual std::unique_ptr<StrainLimitBackend> makeStrainLimit(int threads) = 0;
 
   /// An empty array whose device side (if this device has one) the backends made here read
   /// and write in place: the evaluator keeps a block of frames in such arrays between stages.

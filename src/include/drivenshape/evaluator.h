@@ -105,6 +105,13 @@ struct EvaluatorSettings {
   /// tie, so it does not jump across the limb between frames. Chosen on the validation table
   /// (docs/validation.md).
   double exitFade = 0.15;
+  /// Strain limit (0 = off): after the correction and before the penetration resolution, each
+  /// frame's cloth edges are brought back into the band [(1 - s) L, (1 + s) L] around their rest
+  /// lengths L (s = strainLimit) by `strainIterations` Jacobi iterations of edge projections
+  /// (docs/method.md, "Strain limit"). Every vertex may move (the database has no fixed
+  /// vertices); the resolution still runs after it.
+  double strainLimit = 0.0;
+  int strainIterations = 30;
   /// Region-local weights: one QP per region, mixed with its partition of unity; empty = one
   /// QP on every driver row.
   std::optional<RegionSet> regions;
@@ -168,7 +175,8 @@ struct FrameRecord {
   std::vector<double> alignTranslation;
   // Audit (-1 where not measured).
   int insideBefore = -1;     ///< blended cloth inside the (aligned) shot driver (world blend)
-  int insideCorrected = -1;  ///< after the correction (or rebuild), before resolution
+  int insideCorrected = -1;  ///< after the correction (or rebuild) and the strain limit, before
+                             ///< resolution
   int insideAfter = -1;      ///< in the final cloth (after resolution when it runs)
   int resolved = -1;         ///< vertices moved out by the penetration resolution
   int bindingSwitches = -1;  ///< vertices bound to another triangle than the previous frame

@@ -1,0 +1,76 @@
+// SPDX-License-Identifier: Apache-2.0
+// One Jacobi iteration of the strain limit (contract: StrainLimitBackend and StrainLimitTables
+// in src/devices/strain_limit.h; host reference: src/devices/host/host_strain_limit.cpp, the
+// same arithmetic in double). The host launches it once per iteration, `in` and `out` swapped
+// between launches.
+//
+// Vertex p takes, for each incident edge (entries start[v] .. start[v + 1] - 1, in a fixed order)
+// whose length l to its other end q is outside [lower, upper] (and not 0), the correction
+// share * (l - t) / l * (q - p), t the band's nearer end; it moves by step[v] times their sum
+// (relaxation / n, n its edges that can move it, fixed per vertex so that the result is
+// continuous in the positions), and is copied unchanged when there are none. A vertex reads only
+// `in`, writes only its own three floats of `out`: no atomics, no order between items.
+//
+// Mapping: 2-D range, local size (DS_LOCAL_SIZE, 1); item (v, f) is vertex v of frame f.
+//
+//   in, out                  F x 3V floats, vertex v of frame f at [f * 3V + 3v]
+//   start                    V + 1 ints
+//   other, lower, upper, share   one per entry
+//   step                     V floats
+
+#pragma OPENCL FP_CONTRACT OFF
+
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrainLimit(
+    __global const float* in, __global float* out, __global const int* start,
+    __global const int* other, __global const float* lower, __global const float* upper,
+    __global const float* share, __global const float* step, const DsStrainLimitParams params) {
+  const int v = (int)get_global_id(0);
+  const int f = (int)get_global_id(1);
+  if (v >= params.vertexCount || f >= params.frameCount) {
+    return;
+  }
+  const size_t frame = (size_t)f * (size_t)(3 * params.vertexCount);
+  const size_t at = frame + (size_t)(3 * v);
+  const float px = in[at];
+  const float py = in[at + 1];
+  const float pz = in[at + 2];
+  float sx = 0.0f;
+  float sy = 0.0f;
+  float sz = 0.0f;
+  int moves = 0;
+  const int end = start[v + 1];
+  for (int k = start[v]; k < end; ++k) {
+    const float w = share[k];
+    if (w == 0.0f) {
+      continue;
+    }
+    const size_t q = frame + (size_t)(3 * other[k]);
+    const float dx = in[q] - px;
+    const float dy = in[q + 1] - py;
+    const float dz = in[q + 2] - pz;
+    const float length = sqrt(dx * dx + dy * dy + dz * dz);
+    float target;
+    if (length > upper[k]) {
+      target = upper[k];
+    } else if (length < lower[k] && length > 0.0f) {
+      target = lower[k];
+    } else {
+      continue;
+    }
+    const float scale = w * (length - target) / length;
+    sx += scale * dx;
+    sy += scale * dy;
+    sz += scale * dz;
+    moves = 1;
+  }
+  if (moves == 0) {
+    out[at] = px;
+    out[at + 1] = py;
+    out[at + 2] = pz;
+    return;
+  }
+  const float h = step[v];
+  out[at] = px + h * sx;
+  out[at + 1] = py + h * sy;
+  out[at + 2] = pz + h * sz;
+}

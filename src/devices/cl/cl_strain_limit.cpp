@@ -1,0 +1,148 @@
+// SPDX-License-Identifier: Apache-2.0
+// The OpenCL StrainLimitBackend (strain_limit.h): the tables go to the device once (upload); a
+// call runs kernels/strain_limit.cl once per iteration over every vertex of every frame of the
+// block, ping-ponging between the positions and a scratch buffer of the same size, and copies the
+// last iteration back into the positions when it landed in the scratch. On a DeviceArray of this
+// context nothing goes through the host.
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+
+#include <CL/opencl.hpp>
+
+#include <drivenshape_kernels/strain_limit_cl.h>
+#include <shared_types.h>
+
+#include "cl_backends.h"
+#include "cl_program.h"
+#include "strain_limit.h"
+
+namespace drivenshape {
+namespace {
+
+class ClStrainLimit final : public StrainLimitBackend {
+ public:
+  explicit ClStrainLimit(const cl_util::ClTarget& target)
+      : mContext(target.context),
+        mDevice(target.device),
+        mQueue(target.queue),
+        mTransfers(target.transfers) {
+    mName = cl_util::guard("querying the device name",
+                           [&] { return mDevice.getInfo<CL_DEVICE_NAME>(); });
+    mProgram = cl_util::buildProgram(
+        target, {{kernels::kStrainLimitSourceName, kernels::kStrainLimitSource}});
+    cl_util::guard("creating the strain-limit kernel",
+                   [&] { mKernel = cl::Kernel(mProgram, "dsStrainLimit"); });
+  }
+
+  std::string name() const override { return mName; }
+
+  void upload(const StrainLimitTables& tables) override {
+    strain_limit_checks::checkTables(tables);
+    mUploaded = false;
+    mVertexCount = tables.vertexCount;
+    mIterations = tables.iterations;
+    cl_util::guard("uploading the strain-limit tables", [&] {
+      mStart = cl_util::readOnlyBuffer(mContext, tables.start);
+      mOther = cl_util::readOnlyBuffer(mContext, tables.other);
+      mLower = cl_util::readOnlyBuffer(mContext, tables.lower);
+      mUpper = cl_util::readOnlyBuffer(mContext, tables.upper);
+      mShare = cl_util::readOnlyBuffer(mContext, tables.share);
+      mStep = cl_util::readOnlyBuffer(mContext, tables.step);
+    });
+    mUploaded = true;
+  }
+
+  void limit(int frameCount, float* positions) override {
+    strain_limit_checks::checkCall(mUploaded, frameCount);
+    if (frameCount == 0 || mIterations == 0) {
+      return;
+    }
+    const std::size_t bytes = frameBytes(frameCount);
+    cl::Buffer& buffer =
+        cl_util::guard("allocating the strain-limit position buffer",
+                       [&]() -> cl::Buffer& { return mPositions.reserve(mContext, bytes); });
+    cl_util::guard("uploading a chunk for the strain limit", [&] {
+      cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, positions);
+    });
+    iterate(frameCount, buffer);
+    cl_util::guard("reading back the strain-limited positions", [&] {
+      cl_util::download(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, positions);
+    });
+  }
+
+  void limitBlock(int frameCount, DeviceArray& positions) override {
+    if (!cl_util::onContext(mContext, positions)) {
+      StrainLimitBackend::limitBlock(frameCount, positions);
+      return;
+    }
+    strain_limit_checks::checkCall(mUploaded, frameCount);
+    if (frameCount == 0 || mIterations == 0) {
+      return;
+    }
+    iterate(frameCount, cl_util::modifyBuffer(positions));
+  }
+
+ private:
+  std::size_t frameBytes(int frameCount) const {
+    return static_cast<std::size_t>(frameCount) * 3 * static_cast<std::size_t>(mVertexCount) *
+           sizeof(float);
+  }
+
+  /// The iterations on `positions` (F x 3V floats on the device), in place.
+  void iterate(int frameCount, cl::Buffer& positions) {
+    const std::size_t bytes = frameBytes(frameCount);
+    cl_util::guard("running dsStrainLimit on a chunk of frames", [&] {
+      cl::Buffer& scratch = mScratch.reserve(mContext, bytes);
+      DsStrainLimitParams params{};
+      params.vertexCount = mVertexCount;
+      params.frameCount = frameCount;
+      const cl::NDRange global(
+          cl_util::roundUp(static_cast<std::size_t>(mVertexCount), DS_LOCAL_SIZE),
+          static_cast<std::size_t>(frameCount));
+      const cl::Buffer* from = &positions;
+      const cl::Buffer* to = &scratch;
+      for (int i = 0; i < mIterations; ++i) {
+        cl_util::setArgs(mKernel, *from, *to, mStart, mOther, mLower, mUpper, mShare, mStep,
+                         params);
+        mQueue.enqueueNDRangeKernel(mKernel, cl::NullRange, global, cl::NDRange(DS_LOCAL_SIZE, 1));
+        std::swap(from, to);
+      }
+      if (from != &positions) {
+        mQueue.enqueueCopyBuffer(*from, positions, 0, 0, bytes);
+      }
+    });
+  }
+
+  cl::Context mContext;
+  cl::Device mDevice;
+  cl::CommandQueue mQueue;
+  cl_util::Transfers* mTransfers = nullptr;
+  std::string mName;
+  cl::Program mProgram;
+  cl::Kernel mKernel;
+
+  bool mUploaded = false;
+  int mVertexCount = 0;
+  int mIterations = 0;
+  cl::Buffer mStart, mOther, mLower, mUpper, mShare, mStep;
+  cl_util::GrowingBuffer mPositions{CL_MEM_READ_WRITE};  // F x 3V (limit() on host memory)
+  cl_util::GrowingBuffer mScratch{CL_MEM_READ_WRITE};    // F x 3V, the other half of the ping-pong
+};
+
+}  // namespace
+
+std::unique_ptr<StrainLimitBackend> makeClStrainLimit(const cl_util::ClTarget& target) {
+  return std::make_unique<ClStrainLimit>(target);
+}
+
+std::unique_ptr<StrainLimitBackend> makeClStrainLimit(const cl::Context& context,
+                                                      const cl::Device& device,
+                                                      const cl::CommandQueue& queue) {
+  return makeClStrainLimit(cl_util::ClTarget{context, device, queue});
+}
+
+}  // namespace drivenshape

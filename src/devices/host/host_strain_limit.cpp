@@ -1,0 +1,103 @@
+// SPDX-License-Identifier: Apache-2.0
+// The host reference of kernels/strain_limit.cl (strain_limit.h): the same Jacobi iterations in
+// double, each frame kept in double between iterations and rounded to float once at the end;
+// frames in parallel on host threads (each frame alone, so the thread count changes nothing).
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "parallel.h"
+
+#include "strain_limit.h"
+
+namespace drivenshape {
+namespace {
+
+class HostStrainLimit final : public StrainLimitBackend {
+ public:
+  explicit HostStrainLimit(int threads) : mThreads(threads) {}
+
+  std::string name() const override { return "host"; }
+
+  void upload(const StrainLimitTables& tables) override {
+    strain_limit_checks::checkTables(tables);
+    mTables = tables;
+    mUploaded = true;
+  }
+
+  void limit(int frameCount, float* positions) override {
+    strain_limit_checks::checkCall(mUploaded, frameCount);
+    if (mTables.iterations == 0) {
+      return;
+    }
+    const std::size_t values = 3 * static_cast<std::size_t>(mTables.vertexCount);
+    parallelFor(frameCount, mThreads, [&](int f) {
+      float* frame = positions + static_cast<std::size_t>(f) * values;
+      std::vector<double> now(frame, frame + values);
+      std::vector<double> next(values);
+      for (int i = 0; i < mTables.iterations; ++i) {
+        iterate(now.data(), next.data());
+        std::swap(now, next);
+      }
+      for (std::size_t i = 0; i < values; ++i) {
+        frame[i] = static_cast<float>(now[i]);
+      }
+    });
+  }
+
+ private:
+  /// One Jacobi iteration of one frame: every vertex of `in` (3V values) into `out`.
+  void iterate(const double* in, double* out) const {
+    const StrainLimitTables& t = mTables;
+    for (std::size_t v = 0; v < static_cast<std::size_t>(t.vertexCount); ++v) {
+      const double* p = in + 3 * v;
+      double sum[3] = {0.0, 0.0, 0.0};
+      bool moves = false;
+      for (std::int32_t k = t.start[v]; k < t.start[v + 1]; ++k) {
+        const std::size_t entry = static_cast<std::size_t>(k);
+        const double share = t.share[entry];
+        if (share == 0.0) {
+          continue;
+        }
+        const double* q = in + 3 * static_cast<std::size_t>(t.other[entry]);
+        const double d[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+        const double length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        double target = 0.0;
+        if (length > t.upper[entry]) {
+          target = t.upper[entry];
+        } else if (length < t.lower[entry] && length > 0.0) {
+          target = t.lower[entry];
+        } else {
+          continue;
+        }
+        const double scale = share * (length - target) / length;
+        for (int a = 0; a < 3; ++a) {
+          sum[a] += scale * d[a];
+        }
+        moves = true;
+      }
+      double* o = out + 3 * v;
+      const double step = t.step[v];
+      for (int a = 0; a < 3; ++a) {
+        o[a] = moves ? p[a] + step * sum[a] : p[a];
+      }
+    }
+  }
+
+  int mThreads = 0;
+  StrainLimitTables mTables;
+  bool mUploaded = false;
+};
+
+}  // namespace
+
+std::unique_ptr<StrainLimitBackend> makeHostStrainLimit(int threads) {
+  return std::make_unique<HostStrainLimit>(threads);
+}
+
+}  // namespace drivenshape

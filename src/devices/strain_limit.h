@@ -1,0 +1,98 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The strain limit (docs/method.md, "Strain limit"): each frame's cloth edges brought back into
+// a band around their rest lengths by Jacobi iterations of edge projections (Provot 1995's
+// deformation constraints, solved the position-based way). StrainLimitBackend is the op every
+// device implements: OpenCL in kernels/strain_limit.cl (src/devices/cl/cl_strain_limit.cpp), the
+// host reference in src/devices/host/host_strain_limit.cpp; strainLimitTables() builds the
+// tables both take.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <drivenshape/mesh.h>
+
+#include "device_array.h"
+
+namespace drivenshape {
+
+/// The strain limit's tables: the mesh's edges as every vertex's list of incident edges
+/// (compressed rows, in the order of meshEdges()), each entry with the edge's band and the
+/// vertex's share of the edge's correction, and every vertex's step.
+///
+///   start     V + 1 offsets: vertex v's entries are start[v] .. start[v + 1] - 1
+///   other     per entry: the edge's other vertex
+///   lower     per entry: (1 - s) L, L the edge's rest length
+///   upper     per entry: (1 + s) L
+///   share     per entry: this vertex's share of the edge's correction, w_v / (w_v + w_other)
+///             with w the vertices' weights (0: the vertex does not move)
+///   step      per vertex: relaxation / n, n its entries with a share (0 when it has none)
+///
+/// Each iteration, every vertex p takes, for each incident edge whose length l is outside
+/// [lower, upper] (and not 0), the correction share * (l - t) / l * (q - p) towards (or away
+/// from) its other end q, t the band's nearer end; it moves by step times their sum (none: it
+/// stays bitwise). n counts every edge that can move the vertex, not only those outside the band
+/// now: a count that changed with the positions would make the result jump where an edge crosses
+/// an end of its band (on a quad mesh a vertex stretched one way moves by relaxation / 4 of its
+/// two corrections). Every vertex reads the positions of the iteration before (Jacobi), so the
+/// result is the same in any order, on any number of threads.
+struct StrainLimitTables {
+  int vertexCount = 0;
+  int iterations = 0;
+  std::vector<std::int32_t> start;
+  std::vector<std::int32_t> other;
+  std::vector<float> lower;
+  std::vector<float> upper;
+  std::vector<float> share;
+  std::vector<float> step;
+};
+
+/// The tables for `mesh` (its positions are the rest lengths): its edges (meshEdges(); those of
+/// zero rest length are left out: they have no strain), the band [(1 - band) L, (1 + band) L],
+/// and `weights` (V values >= 0, 0 = fixed; empty = every vertex 1). Throws Error(kInternal) on
+/// a band outside [0, 1), iterations < 0, a relaxation outside (0, 2) or weights of another
+/// length or below 0.
+StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iterations,
+                                    double relaxation, const std::vector<float>& weights = {});
+
+/// Brings the edges of each frame into their band: `iterations` Jacobi iterations on each frame
+/// alone (see StrainLimitTables). Frame blocks are frame-major float32:
+///
+///   positions  F x 3V   vertex v of frame f, axis a at [f * 3V + 3v + a]
+///
+/// upload() once (again to replace the tables), then limit() many times; limit() before
+/// upload() throws Error(kInternal). The result of a frame does not depend on the other frames
+/// of the call, on the chunking or on the threads. Not thread-safe.
+class StrainLimitBackend {
+ public:
+  virtual ~StrainLimitBackend() = default;
+  /// "host" or the OpenCL device name.
+  virtual std::string name() const = 0;
+  /// Checks the tables (Error(kInternal) when they do not agree) and keeps them.
+  virtual void upload(const StrainLimitTables& tables) = 0;
+  /// The iterations on `frameCount` frames of `positions`, in place.
+  virtual void limit(int frameCount, float* positions) = 0;
+  /// The same on a DeviceArray (F x 3V floats): an OpenCL backend works on the array's device
+  /// memory and copies nothing back; this default works on the host copy.
+  virtual void limitBlock(int frameCount, DeviceArray& positions) {
+    limit(frameCount, positions.modify<float>());
+  }
+};
+
+/// The host reference (plain C++, double arithmetic, frames in parallel on `threads` host
+/// threads; 0 = one per hardware thread).
+std::unique_ptr<StrainLimitBackend> makeHostStrainLimit(int threads = 0);
+
+namespace strain_limit_checks {
+
+/// Throws Error(kInternal) unless the tables agree with each other (see StrainLimitTables).
+void checkTables(const StrainLimitTables& tables);
+/// Throws Error(kInternal) for limit() before upload() or with a negative frame count.
+void checkCall(bool uploaded, int frameCount);
+
+}  // namespace strain_limit_checks
+
+}  // namespace drivenshape

@@ -1,0 +1,328 @@
+// SPDX-License-Identifier: Apache-2.0
+// The strain limit's backends (src/devices/strain_limit.h: the tables, the host reference
+// src/devices/host/host_strain_limit.cpp and the OpenCL kernel kernels/strain_limit.cl with
+// src/devices/cl/cl_strain_limit.cpp): a stretched strip comes back into the band, edges inside
+// it are left alone, fixed vertices stay, threads and chunks change nothing, and OpenCL agrees
+// with the host on the sleeve sample.
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include <drivenshape/device.h>
+#include <drivenshape/device_cl.h>
+#include <drivenshape/error.h>
+#include <drivenshape/mesh.h>
+#include <drivenshape/point_cache.h>
+
+#include "device_array.h"
+#include "strain_limit.h"
+#include "test_support.h"
+
+namespace drivenshape {
+namespace {
+
+using testing::kStrainLimitDeviceVsHostRelTol;
+using testing::OpenClTest;
+
+/// A strip of `columns` x 1 unit quads in the xy plane (vertex (i, j) is i + j (columns + 1)):
+/// 3 columns + 1 edges, `columns` + 1 of them across.
+Mesh strip(int columns) {
+  Mesh mesh;
+  const int n = columns + 1;
+  mesh.positions.resize(2 * n, 3);
+  for (int j = 0; j < 2; ++j) {
+    for (int i = 0; i < n; ++i) {
+      mesh.positions.row(i + j * n) << float(i), float(j), 0.0f;
+    }
+  }
+  mesh.faceStart.push_back(0);
+  for (int i = 0; i < columns; ++i) {
+    for (const int v : {i, i + 1, i + 1 + n, i + n}) {
+      mesh.faceVertices.push_back(v);
+    }
+    mesh.faceStart.push_back(static_cast<int>(mesh.faceVertices.size()));
+    mesh.faceGroup.push_back(0);
+  }
+  mesh.groupNames = {"strip"};
+  mesh.triangulate();
+  return mesh;
+}
+
+/// The rest positions of `mesh` as one frame, x scaled by `stretch` (y, z kept).
+std::vector<float> stretched(const Mesh& mesh, float stretch) {
+  std::vector<float> frame(mesh.positions.data(), mesh.positions.data() + mesh.positions.size());
+  for (std::size_t i = 0; i < frame.size(); i += 3) {
+    frame[i] *= stretch;
+  }
+  return frame;
+}
+
+/// The largest |strain| of `frame` over the edges of `mesh` (rest: its positions).
+double largestStrain(const Mesh& mesh, const float* frame) {
+  double largest = 0.0;
+  for (const MeshEdge& e : meshEdges(mesh)) {
+    double rest = 0.0;
+    double now = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double r = double(mesh.positions(e[1], a)) - mesh.positions(e[0], a);
+      const double d = double(frame[3 * e[1] + a]) - frame[3 * e[0] + a];
+      rest += r * r;
+      now += d * d;
+    }
+    largest = std::max(largest, std::abs(std::sqrt(now / rest) - 1.0));
+  }
+  return largest;
+}
+
+/// The largest per-vertex distance between two blocks of frames.
+double largestDistance(const std::vector<float>& a, const std::vector<float>& b) {
+  double largest = 0.0;
+  for (std::size_t i = 0; i < a.size(); i += 3) {
+    const double dx = double(a[i]) - b[i];
+    const double dy = double(a[i + 1]) - b[i + 1];
+    const double dz = double(a[i + 2]) - b[i + 2];
+    largest = std::max(largest, std::sqrt(dx * dx + dy * dy + dz * dz));
+  }
+  return largest;
+}
+
+std::vector<float> limited(StrainLimitBackend& backend, const StrainLimitTables& tables,
+                           std::vector<float> frames) {
+  backend.upload(tables);
+  backend.limit(static_cast<int>(frames.size() / (3 * std::size_t(tables.vertexCount))),
+                frames.data());
+  return frames;
+}
+
+/// Every vertex of the rest mesh of the sleeve sample.
+Mesh sleeveRest() {
+  return readObj(testing::dataDir() + "/sleeve/driven_rest.obj");
+}
+
+/// `count` frames of the sleeve's simulated cloth, stretched 25% along x and 10% along z about
+/// the middle of each frame and shaken by a little noise: strain of every size, every sign.
+std::vector<float> stretchedSleeveFrames(int count) {
+  std::vector<int> frames;
+  for (int f = 1; f <= count; ++f) {
+    frames.push_back(f * 5);
+  }
+  std::vector<float> cloth =
+      readFrames(*openPointCache(testing::dataDir() + "/sleeve/test.driven.pc2"), frames);
+  std::mt19937 rng(testing::testSeed());
+  std::normal_distribution<float> noise(0.0f, 0.001f);
+  const std::size_t values = cloth.size() / frames.size();
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    float* frame = cloth.data() + f * values;
+    double middle[3] = {0.0, 0.0, 0.0};
+    for (std::size_t i = 0; i < values; ++i) {
+      middle[i % 3] += frame[i] / double(values / 3);
+    }
+    const double scale[3] = {1.25, 1.0, 1.1};
+    for (std::size_t i = 0; i < values; ++i) {
+      frame[i] = static_cast<float>(middle[i % 3] + scale[i % 3] * (frame[i] - middle[i % 3])) +
+                 noise(rng);
+    }
+  }
+  return cloth;
+}
+
+TEST(StrainLimitTables, HoldEveryEdgeTwiceWithItsBandAndShares) {
+  const Mesh mesh = strip(3);
+  const std::vector<float> weights = {0, 1, 1, 1, 1, 1, 1, 1};
+  const StrainLimitTables t = strainLimitTables(mesh, 0.1, 7, 1.5, weights);
+  EXPECT_EQ(t.vertexCount, 8);
+  EXPECT_EQ(t.iterations, 7);
+  ASSERT_EQ(t.start.size(), 9u);
+  EXPECT_EQ(t.other.size(), 2u * 10u);  // 3 columns: 10 edges
+  // Vertex 0: edges (0, 1) and (0, 4), in meshEdges() order; fixed, so its shares are 0.
+  EXPECT_EQ(t.start[0], 0);
+  EXPECT_EQ(t.start[1], 2);
+  EXPECT_EQ(t.other[0], 1);
+  EXPECT_EQ(t.other[1], 4);
+  EXPECT_EQ(t.share[0], 0.0f);
+  // Vertex 1: (0, 1), (1, 2), (1, 5); its share of the edge to the fixed vertex is all of it.
+  EXPECT_EQ(t.other[2], 0);
+  EXPECT_EQ(t.share[2], 1.0f);
+  EXPECT_EQ(t.share[3], 0.5f);
+  EXPECT_FLOAT_EQ(t.lower[3], 0.9f);
+  EXPECT_FLOAT_EQ(t.upper[3], 1.1f);
+  // Steps: the relaxation over the edges that can move the vertex (none for the fixed one).
+  ASSERT_EQ(t.step.size(), 8u);
+  EXPECT_EQ(t.step[0], 0.0f);
+  EXPECT_EQ(t.step[1], 0.5f);   // 1.5 / 3
+  EXPECT_EQ(t.step[4], 0.75f);  // vertex 4: (0, 4) and (4, 5), 1.5 / 2
+  testing::expectThrows([&] { strainLimitTables(mesh, 1.0, 7, 1.5); }, ErrorCode::kInternal,
+                        "band");
+  testing::expectThrows([&] { strainLimitTables(mesh, 0.1, 7, 2.0); }, ErrorCode::kInternal,
+                        "relaxation");
+  testing::expectThrows([&] { strainLimitTables(mesh, 0.1, 7, 1.5, {1.0f}); }, ErrorCode::kInternal,
+                        "weights");
+}
+
+TEST(HostStrainLimit, BringsAStripStretched30PercentBackIntoTheBand) {
+  const Mesh mesh = strip(8);
+  const std::vector<float> frame = stretched(mesh, 1.3f);
+  ASSERT_NEAR(largestStrain(mesh, frame.data()), 0.3, 1e-6);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit(1);
+  // A few iterations only start from the ends; enough of them reach the band everywhere.
+  const std::vector<float> few = limited(*host, strainLimitTables(mesh, 0.05, 5, 1.5), frame);
+  EXPECT_GT(largestStrain(mesh, few.data()), 0.1);
+  const std::vector<float> many = limited(*host, strainLimitTables(mesh, 0.05, 1000, 1.5), frame);
+  EXPECT_LE(largestStrain(mesh, many.data()), 0.05 + 1e-4);
+  // The strip stays a strip: straight across, in its plane.
+  for (std::size_t v = 0; v < many.size() / 3; ++v) {
+    EXPECT_NEAR(many[3 * v + 2], 0.0f, 1e-6f) << v;
+  }
+}
+
+TEST(HostStrainLimit, LeavesEdgesInsideTheBandBitwise) {
+  // Two strips in one mesh: one stretched 30%, one only 3% (inside a 5% band). The second's
+  // vertices never have an edge outside the band: they stay bitwise where they were.
+  const Mesh one = strip(6);
+  Mesh mesh = one;
+  const int n = one.vertexCount();
+  mesh.positions.conservativeResize(2 * n, 3);
+  mesh.positions.bottomRows(n) = one.positions;
+  mesh.positions.bottomRows(n).col(1).array() += 5.0f;
+  for (const int v : one.faceVertices) {
+    mesh.faceVertices.push_back(v + n);
+  }
+  for (int f = 1; f <= one.faceCount(); ++f) {
+    mesh.faceStart.push_back(mesh.faceStart.back() + 4);
+    mesh.faceGroup.push_back(0);
+  }
+  mesh.triangulate();
+  std::vector<float> frame = stretched(mesh, 1.3f);
+  const std::vector<float> gentle = stretched(mesh, 1.03f);
+  std::copy(gentle.begin() + 3 * n, gentle.end(), frame.begin() + 3 * n);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit(1);
+  const std::vector<float> out = limited(*host, strainLimitTables(mesh, 0.05, 50, 1.5), frame);
+  EXPECT_TRUE(std::equal(out.begin() + 3 * n, out.end(), frame.begin() + 3 * n));
+  EXPECT_FALSE(std::equal(out.begin(), out.begin() + 3 * n, frame.begin()));
+}
+
+TEST(HostStrainLimit, KeepsFixedVerticesWhereTheyAre) {
+  const Mesh mesh = strip(8);
+  const int n = 9;
+  std::vector<float> weights(2 * n, 1.0f);
+  weights[0] = weights[n] = 0.0f;  // the left end is pinned
+  const std::vector<float> frame = stretched(mesh, 1.3f);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit(1);
+  const std::vector<float> out =
+      limited(*host, strainLimitTables(mesh, 0.05, 1000, 1.5, weights), frame);
+  for (const int v : {0, n}) {
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(out[3 * v + a], frame[3 * v + a]) << "vertex " << v;
+    }
+  }
+  EXPECT_LE(largestStrain(mesh, out.data()), 0.05 + 1e-4);
+  // The free end came all the way in: the strip is 8 * 1.05 long at most.
+  EXPECT_LE(out[3 * (n - 1)], 8.0f * 1.05f + 1e-3f);
+}
+
+TEST(HostStrainLimit, TheSameOnAnyThreadsAndChunks) {
+  const Mesh mesh = sleeveRest();
+  const std::vector<float> frames = stretchedSleeveFrames(6);
+  const StrainLimitTables tables = strainLimitTables(mesh, 0.05, 20, 1.5);
+  std::unique_ptr<StrainLimitBackend> one = makeHostStrainLimit(1);
+  const std::vector<float> reference = limited(*one, tables, frames);
+  for (const int threads : {2, 3, 0}) {
+    std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit(threads);
+    EXPECT_EQ(limited(*host, tables, frames), reference) << threads << " threads";
+  }
+  // Frame by frame: every frame alone gives what the block gave.
+  const std::size_t values = 3 * std::size_t(mesh.vertexCount());
+  std::vector<float> single = frames;
+  for (std::size_t f = 0; f < 6; ++f) {
+    one->limit(1, single.data() + f * values);
+  }
+  EXPECT_EQ(single, reference);
+  EXPECT_LT(largestStrain(mesh, reference.data()), largestStrain(mesh, frames.data()));
+}
+
+TEST(HostStrainLimit, RefusesCallsBeforeUploadAndBadTables) {
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
+  float x[3] = {0, 0, 0};
+  testing::expectThrows([&] { host->limit(1, x); }, ErrorCode::kInternal, "before upload");
+  StrainLimitTables bad = strainLimitTables(strip(2), 0.05, 3, 1.5);
+  bad.other[0] = 99;
+  testing::expectThrows([&] { host->upload(bad); }, ErrorCode::kInternal, "inconsistent");
+}
+
+class ClStrainLimit : public OpenClTest {};
+
+TEST_F(ClStrainLimit, MatchesTheHostOnTheSleeveSample) {
+  const Mesh mesh = sleeveRest();
+  const std::vector<float> frames = stretchedSleeveFrames(8);
+  const double diagonal = boundsDiagonal(mesh);
+  std::unique_ptr<Device> clDevice = makeOpenClDevice(context(), device(), queue());
+  std::unique_ptr<StrainLimitBackend> cl = clDevice->makeStrainLimit(0);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
+  EXPECT_EQ(cl->name(), device().getInfo<CL_DEVICE_NAME>());
+  for (const int iterations : {1, 10, 100}) {
+    const StrainLimitTables tables = strainLimitTables(mesh, 0.03, iterations, 1.5);
+    const std::vector<float> onHost = limited(*host, tables, frames);
+    const std::vector<float> onCl = limited(*cl, tables, frames);
+    const double largest = largestDistance(onCl, onHost);
+    std::printf("  %3d iterations: OpenCL vs host %.3g of the diagonal\n", iterations,
+                largest / diagonal);
+    EXPECT_LE(largest, kStrainLimitDeviceVsHostRelTol * diagonal) << iterations;
+    EXPECT_GT(largestDistance(onHost, frames), 100 * kStrainLimitDeviceVsHostRelTol * diagonal);
+
+    // On a block that lives on the device: the same as through host memory, bitwise; and
+    // frame by frame the same as the whole block.
+    DeviceArray block = clDevice->makeArray();
+    block.resize<float>(frames.size());
+    std::copy(frames.begin(), frames.end(), block.write<float>());
+    cl->limitBlock(8, block);
+    const float* blockOut = block.read<float>();
+    EXPECT_TRUE(std::equal(onCl.begin(), onCl.end(), blockOut)) << iterations;
+    std::vector<float> single = frames;
+    const std::size_t values = 3 * std::size_t(mesh.vertexCount());
+    for (std::size_t f = 0; f < 8; ++f) {
+      cl->limit(1, single.data() + f * values);
+    }
+    EXPECT_EQ(single, onCl) << iterations;
+  }
+}
+
+TEST_F(ClStrainLimit, MatchesTheHostOnTheStripAndKeepsFixedVertices) {
+  const Mesh mesh = strip(8);
+  std::vector<float> weights(18, 1.0f);
+  weights[0] = weights[9] = 0.0f;
+  const std::vector<float> frame = stretched(mesh, 1.3f);
+  const StrainLimitTables tables = strainLimitTables(mesh, 0.05, 1000, 1.5, weights);
+  std::unique_ptr<Device> clDevice = makeOpenClDevice(context(), device(), queue());
+  std::unique_ptr<StrainLimitBackend> cl = clDevice->makeStrainLimit(0);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
+  const std::vector<float> onCl = limited(*cl, tables, frame);
+  EXPECT_LE(largestDistance(onCl, limited(*host, tables, frame)),
+            kStrainLimitDeviceVsHostRelTol * boundsDiagonal(mesh));
+  EXPECT_LE(largestStrain(mesh, onCl.data()), 0.05 + 1e-4);
+  for (const int v : {0, 9}) {
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(onCl[3 * v + a], frame[3 * v + a]) << "vertex " << v;
+    }
+  }
+  // Inside the band: bitwise untouched on the device too.
+  const std::vector<float> gentle = stretched(mesh, 1.03f);
+  EXPECT_EQ(limited(*cl, tables, gentle), gentle);
+}
+
+TEST_F(ClStrainLimit, RefusesCallsBeforeUpload) {
+  std::unique_ptr<Device> clDevice = makeOpenClDevice(context(), device(), queue());
+  std::unique_ptr<StrainLimitBackend> cl = clDevice->makeStrainLimit(0);
+  float x[3] = {0, 0, 0};
+  testing::expectThrows([&] { cl->limit(1, x); }, ErrorCode::kInternal, "before upload");
+}
+
+}  // namespace
+}  // namespace drivenshape
