@@ -19,7 +19,8 @@ namespace drivenshape {
 namespace {
 
 /// Bone parents (by name, "" for a root) from the rig's optional bones list; `fail` refuses a
-/// malformed entry, a bone that is its own parent and a parent that is not one of `names`.
+/// malformed entry, a bone that is its own parent and a parent that is neither one of `names`
+/// nor a bone of the list (a bone that deforms nothing, such as a root, has no weights).
 std::map<std::string, std::string> boneParents(
     const nlohmann::json& rig, const std::vector<std::string>& names,
     const std::function<void(const std::string&)>& fail) {
@@ -30,10 +31,14 @@ std::map<std::string, std::string> boneParents(
   if (!rig.at("bones").is_array()) {
     fail("bones is not an array");
   }
+  std::vector<std::string> known = names;
   for (const nlohmann::json& b : rig.at("bones")) {
     if (!b.is_object() || !b.contains("name") || !b.at("name").is_string()) {
       fail("a bone has no name");
     }
+    known.push_back(b.at("name").get<std::string>());
+  }
+  for (const nlohmann::json& b : rig.at("bones")) {
     const std::string name = b.at("name").get<std::string>();
     const nlohmann::json parent = b.value("parent", nlohmann::json());
     if (!parent.is_null() && !parent.is_string()) {
@@ -43,8 +48,9 @@ std::map<std::string, std::string> boneParents(
     if (parentText == name) {
       fail("bone '" + name + "' is its own parent");
     }
-    if (!parentText.empty() && std::find(names.begin(), names.end(), parentText) == names.end()) {
-      fail("the parent '" + parentText + "' of bone '" + name + "' is not in bone_names");
+    if (!parentText.empty() && std::find(known.begin(), known.end(), parentText) == known.end()) {
+      fail("the parent '" + parentText + "' of bone '" + name +
+           "' is neither in bone_names nor a bone of bones");
     }
     parentName[name] = parentText;
   }

@@ -766,6 +766,12 @@ TEST(CliSafety, RigFilesWithBadParentsOrNoWeightAreInputErrors) {
   EXPECT_FALSE(fs::exists(dir.file("x.dsdb")));
   const CliRun good = rig(bones + R"("root"}])", "[1, 0]");
   EXPECT_EQ(good.code, 0) << good.err;
+  // A parent that deforms nothing (no column of weights), as the clip generator's `root`.
+  const CliRun unweighted =
+      rig(R"([{"name": "world", "parent": null}, {"name": "root", "parent": "world"}, )"
+          R"({"name": "arm", "parent": "root"}])",
+          "[1, 0]");
+  EXPECT_EQ(unweighted.code, 0) << unweighted.err;
 }
 
 // `eval --report` took `"database": null` for a report; `farm --time 99:99:99` was accepted.
