@@ -65,22 +65,32 @@ std::string sample(const std::string& name) {
   return dataDir() + "/sleeve/" + name;
 }
 
+std::vector<std::string> sampleDbBuild(const std::vector<std::string>& extra) {
+  std::vector<std::string> args{"db",
+                                "build",
+                                "--driver-mesh",
+                                sample("driver_rest.obj"),
+                                "--driven-mesh",
+                                sample("driven_rest.obj"),
+                                "--driver",
+                                sample("train.driver.pc2"),
+                                "--driven",
+                                sample("train.driven.pc2")};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return args;
+}
+
 std::string buildDb(const TempDir& dir) {
   const std::string db = dir.file("sleeve.dsdb");
-  const CliRun r = runCli(
-      dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-            sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-            sample("train.driven.pc2"), "--count", "5", "--model", "none", "--quiet", "-o", db});
+  const CliRun r =
+      runCli(dir, sampleDbBuild({"--count", "5", "--model", "none", "--quiet", "-o", db}));
   EXPECT_EQ(r.code, 0) << r.err;
   return db;
 }
 
 std::string buildPoseDb(const TempDir& dir, const std::string& name) {
   const std::string db = dir.file(name);
-  const CliRun r =
-      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-                   sample("train.driven.pc2"), "--count", "5", "--quiet", "-o", db});
+  const CliRun r = runCli(dir, sampleDbBuild({"--count", "5", "--quiet", "-o", db}));
   EXPECT_EQ(r.code, 0) << r.err;
   return db;
 }

@@ -35,6 +35,9 @@ CliRun runCliStopped(const TempDir& dir, const std::vector<std::string>& args, d
 /// Path of `name` in the bundled sleeve sample (tests/data/sleeve).
 std::string sample(const std::string& name);
 
+/// `db build` of the sample's train clip (rest meshes, driver and driven caches), then `extra`.
+std::vector<std::string> sampleDbBuild(const std::vector<std::string>& extra = {});
+
 /// Builds a small database of the sample (5 shapes) in `dir` with the CLI; returns its path.
 std::string buildDb(const TempDir& dir);
 /// The same with `db build`'s defaults otherwise (the pose model), as `name` in `dir`.

@@ -42,6 +42,7 @@ using testing::CliRun;
 using testing::expectError;
 using testing::runCli;
 using testing::sample;
+using testing::sampleDbBuild;
 using testing::slurp;
 using testing::TempDir;
 
@@ -161,19 +162,7 @@ TEST(CliSafety, DbBuildOutputsNeverReplaceAClip) {
   fs::copy_file(sample("test.driven.pc2"), also);
   const std::string alsoBytes = slurp(also);
   fs::create_symlink(also, dir.file("also-link.pc2"));
-  const std::vector<std::string> build = {"db",
-                                          "build",
-                                          "--driver-mesh",
-                                          sample("driver_rest.obj"),
-                                          "--driven-mesh",
-                                          sample("driven_rest.obj"),
-                                          "--driver",
-                                          sample("train.driver.pc2"),
-                                          "--driven",
-                                          sample("train.driven.pc2"),
-                                          "--count",
-                                          "3",
-                                          "--quiet"};
+  const std::vector<std::string> build = sampleDbBuild({"--count", "3", "--quiet"});
   expectRefused(
       dir,
       with(build, {"--also", sample("test.driver.pc2"), dir.file("also-link.pc2"), "-o", also}),
@@ -666,10 +655,8 @@ TEST(CliSafety, HugeFiniteValuesAreUsageOrInputErrors) {
   expectError(runCli(dir, with(bake, {"--force"})), 3, "huge.pc2' frame 1 vertex");
   const std::string hugeClip = scaledPc2(sample("test.driven.pc2"), dir.file("clip.pc2"), 1e30f);
   expectError(
-      runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                   sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"), "--driven",
-                   sample("train.driven.pc2"), "--count", "3", "--quiet", "--also",
-                   sample("test.driver.pc2"), hugeClip, "-o", dir.file("x.dsdb")}),
+      runCli(dir, sampleDbBuild({"--count", "3", "--quiet", "--also", sample("test.driver.pc2"),
+                                 hugeClip, "-o", dir.file("x.dsdb")})),
       3, "clip.pc2");
   EXPECT_FALSE(fs::exists(dir.file("o.0001.exr")));
   EXPECT_FALSE(fs::exists(dir.file("x.dsdb")));
@@ -679,21 +666,8 @@ TEST(CliSafety, HugeFiniteValuesAreUsageOrInputErrors) {
 // main clip's too, are measured against the rest meshes (median edge length).
 TEST(CliSafety, DbBuildRefusesAClipInOtherUnits) {
   TempDir dir;
-  const std::vector<std::string> build{"db",
-                                       "build",
-                                       "--driver-mesh",
-                                       sample("driver_rest.obj"),
-                                       "--driven-mesh",
-                                       sample("driven_rest.obj"),
-                                       "--driver",
-                                       sample("train.driver.pc2"),
-                                       "--driven",
-                                       sample("train.driven.pc2"),
-                                       "--count",
-                                       "3",
-                                       "--quiet",
-                                       "-o",
-                                       dir.file("x.dsdb")};
+  const std::vector<std::string> build =
+      sampleDbBuild({"--count", "3", "--quiet", "-o", dir.file("x.dsdb")});
   const std::string driverCm = scaledPc2(sample("test.driver.pc2"), dir.file("cm.pc2"), 100.0f);
   const std::string drivenCm = scaledPc2(sample("test.driven.pc2"), dir.file("cmd.pc2"), 100.0f);
   expectError(runCli(dir, with(build, {"--also", driverCm, drivenCm})), 3,
@@ -753,10 +727,8 @@ TEST(CliSafety, RigFilesWithBadParentsOrNoWeightAreInputErrors) {
       text += v % 2 == 0 ? "[1, 0]," : "[0.2, 0.8],";
     }
     writeText(dir.file("rig.json"), text + lastRow + "]}");
-    return runCli(dir, {"db", "build", "--driver-mesh", sample("driver_rest.obj"), "--driven-mesh",
-                        sample("driven_rest.obj"), "--driver", sample("train.driver.pc2"),
-                        "--driven", sample("train.driven.pc2"), "--count", "3", "--quiet", "--rig",
-                        dir.file("rig.json"), "-o", dir.file("x.dsdb")});
+    return runCli(dir, sampleDbBuild({"--count", "3", "--quiet", "--rig", dir.file("rig.json"),
+                                      "-o", dir.file("x.dsdb")}));
   };
   const std::string bones = R"([{"name": "root", "parent": null}, {"name": "arm", "parent": )";
   expectError(rig(bones + R"("arm"}])", "[1, 0]"), 3, "bone 'arm' is its own parent");

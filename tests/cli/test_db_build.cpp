@@ -20,23 +20,13 @@ using testing::expectError;
 using testing::filesIn;
 using testing::runCli;
 using testing::sample;
+using testing::sampleDbBuild;
 using testing::slurp;
 using testing::TempDir;
 
 /// db build of the sample's train clip with `extra` words.
 CliRun build(const TempDir& dir, const std::vector<std::string>& extra) {
-  std::vector<std::string> args = {"db",
-                                   "build",
-                                   "--driver-mesh",
-                                   sample("driver_rest.obj"),
-                                   "--driven-mesh",
-                                   sample("driven_rest.obj"),
-                                   "--driver",
-                                   sample("train.driver.pc2"),
-                                   "--driven",
-                                   sample("train.driven.pc2")};
-  args.insert(args.end(), extra.begin(), extra.end());
-  return runCli(dir, args);
+  return runCli(dir, sampleDbBuild(extra));
 }
 
 /// The frame numbers of the suggestion lines on stdout ("  1  frame     34  ...").
