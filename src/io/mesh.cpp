@@ -186,7 +186,7 @@ std::vector<MeshEdge> meshEdges(const Mesh& mesh) {
   return edges;
 }
 
-double medianEdgeScale(const Mesh& mesh, const float* xyz) {
+std::vector<double> edgeLengthRatios(const Mesh& mesh, const float* xyz) {
   const auto length = [](const float* p, int a, int b) {
     const double dx = p[3 * a] - p[3 * b], dy = p[3 * a + 1] - p[3 * b + 1],
                  dz = p[3 * a + 2] - p[3 * b + 2];
@@ -199,6 +199,11 @@ double medianEdgeScale(const Mesh& mesh, const float* xyz) {
       ratios.push_back(length(xyz, a, b) / rest);
     }
   }
+  return ratios;
+}
+
+double medianEdgeScale(const Mesh& mesh, const float* xyz) {
+  std::vector<double> ratios = edgeLengthRatios(mesh, xyz);
   if (ratios.empty()) {
     return 0.0;
   }

@@ -15,12 +15,6 @@
 namespace drivenshape {
 namespace {
 
-double length(const float* xyz, int a, int b) {
-  const double dx = xyz[3 * a] - xyz[3 * b], dy = xyz[3 * a + 1] - xyz[3 * b + 1],
-               dz = xyz[3 * a + 2] - xyz[3 * b + 2];
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
-}
-
 /// "centimetres against metres" for a scale near 100, and so on; empty when no unit fits.
 std::string likelyUnits(double scale) {
   struct Units {
@@ -56,14 +50,7 @@ std::string figure(double value) {
 }  // namespace
 
 DriverMeasure measureDriver(const Database& database, const float* frame, int frameNumber) {
-  const Mesh& rest = database.driverMesh;
-  std::vector<double> ratios;
-  for (const auto& [a, b] : meshEdges(rest)) {
-    const double before = length(rest.positions.data(), a, b);
-    if (before > 0.0) {
-      ratios.push_back(length(frame, a, b) / before);
-    }
-  }
+  const std::vector<double> ratios = edgeLengthRatios(database.driverMesh, frame);
   DriverMeasure measure;
   measure.frame = frameNumber;
   if (ratios.empty()) {

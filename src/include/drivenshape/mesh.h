@@ -63,9 +63,13 @@ using MeshEdge = std::array<int, 2>;
 /// (`f 1 1 2`) is no edge. Linear in the corners, plus a sort.
 std::vector<MeshEdge> meshEdges(const Mesh& mesh);
 
-/// How much larger positions `xyz` (3V floats, the mesh's vertex order) are than the mesh's
-/// rest positions: the median over its edges of |edge| / |rest edge| (edges of zero rest
-/// length left out); 0 when no edge has a length. About 1 for an animation of the same
+/// |edge| / |rest edge| for every edge of meshEdges with a rest length, in their order: how
+/// much each edge of positions `xyz` (3V floats, the mesh's vertex order) is longer than at
+/// rest.
+std::vector<double> edgeLengthRatios(const Mesh& mesh, const float* xyz);
+
+/// How much larger positions `xyz` are than the mesh's rest positions: the median of
+/// edgeLengthRatios; 0 when no edge has a length. About 1 for an animation of the same
 /// character in the same units, 100 for one in centimetres against a rest mesh in metres.
 double medianEdgeScale(const Mesh& mesh, const float* xyz);
 
