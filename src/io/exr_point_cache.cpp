@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
+#include <utility>
 
 #include <drivenshape/error.h>
 #include <drivenshape/version.h>
@@ -396,7 +397,7 @@ std::uint32_t decodedPixelsCrc(Imf::InputFile& file) {
 }  // namespace
 
 std::string reuseProblem(const std::string& path, int vertexCount, std::uint64_t topology,
-                         std::uint64_t settings, int frame) {
+                         std::uint64_t settings, int frame, ExrPointCacheInfo* header) {
   if (!isCompleteExr(path)) {
     return "is incomplete: scan lines are missing or cut short";
   }
@@ -425,6 +426,9 @@ std::string reuseProblem(const std::string& path, int vertexCount, std::uint64_t
   } else if (crc != info.pixelsCrc) {
     problem << "does not match its pixel checksum (" << crcText(crc) << " decoded, "
             << crcText(info.pixelsCrc) << " written): it was damaged after it was written";
+  }
+  if (header != nullptr && problem.str().empty()) {
+    *header = std::move(info);
   }
   return problem.str();
 }

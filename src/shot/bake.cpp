@@ -112,15 +112,15 @@ struct RecordSettings {
 /// leaves out: it changes no cloth). Returns "" when kept, else why not.
 std::string keepExisting(FrameRecord& record, int vd, std::uint64_t topology,
                          const RecordSettings& settings) {
+  ExrPointCacheInfo info;
   const std::string problem =
-      reuseProblem(record.output, vd, topology, settings.settingsHash, record.frame);
+      reuseProblem(record.output, vd, topology, settings.settingsHash, record.frame, &info);
   if (!problem.empty()) {
     return problem;
   }
   const std::string where = record.output + " " + kAttrFrameRecord;
   FrameRecord kept;
   try {
-    const ExrPointCacheInfo info = readPointCacheExrInfo(record.output);
     const auto found = info.stringAttributes.find(kAttrFrameRecord);
     if (found == info.stringAttributes.end()) {
       return std::string("carries no frame record (") + kAttrFrameRecord + ")";

@@ -225,7 +225,9 @@ bool isCompleteExr(const std::string& path);
 /// (a resumed bake, `--skip-existing`). The file must decode completely (every pixel, not only
 /// the header), match the vertex count, both hashes and the frame number, and its positions
 /// must match the CRC written with them, which finds a changed byte that still decodes.
+/// When it can and `header` is not null, *header receives the file's header (its string
+/// attributes: the frame record a bake stores), read by the same open.
 std::string reuseProblem(const std::string& path, int vertexCount, std::uint64_t topology,
-                         std::uint64_t settings, int frame);
+                         std::uint64_t settings, int frame, ExrPointCacheInfo* header = nullptr);
 
 }  // namespace drivenshape
