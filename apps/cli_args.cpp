@@ -344,4 +344,10 @@ void readSettings(const ArgParser& parser, DatabaseBuildOptions& options) {
   });
 }
 
+void readSettings(const ArgParser& parser, SimulationOptions& options) {
+  readGiven(parser, [&](const Setting& setting, const SettingValue& value) {
+    setSetting(setting, options, value);
+  });
+}
+
 }  // namespace drivenshape::cli

@@ -33,7 +33,7 @@ class ArgParser {
   /// value names, help and defaults come from the table; readSettings() reads them.
   ArgParser& settings(std::initializer_list<const char*> keys = {});
   /// The same for every setting of `scope` that the command line takes: the layers'
-  /// (SettingScope::kLayer) or `db build`'s (kBuild).
+  /// (SettingScope::kLayer), `db build`'s (kBuild) or `simulate`'s (kSimulate).
   ArgParser& settings(SettingScope scope);
   /// Extra text printed after the options in --help.
   ArgParser& epilog(const std::string& text);
@@ -85,9 +85,11 @@ class ArgParser {
 void readSettings(const ArgParser& parser, BakeOptions& options);
 /// The same for commands that take evaluator settings only.
 void readSettings(const ArgParser& parser, EvaluatorSettings& settings);
-/// The same for the layers' settings (SettingScope::kLayer) and `db build`'s (kBuild).
+/// The same for the layers' settings (SettingScope::kLayer), `db build`'s (kBuild) and
+/// `simulate`'s (kSimulate).
 void readSettings(const ArgParser& parser, LayerOptions& options);
 void readSettings(const ArgParser& parser, DatabaseBuildOptions& options);
+void readSettings(const ArgParser& parser, SimulationOptions& options);
 
 /// `path` made absolute and normalised, for messages and summaries (unchanged if that fails).
 std::string absolute(const std::string& path);

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 // drivenshape_settings_doc: writes the settings table (drivenshape/settings_table.h) into
 // docs/commands.md between its marker lines (the evaluator's and bake's settings, the layer
-// options, db build's settings: one pair of lines each), or checks that the file holds it
-// (CTest settings_doc: a stale table fails CI). --json prints the table for the scripts that
-// generate the Blender add-on's settings and the report schema's (scripts/
+// options, db build's settings, simulate's settings: one pair of lines each), or checks that the
+// file holds it (CTest settings_doc: a stale table fails CI). --json prints the table for the
+// scripts that generate the Blender add-on's settings and the report schema's (scripts/
 // generate_from_settings.py).
 //
 //   drivenshape_settings_doc docs/commands.md --write        (after changing a setting)
@@ -39,6 +39,10 @@ std::string buildTable() {
   return ds::settingsTableMarkdown(ds::SettingScope::kBuild);
 }
 
+std::string simulateTable() {
+  return ds::settingsTableMarkdown(ds::SettingScope::kSimulate);
+}
+
 const Table kTables[] = {
     {"<!-- settings table: generated from src/pipeline/settings_table.cpp by "
      "drivenshape_settings_doc; do not edit by hand -->",
@@ -48,7 +52,10 @@ const Table kTables[] = {
      "<!-- end of the layer options -->", &layerTable},
     {"<!-- db build settings: generated from src/pipeline/settings_table.cpp by "
      "drivenshape_settings_doc; do not edit by hand -->",
-     "<!-- end of the db build settings -->", &buildTable}};
+     "<!-- end of the db build settings -->", &buildTable},
+    {"<!-- simulate settings: generated from src/pipeline/settings_table.cpp by "
+     "drivenshape_settings_doc; do not edit by hand -->",
+     "<!-- end of the simulate settings -->", &simulateTable}};
 
 std::string readText(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -52,6 +52,7 @@ PUBLIC_ROOMS = {
     "shot_plan.h": "shot",
     "evaluate.h": "shot",
     "coverage_check.h": "shot",
+    "simulation.h": "shot",
     "position_map_sequence.h": "shot",
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]')

@@ -229,8 +229,8 @@ class Row {
     mRow.hashAfterVersion = fn;
     return *this;
   }
-  /// The value is the member `Member` of EvaluatorSettings, BakeOptions, LayerOptions or
-  /// DatabaseBuildOptions.
+  /// The value is the member `Member` of EvaluatorSettings, BakeOptions, LayerOptions,
+  /// DatabaseBuildOptions or SimulationOptions.
   template <auto Member>
   Row& field() {
     return access<ClassOf<Member>>(&getField<Member>, &setField<Member>);
@@ -254,7 +254,7 @@ class Row {
     return access<ClassOf<Member>>(&getChoice<Member, Name>, &setChoice<Member, Name, Count>);
   }
   /// The value through `get` and `set` (nullptr: read-only) of EvaluatorSettings, BakeOptions,
-  /// LayerOptions or DatabaseBuildOptions.
+  /// LayerOptions, DatabaseBuildOptions or SimulationOptions.
   template <typename Class>
   Row& access(SettingValue (*get)(const Class&), void (*set)(Class&, const SettingValue&)) {
     if constexpr (std::is_same_v<Class, EvaluatorSettings>) {
@@ -266,10 +266,13 @@ class Row {
     } else if constexpr (std::is_same_v<Class, LayerOptions>) {
       mRow.setting.getLayer = get;
       mRow.setting.setLayer = set;
-    } else {
-      static_assert(std::is_same_v<Class, DatabaseBuildOptions>);
+    } else if constexpr (std::is_same_v<Class, DatabaseBuildOptions>) {
       mRow.setting.getBuild = get;
       mRow.setting.setBuild = set;
+    } else {
+      static_assert(std::is_same_v<Class, SimulationOptions>);
+      mRow.setting.getSimulate = get;
+      mRow.setting.setSimulate = set;
     }
     return *this;
   }
@@ -1019,6 +1022,70 @@ void poseModelRows(std::vector<SettingRow>& rows) {
           "frame whose bound is over it)");
 }
 
+/// `simulate`'s settings (SimulationOptions): the plan of the windows simulated after a bake
+/// (drivenshape/simulation.h) and their splice into the baked frames. The add-on's "simulate"
+/// panel shows them under properties of their own names (simulate_*), beside the bake's.
+void simulateRows(std::vector<SettingRow>& rows) {
+  using O = SimulationOptions;
+  const SettingScope simulate = SettingScope::kSimulate;
+  Row(rows, "warmup", "simulation warm-up", SettingType::kInt, simulate)
+      .flag("--warmup", "N")
+      .field<&O::warmup>()
+      .range(0, 10000, "frames", "start at the first flagged frame")
+      .help(
+          "frames each window simulates before its first flagged frame (never before the "
+          "shot's first frame), from the bake's cloth there, so that the cloth settles")
+      .addon("simulate", "Warm-up")
+      .addonProperty("simulate_warmup")
+      .addonSlider(60);
+  Row(rows, "merge_gap", "merge gap", SettingType::kInt, simulate)
+      .flag("--merge-gap", "N")
+      .field<&O::mergeGap>()
+      .range(0, 10000, "frames", "only consecutive flagged frames")
+      .help(
+          "flagged frames at most this many unflagged frames apart are one window, the frames "
+          "between handed back too (cheaper than another warm-up and two more seams)")
+      .addon("simulate")
+      .addonProperty("simulate_merge_gap")
+      .addonSlider(30);
+  Row(rows, "goal_strength", "goal strength", SettingType::kNumber, simulate)
+      .flag("--goal-strength", "S")
+      .field<&O::goalStrength>()
+      .range(0, 1, "", "a free simulation")
+      .help("how strongly the simulation is pulled towards the bake (the cloth's pin goal)")
+      .addon("simulate")
+      .addonProperty("simulate_goal_strength")
+      .addonSlider(kNoLimit, 2, 1);
+  Row(rows, "seam", "seam", SettingType::kInt, simulate)
+      .flag("--seam", "N")
+      .field<&O::seam>()
+      .range(0, 1000, "frames", "a hard cut")
+      .help(
+          "frames before a window's first handed-back frame that cross-fade from the bake to "
+          "the simulation (within the warm-up)")
+      .addon("simulate")
+      .addonProperty("simulate_seam")
+      .addonSlider(20);
+  Row(rows, "carry", "carry", SettingType::kInt, simulate)
+      .flag("--carry", "N")
+      .field<&O::carry>()
+      .range(0, 10000, "frames", "a hard cut")
+      .help(
+          "frames after a window over which its last frame's residual (simulated - baked) is "
+          "carried onto the bake, fading to 0 (the cloth's state persists)")
+      .addon("simulate")
+      .addonProperty("simulate_carry")
+      .addonSlider(30);
+  Row(rows, "from_start", "simulate from the start", SettingType::kBool, simulate)
+      .flag("--from-start")
+      .field<&O::fromStart>()
+      .help(
+          "one window from the shot's first frame to its last flagged frame, for cloth whose "
+          "warm-started windows do not settle within a warm-up")
+      .addon("simulate", "From Start")
+      .addonProperty("simulate_from_start");
+}
+
 std::vector<SettingRow> makeRows() {
   std::vector<SettingRow> rows;
   weightAndAlignmentRows(rows);
@@ -1029,6 +1096,7 @@ std::vector<SettingRow> makeRows() {
   windRows(rows);
   buildRows(rows);
   poseModelRows(rows);
+  simulateRows(rows);
   return rows;
 }
 
@@ -1129,6 +1197,8 @@ const char* scopeName(SettingScope scope) {
       return "layer";
     case SettingScope::kBuild:
       return "build";
+    case SettingScope::kSimulate:
+      return "simulate";
   }
   return "?";
 }
@@ -1284,6 +1354,10 @@ bool hasBuildValue(const Setting& setting) {
   return setting.getBuild != nullptr;
 }
 
+bool hasSimulateValue(const Setting& setting) {
+  return setting.getSimulate != nullptr;
+}
+
 std::vector<const Setting*> settingsOfScope(SettingScope scope) {
   std::vector<const Setting*> settings;
   for (const Setting& setting : settingsTable()) {
@@ -1325,11 +1399,22 @@ SettingValue settingValue(const Setting& setting, const DatabaseBuildOptions& op
   return setting.getBuild(options);
 }
 
+SettingValue settingValue(const Setting& setting, const SimulationOptions& options) {
+  if (!hasSimulateValue(setting)) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " has no value in SimulationOptions");
+  }
+  return setting.getSimulate(options);
+}
+
 SettingValue defaultSettingValue(const Setting& setting) {
   static const BakeOptions defaults;
   static const DatabaseBuildOptions buildDefaults;
+  static const SimulationOptions simulateDefaults;
   if (hasBuildValue(setting)) {
     return setting.getBuild(buildDefaults);
+  }
+  if (hasSimulateValue(setting)) {
+    return setting.getSimulate(simulateDefaults);
   }
   if (!hasBakeValue(setting)) {
     return std::string();  // an object no tool has loaded
@@ -1385,6 +1470,13 @@ void setSetting(const Setting& setting, DatabaseBuildOptions& options, const Set
   setting.setBuild(options, checkedValue(setting, value));
 }
 
+void setSetting(const Setting& setting, SimulationOptions& options, const SettingValue& value) {
+  if (setting.setSimulate == nullptr) {
+    DS_THROW(kUsage, "the ", settingNames(setting), " cannot be set in SimulationOptions");
+  }
+  setting.setSimulate(options, checkedValue(setting, value));
+}
+
 void checkSettingValue(const Setting& setting, const SettingValue& value) {
   static constexpr std::size_t kIndex[] = {0, 1, 2, 3, 3, 3};  // variant index of each type
   const std::string names = settingNames(setting);
@@ -1423,6 +1515,12 @@ void checkBakeSettings(const BakeOptions& options) {
     if (setting.scope == SettingScope::kBake) {
       checkSettingValue(setting, settingValue(setting, options));
     }
+  }
+}
+
+void checkSimulationSettings(const SimulationOptions& options) {
+  for (const Setting* setting : settingsOfScope(SettingScope::kSimulate)) {
+    checkSettingValue(*setting, settingValue(*setting, options));
   }
 }
 
@@ -1591,7 +1689,8 @@ nlohmann::json addonJson(const pipeline::AddonView& view) {
 
 nlohmann::json rowJson(const pipeline::SettingRow& row) {
   const Setting& s = row.setting;
-  const bool valued = hasBakeValue(s) || hasEvaluatorValue(s) || hasBuildValue(s);
+  const bool valued =
+      hasBakeValue(s) || hasEvaluatorValue(s) || hasBuildValue(s) || hasSimulateValue(s);
   nlohmann::json words = nlohmann::json::array();
   for (const auto& [word, value] : s.words) {
     words.push_back({{"word", word}, {"value", value}});
@@ -1678,7 +1777,8 @@ std::string markdownFlag(const Setting& s) {
 
 /// "`0.15`", or "none".
 std::string markdownDefault(const Setting& s) {
-  const bool valued = hasBakeValue(s) || hasEvaluatorValue(s) || hasBuildValue(s);
+  const bool valued =
+      hasBakeValue(s) || hasEvaluatorValue(s) || hasBuildValue(s) || hasSimulateValue(s);
   const std::string text = valued ? formatSettingValue(s, defaultSettingValue(s)) : "";
   return text.empty() ? "none" : "`" + text + "`";
 }
@@ -1709,7 +1809,9 @@ std::string settingsTableMarkdown() {
 }
 
 std::string settingsTableMarkdown(SettingScope scope) {
-  const char* python = scope == SettingScope::kBuild ? "build_database" : "load_layers";
+  const char* python = scope == SettingScope::kBuild      ? "build_database"
+                       : scope == SettingScope::kSimulate ? "plan_simulation"
+                                                          : "load_layers";
   std::string table =
       std::string("| setting (Python: ") + python +
       ") | command line | default | range | what it does |\n|---|---|---|---|---|\n";

@@ -213,26 +213,41 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
   return check;
 }
 
-std::vector<SimulationRun> simulationRuns(const std::vector<int>& flagged, int first, int runUp) {
-  std::vector<SimulationRun> runs;
+std::vector<SimulationWindow> simulationWindows(const std::vector<int>& flagged, int first,
+                                                int warmup, int mergeGap) {
+  if (warmup < 0 || mergeGap < 0) {
+    DS_THROW(kInternal, "simulation windows with a warm-up of ", warmup, " and a merge gap of ",
+             mergeGap, " frames");
+  }
+  std::vector<SimulationWindow> windows;
   for (std::size_t i = 0; i < flagged.size();) {
-    std::size_t j = i;  // [i, j]: consecutive frame numbers
-    while (j + 1 < flagged.size() && flagged[j + 1] == flagged[j] + 1) {
+    std::size_t j = i;  // [i, j]: flagged frames at most mergeGap unflagged frames apart
+    while (j + 1 < flagged.size() && flagged[j + 1] > flagged[j] &&
+           static_cast<long long>(flagged[j + 1]) - flagged[j] - 1 <= mergeGap) {
       ++j;
     }
     if (j + 1 < flagged.size() && flagged[j + 1] <= flagged[j]) {
-      DS_THROW(kInternal, "simulation runs of frames that are not ascending and distinct (",
+      DS_THROW(kInternal, "simulation windows of frames that are not ascending and distinct (",
                flagged[j], " then ", flagged[j + 1], ")");
     }
-    const int from = std::max(first, flagged[i] - runUp);
+    const int warmupFrom =
+        static_cast<int>(std::max<long long>(first, static_cast<long long>(flagged[i]) - warmup));
     const int wanted = static_cast<int>(j - i + 1);
-    if (!runs.empty() && from <= runs.back().to + 1) {
-      runs.back().to = flagged[j];
-      runs.back().wanted += wanted;
+    if (!windows.empty() && warmupFrom <= static_cast<long long>(windows.back().to) + 1) {
+      windows.back().to = flagged[j];
+      windows.back().wanted += wanted;
     } else {
-      runs.push_back({from, flagged[j], wanted});
+      windows.push_back({warmupFrom, flagged[i], flagged[j], wanted});
     }
     i = j + 1;
+  }
+  return windows;
+}
+
+std::vector<SimulationRun> simulationRuns(const std::vector<int>& flagged, int first, int runUp) {
+  std::vector<SimulationRun> runs;
+  for (const SimulationWindow& window : simulationWindows(flagged, first, runUp, 0)) {
+    runs.push_back({window.warmupFrom, window.to, window.wanted});
   }
   return runs;
 }

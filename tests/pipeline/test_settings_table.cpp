@@ -36,8 +36,9 @@ TEST(SettingsTable, RowsAreUniqueAndHaveWhatTheToolsRead) {
       continue;
     }
     // The default is the struct's, and passes the table's own check.
-    ASSERT_TRUE(setting.scope == SettingScope::kBuild ? hasBuildValue(setting)
-                                                      : hasBakeValue(setting))
+    ASSERT_TRUE(setting.scope == SettingScope::kBuild      ? hasBuildValue(setting)
+                : setting.scope == SettingScope::kSimulate ? hasSimulateValue(setting)
+                                                           : hasBakeValue(setting))
         << setting.key;
     EXPECT_NO_THROW(checkSettingValue(setting, defaultSettingValue(setting))) << setting.key;
   }
@@ -134,6 +135,34 @@ TEST(SettingsTable, LayerAndBuildSettingsAreRowsOfTheSameTable) {
   EXPECT_EQ(settingsOfScope(SettingScope::kLayer).size(), 11u);  // --mix*, --wind-*
 }
 
+// simulate's settings (SimulationOptions) are rows of the same table too, in no other struct.
+TEST(SettingsTable, SimulateSettingsAreRowsOfTheSameTable) {
+  std::vector<std::string> keys;
+  for (const Setting* setting : settingsOfScope(SettingScope::kSimulate)) {
+    keys.emplace_back(setting->key);
+    EXPECT_FALSE(hasEvaluatorValue(*setting) || hasBakeValue(*setting) || hasBuildValue(*setting) ||
+                 hasLayerValue(*setting))
+        << setting->key;
+  }
+  EXPECT_EQ(keys, (std::vector<std::string>{"warmup", "merge_gap", "goal_strength", "seam", "carry",
+                                            "from_start"}));
+  const Setting& goal = findSetting("goal_strength");
+  SimulationOptions options;
+  setSetting(goal, options, parseSettingValue(goal, "0.5"));
+  EXPECT_EQ(options.goalStrength, 0.5);
+  EXPECT_EQ(std::get<double>(settingValue(goal, options)), 0.5);
+  setSetting(findSetting("from_start"), options, true);
+  EXPECT_TRUE(options.fromStart);
+  testing::expectThrows([&] { parseSettingValue(goal, "2"); }, ErrorCode::kUsage,
+                        "goal strength (goal_strength, --goal-strength) must be a number <= 1");
+  EXPECT_EQ(std::get<int>(defaultSettingValue(findSetting("warmup"))), kDefaultSimulationWarmup);
+  options.carry = -1;
+  testing::expectThrows([&] { checkSimulationSettings(options); }, ErrorCode::kUsage, "--carry");
+  BakeOptions bake;
+  testing::expectThrows([&] { setSetting(goal, bake, 0.5); }, ErrorCode::kUsage,
+                        "cannot be set from a value in EvaluatorSettings");
+}
+
 std::vector<std::string> unusedKeys(const SettingsView& view,
                                     const std::vector<std::string>& given = {}) {
   std::vector<std::string> keys;
@@ -187,10 +216,11 @@ TEST(SettingsTable, SettingsTheOthersLeaveUnusedAreRefusedOrWarnedAbout) {
 TEST(SettingsTable, JsonAndMarkdownListEveryRow) {
   const nlohmann::json table = nlohmann::json::parse(settingsTableJson());
   ASSERT_EQ(table.size(), settingsTable().size());
-  // The evaluator's and the bake's settings in one table, the layers' and db build's in theirs.
-  const std::string markdown = settingsTableMarkdown() +
-                               settingsTableMarkdown(SettingScope::kLayer) +
-                               settingsTableMarkdown(SettingScope::kBuild);
+  // The evaluator's and the bake's settings in one table, the layers', db build's and
+  // simulate's in theirs.
+  const std::string markdown =
+      settingsTableMarkdown() + settingsTableMarkdown(SettingScope::kLayer) +
+      settingsTableMarkdown(SettingScope::kBuild) + settingsTableMarkdown(SettingScope::kSimulate);
   for (std::size_t i = 0; i < table.size(); ++i) {
     const Setting& setting = settingsTable()[i];
     EXPECT_EQ(table[i].at("key"), setting.key);

@@ -117,7 +117,7 @@ def test_addon_properties_match_the_table():
     for setting in settings:
         key, kind, keywords = setting["key"], setting["kind"], setting["keywords"]
         row, view = table[key], table[key]["addon"]
-        assert setting["scope"] == row["scope"] in ("evaluator", "build"), key
+        assert setting["scope"] == row["scope"] in ("evaluator", "build", "simulate"), key
         assert setting["property"] == (view["property"] or key)
         default = row["default"] if view["default"] is None else view["default"]
         if setting["checkbox"]:

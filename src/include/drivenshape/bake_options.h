@@ -2,8 +2,10 @@
 #pragma once
 
 // What a bake is asked to do (`drivenshape bake`'s options, BakeOptions): the frames, the
-// outputs, the evaluator's settings and what the bake adds around them. Plain data that the
-// settings table reads and writes; the bake itself is drivenshape/bake.h.
+// outputs, the evaluator's settings and what the bake adds around them; and what simulating the
+// frames its verdict flags is asked to do (`drivenshape simulate`'s settings, SimulationOptions).
+// Plain data that the settings table reads and writes; the bake itself is drivenshape/bake.h,
+// the simulation's plan and splice drivenshape/simulation.h.
 
 #include <cstddef>
 #include <string>
@@ -74,6 +76,36 @@ struct BakeOptions {
   /// surface, set by admitDriverMesh with `--untrusted-driver`; empty for a driver that passes.
   /// The bake lists it among its warnings and the report's settings say `untrusted_driver`.
   std::string untrustedDriver;
+};
+
+/// Frames a cloth simulation runs before the first frame it is wanted for, so that the cloth
+/// has settled from its start state (the reference generator's preroll is 20 frames): the
+/// default warm-up of a simulation window, and the run-up of the bake report's simulate_runs.
+inline constexpr int kDefaultSimulationWarmup = 20;
+
+/// How the frames a bake's verdict flags are simulated and spliced back (`drivenshape simulate`,
+/// drivenshape/simulation.h; the settings table's SettingScope::kSimulate rows). The defaults
+/// are provisional: issue 44's measurement of a window against the full simulation chooses them.
+struct SimulationOptions {
+  /// Frames each window simulates before its first flagged frame (never before the shot's
+  /// first frame), starting from the bake's cloth there.
+  int warmup = kDefaultSimulationWarmup;
+  /// Runs of flagged frames at most this many unflagged frames apart are one window (the
+  /// frames between are simulated and handed back too): a short gap costs fewer frames than
+  /// a second warm-up and two more seams.
+  int mergeGap = 10;
+  /// How strongly the simulation is pulled towards the bake (the cloth's pin goal in Blender):
+  /// 0 = a free simulation, 1 = the bake.
+  double goalStrength = 0.0;
+  /// Frames before a window's first handed-back frame over which the output cross-fades from
+  /// the bake to the simulation (within the warm-up).
+  int seam = 4;
+  /// Frames after a window's last frame over which the simulation's residual (simulated -
+  /// baked) at that frame is carried forward onto the bake, fading to 0.
+  int carry = 10;
+  /// One window from the shot's first frame to its last flagged frame instead of warm-started
+  /// windows: for cloth whose warm-started windows do not settle within a warm-up.
+  bool fromStart = false;
 };
 
 }  // namespace drivenshape

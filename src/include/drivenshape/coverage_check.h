@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/bake_options.h>
 #include <drivenshape/evaluate.h>
 
 namespace drivenshape {
@@ -91,8 +92,26 @@ CoverageCheck checkCoverage(const BakeReportCoverage& report, const ShotEvaluati
 // ---- The frames to simulate, as runs a cloth simulation can be given ----
 
 /// Frames a cloth simulation runs before the first frame it is wanted for, so that the cloth
-/// has settled from its start state (the reference generator's preroll is 20 frames).
-constexpr int kSimulationRunUp = 20;
+/// has settled from its start state: the report's run_up, a simulation window's default warm-up.
+constexpr int kSimulationRunUp = kDefaultSimulationWarmup;
+
+/// One window of cloth simulation: it runs frames warmupFrom..to and hands back from..to.
+struct SimulationWindow {
+  int warmupFrom = 0;  ///< the first frame simulated (from the bake's cloth there)
+  int from = 0;        ///< the first frame handed back: a flagged frame
+  int to = 0;          ///< the last frame handed back: a flagged frame
+  int wanted = 0;      ///< flagged frames in from..to (the others are gaps merged in)
+};
+
+/// The flagged frames (ascending, distinct) as simulation windows: runs of flagged frames at
+/// most `mergeGap` unflagged frames apart are one window handing back their first to their last
+/// frame; each window's warm-up starts `warmup` frames before its first frame, never before
+/// `first` (the shot's first frame); a window whose warm-up then starts at most one frame after
+/// the previous window's end is merged into it (it hands back the frames between too). In frame
+/// order. Error(kInternal) when the frames are not ascending and distinct, or `warmup` or
+/// `mergeGap` is negative.
+std::vector<SimulationWindow> simulationWindows(const std::vector<int>& flagged, int first,
+                                                int warmup, int mergeGap);
 
 /// One simulation run: frames from..to, of which `wanted` are flagged frames.
 struct SimulationRun {
@@ -101,10 +120,12 @@ struct SimulationRun {
   int wanted = 0;
 };
 
-/// The flagged frames (ascending, distinct) as simulation runs: each run of consecutive flagged
-/// frame numbers starts `runUp` frames earlier, never before `first` (the shot's first frame),
-/// and a run that then starts at most one frame after the previous run's end is merged into it.
-/// In frame order. Error(kInternal) when the frames are not ascending and distinct.
+/// The flagged frames (ascending, distinct) as simulation runs: the simulationWindows without
+/// merging across gaps (mergeGap 0), each run from its warm-up's start to its end: each run of
+/// consecutive flagged frame numbers starts `runUp` frames earlier, never before `first` (the
+/// shot's first frame), and a run that then starts at most one frame after the previous run's
+/// end is merged into it. In frame order. Error(kInternal) when the frames are not ascending and
+/// distinct.
 std::vector<SimulationRun> simulationRuns(const std::vector<int>& flagged, int first,
                                           int runUp = kSimulationRunUp);
 

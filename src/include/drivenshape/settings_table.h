@@ -3,11 +3,12 @@
 
 // The settings table: every setting of every tool declared once, with its names, type,
 // default, range, unit, help, whether it enters the settings hash and which models use it:
-// the evaluator's and the bake's, the layers' (mix, wind) and `db build`'s. The command line's
-// options and --help, the Python module's EvaluatorSettings, load_layers and build_database
-// keywords, the settings hash, the report's settings block and its schema, Evaluator::
-// describeSettings, the Blender add-on's properties and panels and the options tables of
-// docs/commands.md all read it (docs/contributing.md: "Adding an evaluator setting").
+// the evaluator's and the bake's, the layers' (mix, wind), `db build`'s and `simulate`'s. The
+// command line's options and --help, the Python module's EvaluatorSettings, load_layers,
+// build_database and plan_simulation keywords, the settings hash, the report's settings block and
+// its schema, Evaluator:: describeSettings, the Blender add-on's properties and panels and the
+// options tables of docs/commands.md all read it (docs/contributing.md: "Adding an evaluator
+// setting").
 //
 //   for (const drivenshape::Setting& setting : drivenshape::settingsTable()) {
 //     std::cout << setting.key << " = " << formatSettingValue(defaultSettingValue(setting));
@@ -41,8 +42,9 @@ enum class SettingType {
 
 /// Where a setting lives: EvaluatorSettings (the Evaluator's; also BakeOptions::evaluator),
 /// BakeOptions alone (what the bake adds around the Evaluator), LayerOptions (the layers: mix
-/// and wind; also BakeOptions::layers) or DatabaseBuildOptions (`db build`).
-enum class SettingScope { kEvaluator, kBake, kLayer, kBuild };
+/// and wind; also BakeOptions::layers), DatabaseBuildOptions (`db build`) or SimulationOptions
+/// (`simulate`: the plan of the windows simulated after a bake and their splice).
+enum class SettingScope { kEvaluator, kBake, kLayer, kBuild, kSimulate };
 
 /// What becomes of a setting set away from its default that the other settings leave unused
 /// (an exit fade without the resolution): refused (Error(kUsage)) or run with a warning.
@@ -97,6 +99,8 @@ struct Setting {
   void (*setLayer)(LayerOptions&, const SettingValue&) = nullptr;
   SettingValue (*getBuild)(const DatabaseBuildOptions&) = nullptr;
   void (*setBuild)(DatabaseBuildOptions&, const SettingValue&) = nullptr;
+  SettingValue (*getSimulate)(const SimulationOptions&) = nullptr;
+  void (*setSimulate)(SimulationOptions&, const SettingValue&) = nullptr;
 };
 
 /// Every setting, in the order of the settings hash (then the ones it does not hash, then the
@@ -111,19 +115,22 @@ const Setting& findSetting(const std::string& key);
 
 /// Whether `setting` has a value in EvaluatorSettings (kObject settings have none), in
 /// BakeOptions (bake settings, evaluator settings with a value, file paths of kObject ones, the
-/// layers' through BakeOptions::layers), in LayerOptions or in DatabaseBuildOptions.
+/// layers' through BakeOptions::layers), in LayerOptions, in DatabaseBuildOptions or in
+/// SimulationOptions.
 bool hasEvaluatorValue(const Setting& setting);
 bool hasBakeValue(const Setting& setting);
 bool hasLayerValue(const Setting& setting);
 bool hasBuildValue(const Setting& setting);
+bool hasSimulateValue(const Setting& setting);
 
 /// The value of `setting` in `settings` / `options`. Error(kUsage) where it has none there.
 SettingValue settingValue(const Setting& setting, const EvaluatorSettings& settings);
 SettingValue settingValue(const Setting& setting, const BakeOptions& options);
 SettingValue settingValue(const Setting& setting, const LayerOptions& options);
 SettingValue settingValue(const Setting& setting, const DatabaseBuildOptions& options);
+SettingValue settingValue(const Setting& setting, const SimulationOptions& options);
 /// The default (that of a default-constructed BakeOptions, or DatabaseBuildOptions for `db
-/// build`'s).
+/// build`'s, SimulationOptions for `simulate`'s).
 SettingValue defaultSettingValue(const Setting& setting);
 /// Sets `setting` to `value` after checkSettingValue. Error(kUsage) naming the setting for a
 /// value of the wrong type or out of range, or a setting without a value there.
@@ -131,15 +138,17 @@ void setSetting(const Setting& setting, EvaluatorSettings& settings, const Setti
 void setSetting(const Setting& setting, BakeOptions& options, const SettingValue& value);
 void setSetting(const Setting& setting, LayerOptions& options, const SettingValue& value);
 void setSetting(const Setting& setting, DatabaseBuildOptions& options, const SettingValue& value);
+void setSetting(const Setting& setting, SimulationOptions& options, const SettingValue& value);
 
 /// The one check of a value, whichever tool set it: its type, a kChoice's spelling, a number's
 /// range (finite; a word's value passes) and `accepts`. Error(kUsage) naming the setting
 /// (label, key and flag), what it takes and the value.
 void checkSettingValue(const Setting& setting, const SettingValue& value);
 /// checkSettingValue on every value of `settings` (the Evaluator runs it) / of `options`'
-/// bake settings (the bake runs it).
+/// bake settings (the bake runs it) / of the simulation's (the plan runs it).
 void checkSettings(const EvaluatorSettings& settings);
 void checkBakeSettings(const BakeOptions& options);
+void checkSimulationSettings(const SimulationOptions& options);
 
 /// Text to a value of `setting`'s type (command lines, farm job files, build_database's
 /// keywords): one of its words, a number or a choice; Error(kUsage) naming the setting and
@@ -177,7 +186,8 @@ std::string settingsTableJson();
 /// The table as the Markdown table of docs/commands.md ("Settings": the evaluator's and the
 /// bake's settings).
 std::string settingsTableMarkdown();
-/// The layers' (SettingScope::kLayer) or `db build`'s (kBuild) options as a Markdown table.
+/// The layers' (SettingScope::kLayer), `db build`'s (kBuild) or `simulate`'s (kSimulate)
+/// options as a Markdown table.
 std::string settingsTableMarkdown(SettingScope scope);
 
 }  // namespace drivenshape
