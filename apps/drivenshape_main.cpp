@@ -18,6 +18,7 @@
 #include "farm_command.h"
 #include "posmap_command.h"
 #include "run_main.h"
+#include "simulate_command.h"
 
 namespace {
 
@@ -33,6 +34,7 @@ constexpr const char* kUsage =
     "  posmap      write UV-space position maps (P, A, N) for compositing\n"
     "  farm        write Slurm array scripts or Open Job Description templates for a shot\n"
     "  export      write a result as PC2 and/or a first-frame OBJ (guides for simulation)\n"
+    "  simulate    simulate the frames a bake's verdict flags in Blender and splice them in\n"
     "  version     print the version\n";
 
 int dispatch(const std::vector<std::string>& words) {
@@ -67,6 +69,9 @@ int dispatch(const std::vector<std::string>& words) {
   }
   if (command == "export") {
     return runExport(rest);
+  }
+  if (command == "simulate") {
+    return runSimulate(rest);
   }
   if (command == "db") {
     if (!rest.empty() && rest[0] == "build") {

@@ -15,6 +15,10 @@ install(TARGETS drivenshape
 if(TARGET drivenshape_cli)
   install(TARGETS drivenshape_cli EXPORT drivenshapeTargets
           RUNTIME DESTINATION "${CMAKE_INSTALL_BINDIR}")
+  # The add-on's module: `drivenshape simulate` runs its simulate_window.py in Blender.
+  install(DIRECTORY "${PROJECT_SOURCE_DIR}/apps/blender/drivenshape_blender"
+          DESTINATION "${CMAKE_INSTALL_DATADIR}/drivenshape/blender"
+          PATTERN "__pycache__" EXCLUDE)
 endif()
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/src/include/drivenshape"
         DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}" FILES_MATCHING PATTERN "*.h")

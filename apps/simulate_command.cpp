@@ -1,0 +1,368 @@
+// SPDX-License-Identifier: Apache-2.0
+// `drivenshape simulate` (issue 44): plans the windows of the frames a bake's verdict flags,
+// runs each in Blender as a subprocess (no shell) through the add-on's simulate_window.py,
+// keeps the windows a rerun finds complete, and splices them into the baked frames. The plan,
+// the splice and the files are the library's (drivenshape/simulation.h).
+
+#include "simulate_command.h"
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include <drivenshape/error.h>
+#include <drivenshape/frames.h>
+#include <drivenshape/settings_table.h>
+#include <drivenshape/simulation.h>
+
+#include "atomic_file.h"
+#include "stopwatch.h"
+
+#include "cli_args.h"
+
+extern char** environ;
+
+namespace drivenshape::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Overrides where the runner is looked for: for tests and debugging a runner.
+constexpr const char* kRunnerVariable = "DRIVENSHAPE_SIMULATE_RUNNER";
+/// The runner in an installed tree, under the prefix (cmake/install.cmake installs the add-on's
+/// module there).
+constexpr const char* kInstalledRunner =
+    "share/drivenshape/blender/drivenshape_blender/simulate_window.py";
+#ifdef DS_SIMULATE_RUNNER_SOURCE
+/// The runner in the source tree, for the build tree's drivenshape.
+constexpr const char* kSourceRunner = DS_SIMULATE_RUNNER_SOURCE;
+#else
+constexpr const char* kSourceRunner = "";
+#endif
+
+ArgParser simulateParser() {
+  ArgParser parser(
+      "drivenshape simulate --blend SHOT.blend --object GARMENT --report BAKE.report.json "
+      "--bake BAKE.####.exr -o OUT.####.exr",
+      "Simulates the frames a bake's verdict flags with Blender's cloth solver and splices them "
+      "into the bake: plans windows of the flagged frames (merged across short gaps, each "
+      "started a warm-up earlier from the bake's cloth) and writes the plan as "
+      "<OUT name>.simulation-plan.json; runs each window in `blender -b` (the garment's Cloth "
+      "modifier in SHOT.blend, pulled towards the bake by --goal-strength); then writes every "
+      "frame of the report to -o (simulated in the windows, cross-faded at their seams, the "
+      "simulation's residual carried and faded after them, baked elsewhere) and "
+      "<OUT name>.report.json with each frame's source. Windows go to <OUT name>.simulate-windows "
+      "beside the output, kept until the splice so that a rerun simulates only what is missing.");
+  parser.option("--report", "PATH", "the bake's report (bake --report)", "", true)
+      .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
+      .option("--blend", "SHOT.blend", "the shot's scene with the garment's cloth setup")
+      .option("--object", "GARMENT", "the garment object (its Cloth modifier simulates)")
+      .option("--bake", "BAKE.####.exr", "the bake's EXR sequence (every frame of the report)")
+      .settings(SettingScope::kSimulate)
+      .option("--blender", "PATH", "the Blender executable", "blender on PATH")
+      .flag("--plan-only", "write and print the plan, simulate nothing")
+      .flag("--quiet", "no progress lines")
+      .epilog(
+          "Exit codes: 0 ok, 2 usage, 3 input (the report, the bake, Blender or the runner "
+          "missing, a window whose simulation failed), 4 output.");
+  return parser;
+}
+
+/// `<folder of -o>/<its sequence name><suffix>`.
+std::string besideOutput(const std::string& pattern, const std::string& suffix) {
+  return (fs::path(pattern).parent_path() / (sequenceStem(pattern) + suffix)).string();
+}
+
+bool isExecutableFile(const std::string& path) {
+  struct stat info {};
+  return ::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode) &&
+         ::access(path.c_str(), X_OK) == 0;
+}
+
+/// --blender, else the first `blender` on PATH.
+std::string blenderPath(const ArgParser& parser) {
+  if (parser.has("--blender")) {
+    const std::string path = parser.get("--blender");
+    if (!isExecutableFile(path)) {
+      DS_THROW(kInput, "--blender '", path, "' is not an executable file");
+    }
+    return path;
+  }
+  const char* pathVariable = std::getenv("PATH");
+  std::istringstream folders(pathVariable != nullptr ? pathVariable : "");
+  for (std::string folder; std::getline(folders, folder, ':');) {
+    const std::string candidate = (fs::path(folder.empty() ? "." : folder) / "blender").string();
+    if (isExecutableFile(candidate)) {
+      return candidate;
+    }
+  }
+  DS_THROW(kInput, "no `blender` on PATH (", pathVariable != nullptr ? pathVariable : "unset",
+           "); install Blender 3.4 or later, or name it with --blender PATH");
+}
+
+/// simulate_window.py: $DRIVENSHAPE_SIMULATE_RUNNER, else the installed one beside this
+/// executable's prefix, else the source tree's.
+std::string runnerPath() {
+  if (const char* variable = std::getenv(kRunnerVariable); variable != nullptr && *variable) {
+    requireRegularFile(variable, std::string("simulation runner ($") + kRunnerVariable + ")");
+    return variable;
+  }
+  std::error_code error;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", error);
+  const std::string installed =
+      error ? std::string() : (exe.parent_path().parent_path() / kInstalledRunner).string();
+  for (const std::string& candidate : {installed, std::string(kSourceRunner)}) {
+    if (!candidate.empty() && fs::is_regular_file(candidate, error)) {
+      return candidate;
+    }
+  }
+  DS_THROW(kInput, "the simulation runner simulate_window.py is missing (looked for '", installed,
+           "'", *kSourceRunner != '\0' ? std::string(" and '") + kSourceRunner + "'" : "",
+           "); install drivenshape with its Blender module, or set ", kRunnerVariable);
+}
+
+/// Runs `argv` without a shell, its stdout and stderr into the file `log`; returns its exit
+/// status (128 + the signal that ended it).
+int runLogged(const std::vector<std::string>& argv, const std::string& log) {
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  std::vector<char*> words;
+  for (const std::string& word : argv) {
+    words.push_back(const_cast<char*>(word.c_str()));
+  }
+  words.push_back(nullptr);
+  pid_t pid = 0;
+  const int failed = posix_spawn(&pid, argv[0].c_str(), &actions, nullptr, words.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (failed != 0) {
+    DS_THROW(kInput, "cannot run '", argv[0], "': ", std::strerror(failed));
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) {
+      DS_THROW(kInternal, "waiting for '", argv[0], "': ", std::strerror(errno));
+    }
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+/// The last line of text in the file at `path` that is not empty, or "".
+std::string lastLine(const std::string& path) {
+  std::istringstream text(readWholeFile(path, "log"));
+  std::string line, last;
+  while (std::getline(text, line)) {
+    last = line.find_first_not_of(" \t\r") == std::string::npos ? last : line;
+  }
+  return last.size() > 300 ? last.substr(0, 300) + "..." : last;
+}
+
+/// What simulating the windows needs: the command's inputs and where the windows go.
+struct WindowJob {
+  std::string blender, runner, blend, object, bake, folder;
+  double goalStrength = 0.0;
+  int vertexCount = 0;
+};
+
+std::string windowPattern(const WindowJob& job, const SimulationWindow& window) {
+  return job.folder + "/window_" + std::to_string(window.from) + "/w.####.exr";
+}
+
+/// The runner's command line for `window` (docs/commands.md, "drivenshape simulate").
+std::vector<std::string> runnerArgs(const WindowJob& job, const SimulationWindow& window) {
+  return {job.blender,
+          "-b",
+          job.blend,
+          "--python-exit-code",
+          "1",
+          "--python",
+          job.runner,
+          "--",
+          "--object",
+          job.object,
+          "--bake",
+          job.bake,
+          "--first",
+          std::to_string(window.warmupFrom),
+          "--last",
+          std::to_string(window.to),
+          "--goal-strength",
+          formatSettingValue(job.goalStrength),
+          "-o",
+          windowPattern(job, window)};
+}
+
+/// The stamp of a window's folder: the runner's command line but Blender's path (another
+/// Blender may keep the window).
+std::string windowStamp(const WindowJob& job, const SimulationWindow& window) {
+  const std::vector<std::string> args = runnerArgs(job, window);
+  std::string stamp;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    stamp += args[i] + "\n";
+  }
+  return stamp;
+}
+
+fs::path windowFolder(const WindowJob& job, const SimulationWindow& window) {
+  return fs::path(windowPattern(job, window)).parent_path();
+}
+
+/// Whether a run before left `window` complete, from the same command line.
+bool windowKept(const WindowJob& job, const SimulationWindow& window) {
+  const std::string stamp = (windowFolder(job, window) / "window.args").string();
+  std::error_code error;
+  return fs::is_regular_file(stamp, error) &&
+         readWholeFile(stamp, "window stamp") == windowStamp(job, window) &&
+         simulatedWindowProblem(window, windowPattern(job, window), job.vertexCount).empty();
+}
+
+/// Simulates `window` in Blender into a fresh folder; Error(kInput) naming the window and
+/// Blender's log when Blender fails or leaves a frame missing.
+void simulateWindow(const WindowJob& job, const SimulationWindow& window) {
+  const fs::path folder = windowFolder(job, window);
+  std::error_code error;
+  fs::remove_all(folder, error);
+  createOutputFolders((folder / "w.exr").string());
+  const std::string log = (folder / "blender.log").string();
+  const std::string range = "window " + std::to_string(window.from) + "-" +
+                            std::to_string(window.to) + " (simulated from " +
+                            std::to_string(window.warmupFrom) + ")";
+  const int status = runLogged(runnerArgs(job, window), log);
+  if (status != 0) {
+    DS_THROW(kInput, range, ": Blender exited with status ", status, " (", lastLine(log),
+             "); its log: ", log);
+  }
+  const std::string problem =
+      simulatedWindowProblem(window, windowPattern(job, window), job.vertexCount);
+  if (!problem.empty()) {
+    DS_THROW(kInput, range, ": the runner finished but ", problem, "; its log: ", log);
+  }
+  writeFileAtomically((folder / "window.args").string(), windowStamp(job, window));
+}
+
+void printPlan(const SimulationPlan& plan, const std::string& path) {
+  std::cout << "plan:    " << plan.windows.size() << " windows, " << plan.simulatedFrames()
+            << " frames simulated of " << plan.last - plan.first + 1 << " (" << plan.first << "-"
+            << plan.last << ")\n";
+  for (const SimulationWindow& window : plan.windows) {
+    std::cout << "  frames " << window.warmupFrom << "-" << window.to << ", handing back "
+              << window.from << "-" << window.to << "\n";
+  }
+  std::cout << "written: " << absolute(path) << "\n";
+}
+
+/// The options that --plan-only leaves out, required otherwise.
+void requireSimulationInputs(const ArgParser& parser) {
+  for (const char* option : {"--blend", "--object", "--bake"}) {
+    if (!parser.has(option)) {
+      DS_THROW(kUsage, "missing required option ", option,
+               " for `drivenshape simulate` (only --plan-only goes without it); see --help");
+    }
+  }
+  if (!hasFramePattern(parser.get("--bake"))) {
+    DS_THROW(kUsage, "--bake '", parser.get("--bake"), "' has no frame token");
+  }
+}
+
+/// Refuses outputs that name one file or an input, before anything is written.
+void checkSimulatePaths(const ArgParser& parser, const SimulationPlan& plan) {
+  const std::string output = parser.get("-o");
+  const std::vector<NamedPath> outputs = {
+      {"-o", output, true},
+      {"the plan", besideOutput(output, ".simulation-plan.json"), false},
+      {"the simulate report", besideOutput(output, ".report.json"), false}};
+  std::vector<NamedPath> inputs = givenPaths(parser, {"--report", "--blend"});
+  const std::vector<NamedPath> bake = givenPaths(parser, {"--bake"}, true);
+  inputs.insert(inputs.end(), bake.begin(), bake.end());
+  std::vector<int> frames;
+  for (int f = plan.first; f <= plan.last; ++f) {
+    frames.push_back(f);
+  }
+  checkDistinctPaths(outputs, frames, inputs);
+}
+
+/// Runs the windows (or keeps them) and splices; returns the splice.
+SplicedShot simulateAndSplice(const ArgParser& parser, const SimulationPlan& plan, bool quiet) {
+  const ExrPointCacheInfo bake = checkSimulationBake(plan, parser.get("--bake"));
+  WindowJob job{blenderPath(parser),
+                runnerPath(),
+                absolute(parser.get("--blend")),
+                parser.get("--object"),
+                absolute(parser.get("--bake")),
+                absolute(besideOutput(parser.get("-o"), ".simulate-windows")),
+                plan.settings.goalStrength,
+                bake.vertexCount};
+  requireRegularFile(job.blend, "scene");
+  std::vector<std::string> patterns;
+  for (std::size_t w = 0; w < plan.windows.size(); ++w) {
+    const SimulationWindow& window = plan.windows[w];
+    const bool kept = windowKept(job, window);
+    if (!quiet) {
+      std::cerr << "window " << w + 1 << "/" << plan.windows.size() << ": frames "
+                << window.warmupFrom << "-" << window.to
+                << (kept ? " kept from a run before\n" : " simulating in Blender\n");
+    }
+    if (!kept) {
+      simulateWindow(job, window);
+    }
+    patterns.push_back(windowPattern(job, window));
+  }
+  if (!quiet) {
+    std::cerr << "splicing " << plan.last - plan.first + 1 << " frames\n";
+  }
+  SplicedShot shot = spliceSimulationFiles(plan, parser.get("--bake"), patterns, parser.get("-o"));
+  std::error_code error;
+  fs::remove_all(job.folder, error);
+  return shot;
+}
+
+}  // namespace
+
+int runSimulate(const std::vector<std::string>& args) {
+  ArgParser parser = simulateParser();
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  SimulationOptions settings;
+  readSettings(parser, settings);
+  const std::string output = parser.get("-o");
+  if (!hasFramePattern(output)) {
+    DS_THROW(kUsage, "-o '", output, "' has no frame token; use e.g. final/cloth.####.exr");
+  }
+  const bool planOnly = parser.has("--plan-only"), quiet = parser.has("--quiet");
+  if (!planOnly) {
+    requireSimulationInputs(parser);
+  }
+  const SimulationPlan plan =
+      planSimulation(readBakeReportCoverage(parser.get("--report")), settings);
+  checkSimulatePaths(parser, plan);
+  const std::string planPath = besideOutput(output, ".simulation-plan.json");
+  createOutputFoldersFor({planPath}, quiet);
+  writeFileAtomically(planPath, simulationPlanJson(plan));
+  printPlan(plan, planPath);
+  if (planOnly) {
+    return 0;
+  }
+  const SplicedShot shot = simulateAndSplice(parser, plan, quiet);
+  const std::string reportPath = besideOutput(output, ".report.json");
+  writeFileAtomically(reportPath, simulateReportJson(plan, shot.sources, secondsSince(start)));
+  std::cout << "outputs: " << absolute(output) << " (frames " << plan.first << "-" << plan.last
+            << ")\nreport:  " << absolute(reportPath) << "\n";
+  return 0;
+}
+
+}  // namespace drivenshape::cli
