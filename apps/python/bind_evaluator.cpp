@@ -15,6 +15,7 @@
 #include <drivenshape/layers.h>
 #include <drivenshape/regions.h>
 #include <drivenshape/settings_table.h>
+#include <drivenshape/simulation.h>
 
 namespace drivenshape::python {
 
@@ -136,6 +137,10 @@ bool isLayerSetting(const Setting& setting) {
 
 bool isBuildSetting(const Setting& setting) {
   return setting.scope == SettingScope::kBuild;
+}
+
+bool isSimulateSetting(const Setting& setting) {
+  return setting.scope == SettingScope::kSimulate;
 }
 
 /// A JSON object (describe_settings, describe_layers) or array (settings_table) as Python.
@@ -923,6 +928,90 @@ void bindEvaluator(py::module_& module) {
              "(`missed` are not); at level 0 (a report before 0.2.0) when their true mean error "
              "is within it. What `drivenshape eval --report` judges.");
   bindEvaluatorClass(module);
+}
+
+namespace {
+
+/// `object` (a dict) as JSON text, through Python's json module.
+std::string dictJson(py::handle object, const char* what) {
+  if (!py::isinstance<py::dict>(object)) {
+    DS_THROW(kUsage, what, " must be a dict, not ",
+             std::string(py::str(object.get_type().attr("__name__"))));
+  }
+  return py::str(py::module_::import("json").attr("dumps")(object));
+}
+
+/// plan_simulation's report: a path, or the report's JSON as a dict.
+BakeReportCoverage reportArgument(py::handle report) {
+  if (isPathLike(report)) {
+    const std::string path = pathString(report);
+    py::gil_scoped_release release;
+    return readBakeReportCoverage(path);
+  }
+  return parseBakeReportCoverage(dictJson(report, "report"), "(report dict)");
+}
+
+/// splice: one window's frames, (F, V, 3) float32, of `vertices` vertices.
+std::vector<float> windowArgument(py::handle object, std::size_t w, int vertices) {
+  const std::string what = "windows[" + std::to_string(w) + "]";
+  const FloatArray array(object, what);
+  if (frameBlockShape(array, what).vertices != vertices) {
+    DS_THROW(kUsage, what, " is ", array.describe(), "; the baked frames have ", vertices,
+             " vertices");
+  }
+  return std::vector<float>(array.data(), array.data() + array.size());
+}
+
+types::JsonDict planSimulationBinding(types::ReportSource report, const py::kwargs& settings) {
+  SimulationOptions options;
+  setKeywordSettings(settings, &isSimulateSetting, options, "simulation");
+  const BakeReportCoverage coverage = reportArgument(report);
+  return parseJson<types::JsonDict>(simulationPlanJson(planSimulation(coverage, options)));
+}
+
+py::tuple spliceBinding(types::JsonDict plan, types::ArrayLike baked, py::sequence windows) {
+  const SimulationPlan parsed = parseSimulationPlan(dictJson(plan, "plan"), "(plan dict)");
+  const FloatArray bakedArray(baked, "baked");
+  const FrameBlockShape shape = frameBlockShape(bakedArray, "baked");
+  const std::vector<float> bakedValues(bakedArray.data(), bakedArray.data() + bakedArray.size());
+  std::vector<std::vector<float>> simulated;
+  for (std::size_t w = 0; w < windows.size(); ++w) {
+    simulated.push_back(windowArgument(windows[w], w, shape.vertices));
+  }
+  SplicedShot shot;
+  {
+    py::gil_scoped_release release;
+    shot = spliceSimulation(parsed, shape.vertices, bakedValues, simulated);
+  }
+  py::list sources;
+  for (FrameSource source : shot.sources) {
+    sources.append(frameSourceName(source));
+  }
+  const py::ssize_t frames = static_cast<py::ssize_t>(shot.sources.size());
+  return py::make_tuple(
+      types::Float32Array(ownedArray(std::move(shot.positions), {frames, shape.vertices, 3})),
+      sources);
+}
+
+}  // namespace
+
+void bindSimulation(py::module_& module) {
+  static const std::string planDoc =
+      "planSimulation (drivenshape simulate's plan): the windows of cloth simulation for the "
+      "frames a bake report flags, as the plan JSON (docs/formats.md) as a dict: report, "
+      "settings, frames {first, last}, windows [{warmup_from, from, to}], simulated_frames. "
+      "report: the bake report's path, or its JSON as a dict. The settings are keywords, "
+      "simulate's options without their dashes (a value is read as simulate reads its text; an "
+      "unknown keyword or a value it refuses is an Error):" +
+      keywordsDoc(&isSimulateSetting);
+  module.def("plan_simulation", &planSimulationBinding, py::arg("report"), planDoc.c_str());
+  module.def("splice", &spliceBinding, py::arg("plan"), py::arg("baked"), py::arg("windows"),
+             "spliceSimulation (drivenshape simulate's splice): the simulated windows spliced "
+             "into the baked frames with the plan's seam and carry. plan: plan_simulation's dict "
+             "(or a plan file's JSON); baked: (F, V, 3) float32, every frame first..last of the "
+             "plan; windows: one (Fw, V, 3) array per window, its frames warmup_from..to. "
+             "Returns (positions (F, V, 3) float32, sources: 'baked', 'simulated' or 'blended' "
+             "per frame), bitwise what drivenshape simulate writes.");
 }
 
 // The shot planner's binding (bind_shot_plan.cpp) plans for an Evaluator's settings.

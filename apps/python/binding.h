@@ -70,6 +70,7 @@ DS_PYTHON_TYPE(ReferenceClips, "collections.abc.Iterable[tuple[" DS_PYTHON_CACHE
                                ", " DS_PYTHON_CACHE "] | tuple[" DS_PYTHON_CACHE
                                ", " DS_PYTHON_CACHE ", " DS_PYTHON_FRAMES " | None]] | None");
 DS_PYTHON_TYPE(TextOutput, "typing.TextIO | None");
+DS_PYTHON_TYPE(ReportSource, "str | os.PathLike[str] | dict[str, typing.Any]");
 DS_PYTHON_TYPE(EvaluatorObject, "Evaluator");
 // Outputs, and evaluate_into's `out` (which must already be float32).
 DS_PYTHON_TYPE(Float32Array, DS_PYTHON_FLOAT32);
@@ -105,6 +106,7 @@ using MeshSource = Typed<type_names::MeshSource>;
 using CacheSource = Typed<type_names::CacheSource>;
 using ReferenceClips = Typed<type_names::ReferenceClips>;
 using TextOutput = Typed<type_names::TextOutput>;
+using ReportSource = Typed<type_names::ReportSource>;
 using EvaluatorObject = Typed<type_names::EvaluatorObject>;
 using Float32Array = Typed<type_names::Float32Array>;
 using Int32Array = Typed<type_names::Int32Array>;
@@ -223,6 +225,7 @@ void bindPointCaches(py::module_& module);
 void bindDatabase(py::module_& module);
 void bindEvaluator(py::module_& module);
 void bindShotPlan(py::module_& module);
+void bindSimulation(py::module_& module);
 
 /// The Evaluator of a drivenshape.Evaluator; Error(kUsage) for any other object.
 const Evaluator& evaluatorOf(py::handle object);

@@ -303,4 +303,6 @@ PYBIND11_MODULE(_drivenshape, module) {
 
   // The shot planner (bind_shot_plan.cpp): plan_shot, BatchPlan, PlaybackPlanner.
   dp::bindShotPlan(module);
+  // Simulating what the verdict flags (bind_evaluator.cpp): plan_simulation, splice.
+  dp::bindSimulation(module);
 }

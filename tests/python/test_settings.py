@@ -154,9 +154,11 @@ def test_addon_keeps_what_saved_blend_files_hold():
 def test_layer_and_build_keywords_come_from_the_table(table):
     layer = [key for key, row in table.items() if row["scope"] == "layer"]
     build = [key for key, row in table.items() if row["scope"] == "build"]
+    simulate = [key for key, row in table.items() if row["scope"] == "simulate"]
     assert "wind_octaves" in layer and "mix_falloff" in layer and "model_history" in build
+    assert "goal_strength" in simulate and "carry" in simulate
     for function, keys in ((ds.load_layers, layer + ["frames_per_second"]),
-                           (ds.build_database, build)):
+                           (ds.build_database, build), (ds.plan_simulation, simulate)):
         for key in keys:
             assert f"\n  {key} ({table[key]['flag']}, default " in function.__doc__, key
 

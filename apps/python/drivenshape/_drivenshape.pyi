@@ -10,7 +10,7 @@ import numpy
 import numpy.typing
 import os
 import typing
-__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'edge_strain', 'expand_frame_pattern', 'format_frame_range', 'frame_strain', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'merge_bake_reports', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
+__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'edge_strain', 'expand_frame_pattern', 'format_frame_range', 'frame_strain', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'merge_bake_reports', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'plan_simulation', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'splice', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
 class _Buffer:
     """
     C++ memory shown to numpy without a copy
@@ -765,6 +765,16 @@ def plan_shot(evaluator: Evaluator, frames: typing.SupportsIndex | collections.a
     """
     The batches in which `drivenshape bake` evaluates `frames` (any order) with this evaluator, from a driver source holding `available` (a list or a range): history and temporal warm-up frames, a new batch every `batch` frames and at gaps. [BatchPlan]
     """
+def plan_simulation(report: str | os.PathLike[str] | dict[str, typing.Any], **kwargs) -> dict[str, typing.Any]:
+    """
+    planSimulation (drivenshape simulate's plan): the windows of cloth simulation for the frames a bake report flags, as the plan JSON (docs/formats.md) as a dict: report, settings, frames {first, last}, windows [{warmup_from, from, to}], simulated_frames. report: the bake report's path, or its JSON as a dict. The settings are keywords, simulate's options without their dashes (a value is read as simulate reads its text; an unknown keyword or a value it refuses is an Error):
+      warmup (--warmup, default 20): frames each window simulates before its first flagged frame (never before the shot's first frame), from the bake's cloth there, so that the cloth settles (frames) (0 = start at the first flagged frame)
+      merge_gap (--merge-gap, default 10): flagged frames at most this many unflagged frames apart are one window, the frames between handed back too (cheaper than another warm-up and two more seams) (frames) (0 = only consecutive flagged frames)
+      goal_strength (--goal-strength, default 0): how strongly the simulation is pulled towards the bake (the cloth's pin goal) (0 = a free simulation)
+      seam (--seam, default 4): frames before a window's first handed-back frame that cross-fade from the bake to the simulation (within the warm-up) (frames) (0 = a hard cut)
+      carry (--carry, default 10): frames after a window over which its last frame's residual (simulated - baked) is carried onto the bake, fading to 0 (the cloth's state persists) (frames) (0 = a hard cut)
+      from_start (--from-start, default false): one window from the shot's first frame to its last flagged frame, for cloth whose warm-started windows do not settle within a warm-up
+    """
 def read_obj(path: str | os.PathLike[str]) -> Mesh:
     """
     Reads an OBJ (vertex order kept exactly as in the file).
@@ -794,6 +804,10 @@ def shot_verdict(evaluator: Evaluator, records: list[FrameRecord]) -> dict[str, 
 def simulation_runs(flagged: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]], first: typing.SupportsIndex, run_up: int = 20) -> list[tuple[int, int, int]]:
     """
     The flagged frames as cloth simulation runs [(from, to, wanted)], as the bake report's coverage.simulate_runs gives them: each run of consecutive frames starts `run_up` frames earlier (never before `first`, the shot's first frame); runs that then touch merge.
+    """
+def splice(plan: dict[str, typing.Any], baked: numpy.typing.ArrayLike, windows: typing.Sequence) -> tuple:
+    """
+    spliceSimulation (drivenshape simulate's splice): the simulated windows spliced into the baked frames with the plan's seam and carry. plan: plan_simulation's dict (or a plan file's JSON); baked: (F, V, 3) float32, every frame first..last of the plan; windows: one (Fw, V, 3) array per window, its frames warmup_from..to. Returns (positions (F, V, 3) float32, sources: 'baked', 'simulated' or 'blended' per frame), bitwise what drivenshape simulate writes.
     """
 def verdict_holds(enough: int, missed: int, enough_true_error: float, tolerance: float, level: float) -> bool:
     """
