@@ -120,6 +120,13 @@ const nlohmann::json& planField(const nlohmann::json& object, const char* key,
   return object.at(key);
 }
 
+/// Whether `window` lies within frames ..`last`, starting at `after` or later (the shot's first
+/// frame, or two frames after the window before: windows never touch).
+bool windowFits(const SimulationWindow& window, long long after, int last) {
+  return window.warmupFrom >= after && window.from >= window.warmupFrom &&
+         window.to >= window.from && window.to <= last;
+}
+
 /// The windows of a plan, checked against its frames and each other.
 std::vector<SimulationWindow> planWindowsOf(const nlohmann::json& json, int first, int last,
                                             const std::string& source) {
@@ -134,8 +141,7 @@ std::vector<SimulationWindow> planWindowsOf(const nlohmann::json& json, int firs
     window.from = jsonInt(planField(json[i], "from", where), where + " from");
     window.to = jsonInt(planField(json[i], "to", where), where + " to");
     const long long after = windows.empty() ? first : windows.back().to + 2LL;
-    if (window.warmupFrom < after || window.from < window.warmupFrom || window.to < window.from ||
-        window.to > last) {
+    if (!windowFits(window, after, last)) {
       DS_THROW(kInput, where, " (", window.warmupFrom, ", ", window.from, "-", window.to,
                ") is not a window of frames ", first, "-", last,
                " after the one before: expected warmup_from <= from <= to, in frame order, "
@@ -297,8 +303,7 @@ SplicedShot spliceSimulation(const SimulationPlan& plan, int vertexCount,
   for (std::size_t w = 0; w < plan.windows.size(); ++w) {
     const SimulationWindow& window = plan.windows[w];
     const long long after = w == 0 ? plan.first : plan.windows[w - 1].to + 2LL;
-    if (window.warmupFrom < after || window.from < window.warmupFrom || window.to < window.from ||
-        window.to > plan.last) {
+    if (!windowFits(window, after, plan.last)) {
       DS_THROW(kUsage, "splice: window ", w, " (", window.warmupFrom, ", ", window.from, "-",
                window.to, ") is not a window of the plan's frames ", plan.first, "-", plan.last,
                " apart from the one before");

@@ -8,7 +8,9 @@ frames: it tests the plumbing; the real runner in Blender is tests/blender's."""
 import json
 import os
 import subprocess
+from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pytest
 
@@ -17,6 +19,8 @@ from conftest import assert_bitwise, run
 
 FIRST, LAST, VERTICES = 1, 60, 7
 FLAGGED = {30, 31, 32, 47}
+SCHEMA = json.loads((Path(__file__).resolve().parents[2] / "docs" / "schemas" /
+                     "simulate_report.schema.json").read_text())
 
 
 @pytest.fixture
@@ -94,6 +98,11 @@ def test_splice_is_bitwise_the_commands(cli, shot):
     assert_bitwise(positions, written, "splice against drivenshape simulate")
     report = json.loads((root / "final/x.report.json").read_text())
     assert [entry["source"] for entry in report["frames"]] == sources
+    # The report and the plan file hold the schema's fields, the plan's settings the table's.
+    jsonschema.validate(report, SCHEMA)
+    jsonschema.validate(plan, {"$ref": "#/$defs/plan", "$defs": SCHEMA["$defs"]})
+    simulate = [row["key"] for row in ds.settings_table() if row["scope"] == "simulate"]
+    assert SCHEMA["$defs"]["settings"]["required"] == simulate
     assert sources.count("simulated") == 47 - 30 + 1 and sources.count("blended") == 4 + 10
     # Something was spliced in: the frames differ from the bake where the windows are.
     assert not np.array_equal(positions, baked)
