@@ -48,9 +48,10 @@ VERSION = re.compile(r"^__version__: str = .*$", re.M)
 # pybind11 (2.10) writes a py::kwargs parameter as a bare `**kwargs`; the functions that take
 # settings of the settings table as keywords (each value read as its text) take numbers and
 # text, load_layers also the wind's direction as a sequence and None for a default.
-KWARGS = re.compile(r"^def (build_database|load_layers)\((.*)\*\*kwargs\)", re.M)
+KWARGS = re.compile(r"^def (build_database|load_layers|plan_simulation)\((.*)\*\*kwargs\)", re.M)
 KWARGS_TYPES = {"build_database": "str | int | float",
-                "load_layers": "str | int | float | collections.abc.Sequence[float] | None"}
+                "load_layers": "str | int | float | collections.abc.Sequence[float] | None",
+                "plan_simulation": "str | int | float | bool"}
 
 
 def generate() -> str:

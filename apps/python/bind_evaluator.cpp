@@ -969,14 +969,16 @@ types::JsonDict planSimulationBinding(types::ReportSource report, const py::kwar
   return parseJson<types::JsonDict>(simulationPlanJson(planSimulation(coverage, options)));
 }
 
-py::tuple spliceBinding(types::JsonDict plan, types::ArrayLike baked, py::sequence windows) {
+types::Spliced spliceBinding(types::JsonDict plan, types::ArrayLike baked,
+                             types::ArrayLikes windows) {
   const SimulationPlan parsed = parseSimulationPlan(dictJson(plan, "plan"), "(plan dict)");
   const FloatArray bakedArray(baked, "baked");
   const FrameBlockShape shape = frameBlockShape(bakedArray, "baked");
   const std::vector<float> bakedValues(bakedArray.data(), bakedArray.data() + bakedArray.size());
   std::vector<std::vector<float>> simulated;
-  for (std::size_t w = 0; w < windows.size(); ++w) {
-    simulated.push_back(windowArgument(windows[w], w, shape.vertices));
+  std::size_t w = 0;
+  for (py::handle window : windows) {
+    simulated.push_back(windowArgument(window, w++, shape.vertices));
   }
   SplicedShot shot;
   {
@@ -988,9 +990,8 @@ py::tuple spliceBinding(types::JsonDict plan, types::ArrayLike baked, py::sequen
     sources.append(frameSourceName(source));
   }
   const py::ssize_t frames = static_cast<py::ssize_t>(shot.sources.size());
-  return py::make_tuple(
-      types::Float32Array(ownedArray(std::move(shot.positions), {frames, shape.vertices, 3})),
-      sources);
+  return types::Spliced(
+      py::make_tuple(ownedArray(std::move(shot.positions), {frames, shape.vertices, 3}), sources));
 }
 
 }  // namespace

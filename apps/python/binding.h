@@ -71,6 +71,7 @@ DS_PYTHON_TYPE(ReferenceClips, "collections.abc.Iterable[tuple[" DS_PYTHON_CACHE
                                ", " DS_PYTHON_CACHE ", " DS_PYTHON_FRAMES " | None]] | None");
 DS_PYTHON_TYPE(TextOutput, "typing.TextIO | None");
 DS_PYTHON_TYPE(ReportSource, "str | os.PathLike[str] | dict[str, typing.Any]");
+DS_PYTHON_TYPE(ArrayLikes, "collections.abc.Sequence[numpy.typing.ArrayLike]");
 DS_PYTHON_TYPE(EvaluatorObject, "Evaluator");
 // Outputs, and evaluate_into's `out` (which must already be float32).
 DS_PYTHON_TYPE(Float32Array, DS_PYTHON_FLOAT32);
@@ -85,6 +86,7 @@ DS_PYTHON_TYPE(JsonDict, "dict[str, typing.Any]");
 DS_PYTHON_TYPE(JsonList, "list[dict[str, typing.Any]]");
 DS_PYTHON_TYPE(TransferCounts, "dict[str, int]");
 DS_PYTHON_TYPE(StrainDict, "dict[str, float]");
+DS_PYTHON_TYPE(Spliced, "tuple[" DS_PYTHON_FLOAT32 ", list[str]]");
 #undef DS_PYTHON_TYPE
 #undef DS_PYTHON_FRAMES
 #undef DS_PYTHON_CACHE
@@ -107,6 +109,7 @@ using CacheSource = Typed<type_names::CacheSource>;
 using ReferenceClips = Typed<type_names::ReferenceClips>;
 using TextOutput = Typed<type_names::TextOutput>;
 using ReportSource = Typed<type_names::ReportSource>;
+using ArrayLikes = Typed<type_names::ArrayLikes>;
 using EvaluatorObject = Typed<type_names::EvaluatorObject>;
 using Float32Array = Typed<type_names::Float32Array>;
 using Int32Array = Typed<type_names::Int32Array>;
@@ -120,6 +123,7 @@ using JsonDict = Typed<type_names::JsonDict>;
 using JsonList = Typed<type_names::JsonList>;
 using TransferCounts = Typed<type_names::TransferCounts>;
 using StrainDict = Typed<type_names::StrainDict>;
+using Spliced = Typed<type_names::Spliced>;
 }  // namespace types
 
 /// A direction (x, y, z): read as pybind11 reads std::array<double, 3> (a sequence of three

@@ -765,7 +765,7 @@ def plan_shot(evaluator: Evaluator, frames: typing.SupportsIndex | collections.a
     """
     The batches in which `drivenshape bake` evaluates `frames` (any order) with this evaluator, from a driver source holding `available` (a list or a range): history and temporal warm-up frames, a new batch every `batch` frames and at gaps. [BatchPlan]
     """
-def plan_simulation(report: str | os.PathLike[str] | dict[str, typing.Any], **kwargs) -> dict[str, typing.Any]:
+def plan_simulation(report: str | os.PathLike[str] | dict[str, typing.Any], **kwargs: str | int | float | bool) -> dict[str, typing.Any]:
     """
     planSimulation (drivenshape simulate's plan): the windows of cloth simulation for the frames a bake report flags, as the plan JSON (docs/formats.md) as a dict: report, settings, frames {first, last}, windows [{warmup_from, from, to}], simulated_frames. report: the bake report's path, or its JSON as a dict. The settings are keywords, simulate's options without their dashes (a value is read as simulate reads its text; an unknown keyword or a value it refuses is an Error):
       warmup (--warmup, default 20): frames each window simulates before its first flagged frame (never before the shot's first frame), from the bake's cloth there, so that the cloth settles (frames) (0 = start at the first flagged frame)
@@ -805,7 +805,7 @@ def simulation_runs(flagged: typing.SupportsIndex | collections.abc.Sequence[typ
     """
     The flagged frames as cloth simulation runs [(from, to, wanted)], as the bake report's coverage.simulate_runs gives them: each run of consecutive frames starts `run_up` frames earlier (never before `first`, the shot's first frame); runs that then touch merge.
     """
-def splice(plan: dict[str, typing.Any], baked: numpy.typing.ArrayLike, windows: typing.Sequence) -> tuple:
+def splice(plan: dict[str, typing.Any], baked: numpy.typing.ArrayLike, windows: collections.abc.Sequence[numpy.typing.ArrayLike]) -> tuple[numpy.typing.NDArray[numpy.float32], list[str]]:
     """
     spliceSimulation (drivenshape simulate's splice): the simulated windows spliced into the baked frames with the plan's seam and carry. plan: plan_simulation's dict (or a plan file's JSON); baked: (F, V, 3) float32, every frame first..last of the plan; windows: one (Fw, V, 3) array per window, its frames warmup_from..to. Returns (positions (F, V, 3) float32, sources: 'baked', 'simulated' or 'blended' per frame), bitwise what drivenshape simulate writes.
     """
