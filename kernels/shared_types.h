@@ -44,13 +44,14 @@ typedef struct {
 typedef struct {
   int vertexCount;  // V
   int frameCount;   // F in this chunk
+  float omega;      // this iteration's Chebyshev weight (1: the plain Jacobi step)
 } DsStrainLimitParams;
 
 #ifdef __cplusplus
 static_assert(sizeof(int) == 4, "OpenCL int is 32 bits; the shared structs assume the same");
 static_assert(sizeof(DsProjectParams) == 20, "DsProjectParams layout differs from the device");
 static_assert(sizeof(DsBlendParams) == 16, "DsBlendParams layout differs from the device");
-static_assert(sizeof(DsStrainLimitParams) == 8,
+static_assert(sizeof(DsStrainLimitParams) == 12,
               "DsStrainLimitParams layout differs from the device");
 #endif
 

@@ -8,8 +8,10 @@
 // whose length l to its other end q is outside [lower, upper] (and not 0), the correction
 // share * (l - t) / l * (q - p), t the band's nearer end; it moves by step[v] times their sum
 // (relaxation / n, n its edges that can move it, fixed per vertex so that the result is
-// continuous in the positions), and is copied unchanged when there are none. A vertex reads only
-// `in`, writes only its own three floats of `out`: no atomics, no order between items.
+// continuous in the positions), and is copied unchanged when there are none: x^. Where
+// params.omega is not 1 (Chebyshev acceleration), `out` holds the iteration before `in` and the
+// vertex writes omega * (x^ - out) + out. A vertex reads `in` and its own three floats of `out`,
+// writes only those: no atomics, no order between items.
 //
 // Mapping: 2-D range, local size (DS_LOCAL_SIZE, 1); item (v, f) is vertex v of frame f.
 //
@@ -63,14 +65,21 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrai
     sz += scale * dz;
     moves = 1;
   }
-  if (moves == 0) {
-    out[at] = px;
-    out[at + 1] = py;
-    out[at + 2] = pz;
+  const float h = step[v];
+  const float jx = moves != 0 ? px + h * sx : px;
+  const float jy = moves != 0 ? py + h * sy : py;
+  const float jz = moves != 0 ? pz + h * sz : pz;
+  const float omega = params.omega;
+  if (omega == 1.0f) {
+    out[at] = jx;
+    out[at + 1] = jy;
+    out[at + 2] = jz;
     return;
   }
-  const float h = step[v];
-  out[at] = px + h * sx;
-  out[at + 1] = py + h * sy;
-  out[at + 2] = pz + h * sz;
+  const float ox = out[at];
+  const float oy = out[at + 1];
+  const float oz = out[at + 2];
+  out[at] = omega * (jx - ox) + ox;
+  out[at + 1] = omega * (jy - oy) + oy;
+  out[at + 2] = omega * (jz - oz) + oz;
 }

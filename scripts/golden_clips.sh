@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # One-off bitwise check of a refactored bake on the two public clips (DRIVENSHAPE_DATA/{pants,
-# sleeve}, made by scripts/validation/generate_clips.sh --link-data): for each clip, a 30-shape database from the `train` clip, then `test_public` baked
-# (all its frames) in three modes (default; talk: --align none --blend world --no-resolve;
-# bind: --weights bind) on the host path and the OpenCL CPU device, with an OLD and a NEW
+# sleeve}, made by scripts/validation/generate_clips.sh --link-data): for each clip, a 30-shape
+# database from the `train` clip, then `test_public` baked (all its frames) in three modes
+# (default; talk: --align none --blend world --no-resolve --strain-limit 0; bind:
+# --weights bind --strain-limit 0) on the host path and the OpenCL CPU device, with an OLD and a NEW
 # drivenshape binary. Per frame it compares the decoded pixels (sha256 through the OpenEXR
 # Python bindings, tests/golden/golden_pixels.py) and the file bytes, and the bake report's
 # per-frame records (no timing, no paths), and prints one line per (clip, mode, device):
@@ -53,9 +54,9 @@ mkdir -p "$POCL_CACHE_DIR"
 mode_flags() {
   case $1 in
     default) echo "" ;;
-    talk) echo "--align none --blend world --no-resolve" ;;
-    bind) echo "--weights bind" ;;
-    qp) echo "--weights qp" ;;
+    talk) echo "--align none --blend world --no-resolve --strain-limit 0" ;;
+    bind) echo "--weights bind --strain-limit 0" ;;
+    qp) echo "--weights qp --strain-limit 0" ;;
     *) echo "golden_clips: unknown mode '$1'" >&2; exit 2 ;;
   esac
 }

@@ -35,8 +35,8 @@ python=python3
 
 # key|label|bake flags (REGIONS is replaced by the scene's region file)
 all_modes=(
-  "talk|talk: --align none --blend world --no-resolve|--align none --blend world --no-resolve"
-  "bind|binding baseline: --weights bind --no-resolve|--weights bind --no-resolve"
+  "talk|talk: --align none --blend world --no-resolve|--align none --blend world --no-resolve --strain-limit 0"
+  "bind|binding baseline: --weights bind --no-resolve|--weights bind --no-resolve --strain-limit 0"
   "talk_resolve|--align none --blend world (resolve)|--align none --blend world"
   "rigid_all_world|--align rigid-all --blend world (resolve)|--align rigid-all --blend world"
   "rigid_all_local|--align rigid-all (local, resolve)|--align rigid-all"

@@ -8,10 +8,12 @@ scripts/validation/clips.txt that has been generated (scripts/validation/generat
 the public `test_public` clip is baked in every mode and judged by `drivenshape eval` on its
 motion frames (after the 20 preroll frames):
 
-  talk      the 2008 talk: --weights qp --align none --blend world --no-resolve
-  bind      the binding baseline: --weights bind --no-resolve
-  qp        the 0.1 defaults: --weights qp (rigid alignment, local blend, resolution)
-  defaults  the defaults: the pose model (--weights auto on a database with a model)
+  talk      the 2008 talk: --weights qp --align none --blend world --no-resolve --strain-limit 0
+  bind      the binding baseline: --weights bind --no-resolve --strain-limit 0
+  qp        the 0.1 defaults: --weights qp --strain-limit 0 (rigid alignment, local blend,
+            resolution)
+  defaults  the defaults: the pose model (--weights auto on a database with a model) and the
+            strain limit
 
 The public clips are entries of clips.txt too, found by name in the clip folder (--clips):
 <scene>_train1 (the database) and <scene>_test_public2 (the last two rows). --reference DIR
@@ -42,9 +44,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 
 MODES = {
-    "talk": ["--weights", "qp", "--align", "none", "--blend", "world", "--no-resolve"],
-    "bind": ["--weights", "bind", "--no-resolve"],
-    "qp": ["--weights", "qp"],
+    "talk": ["--weights", "qp", "--align", "none", "--blend", "world", "--no-resolve",
+             "--strain-limit", "0"],
+    "bind": ["--weights", "bind", "--no-resolve", "--strain-limit", "0"],
+    "qp": ["--weights", "qp", "--strain-limit", "0"],
     "defaults": [],
 }
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include <drivenshape/error.h>
@@ -32,8 +33,24 @@ float shareOf(const std::vector<float>& weights, int vertex, int other) {
 
 }  // namespace
 
+std::vector<float> chebyshevWeights(int iterations, double rho, int from) {
+  if (iterations < 0 || !(rho >= 0.0 && rho < 1.0) || from < 1) {
+    DS_THROW(kInternal, "chebyshevWeights: iterations ", iterations, " (>= 0), rho ", rho,
+             " (0 to below 1), from ", from, " (>= 1)");
+  }
+  std::vector<float> omega(static_cast<std::size_t>(iterations), 1.0f);
+  const double rho2 = rho * rho;
+  double w = 1.0;
+  for (int k = from; k < iterations && rho > 0.0; ++k) {
+    w = k == from ? 2.0 / (2.0 - rho2) : 4.0 / (4.0 - rho2 * w);
+    omega[static_cast<std::size_t>(k)] = static_cast<float>(w);
+  }
+  return omega;
+}
+
 StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iterations,
-                                    double relaxation, const std::vector<float>& weights) {
+                                    double relaxation, std::vector<float> omega,
+                                    const std::vector<float>& weights) {
   const int vertexCount = mesh.vertexCount();
   if (!(band >= 0.0 && band < 1.0) || iterations < 0 || !(relaxation > 0.0 && relaxation < 2.0)) {
     DS_THROW(kInternal, "strainLimitTables: band ", band, " (0 to below 1), iterations ",
@@ -48,9 +65,17 @@ StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iteration
       DS_THROW(kInternal, "strainLimitTables: a vertex weight of ", w, " (>= 0 and finite)");
     }
   }
+  if (omega.empty()) {
+    omega.assign(static_cast<std::size_t>(iterations), 1.0f);
+  }
+  if (omega.size() != static_cast<std::size_t>(iterations)) {
+    DS_THROW(kInternal, "strainLimitTables: ", omega.size(), " Chebyshev weights for ", iterations,
+             " iterations");
+  }
   StrainLimitTables tables;
   tables.vertexCount = vertexCount;
   tables.iterations = iterations;
+  tables.omega = std::move(omega);
   // Two passes over the edges (sorted, each once): count each vertex's entries, then fill them,
   // so every vertex lists its edges in meshEdges() order.
   std::vector<MeshEdge> edges;
@@ -106,7 +131,12 @@ void checkTables(const StrainLimitTables& t) {
   bool ok = t.vertexCount > 0 && t.iterations >= 0 && t.start.size() == vertices + 1 &&
             t.step.size() == vertices && t.lower.size() == entries && t.upper.size() == entries &&
             t.share.size() == entries && t.start.front() == 0 &&
-            static_cast<std::size_t>(t.start.back()) == entries;
+            static_cast<std::size_t>(t.start.back()) == entries &&
+            t.omega.size() == static_cast<std::size_t>(std::max(t.iterations, 0)) &&
+            (t.omega.empty() || t.omega.front() == 1.0f);
+  for (std::size_t k = 0; ok && k < t.omega.size(); ++k) {
+    ok = t.omega[k] >= 1.0f && t.omega[k] < 2.0f;
+  }
   for (std::size_t v = 0; ok && v < vertices; ++v) {
     ok = t.start[v] <= t.start[v + 1] && t.step[v] >= 0.0f && t.step[v] < 2.0f;
   }

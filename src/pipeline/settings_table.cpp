@@ -765,19 +765,21 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
       .range(0, 0.5, "", "off")
       .help(
           "after the correction and before the penetration resolution, each frame's cloth "
-          "edges are brought back within this fraction of their rest lengths (0.05: 95% to "
-          "105%) by iterations of edge projections")
+          "edges are brought back within this fraction of their rest lengths (0.01: 99% to "
+          "101%) by iterations of edge projections, so the cloth does not stretch like rubber")
       .hash(&hashStrainLimit)
+      .addon("collision", nullptr, "Strain Limit")
       .report("strain_limit");
   Row(rows, "strain_iterations", "strain iterations", SettingType::kInt)
       .flag("--strain-iterations", "N")
       .field<&S::strainIterations>()
       .range(1, 10000, "iterations")
       .help(
-          "strain limit: Jacobi iterations per frame, each one pass over the edges (more: edges "
-          "closer to the band)")
+          "strain limit: Chebyshev-accelerated Jacobi iterations per frame, each one pass over "
+          "the edges (more: edges closer to the band)")
       .usedWhen(&limitsStrain, "with a strain limit (strain_limit above 0)", WhenUnused::kWarn)
       .hash(&hashStrainIterations)
+      .addon("collision", nullptr, "Iterations")
       .report("strain_iterations");
   Row(rows, "layers", "layers", SettingType::kObject)
       .access<EvaluatorSettings>(&layersText, nullptr)

@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <CL/opencl.hpp>
 
@@ -45,6 +46,7 @@ class ClStrainLimit final : public StrainLimitBackend {
     mUploaded = false;
     mVertexCount = tables.vertexCount;
     mIterations = tables.iterations;
+    mOmega = tables.omega;
     cl_util::guard("uploading the strain-limit tables", [&] {
       mStart = cl_util::readOnlyBuffer(mContext, tables.start);
       mOther = cl_util::readOnlyBuffer(mContext, tables.other);
@@ -106,6 +108,7 @@ class ClStrainLimit final : public StrainLimitBackend {
       const cl::Buffer* from = &positions;
       const cl::Buffer* to = &scratch;
       for (int i = 0; i < mIterations; ++i) {
+        params.omega = mOmega[static_cast<std::size_t>(i)];
         cl_util::setArgs(mKernel, *from, *to, mStart, mOther, mLower, mUpper, mShare, mStep,
                          params);
         mQueue.enqueueNDRangeKernel(mKernel, cl::NullRange, global, cl::NDRange(DS_LOCAL_SIZE, 1));
@@ -128,6 +131,7 @@ class ClStrainLimit final : public StrainLimitBackend {
   bool mUploaded = false;
   int mVertexCount = 0;
   int mIterations = 0;
+  std::vector<float> mOmega;  // one per iteration
   cl::Buffer mStart, mOther, mLower, mUpper, mShare, mStep;
   cl_util::GrowingBuffer mPositions{CL_MEM_READ_WRITE};  // F x 3V (limit() on host memory)
   cl_util::GrowingBuffer mScratch{CL_MEM_READ_WRITE};    // F x 3V, the other half of the ping-pong

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The host reference of kernels/strain_limit.cl (strain_limit.h): the same Jacobi iterations in
+// The host reference of kernels/strain_limit.cl (strain_limit.h): the same iterations in
 // double, each frame kept in double between iterations and rounded to float once at the end;
 // frames in parallel on host threads (each frame alone, so the thread count changes nothing).
 
@@ -39,9 +39,9 @@ class HostStrainLimit final : public StrainLimitBackend {
     parallelFor(frameCount, mThreads, [&](int f) {
       float* frame = positions + static_cast<std::size_t>(f) * values;
       std::vector<double> now(frame, frame + values);
-      std::vector<double> next(values);
+      std::vector<double> next(values);  // x_{k-1} before iteration k, then x_{k+1}
       for (int i = 0; i < mTables.iterations; ++i) {
-        iterate(now.data(), next.data());
+        iterate(now.data(), next.data(), mTables.omega[static_cast<std::size_t>(i)]);
         std::swap(now, next);
       }
       for (std::size_t i = 0; i < values; ++i) {
@@ -51,8 +51,9 @@ class HostStrainLimit final : public StrainLimitBackend {
   }
 
  private:
-  /// One Jacobi iteration of one frame: every vertex of `in` (3V values) into `out`.
-  void iterate(const double* in, double* out) const {
+  /// One iteration of one frame: every vertex of `in` (3V values, x_k) into `out`, which holds
+  /// x_{k-1} where `omega` is not 1 (StrainLimitTables).
+  void iterate(const double* in, double* out, double omega) const {
     const StrainLimitTables& t = mTables;
     for (std::size_t v = 0; v < static_cast<std::size_t>(t.vertexCount); ++v) {
       const double* p = in + 3 * v;
@@ -84,7 +85,8 @@ class HostStrainLimit final : public StrainLimitBackend {
       double* o = out + 3 * v;
       const double step = t.step[v];
       for (int a = 0; a < 3; ++a) {
-        o[a] = moves ? p[a] + step * sum[a] : p[a];
+        const double jacobi = moves ? p[a] + step * sum[a] : p[a];
+        o[a] = omega == 1.0 ? jacobi : omega * (jacobi - o[a]) + o[a];
       }
     }
   }
