@@ -51,7 +51,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from . import engine, module
+from . import engine, live, module
 from .engine import UserError
 
 GOAL_GROUP = "drivenshape_goal"
@@ -418,3 +418,73 @@ def simulate_window(scene, obj, bake_pattern, first, last, goal_strength, out_pa
         if scene.frame_current != frame_before:
             scene.frame_set(frame_before)
     return written
+
+
+# --- Simulate Flagged Frames (the operator): the windows of the library's plan, run here ------
+# The library half of issue 44 (drivenshape.plan_simulation, drivenshape.splice) is written
+# beside this one; _plan_windows and _splice are the only two places that call it.
+
+LIBRARY_FUNCTIONS = ("plan_simulation", "splice")
+
+
+def _plan_windows(ds, flagged, frames, settings):
+    """[(first, last)] of the windows the library plans for the `flagged` frames of a bake of
+    `frames`, with the scene's simulation settings (the settings table's "simulate" rows)."""
+    plan = ds.plan_simulation(flagged, frames, **settings)
+    return plan, [(window.first, window.last) for window in plan.windows]
+
+
+def _splice(ds, bake_pattern, plan, window_patterns, out_pattern, settings):
+    """The library's splice of the simulated windows into the bake, written to `out_pattern`."""
+    return ds.splice(bake_pattern, plan, window_patterns, out_pattern, **settings)
+
+
+def spliced_pattern(bake_pattern):
+    """Where Simulate Flagged Frames writes the shot: the bake's pattern in a `simulated`
+    folder beside the bake's EXRs."""
+    folder, name = os.path.split(bake_pattern)
+    return os.path.join(folder, "simulated", name)
+
+
+def simulate_flagged(context, log=None):
+    """Simulates the windows the library plans for the frames the last bake flagged, each with
+    simulate_window on the scene's cloth, and splices them into the bake's EXRs (written to
+    spliced_pattern). Needs the bake's EXR point caches; refuses a baked or disk cloth cache
+    (check_cache). Returns a summary for the report."""
+    ds = module.get()
+    missing = [name for name in LIBRARY_FUNCTIONS if not hasattr(ds, name)]
+    if missing:
+        raise UserError(f"This drivenshape module ({getattr(ds, '__version__', '?')}) has no "
+                        f"{' or '.join(missing)}: Simulate Flagged Frames needs the library's "
+                        "simulation plan and splice (issue 44). Build the module from a source "
+                        "tree that has them")
+    scene = context.scene
+    settings = scene.drivenshape
+    _driver, cloth = engine.scene_objects(scene, driver_editable=False)
+    frames = [verdict.frame for verdict in settings.verdicts]
+    flagged = [verdict.frame for verdict in settings.verdicts if verdict.flagged]
+    if not flagged:
+        raise UserError("No frame is flagged to simulate: bake with the pose model first")
+    if not settings.bake_write_exr:
+        raise UserError("Simulating flagged frames splices into the bake's EXR point caches: "
+                        "turn EXR Point Caches on and bake again")
+    bake_pattern = engine.abspath(settings.bake_exr_pattern)
+    out_pattern = spliced_pattern(bake_pattern)
+    simulation = engine.module_kwargs(settings, "simulate")
+    live.stop(restore=True)  # live mode writes the cloth's mesh on every frame change
+    plan, windows = _plan_windows(ds, flagged, frames, simulation)
+    work = tempfile.mkdtemp(prefix="drivenshape_windows_")
+    try:
+        patterns = []
+        for first, last in windows:
+            pattern = os.path.join(work, f"window_{first}_{last}", "x.####.exr")
+            simulate_window(scene, cloth, bake_pattern, first, last,
+                            simulation.get("goal_strength", 0.0), pattern,
+                            space=settings.space, log=log)
+            patterns.append(pattern)
+        _splice(ds, bake_pattern, plan, patterns, out_pattern, simulation)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    simulated = sum(last - first + 1 for first, last in windows)
+    return (f"Simulated {len(windows)} window(s), {simulated} frames, for {len(flagged)} flagged "
+            f"frames of '{cloth.name}'; the shot is in {out_pattern}")
