@@ -26,7 +26,6 @@ as world-space point-cache EXRs with the module: the "bake". Then runs the runne
 and that shot.blend is byte for byte what it was, with no cache folder beside it.
 """
 
-import argparse
 import hashlib
 import math
 import os
@@ -55,15 +54,7 @@ AROUND, RINGS, SWING = 24, 20, 30.0
 GOALS = (0.0, 0.05, 0.3, 1.0)
 
 
-def parse_args():
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--runner", required=True)
-    parser.add_argument("--work", required=True)
-    return parser.parse_args(argv)
-
-
-args = parse_args()
+args = util.parse_args(("--runner", "--work"))
 checks = util.Checks("test_simulate_window")
 folders = [f for f in os.environ.get("DRIVENSHAPE_PYTHONPATH", "").split(os.pathsep) if f]
 if not folders:

@@ -21,6 +21,21 @@ def _report_failure(operator, error):
     return {"CANCELLED"}
 
 
+def _run_reporting(operator, context, work):
+    """Runs work(context), which returns a summary, at once with the progress bar up; reports
+    the summary, or the failure."""
+    window_manager = context.window_manager
+    window_manager.progress_begin(0, 1)
+    try:
+        summary = work(context)
+    except Exception as error:
+        return _report_failure(operator, error)
+    finally:
+        window_manager.progress_end()
+    operator.report({"INFO"}, summary)
+    return {"FINISHED"}
+
+
 class DRIVENSHAPE_OT_live_start(bpy.types.Operator):
     bl_idname = "drivenshape.live_start"
     bl_label = "Start Live Mode"
@@ -61,16 +76,7 @@ class DRIVENSHAPE_OT_build_database(bpy.types.Operator):
     bl_options = {"REGISTER"}
 
     def execute(self, context):
-        window_manager = context.window_manager
-        window_manager.progress_begin(0, 1)
-        try:
-            summary = bake.build_database(context)
-        except Exception as error:
-            return _report_failure(self, error)
-        finally:
-            window_manager.progress_end()
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return _run_reporting(self, context, bake.build_database)
 
 
 class _ShotOperator:
@@ -242,16 +248,7 @@ class DRIVENSHAPE_OT_simulate_flagged(bpy.types.Operator):
     bl_options = {"REGISTER"}
 
     def execute(self, context):
-        window_manager = context.window_manager
-        window_manager.progress_begin(0, 1)
-        try:
-            summary = simulate.simulate_flagged(context)
-        except Exception as error:
-            return _report_failure(self, error)
-        finally:
-            window_manager.progress_end()
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return _run_reporting(self, context, simulate.simulate_flagged)
 
 
 class DRIVENSHAPE_OT_add_mesh_cache(bpy.types.Operator):
