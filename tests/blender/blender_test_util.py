@@ -25,11 +25,12 @@ TOLERANCE = 1e-6
 ADDON = "drivenshape_blender"
 
 
-def parse_args():
+def parse_args(names=("--data", "--work")):
+    """The script's arguments after `--`: each of `names`, required."""
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser()
-    parser.add_argument("--data", required=True)
-    parser.add_argument("--work", required=True)
+    for name in names:
+        parser.add_argument(name, required=True)
     return parser.parse_args(argv)
 
 

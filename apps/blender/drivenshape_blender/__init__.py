@@ -22,7 +22,7 @@ if "bpy" in locals():
     import importlib
 
     for _name in ("settings_generated", "module", "engine", "coverage", "live", "bake",
-                  "properties", "operators", "ui"):
+                  "simulate", "properties", "operators", "ui"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
@@ -37,6 +37,7 @@ from . import (  # noqa: E402,F401
     operators,
     properties,
     settings_generated,
+    simulate,
     ui,
 )
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Operators: live mode on and off, building a database, baking and marking the frames to simulate
 (modal with progress and Esc from the UI, all at once from scripts), going to the flagged
-frames, the Mesh Cache modifier, retrying the module import.
+frames, simulating them (simulate.py), the Mesh Cache modifier, retrying the module import.
 Every failure is reported with self.report({'ERROR'}, ...) naming the file, frame or object."""
 
 import time
@@ -9,7 +9,7 @@ import time
 import bpy
 from bpy.props import BoolProperty, StringProperty
 
-from . import bake, coverage, engine, live, module
+from . import bake, coverage, engine, live, module, simulate
 from .engine import UserError
 
 
@@ -19,6 +19,21 @@ def _report_failure(operator, error):
     else:
         operator.report({"ERROR"}, engine.describe_error(error))
     return {"CANCELLED"}
+
+
+def _run_reporting(operator, context, work):
+    """Runs work(context), which returns a summary, at once with the progress bar up; reports
+    the summary, or the failure."""
+    window_manager = context.window_manager
+    window_manager.progress_begin(0, 1)
+    try:
+        summary = work(context)
+    except Exception as error:
+        return _report_failure(operator, error)
+    finally:
+        window_manager.progress_end()
+    operator.report({"INFO"}, summary)
+    return {"FINISHED"}
 
 
 class DRIVENSHAPE_OT_live_start(bpy.types.Operator):
@@ -61,16 +76,7 @@ class DRIVENSHAPE_OT_build_database(bpy.types.Operator):
     bl_options = {"REGISTER"}
 
     def execute(self, context):
-        window_manager = context.window_manager
-        window_manager.progress_begin(0, 1)
-        try:
-            summary = bake.build_database(context)
-        except Exception as error:
-            return _report_failure(self, error)
-        finally:
-            window_manager.progress_end()
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return _run_reporting(self, context, bake.build_database)
 
 
 class _ShotOperator:
@@ -232,6 +238,19 @@ class DRIVENSHAPE_OT_clear_marks(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class DRIVENSHAPE_OT_simulate_flagged(bpy.types.Operator):
+    bl_idname = "drivenshape.simulate_flagged"
+    bl_label = "Simulate Flagged Frames"
+    bl_description = ("Simulate the frames the last bake flagged with the cloth's own Cloth "
+                      "modifier, in windows warm-started from the bake, and splice them into "
+                      "the bake's EXRs (written to a 'simulated' folder beside them); what "
+                      "`drivenshape simulate` does on the farm")
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        return _run_reporting(self, context, simulate.simulate_flagged)
+
+
 class DRIVENSHAPE_OT_add_mesh_cache(bpy.types.Operator):
     bl_idname = "drivenshape.add_mesh_cache"
     bl_label = "Add Mesh Cache Modifier"
@@ -285,6 +304,7 @@ CLASSES = (
     DRIVENSHAPE_OT_mark_frames,
     DRIVENSHAPE_OT_jump_flagged,
     DRIVENSHAPE_OT_clear_marks,
+    DRIVENSHAPE_OT_simulate_flagged,
     DRIVENSHAPE_OT_add_mesh_cache,
     DRIVENSHAPE_OT_retry_import,
 )
