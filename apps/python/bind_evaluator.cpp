@@ -985,13 +985,30 @@ types::Spliced spliceBinding(types::JsonDict plan, types::ArrayLike baked,
     py::gil_scoped_release release;
     shot = spliceSimulation(parsed, shape.vertices, bakedValues, simulated);
   }
-  py::list sources;
-  for (FrameSource source : shot.sources) {
-    sources.append(frameSourceName(source));
-  }
+  const py::list sources = sourceNames(shot.sources);
   const py::ssize_t frames = static_cast<py::ssize_t>(shot.sources.size());
   return types::Spliced(
       py::make_tuple(ownedArray(std::move(shot.positions), {frames, shape.vertices, 3}), sources));
+}
+
+/// The sources of a splice, by name.
+py::list sourceNames(const std::vector<FrameSource>& sources) {
+  py::list names;
+  for (FrameSource source : sources) {
+    names.append(frameSourceName(source));
+  }
+  return names;
+}
+
+py::list spliceFilesBinding(types::JsonDict plan, const std::string& bake,
+                            const std::vector<std::string>& windows, const std::string& output) {
+  const SimulationPlan parsed = parseSimulationPlan(dictJson(plan, "plan"), "(plan dict)");
+  SplicedShot shot;
+  {
+    py::gil_scoped_release release;
+    shot = spliceSimulationFiles(parsed, bake, windows, output);
+  }
+  return sourceNames(shot.sources);
 }
 
 }  // namespace
@@ -1013,6 +1030,16 @@ void bindSimulation(py::module_& module) {
              "plan; windows: one (Fw, V, 3) array per window, its frames warmup_from..to. "
              "Returns (positions (F, V, 3) float32, sources: 'baked', 'simulated' or 'blended' "
              "per frame), bitwise what drivenshape simulate writes.");
+  module.def("splice_files", &spliceFilesBinding, py::arg("plan"), py::arg("bake"),
+             py::arg("windows"), py::arg("output"),
+             "spliceSimulationFiles (what drivenshape simulate writes): reads the plan's frames "
+             "of the bake's point-cache EXR sequence `bake` and each window's frames "
+             "warmup_from..to of the sequences `windows` (one pattern per window), splices them "
+             "and writes every frame first..last to the sequence `output`, each file atomically "
+             "with the bake's width, compression, topology hash and fps and its source in the "
+             "header attribute dsSource. Returns the source of each frame ('baked', "
+             "'simulated' or 'blended'). The files are byte for byte those of drivenshape "
+             "simulate.");
 }
 
 // The shot planner's binding (bind_shot_plan.cpp) plans for an Evaluator's settings.

@@ -424,19 +424,24 @@ def simulate_window(scene, obj, bake_pattern, first, last, goal_strength, out_pa
 # The library half of issue 44 (drivenshape.plan_simulation, drivenshape.splice) is written
 # beside this one; _plan_windows and _splice are the only two places that call it.
 
-LIBRARY_FUNCTIONS = ("plan_simulation", "splice")
+LIBRARY_FUNCTIONS = ("plan_simulation", "splice_files")
 
 
-def _plan_windows(ds, flagged, frames, settings):
-    """[(first, last)] of the windows the library plans for the `flagged` frames of a bake of
-    `frames`, with the scene's simulation settings (the settings table's "simulate" rows)."""
-    plan = ds.plan_simulation(flagged, frames, **settings)
-    return plan, [(window.first, window.last) for window in plan.windows]
+def _plan_windows(ds, verdicts, settings):
+    """The library's plan for the scene's stored verdicts (every baked frame with its predicted
+    error and whether it is flagged: the part of a bake report the plan reads) with the scene's
+    simulation settings (the settings table's "simulate" rows), and its windows as
+    [(warmup_from, to)]: the frames each window simulates."""
+    report = {"frames": [{"frame": int(v.frame), "predicted_error": max(float(v.error_bound), 0.0),
+                          "coverage": {"flagged": bool(v.flagged)}} for v in verdicts]}
+    plan = ds.plan_simulation(report, **settings)
+    return plan, [(window["warmup_from"], window["to"]) for window in plan["windows"]]
 
 
-def _splice(ds, bake_pattern, plan, window_patterns, out_pattern, settings):
-    """The library's splice of the simulated windows into the bake, written to `out_pattern`."""
-    return ds.splice(bake_pattern, plan, window_patterns, out_pattern, **settings)
+def _splice(ds, bake_pattern, plan, window_patterns, out_pattern):
+    """The library's splice of the simulated windows into the bake, written to `out_pattern`
+    (the files `drivenshape simulate` writes, byte for byte). Returns each frame's source."""
+    return ds.splice_files(plan, bake_pattern, window_patterns, out_pattern)
 
 
 def spliced_pattern(bake_pattern):
@@ -461,7 +466,6 @@ def simulate_flagged(context, log=None):
     scene = context.scene
     settings = scene.drivenshape
     _driver, cloth = engine.scene_objects(scene, driver_editable=False)
-    frames = [verdict.frame for verdict in settings.verdicts]
     flagged = [verdict.frame for verdict in settings.verdicts if verdict.flagged]
     if not flagged:
         raise UserError("No frame is flagged to simulate: bake with the pose model first")
@@ -472,7 +476,7 @@ def simulate_flagged(context, log=None):
     out_pattern = spliced_pattern(bake_pattern)
     simulation = engine.module_kwargs(settings, "simulate")
     live.stop(restore=True)  # live mode writes the cloth's mesh on every frame change
-    plan, windows = _plan_windows(ds, flagged, frames, simulation)
+    plan, windows = _plan_windows(ds, settings.verdicts, simulation)
     work = tempfile.mkdtemp(prefix="drivenshape_windows_")
     try:
         patterns = []
@@ -482,9 +486,11 @@ def simulate_flagged(context, log=None):
                             simulation.get("goal_strength", 0.0), pattern,
                             space=settings.space, log=log)
             patterns.append(pattern)
-        _splice(ds, bake_pattern, plan, patterns, out_pattern, simulation)
+        sources = _splice(ds, bake_pattern, plan, patterns, out_pattern)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     simulated = sum(last - first + 1 for first, last in windows)
+    blended = sources.count("blended")
     return (f"Simulated {len(windows)} window(s), {simulated} frames, for {len(flagged)} flagged "
-            f"frames of '{cloth.name}'; the shot is in {out_pattern}")
+            f"frames of '{cloth.name}' ({blended} frames blended at the seams); the shot is in "
+            f"{out_pattern}")

@@ -193,6 +193,7 @@ class DRIVENSHAPE_PT_coverage(_Panel, bpy.types.Panel):
             row.operator("drivenshape.jump_flagged", text="Next", icon="TRIA_RIGHT").previous \
                 = False
             row.operator("drivenshape.clear_marks", text="", icon="X")
+            _table_settings(_split(layout), settings, "simulate")
             layout.operator("drivenshape.simulate_flagged", icon="MOD_CLOTH")
         elif lines:
             layout.operator("drivenshape.clear_marks", text="Clear", icon="X")
