@@ -969,6 +969,15 @@ types::JsonDict planSimulationBinding(types::ReportSource report, const py::kwar
   return parseJson<types::JsonDict>(simulationPlanJson(planSimulation(coverage, options)));
 }
 
+/// The sources of a splice, by name.
+py::list sourceNames(const std::vector<FrameSource>& sources) {
+  py::list names;
+  for (FrameSource source : sources) {
+    names.append(frameSourceName(source));
+  }
+  return names;
+}
+
 types::Spliced spliceBinding(types::JsonDict plan, types::ArrayLike baked,
                              types::ArrayLikes windows) {
   const SimulationPlan parsed = parseSimulationPlan(dictJson(plan, "plan"), "(plan dict)");
@@ -989,15 +998,6 @@ types::Spliced spliceBinding(types::JsonDict plan, types::ArrayLike baked,
   const py::ssize_t frames = static_cast<py::ssize_t>(shot.sources.size());
   return types::Spliced(
       py::make_tuple(ownedArray(std::move(shot.positions), {frames, shape.vertices, 3}), sources));
-}
-
-/// The sources of a splice, by name.
-py::list sourceNames(const std::vector<FrameSource>& sources) {
-  py::list names;
-  for (FrameSource source : sources) {
-    names.append(frameSourceName(source));
-  }
-  return names;
 }
 
 py::list spliceFilesBinding(types::JsonDict plan, const std::string& bake,
