@@ -427,12 +427,16 @@ def simulate_window(scene, obj, bake_pattern, first, last, goal_strength, out_pa
 LIBRARY_FUNCTIONS = ("plan_simulation", "splice_files")
 
 
-def _plan_windows(ds, verdicts, settings):
+def _plan_windows(ds, verdicts, tolerance, settings):
     """The library's plan for the scene's stored verdicts (every baked frame with its predicted
-    error and whether it is flagged: the part of a bake report the plan reads) with the scene's
-    simulation settings (the settings table's "simulate" rows), and its windows as
-    [(warmup_from, to)]: the frames each window simulates."""
-    report = {"frames": [{"frame": int(v.frame), "predicted_error": max(float(v.error_bound), 0.0),
+    error and whether it is flagged, and the tolerance they were judged with: the part of a bake
+    report the plan reads) with the scene's simulation settings (the settings table's "simulate"
+    rows), and its windows as [(warmup_from, to)]: the frames each window simulates."""
+    if tolerance < 0:
+        raise UserError("The stored verdicts have no tolerance: bake with the pose model (or "
+                        "Mark Frames to Simulate) again")
+    report = {"coverage": {"tolerance": float(tolerance)},
+              "frames": [{"frame": int(v.frame), "predicted_error": max(float(v.error_bound), 0.0),
                           "coverage": {"flagged": bool(v.flagged)}} for v in verdicts]}
     plan = ds.plan_simulation(report, **settings)
     return plan, [(window["warmup_from"], window["to"]) for window in plan["windows"]]
@@ -442,6 +446,12 @@ def _splice(ds, bake_pattern, plan, window_patterns, out_pattern):
     """The library's splice of the simulated windows into the bake, written to `out_pattern`
     (the files `drivenshape simulate` writes, byte for byte). Returns each frame's source."""
     return ds.splice_files(plan, bake_pattern, window_patterns, out_pattern)
+
+
+def bake_space(space):
+    """The space of the add-on's bake EXRs for simulate_window: the scene setting's Object
+    ("LOCAL", the cloth object's space) or World."""
+    return "OBJECT" if space == "LOCAL" else space
 
 
 def spliced_pattern(bake_pattern):
@@ -476,7 +486,7 @@ def simulate_flagged(context, log=None):
     out_pattern = spliced_pattern(bake_pattern)
     simulation = engine.module_kwargs(settings, "simulate")
     live.stop(restore=True)  # live mode writes the cloth's mesh on every frame change
-    plan, windows = _plan_windows(ds, settings.verdicts, simulation)
+    plan, windows = _plan_windows(ds, settings.verdicts, settings.verdict_tolerance, simulation)
     work = tempfile.mkdtemp(prefix="drivenshape_windows_")
     try:
         patterns = []
@@ -484,8 +494,9 @@ def simulate_flagged(context, log=None):
             pattern = os.path.join(work, f"window_{first}_{last}", "x.####.exr")
             simulate_window(scene, cloth, bake_pattern, first, last,
                             simulation.get("goal_strength", 0.0), pattern,
-                            space=settings.space, log=log)
+                            space=bake_space(settings.space), log=log)
             patterns.append(pattern)
+        os.makedirs(os.path.dirname(out_pattern), exist_ok=True)  # the library's writer wants it
         sources = _splice(ds, bake_pattern, plan, patterns, out_pattern)
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -73,6 +73,7 @@ from ._drivenshape import (  # noqa: F401
     shot_verdict,
     simulation_runs,
     splice,
+    splice_files,
     verdict_holds,
     write_obj,
     write_pc2,
@@ -178,6 +179,6 @@ __all__ = [
     "parse_binding_mask", "parse_frame_range",
     "parse_regions", "plan_shot", "plan_simulation", "read_obj", "read_pc2", "read_point_cache_exr",
     "read_point_cache_exr_info", "save_database", "settings_table", "shot_verdict",
-    "simulation_runs", "splice", "verdict_holds", "write_obj",
+    "simulation_runs", "splice", "splice_files", "verdict_holds", "write_obj",
     "write_pc2", "write_point_cache_exr",
 ]

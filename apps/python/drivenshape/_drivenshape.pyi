@@ -10,7 +10,7 @@ import numpy
 import numpy.typing
 import os
 import typing
-__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'edge_strain', 'expand_frame_pattern', 'format_frame_range', 'frame_strain', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'merge_bake_reports', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'plan_simulation', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'splice', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
+__all__: list[str] = ['BatchPlan', 'BindingMask', 'Database', 'Device', 'Error', 'Evaluator', 'EvaluatorSettings', 'FrameRecord', 'LayerSettings', 'Mesh', 'PlaybackPlanner', 'PointCache', 'RegionSet', 'bake_report', 'build_database', 'check_driver_scale', 'convert_up_axis', 'edge_strain', 'expand_frame_pattern', 'format_frame_range', 'frame_strain', 'list_devices', 'load_binding_mask', 'load_database', 'load_layers', 'load_regions', 'merge_bake_reports', 'open_device', 'open_point_cache', 'parse_binding_mask', 'parse_frame_range', 'parse_regions', 'plan_shot', 'plan_simulation', 'read_obj', 'read_pc2', 'read_point_cache_exr', 'read_point_cache_exr_info', 'save_database', 'settings_table', 'shot_verdict', 'simulation_runs', 'splice', 'splice_files', 'verdict_holds', 'write_obj', 'write_pc2', 'write_point_cache_exr']
 class _Buffer:
     """
     C++ memory shown to numpy without a copy
@@ -808,6 +808,10 @@ def simulation_runs(flagged: typing.SupportsIndex | collections.abc.Sequence[typ
 def splice(plan: dict[str, typing.Any], baked: numpy.typing.ArrayLike, windows: collections.abc.Sequence[numpy.typing.ArrayLike]) -> tuple[numpy.typing.NDArray[numpy.float32], list[str]]:
     """
     spliceSimulation (drivenshape simulate's splice): the simulated windows spliced into the baked frames with the plan's seam and carry. plan: plan_simulation's dict (or a plan file's JSON); baked: (F, V, 3) float32, every frame first..last of the plan; windows: one (Fw, V, 3) array per window, its frames warmup_from..to. Returns (positions (F, V, 3) float32, sources: 'baked', 'simulated' or 'blended' per frame), bitwise what drivenshape simulate writes.
+    """
+def splice_files(plan: dict[str, typing.Any], bake: str, windows: list[str], output: str) -> list:
+    """
+    spliceSimulationFiles (what drivenshape simulate writes): reads the plan's frames of the bake's point-cache EXR sequence `bake` and each window's frames warmup_from..to of the sequences `windows` (one pattern per window), splices them and writes every frame first..last to the sequence `output`, each file atomically with the bake's width, compression, topology hash and fps and its source in the header attribute dsSource. Returns the source of each frame ('baked', 'simulated' or 'blended'). The files are byte for byte those of drivenshape simulate.
     """
 def verdict_holds(enough: int, missed: int, enough_true_error: float, tolerance: float, level: float) -> bool:
     """
