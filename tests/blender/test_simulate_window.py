@@ -5,11 +5,10 @@ Blenders against a full simulation made here.
     blender -b --factory-startup --python-exit-code 1 --python test_simulate_window.py -- \
         --runner apps/blender/drivenshape_blender/simulate_window.py --work WORK
 
-Builds a small cloth scene (a sleeve of 480 vertices on an arm that swings up 30 degrees, the
-sleeve's shoulder ring pinned, both moved and turned so that object and world space differ,
-Blender's cloth defaults at quality 5, a Subdivision modifier after the cloth, 40 frames), saves
-it as WORK/shot.blend, simulates it here from frame 1 (the truth) and writes the truth's frames
-as world-space point-cache EXRs with the module: the "bake". Then runs the runner as
+Builds the small cloth scene of cloth_scene.py (a sleeve of 480 vertices on an arm that swings
+up 30 degrees, 40 frames), saves it as WORK/shot.blend, simulates it here from frame 1 (the
+truth) and writes the truth's frames as world-space point-cache EXRs with the module: the
+"bake". Then runs the runner as
 `drivenshape simulate` does, one background Blender per window:
 
 (a) goal 0 on frames 24-32 of the truth: frame 24 is the truth's (float32 round trip through
@@ -27,7 +26,6 @@ and that shot.blend is byte for byte what it was, with no cache folder beside it
 """
 
 import hashlib
-import math
 import os
 import shutil
 import subprocess
@@ -40,6 +38,8 @@ import numpy as np
 sys.dont_write_bytecode = True  # Blender ignores PYTHONDONTWRITEBYTECODE: keep the tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import blender_test_util as util  # noqa: E402
+import cloth_scene  # noqa: E402
+from cloth_scene import FRAMES, mean_distance, simulate_here, write_exrs  # noqa: E402
 
 # Every position comparison that must hold exactly up to float32 rounding (a frame that went
 # world -> object space -> PC2 -> Blender -> world space): metres, about 10 float32 ulps at the
@@ -49,8 +49,7 @@ ROUND_TRIP = 2e-6
 # most this share of the cold start's at that frame (measured: 0.02-0.03; a window that ignored
 # the warm start would be the cold start, 1).
 WARM_SHARE = 0.1
-FIRST, LAST, FRAMES = 24, 32, 40
-AROUND, RINGS, SWING = 24, 20, 30.0
+FIRST, LAST = 24, 32
 GOALS = (0.0, 0.05, 0.3, 1.0)
 
 
@@ -66,89 +65,6 @@ work = os.path.abspath(args.work)
 shutil.rmtree(work, ignore_errors=True)
 os.makedirs(work)
 blend = os.path.join(work, "shot.blend")
-
-
-def build_scene():
-    """A sleeve on a swinging arm: a tube (AROUND x RINGS vertices, radius 12 cm, 60 cm long)
-    around a closed cylinder (radius 9 cm, a Collision modifier), both moved and turned by the
-    same transform; the tube's first ring pinned, the arm swinging up about that end from frame
-    8 to the last."""
-    util.clear_scene()
-    scene = bpy.context.scene
-    scene.frame_start, scene.frame_end = 1, FRAMES
-    verts = [(0.02 + 0.6 * j / (RINGS - 1), 0.12 * math.cos(2 * math.pi * i / AROUND),
-              0.12 * math.sin(2 * math.pi * i / AROUND))
-             for j in range(RINGS) for i in range(AROUND)]
-    faces = [(j * AROUND + i, j * AROUND + (i + 1) % AROUND,
-              (j + 1) * AROUND + (i + 1) % AROUND, (j + 1) * AROUND + i)
-             for j in range(RINGS - 1) for i in range(AROUND)]
-    mesh = bpy.data.meshes.new("garment")
-    mesh.from_pydata(verts, [], faces)
-    cloth = bpy.data.objects.new("garment", mesh)
-    scene.collection.objects.link(cloth)
-    cloth.location = (0.1, -0.05, 1.0)
-    cloth.rotation_euler = (0.0, 0.0, math.radians(30.0))
-    pinned = list(range(AROUND))
-    cloth.vertex_groups.new(name="pin").add(pinned, 1.0, "REPLACE")
-    modifier = cloth.modifiers.new("Cloth", "CLOTH")
-    modifier.settings.quality = 5
-    modifier.settings.vertex_group_mass = "pin"
-    modifier.point_cache.frame_start, modifier.point_cache.frame_end = 1, FRAMES
-    cloth.modifiers.new("Subdivision", "SUBSURF").levels = 1
-    bpy.ops.mesh.primitive_cylinder_add(vertices=32, radius=0.09, depth=0.8,
-                                        location=(0.4, 0.0, 0.0),
-                                        rotation=(0.0, math.radians(90.0), 0.0))
-    body = bpy.context.object
-    body.name = "body"
-    bpy.ops.object.transform_apply(location=True, rotation=True)
-    body.location = cloth.location
-    body.rotation_euler = cloth.rotation_euler
-    body.modifiers.new("Collision", "COLLISION")
-    body.keyframe_insert("rotation_euler", frame=8)
-    body.rotation_euler = (0.0, math.radians(-SWING), math.radians(30.0))
-    body.keyframe_insert("rotation_euler", frame=FRAMES)
-    scene.frame_set(1)
-    return scene, cloth, body, pinned
-
-
-def world_cloth(cloth):
-    """The cloth's vertices (V, 3) float64 in world space, read with Subdivision off."""
-    local = util.evaluated_positions(cloth).astype(np.float64)
-    matrix = np.array(cloth.evaluated_get(bpy.context.evaluated_depsgraph_get()).matrix_world)
-    return local @ matrix[:3, :3].T + matrix[:3, 3]
-
-
-def simulate_here(scene, cloth, first, last):
-    """Frames first..last of the scene's own cloth, simulated from its cache start `first`
-    (the cloth's own input there: the sleeve at rest), world space (F, V, 3)."""
-    modifier = cloth.modifiers["Cloth"]
-    subdivision = cloth.modifiers["Subdivision"]
-    subdivision.show_viewport = False
-    modifier.point_cache.frame_start, modifier.point_cache.frame_end = first, last
-    out = []
-    for frame in range(first, last + 1):
-        scene.frame_set(frame)
-        out.append(world_cloth(cloth))
-    subdivision.show_viewport = True
-    modifier.point_cache.frame_start, modifier.point_cache.frame_end = 1, FRAMES
-    return np.array(out)
-
-
-def topology_hash(cloth):
-    mesh = cloth.data
-    sizes = np.array([len(p.vertices) for p in mesh.polygons], dtype=np.int32)
-    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
-    indices = np.array([v for p in mesh.polygons for v in p.vertices], dtype=np.int32)
-    rest = np.array([v.co for v in mesh.vertices], dtype=np.float32)
-    return ds.Mesh.from_polygons(rest, starts, indices).topology_hash
-
-
-def write_exrs(folder, positions, first, hash_value):
-    os.makedirs(folder, exist_ok=True)
-    for i, frame_positions in enumerate(positions):
-        ds.write_point_cache_exr(os.path.join(folder, f"x.{first + i:04d}.exr"),
-                                 np.ascontiguousarray(frame_positions, dtype=np.float32),
-                                 frame=first + i, topology_hash=hash_value, sync=False)
 
 
 def run_window(name, bake, first=FIRST, last=LAST, goal=0.0, obj="garment", env=None,
@@ -178,15 +94,10 @@ def read_window(out, first=FIRST, last=LAST):
     return np.array(frames), records
 
 
-def mean_distance(a, b):
-    """Mean vertex distance per frame (F,)."""
-    return np.linalg.norm(a - b, axis=2).mean(axis=1)
-
-
-scene, cloth, body, pinned = build_scene()
+scene, cloth, body, pinned = cloth_scene.build_scene()
 bpy.ops.wm.save_as_mainfile(filepath=blend)
 blend_digest = hashlib.sha256(open(blend, "rb").read()).hexdigest()
-hash_value = topology_hash(cloth)
+hash_value = cloth_scene.topology_hash(ds, cloth)
 
 began = time.perf_counter()
 truth = simulate_here(scene, cloth, 1, FRAMES)
@@ -194,7 +105,7 @@ print(f"truth: {FRAMES} frames of {truth.shape[1]} vertices in "
       f"{time.perf_counter() - began:.1f} s")
 cold = simulate_here(scene, cloth, FIRST, LAST)
 truth_bake = os.path.join(work, "bake_truth")
-write_exrs(truth_bake, truth, 1, hash_value)
+write_exrs(ds, truth_bake, truth, 1, hash_value)
 window = slice(FIRST - 1, LAST)
 moved = np.linalg.norm(truth[LAST - 1] - truth[0], axis=1).mean()
 checks.check(moved > 0.05, f"the truth's cloth moves: {moved * 1000:.0f} mm on average from "
@@ -232,7 +143,7 @@ checks.check(info["frame"] == FIRST + 1 and info["topology_hash"] == hash_value
 to_object = np.linalg.inv(np.array(cloth.matrix_world))
 local_truth = truth @ to_object[:3, :3].T + to_object[:3, 3]
 local_bake = os.path.join(work, "bake_object")
-write_exrs(local_bake, local_truth, 1, hash_value)
+write_exrs(ds, local_bake, local_truth, 1, hash_value)
 status, _, out = run_window("object_space", local_bake, extra=("--space", "object"))
 checks.check(status == 0, "the runner simulates an object-space bake with --space object")
 local_window, _ = read_window(out)
@@ -249,7 +160,7 @@ displaced[FIRST:, :, 0] += 0.03 * np.sin(4.0 * y)
 displaced[FIRST:, :, 1] += 0.03 * np.cos(3.0 * x)
 displaced[FIRST:, :, 2] += 0.04
 displaced_bake = os.path.join(work, "bake_displaced")
-write_exrs(displaced_bake, displaced, 1, hash_value)
+write_exrs(ds, displaced_bake, displaced, 1, hash_value)
 to_bake = []
 outputs = {}
 for goal in GOALS:
@@ -274,7 +185,7 @@ checks.check(same <= ROUND_TRIP, f"goal 0 on the displaced bake is goal 0 on the
 
 # (c) errors: exit 1, one line naming what is wrong, nothing written.
 small_bake = os.path.join(work, "bake_small")
-write_exrs(small_bake, truth[:, :10], 1, 0)
+write_exrs(ds, small_bake, truth[:, :10], 1, 0)
 no_module_env = {k: v for k, v in os.environ.items() if k != "DRIVENSHAPE_PYTHONPATH"}
 for name, kwargs, fragments in (
         ("missing_object", dict(bake=truth_bake, obj="shirt"), ("'shirt'", "No object")),
