@@ -6,9 +6,14 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <utility>
+#include <vector>
 
+#include <drivenshape/coverage_check.h>
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
+#include <drivenshape/simulation.h>
 
 #include "atomic_file.h"
 #include "farm_job.h"
@@ -279,6 +284,191 @@ int runFarmOpenjd(const std::vector<std::string>& args) {
   return 0;
 }
 
+// ---- Simulate jobs (issue 44): a task per window of the plan, then the splice -------------
+
+const char* const kSimulateExitCodes =
+    "Task N runs `drivenshape simulate ... --window N` (a window a run before left complete is "
+    "kept), the splice task `drivenshape simulate ... --splice-only` (every window must be "
+    "there); both plan with the library from the report and the settings, as this command did. "
+    "Task exit codes are simulate's: 0 ok, 2 usage, 3 input (a window whose simulation failed, "
+    "a window missing for the splice), 4 output. The farm command exits 2 for usage errors, 3 "
+    "when an input is missing or nothing is flagged, 4 when the job file or log folder cannot "
+    "be written or sbatch fails.";
+
+void addSimulateJobOptions(ArgParser& parser) {
+  parser
+      .option("--blend", "SHOT.blend", "the shot's scene with the garment's cloth setup", "", true)
+      .option("--object", "GARMENT", "the garment object (its Cloth modifier simulates)", "", true)
+      .option("--report", "PATH", "the bake's report (bake --report)", "", true)
+      .option("--bake", "BAKE.####.exr", "the bake's EXR sequence (every frame of the report)", "",
+              true)
+      .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
+      .option("-O", "JOBFILE", "job file to write", "", true)
+      .settings(SettingScope::kSimulate)
+      .option("--blender", "PATH", "the Blender executable on the workers", "blender on their PATH")
+      .option("--job-name", "NAME", "job name", "ds_<output name>_simulate")
+      .option("--time", "HH:MM:SS", "time limit per task (also MM or D-HH:MM:SS)")
+      .option("--cpus", "N", "CPU cores per task")
+      .option("--mem", "MB", "memory per task in MiB")
+      .option("--binary", "PATH", "drivenshape executable the tasks run", "this executable")
+      .flag("--no-check", "do not check from this machine that the scene and the bake exist");
+}
+
+/// The simulate job of the options: the library's plan of the report gives its tasks.
+SimulateFarmJob simulateJobFrom(const ArgParser& parser) {
+  SimulateFarmJob job;
+  job.binary = drivenshapeBinary(parser);
+  job.blender = parser.has("--blender") ? parser.get("--blender") : std::string();
+  job.blend = absolute(parser.get("--blend"));
+  job.object = parser.get("--object");
+  job.report = absolute(parser.get("--report"));
+  job.bake = absolute(parser.get("--bake"));
+  job.outputPattern = absolute(parser.get("-o"));
+  job.outputFolder = fs::path(job.outputPattern).parent_path().string();
+  SimulationOptions settings;
+  readSettings(parser, settings);
+  const SimulationPlan plan = planSimulation(readBakeReportCoverage(job.report), settings);
+  setSimulateFarmPlan(job, plan);
+  job.name = parser.has("--job-name") ? parser.get("--job-name")
+                                      : defaultFarmJobName(job.outputPattern) + "_simulate";
+  FarmJob names;  // checkFarmJob's checks of the output pattern and the name
+  names.outputPattern = job.outputPattern;
+  names.name = job.name;
+  checkFarmJob(names, parser.get("-o"), plan.first);
+  if (!hasFramePattern(job.bake)) {
+    DS_THROW(kUsage, culprit("--bake", parser.get("--bake")), " has no frame token");
+  }
+  if (parser.has("--time")) {
+    job.timeLimit = parser.get("--time");
+    parseTimeLimit(job.timeLimit);
+  }
+  job.cpus = parser.has("--cpus") ? parser.getInt("--cpus", 1) : 0;
+  job.memoryMb = parser.has("--mem") ? parser.getInt("--mem", 1) : 0;
+  if (!parser.has("--no-check")) {
+    requireRegularFile(job.binary, "drivenshape executable (--binary)");
+    requireRegularFile(job.blend, "scene (--blend)");
+    checkSimulationBake(plan, job.bake);
+  }
+  return job;
+}
+
+/// Refuses job files that would overwrite an input of the job.
+void checkSimulateFarmPaths(const ArgParser& parser, const SimulateFarmJob& job,
+                            const std::vector<NamedPath>& outputs) {
+  std::vector<NamedPath> inputs = givenPaths(parser, {"--report", "--blend"});
+  const std::vector<NamedPath> bake = givenPaths(parser, {"--bake"}, true);
+  inputs.insert(inputs.end(), bake.begin(), bake.end());
+  inputs.push_back({"--binary", job.binary, false});
+  checkDistinctPaths(outputs, {}, inputs);
+}
+
+int runFarmSlurmSimulate(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape farm slurm simulate --blend SHOT.blend --object GARMENT --report "
+      "BAKE.report.json --bake BAKE.####.exr -o OUT.####.exr -O job.sbatch",
+      "Writes an sbatch array script that simulates the frames a bake's verdict flags: one "
+      "array task per window of the simulation plan (array indices 1..windows), and with the "
+      "argument `splice` the splice of every window into -o, submitted after them. --submit "
+      "runs sbatch for both and prints their job ids.");
+  addSimulateJobOptions(parser);
+  parser.option("--partition", "P", "Slurm partition")
+      .option("--log-dir", "DIR", "folder of the per-task logs (NAME_JOBID_WINDOW.log)",
+              "OUT folder/logs")
+      .flag("--submit", "submit the script with sbatch and print the job ids")
+      .epilog(kSimulateExitCodes);
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const SimulateFarmJob job = simulateJobFrom(parser);
+  const std::string logDir =
+      absolute(parser.has("--log-dir") ? parser.get("--log-dir") : job.outputFolder + "/logs");
+  const std::string logCulprit = culprit("--log-dir (default OUT folder/logs)", logDir);
+  const std::string script = slurmSimulateScript(job, slurmLogPattern(logDir, job.name, logCulprit),
+                                                 parser.get("--partition"));
+  const std::string jobFile = absolute(parser.get("-O"));
+  checkOutputFolderWritable(jobFile);
+  checkSimulateFarmPaths(parser, job, {{"-O", jobFile, false}});
+  makeFolder(logDir, "log");
+  std::error_code ec;
+  fs::create_directories(job.outputFolder, ec);
+  writeFileAtomically(jobFile, script);
+  fs::permissions(jobFile, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
+                  fs::perm_options::add);
+  std::cout << "slurm job: " << jobFile << " (" << job.windows << " array tasks 1-" << job.windows
+            << ", one per window of frames " << job.firstFrame << "-" << job.lastFrame
+            << "; then the splice)\n"
+            << "logs:      " << logDir << "/" << safeName(job.name) << "_<job>_<window>.log\n";
+  if (parser.has("--submit")) {
+    const std::string id = submitToSlurm(jobFile);
+    std::cout << "submitted: job " << id << "\n";
+    const std::string splice = submitToSlurm(jobFile, slurmSpliceOptions(job, id), {"splice"});
+    std::cout << "submitted: job " << splice << " (the splice, after job " << id << ")\n";
+  } else {
+    std::string spliceOptions;
+    for (const std::string& option : slurmSpliceOptions(job, "${id%%;*}")) {
+      spliceOptions +=
+          " " + (option.find('$') == std::string::npos ? shellQuote(option) : "\"" + option + "\"");
+    }
+    std::cout << "submit with: id=$(sbatch --parsable " << shellQuote(jobFile) << ") &&\n"
+              << "             sbatch" << spliceOptions << " " << shellQuote(jobFile)
+              << " splice\n";
+  }
+  return 0;
+}
+
+int runFarmOpenjdSimulate(const std::vector<std::string>& args) {
+  ArgParser parser(
+      "drivenshape farm openjd simulate --blend SHOT.blend --object GARMENT --report "
+      "BAKE.report.json --bake BAKE.####.exr -o OUT.####.exr -O job.template.json",
+      "Writes an Open Job Description (2023-09) job template that simulates the frames a "
+      "bake's verdict flags: step Simulate, one task per window of the simulation plan (task "
+      "parameter Window, 1..windows), and step Splice after it. Paths are PATH job parameters; "
+      "the format follows -O (.yaml/.yml: YAML, else JSON).");
+  addSimulateJobOptions(parser);
+  parser
+      .option("--cancel-grace", "S", "seconds between SIGTERM and SIGKILL when a task is canceled",
+              "120")
+      .epilog(kSimulateExitCodes);
+  if (!parser.parse(args)) {
+    std::cout << parser.help();
+    return 0;
+  }
+  const SimulateFarmJob job = simulateJobFrom(parser);
+  const long timeout = job.timeLimit.empty() ? 0 : parseTimeLimit(job.timeLimit);
+  const int cancelGrace = parser.getInt("--cancel-grace", 1);
+  checkCancelGrace(cancelGrace);
+  checkTemplateText(culprit("--job-name", job.name), job.name, "");
+  checkTemplateText(culprit("--object", job.object), job.object, "");
+  checkTemplateText(culprit("--blender", job.blender), job.blender, "");
+  for (const auto& [option, path] : {std::pair<const char*, std::string>{"--blend", job.blend},
+                                     {"--report", job.report},
+                                     {"--bake", job.bake},
+                                     {"-o", job.outputPattern},
+                                     {"--binary", job.binary}}) {
+    checkTemplatePath(culprit(option, path), path);
+  }
+  const std::string jobFile = absolute(parser.get("-O"));
+  nlohmann::ordered_json values = nlohmann::ordered_json::object();
+  const nlohmann::ordered_json jobTemplate = openJobSimulateTemplate(
+      job, fs::path(jobFile).parent_path().string(), timeout, cancelGrace, values);
+  checkJobTemplate(jobTemplate);
+  const std::string valuesFile = openJobParametersPath(jobFile);
+  checkOutputFolderWritable(jobFile);
+  checkSimulateFarmPaths(
+      parser, job, {{"-O", jobFile, false}, {"-O (its job parameters file)", valuesFile, false}});
+  writeFilesTogether({{valuesFile, jsonText(values, 2) + "\n"},
+                      {jobFile, openJobTemplateText(jobTemplate, jobFile)}});
+  std::cout << "openjd template: " << jobFile << " (step Simulate, " << job.windows
+            << " tasks Window=1-" << job.windows << "; then step Splice)\n"
+            << "job parameters: " << valuesFile << "\n"
+            << "run with:   openjd run " << shellQuote(jobFile) << " --step Simulate --job-param "
+            << shellQuote("file://" + valuesFile) << "\n"
+            << "  and then: openjd run " << shellQuote(jobFile) << " --step Splice --job-param "
+            << shellQuote("file://" + valuesFile) << "\n";
+  return 0;
+}
+
 }  // namespace
 
 int runFarm(const std::vector<std::string>& args) {
@@ -286,7 +476,10 @@ int runFarm(const std::vector<std::string>& args) {
       "usage: drivenshape farm slurm|openjd [options]   (drivenshape farm slurm --help)\n"
       "\n"
       "  slurm    write (and with --submit, submit) an sbatch array script, one task per chunk\n"
-      "  openjd   write an Open Job Description job template, one task per chunk\n";
+      "  openjd   write an Open Job Description job template, one task per chunk\n"
+      "  slurm simulate, openjd simulate\n"
+      "           the same for `drivenshape simulate`: one task per window of the simulation\n"
+      "           plan, then the splice (drivenshape farm slurm simulate --help)\n";
   if (args.empty()) {
     DS_THROW(kUsage, "`drivenshape farm` needs a scheduler: slurm or openjd");
   }
@@ -295,6 +488,10 @@ int runFarm(const std::vector<std::string>& args) {
     return 0;
   }
   const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (!rest.empty() && rest[0] == "simulate" && (args[0] == "slurm" || args[0] == "openjd")) {
+    const std::vector<std::string> words(rest.begin() + 1, rest.end());
+    return args[0] == "slurm" ? runFarmSlurmSimulate(words) : runFarmOpenjdSimulate(words);
+  }
   if (args[0] == "slurm") {
     return runFarmSlurm(rest);
   }

@@ -71,10 +71,18 @@ ArgParser simulateParser() {
       .settings(SettingScope::kSimulate)
       .option("--blender", "PATH", "the Blender executable", "blender on PATH")
       .flag("--plan-only", "write and print the plan, simulate nothing")
+      .option("--window", "N",
+              "job control (a farm's window task): simulate window N of the plan only (1 = the "
+              "first), keeping it when a run before left it complete; no splice")
+      .flag("--splice-only",
+            "job control (a farm's splice task): simulate nothing, splice the windows that "
+            "--window tasks left (every one must be complete) and write the report")
       .flag("--quiet", "no progress lines")
       .epilog(
-          "Exit codes: 0 ok, 2 usage, 3 input (the report, the bake, Blender or the runner "
-          "missing, a window whose simulation failed), 4 output.");
+          "`drivenshape farm slurm|openjd simulate` writes a job of these: a --window task per "
+          "window, then a --splice-only task. Exit codes: 0 ok, 2 usage, 3 input (the report, "
+          "the bake, Blender or the runner missing, a window whose simulation failed or, with "
+          "--splice-only, is not there), 4 output.");
   return parser;
 }
 
@@ -293,10 +301,11 @@ void checkSimulatePaths(const ArgParser& parser, const SimulationPlan& plan) {
   checkDistinctPaths(outputs, frames, inputs);
 }
 
-/// Runs the windows (or keeps them) and splices; returns the splice.
-SplicedShot simulateAndSplice(const ArgParser& parser, const SimulationPlan& plan, bool quiet) {
+/// What the windows need, from the command line; `blender` false for --splice-only, which
+/// starts none (a window's stamp leaves Blender's path out).
+WindowJob windowJobOf(const ArgParser& parser, const SimulationPlan& plan, bool blender) {
   const ExrPointCacheInfo bake = checkSimulationBake(plan, parser.get("--bake"));
-  WindowJob job{blenderPath(parser),
+  WindowJob job{blender ? blenderPath(parser) : std::string(),
                 runnerPath(),
                 absolute(parser.get("--blend")),
                 parser.get("--object"),
@@ -305,18 +314,45 @@ SplicedShot simulateAndSplice(const ArgParser& parser, const SimulationPlan& pla
                 plan.settings.goalStrength,
                 bake.vertexCount};
   requireRegularFile(job.blend, "scene");
-  std::vector<std::string> patterns;
+  return job;
+}
+
+/// Window w (0-based) of the plan: kept when a run before left it complete, else simulated.
+void runWindow(const WindowJob& job, const SimulationPlan& plan, std::size_t w, bool quiet) {
+  const SimulationWindow& window = plan.windows[w];
+  const bool kept = windowKept(job, window);
+  if (!quiet) {
+    std::cerr << "window " << w + 1 << "/" << plan.windows.size() << ": frames "
+              << window.warmupFrom << "-" << window.to
+              << (kept ? " kept from a run before\n" : " simulating in Blender\n");
+  }
+  if (!kept) {
+    simulateWindow(job, window);
+  }
+}
+
+/// --splice-only: every window must be complete from the same command line; Error(kInput)
+/// naming the first that is not and the task that makes it.
+void requireEveryWindow(const WindowJob& job, const SimulationPlan& plan) {
   for (std::size_t w = 0; w < plan.windows.size(); ++w) {
     const SimulationWindow& window = plan.windows[w];
-    const bool kept = windowKept(job, window);
-    if (!quiet) {
-      std::cerr << "window " << w + 1 << "/" << plan.windows.size() << ": frames "
-                << window.warmupFrom << "-" << window.to
-                << (kept ? " kept from a run before\n" : " simulating in Blender\n");
+    if (!windowKept(job, window)) {
+      const std::string problem =
+          simulatedWindowProblem(window, windowPattern(job, window), job.vertexCount);
+      DS_THROW(kInput, "--splice-only: window ", w + 1, " of ", plan.windows.size(), " (frames ",
+               window.warmupFrom, "-", window.to, ") is not complete in '",
+               windowFolder(job, window).string(), "' (",
+               problem.empty() ? "simulated with other inputs or settings" : problem,
+               "); run its task first: the same command with --window ", w + 1);
     }
-    if (!kept) {
-      simulateWindow(job, window);
-    }
+  }
+}
+
+/// Splices the windows into -o and removes the windows' folder; returns the splice.
+SplicedShot splice(const ArgParser& parser, const SimulationPlan& plan, const WindowJob& job,
+                   bool quiet) {
+  std::vector<std::string> patterns;
+  for (const SimulationWindow& window : plan.windows) {
     patterns.push_back(windowPattern(job, window));
   }
   if (!quiet) {
@@ -326,6 +362,36 @@ SplicedShot simulateAndSplice(const ArgParser& parser, const SimulationPlan& pla
   std::error_code error;
   fs::remove_all(job.folder, error);
   return shot;
+}
+
+/// The mode the job-control options ask for; Error(kUsage) for two at once.
+enum class SimulateMode { kAll, kPlanOnly, kWindow, kSpliceOnly };
+SimulateMode simulateMode(const ArgParser& parser) {
+  std::vector<std::string> given;
+  for (const char* option : {"--plan-only", "--window", "--splice-only"}) {
+    if (parser.has(option)) {
+      given.emplace_back(option);
+    }
+  }
+  if (given.size() > 1) {
+    DS_THROW(kUsage, given[0], " and ", given[1], " exclude each other");
+  }
+  return parser.has("--plan-only")     ? SimulateMode::kPlanOnly
+         : parser.has("--window")      ? SimulateMode::kWindow
+         : parser.has("--splice-only") ? SimulateMode::kSpliceOnly
+                                       : SimulateMode::kAll;
+}
+
+/// --window N as a 0-based index of the plan's windows; Error(kUsage) naming it when the plan
+/// has no window N.
+std::size_t windowIndex(const ArgParser& parser, const SimulationPlan& plan) {
+  const int n = parser.getInt("--window", 1);
+  if (static_cast<std::size_t>(n) > plan.windows.size()) {
+    DS_THROW(kUsage, "--window ", n, ": the plan of ", plan.report, " has ", plan.windows.size(),
+             plan.windows.size() == 1 ? " window" : " windows",
+             plan.windows.empty() ? "" : " (1-" + std::to_string(plan.windows.size()) + ")");
+  }
+  return static_cast<std::size_t>(n - 1);
 }
 
 }  // namespace
@@ -343,21 +409,36 @@ int runSimulate(const std::vector<std::string>& args) {
   if (!hasFramePattern(output)) {
     DS_THROW(kUsage, "-o '", output, "' has no frame token; use e.g. final/cloth.####.exr");
   }
-  const bool planOnly = parser.has("--plan-only"), quiet = parser.has("--quiet");
-  if (!planOnly) {
+  const SimulateMode mode = simulateMode(parser);
+  const bool quiet = parser.has("--quiet");
+  if (mode != SimulateMode::kPlanOnly) {
     requireSimulationInputs(parser);
   }
   const SimulationPlan plan =
       planSimulation(readBakeReportCoverage(parser.get("--report")), settings);
+  const std::size_t window = mode == SimulateMode::kWindow ? windowIndex(parser, plan) : 0;
   checkSimulatePaths(parser, plan);
   const std::string planPath = besideOutput(output, ".simulation-plan.json");
   createOutputFoldersFor({planPath}, quiet);
   writeFileAtomically(planPath, simulationPlanJson(plan));
   printPlan(plan, planPath);
-  if (planOnly) {
+  if (mode == SimulateMode::kPlanOnly) {
     return 0;
   }
-  const SplicedShot shot = simulateAndSplice(parser, plan, quiet);
+  const WindowJob job = windowJobOf(parser, plan, mode != SimulateMode::kSpliceOnly);
+  if (mode == SimulateMode::kWindow) {
+    runWindow(job, plan, window, quiet);
+    std::cout << "window:  " << window + 1 << "/" << plan.windows.size() << " in "
+              << windowFolder(job, plan.windows[window]).string() << "\n";
+    return 0;
+  }
+  for (std::size_t w = 0; mode == SimulateMode::kAll && w < plan.windows.size(); ++w) {
+    runWindow(job, plan, w, quiet);
+  }
+  if (mode == SimulateMode::kSpliceOnly) {
+    requireEveryWindow(job, plan);
+  }
+  const SplicedShot shot = splice(parser, plan, job, quiet);
   const std::string reportPath = besideOutput(output, ".report.json");
   writeFileAtomically(reportPath, simulateReportJson(plan, shot.sources, secondsSince(start)));
   std::cout << "outputs: " << absolute(output) << " (frames " << plan.first << "-" << plan.last

@@ -18,6 +18,8 @@
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
 #include <drivenshape/point_cache.h>
+#include <drivenshape/settings_table.h>
+#include <drivenshape/simulation.h>
 #include <drivenshape/version.h>
 
 #include "json_text.h"
@@ -292,6 +294,69 @@ std::vector<std::string> shotReportCommand(const FarmJob& job) {
   return words;
 }
 
+std::vector<std::string> simulationSettingArgs(const SimulationOptions& settings) {
+  std::vector<std::string> words;
+  for (const Setting* setting : settingsOfScope(SettingScope::kSimulate)) {
+    if (setting->flag == nullptr) {
+      continue;
+    }
+    const SettingValue value = settingValue(*setting, settings);
+    if (setting->type == SettingType::kBool) {
+      if (value != defaultSettingValue(*setting)) {
+        words.emplace_back(setting->flag);
+      }
+    } else {
+      words.emplace_back(setting->flag);
+      words.push_back(formatSettingValue(*setting, value));
+    }
+  }
+  return words;
+}
+
+void setSimulateFarmPlan(SimulateFarmJob& job, const SimulationPlan& plan) {
+  if (plan.windows.empty()) {
+    DS_THROW(kInput, "the report ", plan.report, " flags no frame of ", plan.first, "-", plan.last,
+             ", so the plan has no window to simulate and the farm job no task; run "
+             "`drivenshape simulate` where it is (it writes the bake's frames)");
+  }
+  job.windows = static_cast<int>(plan.windows.size());
+  job.firstFrame = plan.first;
+  job.lastFrame = plan.last;
+  job.settingArgs = simulationSettingArgs(plan.settings);
+}
+
+namespace {
+
+/// `drivenshape simulate` of the job's shot as argv words, with every setting (the words every
+/// task has).
+std::vector<std::string> shotSimulateWords(const SimulateFarmJob& job) {
+  std::vector<std::string> words = {job.binary, "simulate", "--blend",  job.blend,
+                                    "--object", job.object, "--report", job.report,
+                                    "--bake",   job.bake,   "-o",       job.outputPattern};
+  words.insert(words.end(), job.settingArgs.begin(), job.settingArgs.end());
+  if (!job.blender.empty()) {
+    words.emplace_back("--blender");
+    words.push_back(job.blender);
+  }
+  return words;
+}
+
+}  // namespace
+
+std::vector<std::string> simulateWindowCommand(const SimulateFarmJob& job,
+                                               const std::string& window) {
+  std::vector<std::string> words = shotSimulateWords(job);
+  words.emplace_back("--window");
+  words.push_back(window);
+  return words;
+}
+
+std::vector<std::string> simulateSpliceCommand(const SimulateFarmJob& job) {
+  std::vector<std::string> words = shotSimulateWords(job);
+  words.emplace_back("--splice-only");
+  return words;
+}
+
 // ---- Slurm -------------------------------------------------------------------------------
 
 namespace {
@@ -356,6 +421,68 @@ std::string slurmLogPattern(const std::string& logDir, const std::string& jobNam
   return sbatchValue(pattern + "/" + safeName(jobName) + "_%A_%a.log", who);
 }
 
+namespace {
+
+/// The #SBATCH lines of an array job (array `array`, e.g. "0-2") and its resources.
+void writeSbatchLines(std::ostream& s, const std::string& name, const std::string& array,
+                      const std::string& logPattern, const std::string& partition,
+                      const std::string& timeLimit, int cpus, int memoryMb) {
+  s << "#SBATCH --job-name=" << sbatchValue(name, culprit("--job-name", name)) << "\n"
+    << "#SBATCH --array=" << array << "\n"
+    << "#SBATCH --output=" << logPattern << "\n"
+    << "#SBATCH --open-mode=append\n"
+    << "#SBATCH --ntasks=1\n";
+  if (!partition.empty()) {
+    s << "#SBATCH --partition=" << sbatchValue(partition, culprit("--partition", partition))
+      << "\n";
+  }
+  if (!timeLimit.empty()) {
+    s << "#SBATCH --time=" << sbatchValue(timeLimit, culprit("--time", timeLimit)) << "\n";
+  }
+  if (cpus > 0) {
+    s << "#SBATCH --cpus-per-task=" << cpus << "\n";
+  }
+  if (memoryMb > 0) {
+    s << "#SBATCH --mem=" << memoryMb << "\n";
+  }
+}
+
+/// `  set -- 'word' 'word' ...` (no line break).
+void writeSetArgs(std::ostream& s, const std::vector<std::string>& words) {
+  s << "  set --";
+  for (const std::string& word : words) {
+    s << " " << shellQuote(word);
+  }
+}
+
+/// The end of a task script: runs "$@" in the background (in `child`), passes SIGTERM and
+/// SIGINT on to it and exits with its code. `comment`: what the child does with a signal.
+void writeSlurmRunTail(std::ostream& s, const std::string& child, const std::string& comment) {
+  s << "echo \"drivenshape farm: job ${SLURM_ARRAY_JOB_ID:-?} $task on $(hostname) at "
+    << "$(date '+%F %T')\"\n"
+    << "\n"
+    << comment << "\"$@\" &\n"
+    << child << "=$!\n"
+    << "signalled=0\n"
+    << "forward() { signalled=1; kill -s \"$1\" \"$" << child << "\" 2>/dev/null || true; }\n"
+    << "trap 'forward TERM' TERM\n"
+    << "trap 'forward INT' INT\n"
+    << "wait \"$" << child << "\"\n"
+    << "status=$?\n"
+    << "# A trapped signal ends `wait` early (status > 128): wait again for the " << child
+    << "'s own code.\n"
+    << "while [ \"$signalled\" -eq 1 ]; do\n"
+    << "  signalled=0\n"
+    << "  wait \"$" << child << "\"\n"
+    << "  status=$?\n"
+    << "done\n"
+    << "echo \"drivenshape farm: $task exited with $status at "
+    << "$(date '+%F %T')\"\n"
+    << "exit \"$status\"\n";
+}
+
+}  // namespace
+
 std::string slurmScript(const FarmJob& job, const std::string& logPattern,
                         const std::string& partition) {
   const std::string last = std::to_string(job.chunks - 1);
@@ -371,25 +498,9 @@ std::string slurmScript(const FarmJob& job, const std::string& logPattern,
     << "#   sbatch --array=I,J "
     << "<this file>\n"
     << "# With the argument `report` (after the chunks: sbatch --dependency=afterok:JOB\n"
-    << "# --array=0 <this file> report) it writes the shot's report from every frame's record.\n"
-    << "#SBATCH --job-name=" << sbatchValue(job.name, culprit("--job-name", job.name)) << "\n"
-    << "#SBATCH --array=0-" << last << "\n"
-    << "#SBATCH --output=" << logPattern << "\n"
-    << "#SBATCH --open-mode=append\n"
-    << "#SBATCH --ntasks=1\n";
-  if (!partition.empty()) {
-    s << "#SBATCH --partition=" << sbatchValue(partition, culprit("--partition", partition))
-      << "\n";
-  }
-  if (!job.timeLimit.empty()) {
-    s << "#SBATCH --time=" << sbatchValue(job.timeLimit, culprit("--time", job.timeLimit)) << "\n";
-  }
-  if (job.cpus > 0) {
-    s << "#SBATCH --cpus-per-task=" << job.cpus << "\n";
-  }
-  if (job.memoryMb > 0) {
-    s << "#SBATCH --mem=" << job.memoryMb << "\n";
-  }
+    << "# --array=0 <this file> report) it writes the shot's report from every frame's record.\n";
+  writeSbatchLines(s, job.name, "0-" + last, logPattern, partition, job.timeLimit, job.cpus,
+                   job.memoryMb);
   s << "set -u\n"
     << "\n"
     << "# PoCL compiles kernels into a cache; keep it in a folder this task can write.\n"
@@ -401,53 +512,75 @@ std::string slurmScript(const FarmJob& job, const std::string& logPattern,
     << "export POCL_CACHE_DIR\n"
     << "mkdir -p " << shellQuote(job.outputFolder) << "\n"
     << "if [ \"${1:-}\" = report ]; then\n"
-    << "  task=\"the shot's report\"\n"
-    << "  set --";
-  for (const std::string& word : shotReportCommand(job)) {
-    s << " " << shellQuote(word);
-  }
+    << "  task=\"the shot's report\"\n";
+  writeSetArgs(s, shotReportCommand(job));
   s << "\n"
     << "else\n"
-    << "  task=\"chunk ${SLURM_ARRAY_TASK_ID:-?} of 0-" << last << "\"\n"
-    << "  set --";
-  for (const std::string& word : chunkBakeCommand(job, "env")) {
-    s << " " << shellQuote(word);
-  }
+    << "  task=\"chunk ${SLURM_ARRAY_TASK_ID:-?} of 0-" << last << "\"\n";
+  writeSetArgs(s, chunkBakeCommand(job, "env"));
   if (job.perChunkReport) {
     s << " '--report' "
       << shellQuote(job.outputFolder + "/" + sequenceStem(job.outputPattern) + ".chunk")
       << "\"$SLURM_ARRAY_TASK_ID\"'.report.json'";
   }
   s << "\n"
-    << "fi\n"
-    << "echo \"drivenshape farm: job ${SLURM_ARRAY_JOB_ID:-?} $task on $(hostname) at "
-    << "$(date '+%F %T')\"\n"
+    << "fi\n";
+  writeSlurmRunTail(s, "bake",
+                    "# The bake runs in the background so that this shell can pass SIGTERM "
+                    "(scancel, time\n"
+                    "# limit, preemption) and SIGINT on to it; the bake finishes the frames in "
+                    "hand, removes\n"
+                    "# its temporary files and exits 7. The task's exit code is always the "
+                    "bake's.\n");
+  return s.str();
+}
+
+std::string slurmSimulateScript(const SimulateFarmJob& job, const std::string& logPattern,
+                                const std::string& partition) {
+  const std::string windows = std::to_string(job.windows);
+  std::ostringstream s;
+  s << "#!/bin/bash\n"
+    << "# Written by drivenshape " << kVersion << " (`drivenshape farm slurm simulate`): the "
+    << windows << " windows of the\n"
+    << "# simulation plan of frames " << job.firstFrame << "-" << job.lastFrame
+    << " of the bake's report, one array task each.\n"
+    << "# Array index N is a window number (1 = the first): task N runs `drivenshape simulate\n"
+    << "# ... --window N`, which keeps a window a run before left complete; resubmit failed\n"
+    << "# windows with\n"
+    << "#   sbatch --array=N,M <this file>\n"
+    << "# With the argument `splice` (after the windows: sbatch --dependency=afterok:JOB\n"
+    << "# --array=0 <this file> splice) it splices every window into the output\n"
+    << "# (`drivenshape simulate ... --splice-only`).\n";
+  writeSbatchLines(s, job.name, "1-" + windows, logPattern, partition, job.timeLimit, job.cpus,
+                   job.memoryMb);
+  s << "set -u\n"
     << "\n"
-    << "# The bake runs in the background so that this shell can pass SIGTERM (scancel, time\n"
-    << "# limit, preemption) and SIGINT on to it; the bake finishes the frames in hand, removes\n"
-    << "# its temporary files and exits 7. The task's exit code is always the bake's.\n"
-    << "\"$@\" &\n"
-    << "bake=$!\n"
-    << "signalled=0\n"
-    << "forward() { signalled=1; kill -s \"$1\" \"$bake\" 2>/dev/null || true; }\n"
-    << "trap 'forward TERM' TERM\n"
-    << "trap 'forward INT' INT\n"
-    << "wait \"$bake\"\n"
-    << "status=$?\n"
-    << "# A trapped signal ends `wait` early (status > 128): wait again for the bake's own code.\n"
-    << "while [ \"$signalled\" -eq 1 ]; do\n"
-    << "  signalled=0\n"
-    << "  wait \"$bake\"\n"
-    << "  status=$?\n"
-    << "done\n"
-    << "echo \"drivenshape farm: $task exited with $status at "
-    << "$(date '+%F %T')\"\n"
-    << "exit \"$status\"\n";
+    << "mkdir -p " << shellQuote(job.outputFolder) << "\n"
+    << "if [ \"${1:-}\" = splice ]; then\n"
+    << "  task=\"the splice\"\n";
+  writeSetArgs(s, simulateSpliceCommand(job));
+  s << "\n"
+    << "else\n"
+    << "  task=\"window ${SLURM_ARRAY_TASK_ID:-?} of 1-" << windows << "\"\n";
+  std::vector<std::string> words = simulateWindowCommand(job, "");
+  words.pop_back();  // the window: the array index
+  writeSetArgs(s, words);
+  s << " \"$SLURM_ARRAY_TASK_ID\"\n"
+    << "fi\n";
+  writeSlurmRunTail(s, "simulate",
+                    "# drivenshape simulate runs in the background so that this shell can pass "
+                    "SIGTERM and\n"
+                    "# SIGINT on to it. The task's exit code is always its own.\n");
   return s.str();
 }
 
 std::vector<std::string> slurmReportOptions(const FarmJob& job, const std::string& arrayJob) {
   return {"--dependency=afterok:" + arrayJob, "--array=0", "--job-name=" + job.name + "_report"};
+}
+
+std::vector<std::string> slurmSpliceOptions(const SimulateFarmJob& job,
+                                            const std::string& arrayJob) {
+  return {"--dependency=afterok:" + arrayJob, "--array=0", "--job-name=" + job.name + "_splice"};
 }
 
 /// Runs `sbatch --parsable OPTIONS SCRIPT ARGS` and returns the job id it prints.
@@ -646,7 +779,7 @@ nlohmann::ordered_json templateBakeArguments(const FarmJob& job,
 }
 
 /// A step running `args`: the PoCL cache in the session folder, the host needs.
-nlohmann::ordered_json templateStep(const FarmJob& job, const char* name,
+nlohmann::ordered_json templateStep(int cpus, int memoryMb, const char* name,
                                     const std::string& description,
                                     const nlohmann::ordered_json& args, long timeoutSeconds,
                                     int notifySeconds) {
@@ -666,13 +799,13 @@ nlohmann::ordered_json templateStep(const FarmJob& job, const char* name,
                            {"variables",
                             {{"POCL_CACHE_DIR", "{{Session.WorkingDirectory}}/pocl-cache"}}}}})},
             {"script", {{"actions", {{"onRun", onRun}}}}}};
-  if (job.cpus > 0 || job.memoryMb > 0) {
+  if (cpus > 0 || memoryMb > 0) {
     json amounts = json::array();
-    if (job.cpus > 0) {
-      amounts.push_back({{"name", "amount.worker.vcpu"}, {"min", job.cpus}});
+    if (cpus > 0) {
+      amounts.push_back({{"name", "amount.worker.vcpu"}, {"min", cpus}});
     }
-    if (job.memoryMb > 0) {
-      amounts.push_back({{"name", "amount.worker.memory"}, {"min", job.memoryMb}});
+    if (memoryMb > 0) {
+      amounts.push_back({{"name", "amount.worker.memory"}, {"min", memoryMb}});
     }
     step["hostRequirements"] = {{"amounts", amounts}};
   }
@@ -683,7 +816,7 @@ nlohmann::ordered_json templateStep(const FarmJob& job, const char* name,
 nlohmann::ordered_json templateSteps(const FarmJob& job, long timeoutSeconds, int notifySeconds) {
   using json = nlohmann::ordered_json;
   const std::string stem = sequenceStem(job.outputPattern);
-  json bake = templateStep(job, "Bake",
+  json bake = templateStep(job.cpus, job.memoryMb, "Bake",
                            "One task per chunk of " + std::to_string(job.chunkSize) +
                                " frames: task Chunk=I bakes frames [I*N, (I+1)*N) of " +
                                job.framesText + ", keeping finished frames (--skip-existing).",
@@ -695,13 +828,56 @@ nlohmann::ordered_json templateSteps(const FarmJob& job, long timeoutSeconds, in
                                            {"type", "INT"},
                                            {"range", "0-" + std::to_string(job.chunks - 1)}}})}};
   json report =
-      templateStep(job, "Report",
+      templateStep(job.cpus, job.memoryMb, "Report",
                    "After every chunk: the shot's report from the records its frames "
                    "carry, every frame checked (--skip-existing).",
                    templateBakeArguments(job, shotReportCommand(job), stem + ".report.json"),
                    timeoutSeconds, notifySeconds);
   report["dependencies"] = json::array({{{"dependsOn", "Bake"}}});
   return json::array({bake, report});
+}
+
+/// A simulate step's arguments: `words` (simulateWindowCommand or simulateSpliceCommand) on the
+/// job's parameters.
+nlohmann::ordered_json templateSimulateArguments(const SimulateFarmJob& job,
+                                                 const std::vector<std::string>& words) {
+  nlohmann::ordered_json args = nlohmann::ordered_json::array();
+  for (std::size_t i = 1; i < words.size(); ++i) {
+    args.push_back(words[i]);
+  }
+  args[2] = "{{Param.Blend}}";
+  args[6] = "{{Param.BakeReport}}";
+  args[8] = "{{Param.BakePattern}}";
+  args[10] = "{{Param.OutputPattern}}";
+  for (std::size_t i = 11; i + 1 < args.size(); ++i) {
+    if (!job.blender.empty() && args[i] == "--blender") {
+      args[i + 1] = "{{Param.Blender}}";
+    }
+  }
+  return args;
+}
+
+/// The steps of a simulate job: Simulate, a task per window; Splice, after every window.
+nlohmann::ordered_json templateSimulateSteps(const SimulateFarmJob& job, long timeoutSeconds,
+                                             int notifySeconds) {
+  using json = nlohmann::ordered_json;
+  const std::string windows = std::to_string(job.windows);
+  json simulate = templateStep(
+      job.cpus, job.memoryMb, "Simulate",
+      "One task per window of the simulation plan: task Window=N simulates window N of " + windows +
+          " in Blender, keeping a window a run before left complete (--window N).",
+      templateSimulateArguments(job, simulateWindowCommand(job, "{{Task.Param.Window}}")),
+      timeoutSeconds, notifySeconds);
+  simulate["parameterSpace"] = {
+      {"taskParameterDefinitions",
+       json::array({{{"name", "Window"}, {"type", "INT"}, {"range", "1-" + windows}}})}};
+  json splice = templateStep(job.cpus, job.memoryMb, "Splice",
+                             "After every window: the windows spliced into the bake, every frame "
+                             "of the report written (--splice-only).",
+                             templateSimulateArguments(job, simulateSpliceCommand(job)),
+                             timeoutSeconds, notifySeconds);
+  splice["dependencies"] = json::array({{{"dependsOn", "Simulate"}}});
+  return json::array({simulate, splice});
 }
 
 /// A PATH job parameter holding `value`; its default is `value` relative to `templateDir` when
@@ -841,6 +1017,42 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
                                   "folder of the JSON reports: each chunk's and the shot's",
                                   templateDir, values)})},
       {"steps", templateSteps(job, timeoutSeconds, notifySeconds)}};
+}
+
+nlohmann::ordered_json openJobSimulateTemplate(const SimulateFarmJob& job,
+                                               const std::string& templateDir, long timeoutSeconds,
+                                               int notifySeconds, nlohmann::ordered_json& values) {
+  using json = nlohmann::ordered_json;
+  json parameters = json::array({{{"name", "DrivenshapeBinary"},
+                                  {"type", "STRING"},
+                                  {"default", job.binary},
+                                  {"description", "the drivenshape executable on the workers"}}});
+  if (!job.blender.empty()) {
+    parameters.push_back({{"name", "Blender"},
+                          {"type", "STRING"},
+                          {"default", job.blender},
+                          {"description", "the Blender executable on the workers"}});
+  }
+  for (json parameter :
+       {pathParameter("Blend", job.blend, "FILE", "IN", "the shot's scene with the garment's cloth",
+                      templateDir, values),
+        pathParameter("BakeReport", job.report, "FILE", "IN", "the bake's report", templateDir,
+                      values),
+        pathParameter("BakePattern", job.bake, nullptr, "IN", "the bake's EXR sequence",
+                      templateDir, values),
+        pathParameter("OutputPattern", job.outputPattern, nullptr, "OUT",
+                      "output EXR sequence (its plan, windows and report beside it)", templateDir,
+                      values)}) {
+    parameters.push_back(parameter);
+  }
+  return json{{"specificationVersion", "jobtemplate-2023-09"},
+              {"name", job.name},
+              {"description", "drivenshape " + std::string(kVersion) + " simulation of the " +
+                                  std::to_string(job.windows) + " windows of frames " +
+                                  std::to_string(job.firstFrame) + "-" +
+                                  std::to_string(job.lastFrame) + " and their splice"},
+              {"parameterDefinitions", parameters},
+              {"steps", templateSimulateSteps(job, timeoutSeconds, notifySeconds)}};
 }
 
 /// Block-style YAML of a JSON value. Strings are written as JSON strings, which YAML reads as

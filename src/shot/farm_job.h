@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/simulation.h>
+
 namespace drivenshape {
 
 /// What both schedulers need: one bake command per chunk, everything absolute.
@@ -40,6 +42,45 @@ struct FarmJob {
   int cpus = 0;           ///< 0 when not given
   int memoryMb = 0;       ///< 0 when not given
 };
+
+/// The farm job of `drivenshape simulate` (issue 44): a task per window of the library's plan,
+/// `simulate ... --window N` (N = 1..windows; a window a run before left complete is kept), and
+/// after every window the splice task, `simulate ... --splice-only`. Both run the same command
+/// with the same settings, so the tasks plan what the job was written from.
+struct SimulateFarmJob {
+  std::string binary;         ///< absolute path of the drivenshape executable
+  std::string blender;        ///< Blender on the workers; empty: `blender` on their PATH
+  std::string blend;          ///< absolute
+  std::string object;         ///< the garment
+  std::string report;         ///< absolute: the bake's report
+  std::string bake;           ///< absolute EXR sequence pattern
+  std::string outputPattern;  ///< absolute, with a frame token
+  std::string outputFolder;   ///< absolute folder of outputPattern
+  std::string name;
+  /// Every simulation setting of the plan as command-line words (simulationSettingArgs).
+  std::vector<std::string> settingArgs;
+  int windows = 0;     ///< the plan's windows: the tasks
+  int firstFrame = 0;  ///< the shot's frames, for descriptions
+  int lastFrame = 0;
+  std::string timeLimit;  ///< Slurm form, empty when not given
+  int cpus = 0;           ///< 0 when not given
+  int memoryMb = 0;       ///< 0 when not given
+};
+
+/// The settings of `settings` as `drivenshape simulate` words, every setting of the settings
+/// table's kSimulate rows (a kBool's flag when it is not the default): "--warmup 20 ...".
+std::vector<std::string> simulationSettingArgs(const SimulationOptions& settings);
+
+/// The job's tasks from the library's plan: its window count, frames and settings.
+/// Error(kInput) naming the report when the plan has no window (nothing flagged: run
+/// `drivenshape simulate` where it is, which writes the bake's frames).
+void setSimulateFarmPlan(SimulateFarmJob& job, const SimulationPlan& plan);
+
+/// The task of window `window` (a number, `env` or a template token) as argv words.
+std::vector<std::string> simulateWindowCommand(const SimulateFarmJob& job,
+                                               const std::string& window);
+/// The splice task as argv words.
+std::vector<std::string> simulateSpliceCommand(const SimulateFarmJob& job);
 
 // ---- The job -------------------------------------------------------------------------------
 
@@ -108,6 +149,11 @@ std::string slurmLogPattern(const std::string& logDir, const std::string& jobNam
 std::string slurmScript(const FarmJob& job, const std::string& logPattern,
                         const std::string& partition);
 
+/// The sbatch array script of a simulate job: array task N (1..windows) simulates window N,
+/// the script with the argument `splice` splices; otherwise as slurmScript.
+std::string slurmSimulateScript(const SimulateFarmJob& job, const std::string& logPattern,
+                                const std::string& partition);
+
 /// Runs `sbatch --parsable OPTIONS SCRIPT ARGS` (through the shell, each word quoted, waiting
 /// for it) and returns the job id it prints; Error(kOutput) when sbatch cannot run, fails or
 /// prints no id.
@@ -117,6 +163,11 @@ std::string submitToSlurm(const std::string& script, const std::vector<std::stri
 /// The sbatch options of the shot's report task (the script run with the argument `report`):
 /// after every chunk of array job `arrayJob` succeeded, one task, its own job name.
 std::vector<std::string> slurmReportOptions(const FarmJob& job, const std::string& arrayJob);
+
+/// The sbatch options of a simulate job's splice task (the script run with the argument
+/// `splice`): after every window task of array job `arrayJob` succeeded, one task.
+std::vector<std::string> slurmSpliceOptions(const SimulateFarmJob& job,
+                                            const std::string& arrayJob);
 
 // ---- Open Job Description ------------------------------------------------------------------
 
@@ -156,6 +207,12 @@ nlohmann::ordered_json openJobTemplate(const FarmJob& job, const std::string& te
 /// parameter defaults within their lengths; the notify period within 1..600 s. The checks of
 /// the options come first and name the option, so a failure here is a bug: Error(kInternal).
 void checkJobTemplate(const nlohmann::ordered_json& jobTemplate);
+
+/// The template of a simulate job: step Simulate (task parameter Window, 1..windows) and step
+/// Splice after it; paths as openJobTemplate's (PATH parameters, their values in `values`).
+nlohmann::ordered_json openJobSimulateTemplate(const SimulateFarmJob& job,
+                                               const std::string& templateDir, long timeoutSeconds,
+                                               int notifySeconds, nlohmann::ordered_json& values);
 
 /// Block-style YAML of a JSON value. Strings are written as JSON strings, which YAML reads as
 /// double-quoted scalars with the same escapes, so no value can change meaning.

@@ -6,6 +6,7 @@ Every test script takes the same arguments (see CMakeLists.txt):
   --data DIR      tests/data/sleeve
   --work DIR      the fixture folder written by farm_fixture.py (database, reference bake)
   --scripts DIR   the project's scripts/ folder
+  --blender PATH  the stand-in Blender of tests/cli (test_farm_simulate only)
 
 The reference is one uninterrupted bake of all 48 frames of test.driver.pc2 with default
 settings (ref/c.####.exr). Outputs are compared byte for byte: a frame must be bitwise identical
@@ -45,6 +46,7 @@ class Farm:
         self.data = Path(args.data).resolve()
         self.work = Path(args.work).resolve()
         self.scripts = Path(args.scripts).resolve()
+        self.blender = Path(args.blender).resolve() if args.blender else None
         self.db = self.work / "db.dsdb"
         self.driver = self.data / "test.driver.pc2"
         self.ref = self.work / "ref"
@@ -187,6 +189,7 @@ def main(tests):
     parser.add_argument("--data", required=True)
     parser.add_argument("--work", required=True)
     parser.add_argument("--scripts", required=True)
+    parser.add_argument("--blender", help="the stand-in Blender (test_farm_simulate)")
     args = parser.parse_args()
     failures = 0
     try:
