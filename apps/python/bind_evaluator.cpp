@@ -1000,15 +1000,16 @@ types::Spliced spliceBinding(types::JsonDict plan, types::ArrayLike baked,
       py::make_tuple(ownedArray(std::move(shot.positions), {frames, shape.vertices, 3}), sources));
 }
 
-py::list spliceFilesBinding(types::JsonDict plan, const std::string& bake,
-                            const std::vector<std::string>& windows, const std::string& output) {
+types::Sources spliceFilesBinding(types::JsonDict plan, const std::string& bake,
+                                  const std::vector<std::string>& windows,
+                                  const std::string& output) {
   const SimulationPlan parsed = parseSimulationPlan(dictJson(plan, "plan"), "(plan dict)");
   SplicedShot shot;
   {
     py::gil_scoped_release release;
     shot = spliceSimulationFiles(parsed, bake, windows, output);
   }
-  return sourceNames(shot.sources);
+  return types::Sources(sourceNames(shot.sources));
 }
 
 }  // namespace

@@ -87,6 +87,7 @@ DS_PYTHON_TYPE(JsonList, "list[dict[str, typing.Any]]");
 DS_PYTHON_TYPE(TransferCounts, "dict[str, int]");
 DS_PYTHON_TYPE(StrainDict, "dict[str, float]");
 DS_PYTHON_TYPE(Spliced, "tuple[" DS_PYTHON_FLOAT32 ", list[str]]");
+DS_PYTHON_TYPE(Sources, "list[str]");
 #undef DS_PYTHON_TYPE
 #undef DS_PYTHON_FRAMES
 #undef DS_PYTHON_CACHE
@@ -124,6 +125,7 @@ using JsonList = Typed<type_names::JsonList>;
 using TransferCounts = Typed<type_names::TransferCounts>;
 using StrainDict = Typed<type_names::StrainDict>;
 using Spliced = Typed<type_names::Spliced>;
+using Sources = Typed<type_names::Sources>;
 }  // namespace types
 
 /// A direction (x, y, z): read as pybind11 reads std::array<double, 3> (a sequence of three

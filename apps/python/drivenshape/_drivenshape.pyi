@@ -809,7 +809,7 @@ def splice(plan: dict[str, typing.Any], baked: numpy.typing.ArrayLike, windows: 
     """
     spliceSimulation (drivenshape simulate's splice): the simulated windows spliced into the baked frames with the plan's seam and carry. plan: plan_simulation's dict (or a plan file's JSON); baked: (F, V, 3) float32, every frame first..last of the plan; windows: one (Fw, V, 3) array per window, its frames warmup_from..to. Returns (positions (F, V, 3) float32, sources: 'baked', 'simulated' or 'blended' per frame), bitwise what drivenshape simulate writes.
     """
-def splice_files(plan: dict[str, typing.Any], bake: str, windows: list[str], output: str) -> list:
+def splice_files(plan: dict[str, typing.Any], bake: str, windows: list[str], output: str) -> list[str]:
     """
     spliceSimulationFiles (what drivenshape simulate writes): reads the plan's frames of the bake's point-cache EXR sequence `bake` and each window's frames warmup_from..to of the sequences `windows` (one pattern per window), splices them and writes every frame first..last to the sequence `output`, each file atomically with the bake's width, compression, topology hash and fps and its source in the header attribute dsSource. Returns the source of each frame ('baked', 'simulated' or 'blended'). The files are byte for byte those of drivenshape simulate.
     """
