@@ -391,7 +391,7 @@ ArgParser bakeParser() {
       "the body (--skin-offset), applies layers (--mix, --wind-*) and writes one point-cache "
       "EXR per frame. Frames are evaluated a batch at a time with OpenCL kernels (or the host "
       "reference path); reading and writing overlap the kernels. The talk's method exactly: "
-      "--weights qp --align none --blend world --no-resolve --strain-limit 0.");
+      "--align none --blend world --no-resolve.");
   parser.option("--db", "DB", "database from `drivenshape db build`", "", true)
       .option("--driver", "CACHE", "shot driver cache (.pc2 or name.####.exr)", "", true)
       .option("--frames", "RANGE", "frames to bake: 1001-1100, 1001-1100x2, 1001,1005", "", true)

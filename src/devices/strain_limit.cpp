@@ -72,6 +72,9 @@ StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iteration
     DS_THROW(kInternal, "strainLimitTables: ", omega.size(), " Chebyshev weights for ", iterations,
              " iterations");
   }
+  // The band at float precision: the Blender add-on's properties are float32, so its 0.01 is
+  // 0.0099999998; taken that way here, every tool's 0.01 gives the same tables, bit for bit.
+  const double bandAsFloat = static_cast<float>(band);
   StrainLimitTables tables;
   tables.vertexCount = vertexCount;
   tables.iterations = iterations;
@@ -107,8 +110,8 @@ StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iteration
       const int other = edges[e][static_cast<std::size_t>(1 - side)];
       const std::size_t at = static_cast<std::size_t>(next[static_cast<std::size_t>(vertex)]++);
       tables.other[at] = other;
-      tables.lower[at] = static_cast<float>((1.0 - band) * lengths[e]);
-      tables.upper[at] = static_cast<float>((1.0 + band) * lengths[e]);
+      tables.lower[at] = static_cast<float>((1.0 - bandAsFloat) * lengths[e]);
+      tables.upper[at] = static_cast<float>((1.0 + bandAsFloat) * lengths[e]);
       tables.share[at] = shareOf(weights, vertex, other);
     }
   }

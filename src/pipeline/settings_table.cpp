@@ -766,7 +766,8 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
       .help(
           "after the correction and before the penetration resolution, each frame's cloth "
           "edges are brought back within this fraction of their rest lengths (0.01: 99% to "
-          "101%) by iterations of edge projections, so the cloth does not stretch like rubber")
+          "101%, the validation table's choice) by iterations of edge projections, so the cloth "
+          "does not stretch like rubber")
       .hash(&hashStrainLimit)
       .addon("collision", nullptr, "Strain Limit")
       .report("strain_limit");

@@ -91,10 +91,6 @@ for name, _, _ in CONFIGS:
 # which --resolve-direction normal restores.
 for name, _, _ in CONFIGS:
     SINCE_RECORDING[name] += ["--resolve-direction", "normal"]
-# Issue 43: each frame's edges are kept within 1% of their rest lengths (--strain-limit 0.01);
-# the goldens were recorded without the strain limit, which --strain-limit 0 restores.
-for name, _, _ in CONFIGS:
-    SINCE_RECORDING[name] += ["--strain-limit", "0"]
 DEVICES = ["host", "cpu"]  # cpu = the OpenCL CPU device (PoCL); it must exist (never skipped)
 
 # Per-frame report keys that are not results.

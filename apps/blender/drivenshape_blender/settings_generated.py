@@ -227,9 +227,10 @@ SETTINGS = ({'key': 'weight_mode',
   'keywords': {'name': 'Strain Limit',
                'description': 'After the correction and before the penetration resolution, each '
                               "frame's cloth edges are brought back within this fraction of their "
-                              'rest lengths (0.01: 99% to 101%) by iterations of edge '
-                              'projections, so the cloth does not stretch like rubber (0: off)',
-               'default': 0.01,
+                              "rest lengths (0.01: 99% to 101%, the validation table's choice) by "
+                              'iterations of edge projections, so the cloth does not stretch like '
+                              'rubber (0: off)',
+               'default': 0.0,
                'min': 0.0,
                'max': 0.5},
   'panel': 'collision',

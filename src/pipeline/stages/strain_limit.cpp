@@ -2,11 +2,16 @@
 // Strain limit (docs/method.md, "Strain limit"): after the correction and before the penetration
 // resolution, each frame's cloth edges are brought back into the band [(1 - s) L, (1 + s) L]
 // around their rest lengths L by Chebyshev-accelerated Jacobi iterations of edge projections
-// (StrainLimitBackend,
-// src/devices/strain_limit.h), every frame alone. The database has no fixed (pinned) vertices:
-// every vertex may move. The resolution after it puts back out of the body whatever it moved in.
+// (StrainLimitBackend, src/devices/strain_limit.h), every frame alone. Every cloth vertex may
+// move; a layer under the skin (a muscle) stays as it is. The resolution after it puts back out
+// of the body whatever it moved in.
 
+#include <cstddef>
+#include <cstdint>
 #include <memory>
+#include <vector>
+
+#include <drivenshape/binding.h>
 
 #include "../stage.h"
 #include "strain_limit.h"
@@ -29,6 +34,22 @@ constexpr double kStrainRelaxation = 1.5;
 constexpr double kChebyshevRadius = 0.98;
 constexpr int kChebyshevFrom = 5;
 
+/// The strain limit's vertex weights: a vertex that lives under the skin (a muscle or fat
+/// layer, Model::sides) stays where the pipeline put it, since such a layer stretches and
+/// shrinks with the skin by design; every cloth vertex may move. Empty (every vertex 1) when no
+/// vertex lives inside: every cloth database.
+std::vector<float> movingVertices(Model& model) {
+  if (model.insideVertices() == 0) {
+    return {};
+  }
+  const std::vector<std::int8_t>& sides = model.sides();
+  std::vector<float> weights(sides.size());
+  for (std::size_t v = 0; v < sides.size(); ++v) {
+    weights[v] = sides[v] == kSideInside ? 0.0f : 1.0f;
+  }
+  return weights;
+}
+
 class StrainLimitStage final : public Stage {
  public:
   explicit StrainLimitStage(Model& model) {
@@ -37,7 +58,7 @@ class StrainLimitStage final : public Stage {
     const int iterations = model.settings.strainIterations;
     mBackend->upload(strainLimitTables(
         model.db.drivenMesh, model.settings.strainLimit, iterations, kStrainRelaxation,
-        chebyshevWeights(iterations, kChebyshevRadius, kChebyshevFrom)));
+        chebyshevWeights(iterations, kChebyshevRadius, kChebyshevFrom), movingVertices(model)));
   }
 
   const char* name() const override { return "strain"; }
