@@ -12,6 +12,7 @@ add-on produces in Blender with the command line's output.
 
 import argparse
 import os
+import shutil
 import sys
 import time
 
@@ -85,6 +86,26 @@ def install_addon(work):
 def drivenshape_module(addon):
     """The drivenshape module, found the way the add-on finds it (DRIVENSHAPE_PYTHONPATH)."""
     return addon.module.get()
+
+
+def import_module_from_path():
+    """The drivenshape module from the first folder of DRIVENSHAPE_PYTHONPATH, without the add-on
+    (the window runner's tests run it as a separate Blender does)."""
+    folders = [f for f in os.environ.get("DRIVENSHAPE_PYTHONPATH", "").split(os.pathsep) if f]
+    if not folders:
+        raise SystemExit("DRIVENSHAPE_PYTHONPATH must name the folder that holds drivenshape/")
+    sys.path.insert(0, folders[0])
+    import drivenshape  # noqa: E402
+
+    return drivenshape
+
+
+def fresh_folder(path):
+    """`path`, absolute, emptied (made when missing)."""
+    path = os.path.abspath(path)
+    shutil.rmtree(path, ignore_errors=True)
+    os.makedirs(path)
+    return path
 
 
 def import_obj(ds, path, name):

@@ -32,7 +32,6 @@ blended 25-27, simulated 28-30, blended 31-33, baked 34-40.
 import hashlib
 import json
 import os
-import shutil
 import stat
 import subprocess
 import sys
@@ -61,15 +60,8 @@ NAMES = {"B": "baked", "S": "simulated", "L": "blended"}
 
 args = util.parse_args(("--cli", "--runner", "--work"))
 checks = util.Checks("test_simulate_command")
-folders = [f for f in os.environ.get("DRIVENSHAPE_PYTHONPATH", "").split(os.pathsep) if f]
-if not folders:
-    raise SystemExit("DRIVENSHAPE_PYTHONPATH must name the folder that holds drivenshape/")
-sys.path.insert(0, folders[0])
-import drivenshape as ds  # noqa: E402
-
-work = os.path.abspath(args.work)
-shutil.rmtree(work, ignore_errors=True)
-os.makedirs(work)
+ds = util.import_module_from_path()
+work = util.fresh_folder(args.work)
 blend = os.path.join(work, "shot.blend")
 bake_dir = os.path.join(work, "bake")
 bake_pattern = os.path.join(bake_dir, "x.####.exr")

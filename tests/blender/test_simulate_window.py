@@ -27,7 +27,6 @@ and that shot.blend is byte for byte what it was, with no cache folder beside it
 
 import hashlib
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -55,15 +54,8 @@ GOALS = (0.0, 0.05, 0.3, 1.0)
 
 args = util.parse_args(("--runner", "--work"))
 checks = util.Checks("test_simulate_window")
-folders = [f for f in os.environ.get("DRIVENSHAPE_PYTHONPATH", "").split(os.pathsep) if f]
-if not folders:
-    raise SystemExit("DRIVENSHAPE_PYTHONPATH must name the folder that holds drivenshape/")
-sys.path.insert(0, folders[0])
-import drivenshape as ds  # noqa: E402
-
-work = os.path.abspath(args.work)
-shutil.rmtree(work, ignore_errors=True)
-os.makedirs(work)
+ds = util.import_module_from_path()
+work = util.fresh_folder(args.work)
 blend = os.path.join(work, "shot.blend")
 
 

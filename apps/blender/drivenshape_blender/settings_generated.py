@@ -348,7 +348,7 @@ SETTINGS = ({'key': 'weight_mode',
                               "before the shot's first frame), from the bake's cloth there, so "
                               'that the cloth settles (frames; 0: start at the first flagged '
                               'frame)',
-               'default': 20,
+               'default': 40,
                'min': 0,
                'max': 10000,
                'soft_max': 60},

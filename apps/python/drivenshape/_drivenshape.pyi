@@ -768,7 +768,7 @@ def plan_shot(evaluator: Evaluator, frames: typing.SupportsIndex | collections.a
 def plan_simulation(report: str | os.PathLike[str] | dict[str, typing.Any], **kwargs: str | int | float | bool) -> dict[str, typing.Any]:
     """
     planSimulation (drivenshape simulate's plan): the windows of cloth simulation for the frames a bake report flags, as the plan JSON (docs/formats.md) as a dict: report, settings, frames {first, last}, windows [{warmup_from, from, to}], simulated_frames. report: the bake report's path, or its JSON as a dict. The settings are keywords, simulate's options without their dashes (a value is read as simulate reads its text; an unknown keyword or a value it refuses is an Error):
-      warmup (--warmup, default 20): frames each window simulates before its first flagged frame (never before the shot's first frame), from the bake's cloth there, so that the cloth settles (frames) (0 = start at the first flagged frame)
+      warmup (--warmup, default 40): frames each window simulates before its first flagged frame (never before the shot's first frame), from the bake's cloth there, so that the cloth settles (frames) (0 = start at the first flagged frame)
       merge_gap (--merge-gap, default 10): flagged frames at most this many unflagged frames apart are one window, the frames between handed back too (cheaper than another warm-up and two more seams) (frames) (0 = only consecutive flagged frames)
       goal_strength (--goal-strength, default 0): how strongly the simulation is pulled towards the bake (the cloth's pin goal) (0 = a free simulation)
       seam (--seam, default 4): frames before a window's first handed-back frame that cross-fade from the bake to the simulation (within the warm-up) (frames) (0 = a hard cut)
@@ -801,7 +801,7 @@ def shot_verdict(evaluator: Evaluator, records: list[FrameRecord]) -> dict[str, 
     """
     The shot's coverage verdict over the FrameRecords of its frames, as the bake report's `coverage` object: tolerance, level, frames_checked, covered_fraction, simulate_frames, simulate_runs, run_up and verdict ('DrivenShape is enough' or 'simulate 12-20'); None when no record has a pose-model prediction (another model than the pose model).
     """
-def simulation_runs(flagged: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]], first: typing.SupportsIndex, run_up: int = 20) -> list[tuple[int, int, int]]:
+def simulation_runs(flagged: typing.SupportsIndex | collections.abc.Sequence[typing.SupportsIndex] | numpy.typing.NDArray[numpy.integer[typing.Any]], first: typing.SupportsIndex, run_up: int = 40) -> list[tuple[int, int, int]]:
     """
     The flagged frames as cloth simulation runs [(from, to, wanted)], as the bake report's coverage.simulate_runs gives them: each run of consecutive frames starts `run_up` frames earlier (never before `first`, the shot's first frame); runs that then touch merge.
     """
