@@ -55,6 +55,7 @@ GOALS = (0.0, 0.05, 0.3, 1.0)
 args = util.parse_args(("--runner", "--work"))
 checks = util.Checks("test_simulate_window")
 ds = util.import_module_from_path()
+MODULE_FOLDER = os.path.dirname(os.path.dirname(os.path.abspath(ds.__file__)))
 work = util.fresh_folder(args.work)
 blend = os.path.join(work, "shot.blend")
 
@@ -197,7 +198,7 @@ for name, kwargs, fragments in (
                  f"{name}: exit {status}, {lines}, {len(left)} files left")
 # --module-path alone finds the module.
 status, _, out = run_window("module_path", truth_bake, first=FIRST, last=FIRST + 1,
-                            env=no_module_env, extra=("--module-path", folders[0]))
+                            env=no_module_env, extra=("--module-path", MODULE_FOLDER))
 checks.check(status == 0 and len(os.listdir(out)) == 2,
              "--module-path finds the module without DRIVENSHAPE_PYTHONPATH")
 

@@ -53,13 +53,13 @@ def stand_in():
 def test_plan_simulation_is_the_commands_plan(cli, shot):
     root, _ = shot
     run([cli, "simulate", "--report", root / "out/x.report.json", "-o", root / "final/x.####.exr",
-         "--plan-only", "--merge-gap", "3"])
+         "--plan-only", "--merge-gap", "3", "--warmup", "20"])
     written = json.loads((root / "final/x.simulation-plan.json").read_text())
-    plan = ds.plan_simulation(str(root / "out/x.report.json"), merge_gap=3)
+    plan = ds.plan_simulation(str(root / "out/x.report.json"), merge_gap=3, warmup=20)
     assert plan == written
     # The report as a dict plans the same windows; the settings are the table's keywords.
     report = json.loads((root / "out/x.report.json").read_text())
-    assert ds.plan_simulation(report, merge_gap=3)["windows"] == written["windows"]
+    assert ds.plan_simulation(report, merge_gap=3, warmup=20)["windows"] == written["windows"]
     # 47's warm-up (from 27) overlaps 30-32's window: one window, handing back 30-47.
     assert written["windows"] == [{"warmup_from": 10, "from": 30, "to": 47}]
     with pytest.raises(ds.Error) as error:
