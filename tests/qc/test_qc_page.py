@@ -989,3 +989,40 @@ def test_mutated_evals_are_drawn_or_refused_never_crash(tmp_path, pose, shot):
             drawn += 1
     print(f"{read} of 400 damaged evals read")
     assert drawn == 8
+
+
+def simulate_report(frames, sources, path):
+    """A report of drivenshape simulate (docs/formats.md) giving each frame its source."""
+    path.write_text(json.dumps({
+        "format": "drivenshape-simulate-report", "version": 1,
+        "frames": [{"frame": f, "source": s} for f, s in zip(frames, sources)]}))
+    return path
+
+
+def test_simulated_frames_on_a_timeline(pose, tmp_path):
+    """--simulated draws each frame's source after drivenshape simulate and counts them; a
+    report that misses a frame of the bake or names another source is an input error."""
+    frames = [r["frame"] for r in pose["report"]["frames"]]
+    sources = ["baked"] * len(frames)
+    sources[5:8] = ["blended"] * 3
+    sources[8:14] = ["simulated"] * 6
+    sources[14:16] = ["blended"] * 2
+    report = pose["folder"] / "sleeve.report.json"
+    given = simulate_report(frames, sources, tmp_path / "x.report.json")
+    out = tmp_path / "page"
+    qc("--report", report, "--simulated", given, "-o", out)
+    parsed = parse_page(out / "index.html")
+    text = parsed.paragraphs["sources"]
+    baked = len(frames) - 11
+    assert "replaced 6 frames" in text and "cross-faded 5" in text and f"kept {baked}" in text, \
+        text
+    assert "sources.png" in parsed.images
+    width, height = png_size(out / "sources.png")
+    assert width > 400 and height > 100
+    missing = simulate_report(frames[1:], sources[1:], tmp_path / "missing.json")
+    result = qc("--report", report, "--simulated", missing, "-o", tmp_path / "p2", expect=3)
+    assert f"no source for frame {frames[0]}" in result.stderr
+    other = simulate_report(frames, ["copied"] + sources[1:], tmp_path / "other.json")
+    result = qc("--report", report, "--simulated", other, "-o", tmp_path / "p3", expect=3)
+    assert "frames[0]" in result.stderr and "baked, simulated or blended" in result.stderr
+    assert not (tmp_path / "p2").exists() and not (tmp_path / "p3").exists()

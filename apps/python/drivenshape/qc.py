@@ -210,6 +210,36 @@ def require(condition: object, path: str, message: str) -> None:
         raise QcError(EXIT_INPUT, f"'{path}': {message}")
 
 
+# Where a frame of a spliced shot comes from (drivenshape simulate's report), and its colour on
+# the timeline.
+SOURCE_COLOURS = {"baked": "0.78", "blended": "tab:olive", "simulated": "tab:green"}
+
+
+def load_simulate_report(path: str, report: _Json) -> dict[int, str]:
+    """Each frame's source (baked, simulated, blended) from `drivenshape simulate`'s report
+    (format drivenshape-simulate-report, version 1): every frame of the bake report must have
+    one."""
+    data = load_json(path, "simulate report")
+    require(isinstance(data, dict) and data.get("format") == "drivenshape-simulate-report", path,
+            "is not the report of drivenshape simulate (format drivenshape-simulate-report)")
+    require(data.get("version") == 1, path,
+            f"is version {data.get('version')!r}; this page reads version 1")
+    frames = data.get("frames")
+    require(isinstance(frames, list) and frames, path, "has no frames")
+    sources: dict[int, str] = {}
+    for i, entry in enumerate(frames):
+        require(isinstance(entry, dict) and isinstance(entry.get("frame"), int)
+                and entry.get("source") in SOURCE_COLOURS, path,
+                f"frames[{i}] is not {{frame, source}} with a source of baked, simulated or "
+                "blended")
+        require(entry["frame"] not in sources, path, f"lists frame {entry['frame']} twice")
+        sources[entry["frame"]] = entry["source"]
+    missing = sorted({r["frame"] for r in report["frames"]} - sources.keys())
+    require(not missing, path, f"has no source for frame {missing[0] if missing else 0} of the "
+            "bake report: give the simulate report of this bake")
+    return sources
+
+
 def is_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
@@ -906,6 +936,21 @@ class Plots:
                    "Share of the cloth's edges stretched or shrunk by more than 10%")
         return self.save(fig, bottom, "strain.png")
 
+    def sources(self, sources: dict[int, str]) -> str:
+        """Each frame's source after drivenshape simulate as a coloured band over the frames,
+        the frames the verdict flagged shaded as on every plot."""
+        fig, (axes,) = self.figure(1.9)
+        for source, colour in SOURCE_COLOURS.items():
+            frames = [f for f, s in sorted(sources.items()) if s == source]
+            if frames:
+                axes.bar(frames, 1.0, width=1.0, color=colour, lw=0,
+                         label=f"{source} ({len(frames)})")
+        axes.set_ylim(0, 1)
+        axes.set_yticks([])
+        axes.grid(False)
+        self.dress(axes, "", "Where each frame of the shot comes from after drivenshape simulate")
+        return self.save(fig, axes, "sources.png")
+
     def heat_map(self, errors: _VertexErrors, up_axis: str) -> str:
         return self.mesh_map(errors["mesh"], errors["mean"] * self.units.scale, up_axis,
                              "heatmap.png", "inferno", f"mean error ({self.units.unit})",
@@ -1513,6 +1558,18 @@ def coverage_section(parts: list[str], plots: Plots, model: str, coverage: Optio
                         "predicted error and error bound per frame against the tolerance", ""))
 
 
+def sources_section(parts: list[str], plots: Plots, sources: dict[int, str], path: str) -> None:
+    """The frames drivenshape simulate replaced, blended and kept, on a timeline."""
+    parts.append('<h2 id="simulated">Simulated frames</h2>')
+    counts = {source: sum(1 for s in sources.values() if s == source) for source in SOURCE_COLOURS}
+    text = (f"<code>drivenshape simulate</code> ({html.escape(path)}) replaced "
+            f"{counts['simulated']} frames by Blender's cloth simulation (green), cross-faded "
+            f"{counts['blended']} at its seams and after its windows (olive), and kept "
+            f"{counts['baked']} baked (grey); the frames the verdict flagged are shaded red.")
+    parts.append(f'<p id="sources">{text}</p>')
+    parts.append(figure(plots.sources(sources), "each frame's source", ""))
+
+
 def strain_section(parts: list[str], plots: Plots, evaluation: Optional[_Json],
                    eval_path: Optional[str]) -> None:
     """The eval's strain per frame, or why there is none."""
@@ -1606,6 +1663,9 @@ def build_page(args: argparse.Namespace, report: _Json, evaluation: Optional[_Js
         parts.append(f'<p id="worst">Worst frames by {html.escape(ranking)}: '
                      + ", ".join(frame_link(f) for f in worst_list) + "</p>")
     coverage_section(parts, plots, model, coverage, error_frames, units)
+    if args.simulated:
+        sources_section(parts, plots, load_simulate_report(args.simulated, report),
+                        args.simulated)
     if args.eval or errors:
         parts.append("<h2>Error to the truth</h2>")
         if evaluation:
@@ -1864,6 +1924,9 @@ def parse_args(argv: Optional[Sequence[str]]) -> argparse.Namespace:
                         help="the bake report (repeat for the chunk reports of a farm bake)")
     parser.add_argument("--eval", metavar="EVAL.json",
                         help="`drivenshape eval --json` of this bake: error per frame")
+    parser.add_argument("--simulated", metavar="SIMULATE_REPORT.json",
+                        help="the report of `drivenshape simulate` on this bake: shows each "
+                             "frame's source (baked, simulated, blended) on a timeline")
     parser.add_argument("--mesh", metavar="DRIVEN_REST.obj",
                         help="the driven rest mesh: draws the per-vertex error heat map "
                              "(needs a truth: --eval or --truth)")
