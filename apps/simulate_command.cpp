@@ -14,6 +14,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -82,7 +83,8 @@ ArgParser simulateParser() {
           "`drivenshape farm slurm|openjd simulate` writes a job of these: a --window task per "
           "window, then a --splice-only task. Exit codes: 0 ok, 2 usage, 3 input (the report, "
           "the bake, Blender or the runner missing, a window whose simulation failed or, with "
-          "--splice-only, is not there), 4 output.");
+          "--splice-only, is not there), 4 output, 7 stopped by SIGTERM or SIGINT (passed on to "
+          "Blender; the windows finished before are kept).");
   return parser;
 }
 
@@ -139,8 +141,22 @@ std::string runnerPath() {
            "); install drivenshape with its Blender module, or set ", kRunnerVariable);
 }
 
+/// The Blender being waited for, and the stop signal that came meanwhile (0: none).
+volatile std::sig_atomic_t gChild = 0;
+volatile std::sig_atomic_t gStopSignal = 0;
+
+/// SIGTERM (a farm's cancel) and SIGINT (Ctrl-C) while a window simulates: passed on to Blender,
+/// so that no simulation goes on writing after the command has gone.
+extern "C" void forwardStopSignal(int signal) {
+  gStopSignal = signal;
+  if (gChild > 0) {
+    ::kill(static_cast<pid_t>(gChild), signal);
+  }
+}
+
 /// Runs `argv` without a shell, its stdout and stderr into the file `log`; returns its exit
-/// status (128 + the signal that ended it).
+/// status (128 + the signal that ended it). A SIGTERM or SIGINT meanwhile goes to the child too,
+/// and once it has ended: Error(kInterrupted).
 int runLogged(const std::vector<std::string>& argv, const std::string& log) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
@@ -153,16 +169,30 @@ int runLogged(const std::vector<std::string>& argv, const std::string& log) {
   }
   words.push_back(nullptr);
   pid_t pid = 0;
+  std::signal(SIGTERM, forwardStopSignal);
+  std::signal(SIGINT, forwardStopSignal);
   const int failed = posix_spawn(&pid, argv[0].c_str(), &actions, nullptr, words.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (failed != 0) {
     DS_THROW(kInput, "cannot run '", argv[0], "': ", std::strerror(failed));
+  }
+  gChild = pid;
+  if (gStopSignal != 0) {  // a signal between the spawn and gChild: pass it on now
+    ::kill(pid, gStopSignal);
   }
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0) {
     if (errno != EINTR) {
       DS_THROW(kInternal, "waiting for '", argv[0], "': ", std::strerror(errno));
     }
+  }
+  gChild = 0;
+  std::signal(SIGTERM, SIG_DFL);  // outside a window a stop ends the command at once: every
+  std::signal(SIGINT, SIG_DFL);   // file it writes is renamed into place whole
+  if (gStopSignal != 0) {
+    DS_THROW(kInterrupted,
+             "stopped by a signal while Blender simulated a window (passed on to "
+             "it); the windows finished before are kept: run the same command again to resume");
   }
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }

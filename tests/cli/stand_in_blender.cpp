@@ -10,7 +10,9 @@
 //
 // Frame f of the output is the bake's frame f moved by simulatedOffset(f, vertex, axis).
 // $STAND_IN_LOG, when set, gets the words after `--` of every run, one run per line;
-// $STAND_IN_FAIL_AT=F makes a run whose frames hold F write the frames before F and exit 1.
+// $STAND_IN_FAIL_AT=F makes a run whose frames hold F write the frames before F and exit 1;
+// $STAND_IN_HANG=PATH makes a run write its process id to PATH and wait (up to a minute) for a
+// signal, as a long simulation would.
 
 #include <cstdio>
 #include <cstdlib>
@@ -18,6 +20,8 @@
 #include <map>
 #include <string>
 #include <vector>
+
+#include <unistd.h>
 
 #include <drivenshape/error.h>
 #include <drivenshape/frames.h>
@@ -71,6 +75,13 @@ int main(int argc, char** argv) {
   }
   if (const char* log = std::getenv("STAND_IN_LOG")) {
     std::ofstream(log, std::ios::app) << words << "\n";
+  }
+  if (const char* hang = std::getenv("STAND_IN_HANG")) {
+    std::ofstream(hang) << ::getpid() << "\n";
+    for (int i = 0; i < 600; ++i) {
+      ::usleep(100000);
+    }
+    return fail("no signal came within a minute");
   }
   const int first = std::atoi(options["--first"].c_str());
   const int last = std::atoi(options["--last"].c_str());

@@ -8,6 +8,10 @@
 
 #include <gtest/gtest.h>
 
+#include <signal.h>
+#include <sys/types.h>
+
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -76,6 +80,7 @@ class SimulateCommand : public ::testing::Test {
     ::unsetenv("DRIVENSHAPE_SIMULATE_RUNNER");
     ::unsetenv("STAND_IN_LOG");
     ::unsetenv("STAND_IN_FAIL_AT");
+    ::unsetenv("STAND_IN_HANG");
   }
 
   static void writeText(const std::string& path, const std::string& text) {
@@ -182,6 +187,36 @@ TEST_F(SimulateCommand, AFailedWindowWritesNoFrameAndARerunKeepsTheOthers) {
   EXPECT_NE(slurp(mDir.file("runs.log")).find("--first 20 --last 24"), std::string::npos);
   EXPECT_EQ(slurp(mDir.file("runs.log")).find("--first 4 "), std::string::npos);
   EXPECT_TRUE(std::filesystem::exists(expandFramePattern(output(), kLast)));
+}
+
+// A farm cancels a task with SIGTERM: the command passes it on to the Blender it waits for, so
+// that no simulation goes on writing after it, and exits 7 with no output frame.
+TEST_F(SimulateCommand, AStopReachesBlenderAndWritesNoFrame) {
+  ::setenv("STAND_IN_HANG", mDir.file("blender.pid").c_str(), 1);
+  std::vector<std::string> args = {"simulate",
+                                   "--blend",
+                                   mDir.file("shot.blend"),
+                                   "--object",
+                                   "pants",
+                                   "--report",
+                                   mDir.file("out/x.report.json"),
+                                   "--bake",
+                                   bake(),
+                                   "-o",
+                                   output(),
+                                   "--blender",
+                                   DS_STAND_IN_BLENDER,
+                                   "--warmup",
+                                   "4"};
+  const CliRun stopped = runCliStopped(mDir, args, 2.0);
+  ::unsetenv("STAND_IN_HANG");
+  expectError(stopped, 7, "stopped by a signal while Blender simulated a window");
+  const pid_t blender = static_cast<pid_t>(std::stol(slurp(mDir.file("blender.pid"))));
+  EXPECT_EQ(::kill(blender, 0), -1) << "the stand-in Blender " << blender << " still runs";
+  EXPECT_EQ(errno, ESRCH);
+  for (int f = kFirst; f <= kLast; ++f) {
+    EXPECT_FALSE(std::filesystem::exists(expandFramePattern(output(), f))) << f;
+  }
 }
 
 TEST_F(SimulateCommand, PlanOnlyWritesThePlanAlone) {
