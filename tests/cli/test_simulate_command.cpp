@@ -91,7 +91,8 @@ class SimulateCommand : public ::testing::Test {
   }
   std::string bake() const { return mDir.file("out/x.####.exr"); }
   std::string output() const { return mDir.file("final/x.####.exr"); }
-  CliRun simulate(std::vector<std::string> extra = {}) {
+  /// The command line of a simulation of the shot with the stand-in Blender, then `extra`.
+  std::vector<std::string> simulateArgs(std::vector<std::string> extra = {}) const {
     std::vector<std::string> args = {"simulate",
                                      "--blend",
                                      mDir.file("shot.blend"),
@@ -114,8 +115,9 @@ class SimulateCommand : public ::testing::Test {
                                      "--carry",
                                      "3"};
     args.insert(args.end(), extra.begin(), extra.end());
-    return runCli(mDir, args);
+    return args;
   }
+  CliRun simulate(std::vector<std::string> extra = {}) { return runCli(mDir, simulateArgs(extra)); }
 
   TempDir mDir;
   std::vector<float> mBaked;  ///< frames 1-30
@@ -193,22 +195,7 @@ TEST_F(SimulateCommand, AFailedWindowWritesNoFrameAndARerunKeepsTheOthers) {
 // that no simulation goes on writing after it, and exits 7 with no output frame.
 TEST_F(SimulateCommand, AStopReachesBlenderAndWritesNoFrame) {
   ::setenv("STAND_IN_HANG", mDir.file("blender.pid").c_str(), 1);
-  std::vector<std::string> args = {"simulate",
-                                   "--blend",
-                                   mDir.file("shot.blend"),
-                                   "--object",
-                                   "pants",
-                                   "--report",
-                                   mDir.file("out/x.report.json"),
-                                   "--bake",
-                                   bake(),
-                                   "-o",
-                                   output(),
-                                   "--blender",
-                                   DS_STAND_IN_BLENDER,
-                                   "--warmup",
-                                   "4"};
-  const CliRun stopped = runCliStopped(mDir, args, 2.0);
+  const CliRun stopped = runCliStopped(mDir, simulateArgs(), 2.0);
   ::unsetenv("STAND_IN_HANG");
   expectError(stopped, 7, "stopped by a signal while Blender simulated a window");
   const pid_t blender = static_cast<pid_t>(std::stol(slurp(mDir.file("blender.pid"))));
