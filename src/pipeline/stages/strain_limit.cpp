@@ -28,7 +28,7 @@ constexpr double kStrainRelaxation = 1.5;
 /// Chebyshev acceleration of the iterations (StrainLimitTables): the estimated spectral radius
 /// of the plain iteration and the first accelerated iteration. Chosen on the validation clips
 /// (docs/validation.md, "Strain"): with 30 iterations and a 1% band the garments' mean |strain|
-/// falls from 2.2-3.9% (plain) to 1.1-2.1% at 0.98 (independent numpy study of the same
+/// falls from 2.2-3.9% (plain) to 1.0-2.1% at 0.98 (independent numpy study of the same
 /// iteration on the bakes of four clips); 0.99 goes lower still but leaves less margin against
 /// oscillation; starting at the fifth iteration lets the first steps settle the worst edges.
 constexpr double kChebyshevRadius = 0.98;
