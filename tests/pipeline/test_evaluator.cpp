@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -90,6 +91,24 @@ class EvaluatorTest : public testing::OpenClTest {
 
 TempDir* EvaluatorTest::sDir = nullptr;
 
+/// The shot evaluated `batch` frames per call (the last call takes what is left), each call's
+/// Evaluation handed to `check` with its first index and count; returns the calls' cloth in
+/// order. `vp` is the driver's floats per frame.
+std::vector<float> inBatches(Evaluator& evaluator, const std::vector<int>& frames,
+                             const std::vector<float>& driver, std::size_t vp, int batch,
+                             const std::function<void(int, int, const Evaluation&)>& check) {
+  std::vector<float> cloth;
+  for (int begin = 0; begin < static_cast<int>(frames.size()); begin += batch) {
+    const int count = std::min<int>(batch, static_cast<int>(frames.size()) - begin);
+    const Evaluation out =
+        evaluator.evaluate(std::vector<int>(frames.begin() + begin, frames.begin() + begin + count),
+                           slice(driver, vp, begin, count));
+    check(begin, count, out);
+    cloth.insert(cloth.end(), out.cloth.begin(), out.cloth.end());
+  }
+  return cloth;
+}
+
 TEST_F(EvaluatorTest, MatchesTheCliBakeBitwiseForEveryBatchSizeAndThreadCount) {
   const Database db = loadDatabase(file("sleeve.dsdb"));
   const std::vector<int> frames = shotFrames();
@@ -103,16 +122,11 @@ TEST_F(EvaluatorTest, MatchesTheCliBakeBitwiseForEveryBatchSizeAndThreadCount) {
     settings.threads = threads;
     Evaluator evaluator(db, settings, *device);
     for (const int batch : {1, 7, 64}) {
-      std::vector<float> cloth;
-      for (int begin = 0; begin < static_cast<int>(frames.size()); begin += batch) {
-        const int count = std::min<int>(batch, static_cast<int>(frames.size()) - begin);
-        const Evaluation out = evaluator.evaluate(
-            std::vector<int>(frames.begin() + begin, frames.begin() + begin + count),
-            slice(driver, vp, begin, count));
-        ASSERT_EQ(out.records.size(), static_cast<std::size_t>(count));
-        EXPECT_EQ(out.records.front().frame, frames[begin]);
-        cloth.insert(cloth.end(), out.cloth.begin(), out.cloth.end());
-      }
+      const std::vector<float> cloth = inBatches(
+          evaluator, frames, driver, vp, batch, [&](int begin, int count, const Evaluation& out) {
+            ASSERT_EQ(out.records.size(), static_cast<std::size_t>(count));
+            EXPECT_EQ(out.records.front().frame, frames[begin]);
+          });
       EXPECT_EQ(bitDifferences(cloth, cli), 0) << "batch " << batch << ", threads " << threads;
     }
   }
@@ -326,17 +340,12 @@ TEST_F(EvaluatorTest, StrainLimitRunsBetweenTheCorrectionAndTheResolution) {
     EXPECT_EQ(at("resolve"), at("strain") + 1);
     EXPECT_NE(evaluator.settingsHash(), Evaluator(db, EvaluatorSettings(), *device).settingsHash());
     for (const int batch : {1, 7, 48}) {
-      std::vector<float> cloth;
-      for (int begin = 0; begin < static_cast<int>(frames.size()); begin += batch) {
-        const int count = std::min<int>(batch, static_cast<int>(frames.size()) - begin);
-        const Evaluation out = evaluator.evaluate(
-            std::vector<int>(frames.begin() + begin, frames.begin() + begin + count),
-            slice(driver, vp, begin, count));
-        for (const FrameRecord& record : out.records) {
-          EXPECT_EQ(record.insideAfter, 0) << "frame " << record.frame;
-        }
-        cloth.insert(cloth.end(), out.cloth.begin(), out.cloth.end());
-      }
+      const std::vector<float> cloth =
+          inBatches(evaluator, frames, driver, vp, batch, [](int, int, const Evaluation& out) {
+            for (const FrameRecord& record : out.records) {
+              EXPECT_EQ(record.insideAfter, 0) << "frame " << record.frame;
+            }
+          });
       if (reference.empty()) {
         reference = cloth;
       }

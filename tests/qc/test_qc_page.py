@@ -883,6 +883,16 @@ def test_a_damaged_eval_is_refused_naming_the_field(shot, pose, tmp_path, field,
     assert not (tmp_path / "qc").exists()
 
 
+def refused_eval(shot, pose, tmp_path, change):
+    """The page's stderr for the pose bake's eval damaged by `change` (exit 3 expected)."""
+    damaged = eval_of(pose)
+    change(damaged)
+    path = tmp_path / "damaged.eval.json"
+    path.write_text(json.dumps(damaged))
+    return qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc",
+              expect=3).stderr
+
+
 def test_an_eval_of_other_frames_figures_is_refused(shot, pose, tmp_path):
     """The shot's figures must be those of its frames: a mean that is not theirs, a max frame
     mean over max."""
@@ -890,13 +900,8 @@ def test_an_eval_of_other_frames_figures_is_refused(shot, pose, tmp_path):
                           (lambda e: e["frames"][0].update(mean=e["frames"][0]["max"] * 2),
                            "frame 1: mean"),
                           (lambda e: e.update(vertices=e["vertices"] + 1), "cloth vertices")):
-        damaged = eval_of(pose)
-        change(damaged)
-        path = tmp_path / "other.eval.json"
-        path.write_text(json.dumps(damaged))
-        result = qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc",
-                    expect=3)
-        assert named in result.stderr, result.stderr
+        stderr = refused_eval(shot, pose, tmp_path, change)
+        assert named in stderr, stderr
 
 
 def test_an_eval_whose_strain_is_missing_or_not_its_frames_is_refused(shot, pose, tmp_path):
@@ -923,13 +928,8 @@ def test_an_eval_whose_strain_is_missing_or_not_its_frames_is_refused(shot, pose
         (lambda e: e["summary"]["bake"].update(strain_p95=0.0), "outside its frames'"),
     )
     for change, named in cases:
-        damaged = eval_of(pose)
-        change(damaged)
-        path = tmp_path / "strain.eval.json"
-        path.write_text(json.dumps(damaged))
-        result = qc("--report", shot.bake("enough"), "--eval", path, "-o", tmp_path / "qc",
-                    expect=3)
-        assert named in result.stderr and "Traceback" not in result.stderr, result.stderr
+        stderr = refused_eval(shot, pose, tmp_path, change)
+        assert named in stderr and "Traceback" not in stderr, stderr
     # An eval written before the strain (no `strain`, no strain fields) is still read.
     older = eval_of(pose)
     for holder in [older] + list(older["summary"].values()) + [
