@@ -34,42 +34,6 @@ const std::vector<StageFactory>& stageFactories() {
 
 }  // namespace pipeline
 
-const char* alignModeName(AlignMode mode) {
-  switch (mode) {
-    case AlignMode::kNone:
-      return "none";
-    case AlignMode::kRigid:
-      return "rigid";
-    case AlignMode::kRigidAll:
-      return "rigid-all";
-  }
-  return "?";
-}
-
-const char* weightModeName(WeightMode mode) {
-  switch (mode) {
-    case WeightMode::kQp:
-      return "qp";
-    case WeightMode::kNearest:
-      return "nearest";
-    case WeightMode::kBind:
-      return "bind";
-    case WeightMode::kModel:
-      return "model";
-    case WeightMode::kAuto:
-      return "auto";
-  }
-  return "?";
-}
-
-const char* blendModeName(BlendMode mode) {
-  return mode == BlendMode::kLocal ? "local" : "world";
-}
-
-const char* resolveDirectionName(ResolveDirection direction) {
-  return direction == ResolveDirection::kNearest ? "nearest" : "normal";
-}
-
 WeightMode resolvedWeightMode(const EvaluatorSettings& settings, const Database& database) {
   if (settings.weightMode != WeightMode::kAuto) {
     return settings.weightMode;
