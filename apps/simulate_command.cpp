@@ -63,14 +63,16 @@ ArgParser simulateParser() {
       "frame of the report to -o (simulated in the windows, cross-faded at their seams, the "
       "simulation's residual carried and faded after them, baked elsewhere) and "
       "<OUT name>.report.json with each frame's source. Windows go to <OUT name>.simulate-windows "
-      "beside the output, kept until the splice so that a rerun simulates only what is missing.");
+      "beside the output and stay there: a rerun simulates only what is missing (and a new --seam "
+      "or --carry only splices again); remove the folder once the shot is final.");
   parser.option("--report", "PATH", "the bake's report (bake --report)", "", true)
       .option("-o", "OUT.####.exr", "output EXR sequence (####, %04d or $F4)", "", true)
       .option("--blend", "SHOT.blend", "the shot's scene with the garment's cloth setup")
       .option("--object", "GARMENT", "the garment object (its Cloth modifier simulates)")
       .option("--bake", "BAKE.####.exr", "the bake's EXR sequence (every frame of the report)")
       .settings(SettingScope::kSimulate)
-      .option("--blender", "PATH", "the Blender executable", "blender on PATH")
+      .option("--blender", "PATH", "the Blender executable (a name without / is looked up on PATH)",
+              "blender on PATH")
       .flag("--plan-only", "write and print the plan, simulate nothing")
       .option("--window", "N",
               "job control (a farm's window task): simulate window N of the plan only (1 = the "
@@ -99,24 +101,25 @@ bool isExecutableFile(const std::string& path) {
          ::access(path.c_str(), X_OK) == 0;
 }
 
-/// --blender, else the first `blender` on PATH.
+/// --blender (a path, or a name without '/' looked up on PATH as a shell would), else the first
+/// `blender` on PATH.
 std::string blenderPath(const ArgParser& parser) {
-  if (parser.has("--blender")) {
-    const std::string path = parser.get("--blender");
-    if (!isExecutableFile(path)) {
-      DS_THROW(kInput, "--blender '", path, "' is not an executable file");
+  const std::string given = parser.has("--blender") ? parser.get("--blender") : "blender";
+  if (given.find('/') != std::string::npos) {
+    if (!isExecutableFile(given)) {
+      DS_THROW(kInput, "--blender '", given, "' is not an executable file");
     }
-    return path;
+    return given;
   }
   const char* pathVariable = std::getenv("PATH");
   std::istringstream folders(pathVariable != nullptr ? pathVariable : "");
   for (std::string folder; std::getline(folders, folder, ':');) {
-    const std::string candidate = (fs::path(folder.empty() ? "." : folder) / "blender").string();
+    const std::string candidate = (fs::path(folder.empty() ? "." : folder) / given).string();
     if (isExecutableFile(candidate)) {
       return candidate;
     }
   }
-  DS_THROW(kInput, "no `blender` on PATH (", pathVariable != nullptr ? pathVariable : "unset",
+  DS_THROW(kInput, "no `", given, "` on PATH (", pathVariable != nullptr ? pathVariable : "unset",
            "); install Blender 3.4 or later, or name it with --blender PATH");
 }
 
@@ -378,7 +381,8 @@ void requireEveryWindow(const WindowJob& job, const SimulationPlan& plan) {
   }
 }
 
-/// Splices the windows into -o and removes the windows' folder; returns the splice.
+/// Splices the windows into -o; returns the splice. The windows stay: a rerun (a lost output, a
+/// new --seam or --carry) splices again without simulating.
 SplicedShot splice(const ArgParser& parser, const SimulationPlan& plan, const WindowJob& job,
                    bool quiet) {
   std::vector<std::string> patterns;
@@ -388,10 +392,7 @@ SplicedShot splice(const ArgParser& parser, const SimulationPlan& plan, const Wi
   if (!quiet) {
     std::cerr << "splicing " << plan.last - plan.first + 1 << " frames\n";
   }
-  SplicedShot shot = spliceSimulationFiles(plan, parser.get("--bake"), patterns, parser.get("-o"));
-  std::error_code error;
-  fs::remove_all(job.folder, error);
-  return shot;
+  return spliceSimulationFiles(plan, parser.get("--bake"), patterns, parser.get("-o"));
 }
 
 /// The mode the job-control options ask for; Error(kUsage) for two at once.

@@ -257,7 +257,8 @@ left = {
                                             "bin", "blender_runs.log"}),
     "bake": sorted(set(os.listdir(bake_dir)) - {"x.report.json"} -
                    {f"x.{f:04d}.exr" for f in range(1, FRAMES + 1)}),
-    "final": sorted(set(os.listdir(final_dir)) - {"x.report.json", "x.simulation-plan.json"} -
+    "final": sorted(set(os.listdir(final_dir)) - {"x.report.json", "x.simulation-plan.json",
+                                                  "x.simulate-windows"} -
                     {f"x.{f:04d}.exr" for f in range(1, FRAMES + 1)}),
     "tmp": os.listdir(temp)}
 checks.check(not any(left.values()), f"nothing else is written ({left})")

@@ -167,7 +167,29 @@ TEST_F(SimulateCommand, WritesEveryFrameAsTheLibrarySplicesIt) {
   }
   // Seam 6-7, window 8-10, carry 11-13; seam 22-23, window 24, carry 25-27.
   EXPECT_EQ(sources, "BBBBBLLSSSLLLBBBBBBBBLLSLLLBBB");
-  EXPECT_FALSE(std::filesystem::exists(mDir.file("final/x.simulate-windows")));
+}
+
+// The windows stay beside the output: a rerun simulates nothing and writes the same frames, and
+// a new --carry (not on a window's command line) splices the same windows again.
+TEST_F(SimulateCommand, ARerunAfterASpliceSimulatesNothing) {
+  ASSERT_EQ(simulate().code, 0);
+  std::vector<std::string> first;
+  for (int f = kFirst; f <= kLast; ++f) {
+    first.push_back(slurp(expandFramePattern(output(), f)));
+  }
+  std::filesystem::remove(mDir.file("runs.log"));
+  const CliRun rerun = simulate();
+  ASSERT_EQ(rerun.code, 0) << rerun.err;
+  EXPECT_NE(rerun.err.find("window 2/2: frames 20-24 kept from a run before"), std::string::npos)
+      << rerun.err;
+  EXPECT_FALSE(std::filesystem::exists(mDir.file("runs.log")));
+  for (int f = kFirst; f <= kLast; ++f) {
+    EXPECT_EQ(slurp(expandFramePattern(output(), f)), first[f - kFirst]) << "frame " << f;
+  }
+  const CliRun carried = simulate({"--carry", "1"});
+  ASSERT_EQ(carried.code, 0) << carried.err;
+  EXPECT_FALSE(std::filesystem::exists(mDir.file("runs.log")));
+  EXPECT_NE(slurp(expandFramePattern(output(), 12)), first[12 - kFirst]);  // carried before
 }
 
 TEST_F(SimulateCommand, AFailedWindowWritesNoFrameAndARerunKeepsTheOthers) {

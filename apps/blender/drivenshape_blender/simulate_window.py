@@ -106,6 +106,14 @@ def main():
         shutil.rmtree(work, ignore_errors=True)
     print(f"simulate_window: wrote {len(written)} frames {args.first}-{args.last} of "
           f"'{args.object}' to {out_pattern}", flush=True)
+    # Every frame is written and renamed into place. Blender 3.4 can crash (signal 11) while it
+    # tears down after a cloth simulation (seen on the trouser clips' windows of 45 frames), which
+    # would fail a finished window: end the process here instead of returning to Blender, after
+    # removing what Blender's exit would (its session's temporary folder).
+    if bpy.app.tempdir:
+        shutil.rmtree(bpy.app.tempdir, ignore_errors=True)
+    sys.stderr.flush()
+    os._exit(0)
 
 
 if __name__ == "__main__":
