@@ -246,14 +246,14 @@ std::vector<std::string> runnerArgs(const WindowJob& job, const SimulationWindow
 }
 
 /// The stamp of a window's folder: the runner's command line but Blender's path (another
-/// Blender may keep the window).
+/// Blender may keep the window), and the bake's frames it read.
 std::string windowStamp(const WindowJob& job, const SimulationWindow& window) {
   const std::vector<std::string> args = runnerArgs(job, window);
   std::string stamp;
   for (std::size_t i = 1; i < args.size(); ++i) {
     stamp += args[i] + "\n";
   }
-  return stamp;
+  return stamp + "bake frames " + bakeFramesStamp(job.bake, window.warmupFrom, window.to) + "\n";
 }
 
 fs::path windowFolder(const WindowJob& job, const SimulationWindow& window) {

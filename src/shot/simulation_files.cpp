@@ -15,6 +15,8 @@
 #include <drivenshape/frames.h>
 #include <drivenshape/point_cache.h>
 
+#include "atomic_file.h"
+#include "hash.h"
 #include "json_text.h"
 
 namespace drivenshape {
@@ -55,6 +57,14 @@ ExrPointCacheInfo checkSimulationBake(const SimulationPlan& plan, const std::str
     }
   }
   return sequence.first;
+}
+
+std::string bakeFramesStamp(const std::string& bakePattern, int first, int last) {
+  Hasher hasher;
+  for (int f = first; f <= last; ++f) {
+    hasher.addString(readWholeFile(expandFramePattern(bakePattern, f), "bake frame"));
+  }
+  return hashToHex(hasher.value());
 }
 
 std::string simulatedWindowProblem(const SimulationWindow& window, const std::string& pattern,

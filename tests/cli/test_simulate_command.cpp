@@ -192,6 +192,29 @@ TEST_F(SimulateCommand, ARerunAfterASpliceSimulatesNothing) {
   EXPECT_NE(slurp(expandFramePattern(output(), 12)), first[12 - kFirst]);  // carried before
 }
 
+// A window is kept only while the bake frames it simulated from are the same bytes: a new bake
+// under the same name simulates the windows it changed again.
+TEST_F(SimulateCommand, ANewBakeSimulatesTheWindowsItChangesAgain) {
+  ASSERT_EQ(simulate().code, 0);
+  std::filesystem::remove(mDir.file("runs.log"));
+  std::vector<float> xyz(mBaked.begin() + (22 - kFirst) * 3 * kVertices,
+                         mBaked.begin() + (23 - kFirst) * 3 * kVertices);
+  xyz[0] += 0.5f;
+  ExrWriteOptions options;
+  options.frame = 22;
+  options.topologyHash = kTopology;
+  options.framesPerSecond = 25.0;
+  writePointCacheExr(expandFramePattern(bake(), 22), kVertices, xyz.data(), nullptr, options);
+  const CliRun rerun = simulate();
+  ASSERT_EQ(rerun.code, 0) << rerun.err;
+  EXPECT_NE(rerun.err.find("window 1/2: frames 4-10 kept from a run before"), std::string::npos)
+      << rerun.err;
+  EXPECT_NE(rerun.err.find("window 2/2: frames 20-24 simulating in Blender"), std::string::npos)
+      << rerun.err;
+  EXPECT_EQ(slurp(mDir.file("runs.log")).find("--first 4 "), std::string::npos);
+  EXPECT_NE(slurp(mDir.file("runs.log")).find("--first 20 --last 24"), std::string::npos);
+}
+
 TEST_F(SimulateCommand, AFailedWindowWritesNoFrameAndARerunKeepsTheOthers) {
   ::setenv("STAND_IN_FAIL_AT", "22", 1);
   const CliRun failed = simulate();

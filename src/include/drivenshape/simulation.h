@@ -101,6 +101,12 @@ ExrPointCacheInfo checkSimulationBake(const SimulationPlan& plan, const std::str
 std::string simulatedWindowProblem(const SimulationWindow& window, const std::string& pattern,
                                    int vertexCount);
 
+/// A hash (16 hex digits) of the bytes of the bake's files `bakePattern` of frames first..last:
+/// what a window simulated from those frames records, so that it is kept only while the bake is
+/// the same (a new bake under the same name simulates again). Error(kInput) naming a file that
+/// cannot be read.
+std::string bakeFramesStamp(const std::string& bakePattern, int first, int last);
+
 /// The splice of files: reads the plan's frames of the bake `bakePattern` and each window's
 /// frames warmupFrom..to of `windowPatterns[w]`, splices them (spliceSimulation) and writes every
 /// frame first..last to `outputPattern` (each file atomically, with the bake's width,
