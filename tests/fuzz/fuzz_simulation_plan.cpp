@@ -23,9 +23,9 @@ constexpr long long kSpliceFrames = 4096;
 void checkWindows(const ds::SimulationPlan& plan, const char* reader) {
   int previousEnd = plan.first - 2;
   for (const ds::SimulationWindow& w : plan.windows) {
-    ds::fuzz::require(plan.first <= w.warmupFrom && w.warmupFrom <= w.from && w.from <= w.to &&
-                          w.to <= plan.last,
-                      reader, "a window outside the plan's frames or out of order");
+    ds::fuzz::require(
+        plan.first <= w.warmupFrom && w.warmupFrom <= w.from && w.from <= w.to && w.to <= plan.last,
+        reader, "a window outside the plan's frames or out of order");
     ds::fuzz::require(w.warmupFrom > previousEnd + 1, reader, "windows touching or overlapping");
     previousEnd = w.to;
   }
@@ -71,9 +71,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::string written;
     ds::fuzz::expectSuccess("simulationPlanJson", [&] {
       written = ds::simulationPlanJson(plan);
-      ds::fuzz::require(ds::simulationPlanJson(ds::parseSimulationPlan(written, "again.json")) ==
-                            written,
-                        reader, "a plan that does not read back as written");
+      ds::fuzz::require(
+          ds::simulationPlanJson(ds::parseSimulationPlan(written, "again.json")) == written, reader,
+          "a plan that does not read back as written");
     });
     if (static_cast<long long>(plan.last) - plan.first < kSpliceFrames) {
       ds::fuzz::expectSuccess("spliceSimulation", [&] { checkSplice(plan); });
