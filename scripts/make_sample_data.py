@@ -72,7 +72,10 @@ def main():
                              "(Blender cloth), renumbered from frame 1",
                    "train_source_frames": picks["train"],
                    "test_source_frames": picks["test"],
-                   "fps": 24}, f, indent=1)
+                   "fps": 24,
+                   # The cloth's pin group (scripts/sample_scene.py builds the demo's scene).
+                   "pin_vertices": json.load(open(os.path.join(args.source, "rig.json")))[
+                       "driven_pin_vertices"]}, f, indent=1)
 
 
 if __name__ == "__main__":
