@@ -93,6 +93,18 @@ def clips(clips_dir, reference):
     return out
 
 
+def build_database(ds, src, scene, out, db_flags, log):
+    """The character's database from its `train` clip in `src` (30 picks and the pose model):
+    out/<scene>.dsdb, its model's figures in out/<scene>.model.json. Returns the database."""
+    db = os.path.join(out, scene + ".dsdb")
+    run([ds, "db", "build", "--driver-mesh", f"{src}/driver_rest.obj", "--driven-mesh",
+         f"{src}/driven_rest.obj", "--driver", f"{src}/train.driver.pc2", "--driven",
+         f"{src}/train.driven.pc2", "--count", "30", "-o", db,
+         "--model-json", os.path.join(out, scene + ".model.json")]
+        + db_flags.replace("{scene}", src).replace("{character}", scene).split(), log)
+    return db
+
+
 def spread(d, family, twin, meta, build):
     """Mean vertex distance (scene units) between a clip's cloth and its twin's over the motion
     frames, the caches read by the built module (BUILD/python); None when the twin was not
@@ -203,13 +215,7 @@ def main():
         if not os.path.exists(os.path.join(src, "train.driven.pc2")):
             sys.exit(f"run_validation: no train clip in {src}; make it with "
                      f"scripts/validation/generate_clips.sh {a.clips} {DATABASE_CLIP.format(scene)}")
-        db = os.path.join(a.out, scene + ".dsdb")
-        run([ds, "db", "build", "--driver-mesh", f"{src}/driver_rest.obj", "--driven-mesh",
-             f"{src}/driven_rest.obj", "--driver", f"{src}/train.driver.pc2", "--driven",
-             f"{src}/train.driven.pc2", "--count", "30", "-o", db,
-             "--model-json", os.path.join(a.out, scene + ".model.json")]
-            + a.db_flags.replace("{scene}", src).replace("{character}", scene).split(), log)
-        dbs[scene] = (db, src)
+        dbs[scene] = (build_database(ds, src, scene, a.out, a.db_flags, log), src)
     rows, pooled_pred, pooled_true = [], [], []
     for name, scene, d, family in clips(a.clips, a.reference):
         if (a.only and name.split()[0] not in a.only) or name.split()[0] in a.skip:
