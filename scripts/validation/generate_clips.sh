@@ -10,8 +10,10 @@
 # Each line of the list is `name scene family seed [make_clip.py options...]` (e.g. --frames 60,
 # --set cloth.bending_stiffness=0.5); the clip lands in OUT_DIR/NAME/<scene>/: driver_rest.obj,
 # driven_rest.obj, rig.json, <family>.{driver,driven}.pc2, <family>.json. With NAMEs only those
-# clips are made. A clip whose json exists (written last) is kept; a clip that fails is reported
-# and the exit status is 1 once the others have run. Logs: OUT_DIR/logs/NAME.log.
+# clips are made. A clip whose json exists (written last) is kept; a clip that fails, or that
+# scripts/clipgen/check_clip.py refuses (its cloth inside the body, drifting off it or stretching
+# like rubber: a simulation that ran away), is reported and the exit status is 1 once the others
+# have run. Logs: OUT_DIR/logs/NAME.log and NAME.check.log.
 # --list takes another list of the same form: references.txt (the TD's extra reference clips,
 # kept apart from the validation clips) or spread.txt (every validation clip simulated again
 # with a small change, the sim-to-sim spread).
@@ -28,6 +30,7 @@
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 maker="$(cd "$here/../clipgen" && pwd)/make_clip.py"
+checker="$(cd "$here/../clipgen" && pwd)/check_clip.py"
 blender=${BLENDER:-blender}
 list="$here/clips.txt"
 link_data=""
@@ -59,6 +62,13 @@ while read -r name scene family seed rest; do
       --scene "$scene" --family "$family" --seed "$seed" --out "$out/$name" $rest \
       >"$out/logs/$name.log" 2>&1 </dev/null; then
     grep -E "done:" "$out/logs/$name.log" || true
+    # The clip judged from its files (scripts/clipgen/check_clip.py): a take whose cloth ran
+    # away (inside the body, drifting off it, stretching like rubber) is reported, not used.
+    if ! python3 "$checker" "$out/$name/$scene" "$family" >"$out/logs/$name.check.log" 2>&1; then
+      echo "failed check: $name ($(tail -n 1 "$out/logs/$name.check.log"); see" \
+        "$out/logs/$name.check.log): make it with another seed"
+      failed=1
+    fi
   else
     echo "failed: $name (see $out/logs/$name.log)"
     failed=1
