@@ -25,8 +25,7 @@ import os
 import sys
 from pathlib import Path
 
-from farm_test_util import (FRAMES, CheckFailed, check, check_template_with_openjd_model, main,
-                            temp_files)
+from farm_test_util import FRAMES, check, check_template_with_openjd_model, main, temp_files
 from test_farm_openjd import openjd
 from test_farm_slurm import Cluster
 
@@ -142,9 +141,7 @@ def submit_simulate(farm, cluster, folder, **env_extra):
 
 def slurm(farm):
     local = local_run(farm)
-    cluster = Cluster(farm)
-    try:
-        cluster.start()
+    with Cluster(farm).running() as cluster:
         folder = farm.scratch("simulate-slurm")
         out = folder / "out"
         ids = submit_simulate(farm, cluster, folder)
@@ -180,11 +177,6 @@ def slurm(farm):
         same_as_local(out, local, "the resubmitted Slurm job")
         print("a failed window: FAILED 3:0, no splice; resubmitted: kept window 1, spliced",
               flush=True)
-    except CheckFailed:
-        print(cluster.logs(), flush=True)
-        raise
-    finally:
-        cluster.stop()
 
 
 def openjd_job(farm):

@@ -15,6 +15,7 @@ systemd, auth/munge with a key made there). Then:
 
 The cluster is torn down (daemons stopped by pid, folder removed) even when a check fails."""
 
+import contextlib
 import re
 import subprocess
 import sys
@@ -41,6 +42,19 @@ class Cluster:
         check(result.returncode == 0, f"the cluster did not start:\n{result.stdout}\n"
                                       f"{result.stderr[-4000:]}")
         print(result.stderr.strip(), f"({time.monotonic() - started:.1f} s)", flush=True)
+
+    @contextlib.contextmanager
+    def running(self):
+        """The cluster started for the block and stopped (and removed) after it; when a check
+        fails in the block, the last lines of its logs are printed first."""
+        try:
+            self.start()
+            yield self
+        except CheckFailed:
+            print(self.logs(), flush=True)
+            raise
+        finally:
+            self.stop()
 
     def stop(self):
         result = subprocess.run(["bash", str(self.script), "stop", "--remove", str(self.dir)],
@@ -108,9 +122,7 @@ class Cluster:
 
 
 def slurm_array_job(farm):
-    cluster = Cluster(farm)
-    try:
-        cluster.start()
+    with Cluster(farm).running() as cluster:
         sinfo = cluster.tool("sinfo", "-h", "-N", "-o", "%N %t %c")
         print(f"sinfo: {sinfo.strip()}", flush=True)
 
@@ -200,11 +212,6 @@ def slurm_array_job(farm):
         compare_with_reference(farm, resume)
         print(f"scancel after {finished} frames -> CANCELLED 7:0; resubmitted chunk resumed",
               flush=True)
-    except CheckFailed:
-        print(cluster.logs(), flush=True)
-        raise
-    finally:
-        cluster.stop()
     check(not cluster.dir.exists(), f"{cluster.dir} was not removed")
 
 
