@@ -4,6 +4,7 @@
 #include "farm_command.h"
 
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -150,6 +151,29 @@ void createOutputFolder(const FarmJob& job) {
   }
 }
 
+/// The array job in `jobFile` and, after it, the job that runs its script's `stage` ("report",
+/// "splice"; `what` in the output) with the dependency options `afterArray(array job id)`: with
+/// `submit`, both submitted through sbatch; otherwise the two sbatch commands printed.
+void submitOrPrintSlurm(
+    bool submit, const std::string& jobFile, const std::string& stage, const std::string& what,
+    const std::function<std::vector<std::string>(const std::string&)>& afterArray) {
+  if (submit) {
+    const std::string id = submitToSlurm(jobFile);
+    std::cout << "submitted: job " << id << "\n";
+    const std::string after = submitToSlurm(jobFile, afterArray(id), {stage});
+    std::cout << "submitted: job " << after << " (" << what << ", after job " << id << ")\n";
+    return;
+  }
+  std::string afterOptions;
+  for (const std::string& option : afterArray("${id%%;*}")) {
+    afterOptions +=
+        " " + (option.find('$') == std::string::npos ? shellQuote(option) : "\"" + option + "\"");
+  }
+  std::cout << "submit with: id=$(sbatch --parsable " << shellQuote(jobFile) << ") &&\n"
+            << "             sbatch" << afterOptions << " " << shellQuote(jobFile) << " " << stage
+            << "\n";
+}
+
 int runFarmSlurm(const std::vector<std::string>& args) {
   ArgParser parser(
       "drivenshape farm slurm --db DB --driver CACHE --frames RANGE -o OUT.####.exr "
@@ -195,21 +219,8 @@ int runFarmSlurm(const std::vector<std::string>& args) {
   std::cout << "slurm job: " << jobFile << " (" << job.chunks << " array tasks 0-" << job.chunks - 1
             << ", " << job.frameCount << " frames in chunks of up to " << job.chunkSize << ")\n"
             << "logs:      " << logDir << "/" << safeName(job.name) << "_<job>_<chunk>.log\n";
-  if (parser.has("--submit")) {
-    const std::string id = submitToSlurm(jobFile);
-    std::cout << "submitted: job " << id << "\n";
-    const std::string report = submitToSlurm(jobFile, slurmReportOptions(job, id), {"report"});
-    std::cout << "submitted: job " << report << " (the shot's report, after job " << id << ")\n";
-  } else {
-    std::string reportOptions;
-    for (const std::string& option : slurmReportOptions(job, "${id%%;*}")) {
-      reportOptions +=
-          " " + (option.find('$') == std::string::npos ? shellQuote(option) : "\"" + option + "\"");
-    }
-    std::cout << "submit with: id=$(sbatch --parsable " << shellQuote(jobFile) << ") &&\n"
-              << "             sbatch" << reportOptions << " " << shellQuote(jobFile)
-              << " report\n";
-  }
+  submitOrPrintSlurm(parser.has("--submit"), jobFile, "report", "the shot's report",
+                     [&](const std::string& id) { return slurmReportOptions(job, id); });
   return 0;
 }
 
@@ -399,21 +410,8 @@ int runFarmSlurmSimulate(const std::vector<std::string>& args) {
             << ", one per window of frames " << job.firstFrame << "-" << job.lastFrame
             << "; then the splice)\n"
             << "logs:      " << logDir << "/" << safeName(job.name) << "_<job>_<window>.log\n";
-  if (parser.has("--submit")) {
-    const std::string id = submitToSlurm(jobFile);
-    std::cout << "submitted: job " << id << "\n";
-    const std::string splice = submitToSlurm(jobFile, slurmSpliceOptions(job, id), {"splice"});
-    std::cout << "submitted: job " << splice << " (the splice, after job " << id << ")\n";
-  } else {
-    std::string spliceOptions;
-    for (const std::string& option : slurmSpliceOptions(job, "${id%%;*}")) {
-      spliceOptions +=
-          " " + (option.find('$') == std::string::npos ? shellQuote(option) : "\"" + option + "\"");
-    }
-    std::cout << "submit with: id=$(sbatch --parsable " << shellQuote(jobFile) << ") &&\n"
-              << "             sbatch" << spliceOptions << " " << shellQuote(jobFile)
-              << " splice\n";
-  }
+  submitOrPrintSlurm(parser.has("--submit"), jobFile, "splice", "the splice",
+                     [&](const std::string& id) { return slurmSpliceOptions(job, id); });
   return 0;
 }
 
