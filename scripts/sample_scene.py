@@ -53,13 +53,6 @@ def mesh(path):
     return dict(verts=verts, faces=faces, uvs=corners)
 
 
-def pc2_frames(path):
-    header = np.fromfile(path, dtype=np.uint8, count=32)
-    points, samples = int(header[16:20].view("<i4")[0]), int(header[28:32].view("<i4")[0])
-    data = np.fromfile(path, dtype="<f4", offset=32)
-    return data[:samples * points * 3].reshape(samples, points, 3)
-
-
 def bind_to(garment, body):
     """A Surface Deform modifier on `garment`, bound to `body` as it is now (at rest)."""
     modifier = garment.modifiers.new("Surface Deform", "SURFACE_DEFORM")
@@ -88,7 +81,7 @@ def main():
     character = config.CHARACTERS[info["scene"]]
     sim = config.sim_settings([])
     driver = os.path.abspath(os.path.join(args.data, args.driver))
-    frames = pc2_frames(driver)
+    frames = cachefiles.read_pc2(driver)[0]
     scene = blendscene.empty_scene(len(frames), info["fps"])
     body_name, garment_name = character["objects"]
     body = blendscene.mesh_object(body_name, mesh(os.path.join(args.data, "driver_rest.obj")))

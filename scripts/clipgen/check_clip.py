@@ -33,12 +33,6 @@ from dsclip import cachefiles, weights  # noqa: E402
 STRAIN_BAR = 0.15
 
 
-def edges_of(faces):
-    """The mesh's distinct edges as an (E, 2) array."""
-    pairs = {tuple(sorted((f[i], f[(i + 1) % len(f)]))) for f in faces for i in range(len(f))}
-    return np.array(sorted(pairs))
-
-
 def mean_strain(points, edges, rest_lengths):
     lengths = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
     return float(np.abs(lengths / rest_lengths - 1.0).mean())
@@ -91,7 +85,7 @@ def main():
     mats = {b: np.array(m).reshape(F, 4, 4) for b, m in meta["bone_matrices"]["bones"].items()}
     Ph = np.column_stack([cloth_rest, np.ones(len(cloth_rest))])
     body = weights.Surface(body_rest, body_faces)
-    edges = edges_of(cloth_faces)
+    edges = weights.edges(cloth_faces)
     rest_lengths = np.linalg.norm(cloth_rest[edges[:, 0]] - cloth_rest[edges[:, 1]], axis=1)
     rows = []
     for f in frames:

@@ -90,10 +90,6 @@ def databases(a, ds, log):
     return dbs
 
 
-def per_frame_mm(np, a, b):
-    return np.linalg.norm(a.astype(np.float64) - b, axis=2).mean(axis=1) * 1000.0
-
-
 def largest_jumps_mm(np, cloth, frames):
     """The largest vertex step into each of `frames` (0-based rows) from the frame before."""
     steps = cloth[frames].astype(np.float64) - cloth[[f - 1 for f in frames]]
@@ -128,8 +124,8 @@ def judge(ds, np, meta, folder, twin, work, final):
         final.replace(".####.exr", ".report.json")))["frames"]}
     rows = [f - 1 for f in flagged]
     motion = list(range(first - 1, end))
-    e_spliced, e_baked = per_frame_mm(np, spliced, truth), per_frame_mm(np, baked, truth)
-    e_spread = per_frame_mm(np, spread, truth)
+    e_spliced, e_baked, e_spread = (window_curve.distances(np, cloth, truth)
+                                    for cloth in (spliced, baked, spread))
     worse = [r + 1 for r in motion if e_spliced[r] > e_baked[r]]
     seams = sorted({f - 1 + d for f, s in sources.items() if s == "blended" for d in (0, 1)
                     if first <= f - 1 + d < end})
