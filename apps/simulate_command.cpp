@@ -260,18 +260,19 @@ fs::path windowFolder(const WindowJob& job, const SimulationWindow& window) {
   return fs::path(windowPattern(job, window)).parent_path();
 }
 
-/// Whether a run before left `window` complete, from the same command line.
-bool windowKept(const WindowJob& job, const SimulationWindow& window) {
-  const std::string stamp = (windowFolder(job, window) / "window.args").string();
+/// Whether a run before left `window` complete, with the stamp `stamp` (windowStamp()).
+bool windowKept(const WindowJob& job, const SimulationWindow& window, const std::string& stamp) {
+  const std::string file = (windowFolder(job, window) / "window.args").string();
   std::error_code error;
-  return fs::is_regular_file(stamp, error) &&
-         readWholeFile(stamp, "window stamp") == windowStamp(job, window) &&
+  return fs::is_regular_file(file, error) && readWholeFile(file, "window stamp") == stamp &&
          simulatedWindowProblem(window, windowPattern(job, window), job.vertexCount).empty();
 }
 
-/// Simulates `window` in Blender into a fresh folder; Error(kInput) naming the window and
-/// Blender's log when Blender fails or leaves a frame missing.
-void simulateWindow(const WindowJob& job, const SimulationWindow& window) {
+/// Simulates `window` in Blender into a fresh folder and records `stamp` (windowStamp(), taken
+/// before the run: the bake it started from); Error(kInput) naming the window and Blender's log
+/// when Blender fails or leaves a frame missing.
+void simulateWindow(const WindowJob& job, const SimulationWindow& window,
+                    const std::string& stamp) {
   const fs::path folder = windowFolder(job, window);
   std::error_code error;
   fs::remove_all(folder, error);
@@ -290,7 +291,7 @@ void simulateWindow(const WindowJob& job, const SimulationWindow& window) {
   if (!problem.empty()) {
     DS_THROW(kInput, range, ": the runner finished but ", problem, "; its log: ", log);
   }
-  writeFileAtomically((folder / "window.args").string(), windowStamp(job, window));
+  writeFileAtomically((folder / "window.args").string(), stamp);
 }
 
 void printPlan(const SimulationPlan& plan, const std::string& path) {
@@ -353,14 +354,15 @@ WindowJob windowJobOf(const ArgParser& parser, const SimulationPlan& plan, bool 
 /// Window w (0-based) of the plan: kept when a run before left it complete, else simulated.
 void runWindow(const WindowJob& job, const SimulationPlan& plan, std::size_t w, bool quiet) {
   const SimulationWindow& window = plan.windows[w];
-  const bool kept = windowKept(job, window);
+  const std::string stamp = windowStamp(job, window);
+  const bool kept = windowKept(job, window, stamp);
   if (!quiet) {
     std::cerr << "window " << w + 1 << "/" << plan.windows.size() << ": frames "
               << window.warmupFrom << "-" << window.to
               << (kept ? " kept from a run before\n" : " simulating in Blender\n");
   }
   if (!kept) {
-    simulateWindow(job, window);
+    simulateWindow(job, window, stamp);
   }
 }
 
@@ -369,7 +371,7 @@ void runWindow(const WindowJob& job, const SimulationPlan& plan, std::size_t w, 
 void requireEveryWindow(const WindowJob& job, const SimulationPlan& plan) {
   for (std::size_t w = 0; w < plan.windows.size(); ++w) {
     const SimulationWindow& window = plan.windows[w];
-    if (!windowKept(job, window)) {
+    if (!windowKept(job, window, windowStamp(job, window))) {
       const std::string problem =
           simulatedWindowProblem(window, windowPattern(job, window), job.vertexCount);
       DS_THROW(kInput, "--splice-only: window ", w + 1, " of ", plan.windows.size(), " (frames ",
