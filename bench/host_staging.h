@@ -52,6 +52,10 @@ class HostStagingClosest final : public ClosestBackend {
                int* moved) override {
     mInner->resolve(f, poses, hits, offset, points, moved);
   }
+  void skinPlanes(int f, const float* poses, const SurfaceHit* hits, const std::int32_t* answered,
+                  const float* points, float offset, float depth, float* planes) override {
+    mInner->skinPlanes(f, poses, hits, answered, points, offset, depth, planes);
+  }
   void countInside(int f, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override {
     mHost->countInside(f, poses, hits, points, inside);

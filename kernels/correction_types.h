@@ -60,6 +60,8 @@ typedef struct DsResolveParams {
   float fade;            // dsResolve's exit fade (ClosestBackend::setExitFade), 0 = off
   ds_int nodeCount;      // N, the BVH's nodes (read when fade > 0)
   ds_int alongNormal;    // dsResolve: 1 moves along the pseudo-normal, 0 the nearest way
+  float depth;           // dsSkinPlanes: how deep on the wrong side a point still gets a plane
+  ds_int answered;       // dsSkinPlanes: 1 reads `answered` (points not searched get no plane)
 } DsResolveParams;
 
 // One node of a bounding-volume hierarchy over driver triangles (kernels/bvh.cl, built by
@@ -229,7 +231,7 @@ typedef float3 ds_real3;
 static_assert(sizeof(DsSurfaceHit) == 16, "DsSurfaceHit layout");
 static_assert(sizeof(DsClosestParams) == 32, "DsClosestParams layout");
 static_assert(sizeof(DsTransferParams) == 16, "DsTransferParams layout");
-static_assert(sizeof(DsResolveParams) == 36, "DsResolveParams layout");
+static_assert(sizeof(DsResolveParams) == 44, "DsResolveParams layout");
 static_assert(sizeof(DsBvhNode) == 16, "DsBvhNode layout");
 static_assert(sizeof(DsBvhRefitParams) == 32, "DsBvhRefitParams layout");
 static_assert(sizeof(DsBvhQueryParams) == 32, "DsBvhQueryParams layout");

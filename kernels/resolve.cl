@@ -222,6 +222,51 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
   }
 }
 
+// The strain limit's skin planes (contract: ClosestBackend::skinPlanes; host reference:
+// HostClosest::skinPlanes in src/devices/host/host_resolve.cpp). Point i of frame f gets the
+// plane (m, c), m unit, that the strain limit keeps it in front of (m . x >= c): on its own side
+// of the skin, m is the way dsResolve would move it (the pseudo-normal, or the nearest way out)
+// and c = m . q + offset; on the wrong side at most params.depth deep, m is the unit
+// pseudo-normal. Every other point gets (0, 0, 0, 0): a point that lives inside, one the
+// clearance certificate answered without a search (answered[item] != 0, read when
+// params.answered is 1), one deeper than params.depth, or one whose pseudo-normal vanishes.
+// Same mapping and first arguments as dsResolve, with `points` read only.
+//
+//   answered   F x Vd int (any buffer when params.answered is 0)
+//   planes     F x Vd float4, written
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsSkinPlanes(
+    __global const float* poses, __global const int* triangles, __global const int* edgeStart,
+    __global const int* edgeTriangles, __global const int* vertexStart,
+    __global const int* vertexTriangles, __global const DsSurfaceHit* hits,
+    __global const float* points, __global const int* answered, __global const char* sides,
+    __global float4* planes, const DsResolveParams params) {
+  const int item = (int)get_global_id(0);
+  if (item >= params.frameCount * params.pointCount) {
+    return;
+  }
+  const int frame = item / params.pointCount;
+  const int point = item - frame * params.pointCount;
+  float4 plane = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
+  const bool searched = params.answered == 0 || answered[item] == 0;
+  const bool insidePoint = params.sided != 0 && sides[point] < 0;
+  if (searched && !insidePoint) {
+    __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
+    ds_real3 q;
+    ds_real3 normal;
+    const ds_real3 p = dsLoadPoint(points, item);
+    const ds_real s = dsSignedDistance(pose, triangles, edgeStart, edgeTriangles, vertexStart,
+                                       vertexTriangles, hits[item], p, &q, &normal);
+    const ds_real length = sqrt(dot(normal, normal));
+    if (length > 0 && s >= -(ds_real)params.depth) {
+      const ds_real3 n = normal / length;
+      const ds_real3 m =
+          s < 0 || params.alongNormal != 0 ? n : dsNearestWayOut(p - q, s, n, params.offset);
+      plane = (float4)((float)m.x, (float)m.y, (float)m.z, (float)(dot(m, q) + params.offset));
+    }
+  }
+  planes[item] = plane;
+}
+
 // Wrong-side counts (contract: ClosestBackend::countInside; host reference: InsideAudit in
 // src/pipeline/inside_audit.cpp): inside[f] counts the points of frame f on the wrong side
 // of the skin: whose signed distance, rounded to float as the host rounds it, is negative for

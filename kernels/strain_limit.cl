@@ -11,7 +11,9 @@
 // continuous in the positions), and is copied unchanged when there are none: x^. Where
 // params.omega is not 1 (Chebyshev acceleration), `out` holds the iteration before `in` and the
 // vertex writes omega * (x^ - out) + out. A vertex reads `in` and its own three floats of `out`,
-// writes only those: no atomics, no order between items.
+// writes only those: no atomics, no order between items. Where params.planes is 1, the vertex
+// then keeps in front of its skin plane (m, c) = planes[f * V + v] (ClosestBackend::skinPlanes;
+// none where m is 0): a result x with m . x < c moves to x + (c - m . x) m.
 //
 // Mapping: 2-D range, local size (DS_LOCAL_SIZE, 1); item (v, f) is vertex v of frame f.
 //
@@ -19,13 +21,15 @@
 //   start                    V + 1 ints
 //   other, lower, upper, share   one per entry
 //   step                     V floats
+//   planes                   F x V float4 (any buffer when params.planes is 0)
 
 #pragma OPENCL FP_CONTRACT OFF
 
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrainLimit(
     __global const float* in, __global float* out, __global const int* start,
     __global const int* other, __global const float* lower, __global const float* upper,
-    __global const float* share, __global const float* step, const DsStrainLimitParams params) {
+    __global const float* share, __global const float* step, __global const float4* planes,
+    const DsStrainLimitParams params) {
   const int v = (int)get_global_id(0);
   const int f = (int)get_global_id(1);
   if (v >= params.vertexCount || f >= params.frameCount) {
@@ -70,16 +74,27 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrai
   const float jy = moves != 0 ? py + h * sy : py;
   const float jz = moves != 0 ? pz + h * sz : pz;
   const float omega = params.omega;
-  if (omega == 1.0f) {
-    out[at] = jx;
-    out[at + 1] = jy;
-    out[at + 2] = jz;
-    return;
+  float x = jx;
+  float y = jy;
+  float z = jz;
+  if (omega != 1.0f) {
+    const float ox = out[at];
+    const float oy = out[at + 1];
+    const float oz = out[at + 2];
+    x = omega * (jx - ox) + ox;
+    y = omega * (jy - oy) + oy;
+    z = omega * (jz - oz) + oz;
   }
-  const float ox = out[at];
-  const float oy = out[at + 1];
-  const float oz = out[at + 2];
-  out[at] = omega * (jx - ox) + ox;
-  out[at + 1] = omega * (jy - oy) + oy;
-  out[at + 2] = omega * (jz - oz) + oz;
+  if (params.planes != 0) {
+    const float4 plane = planes[(size_t)f * (size_t)params.vertexCount + (size_t)v];
+    const float below = plane.w - (plane.x * x + plane.y * y + plane.z * z);
+    if (below > 0.0f) {
+      x += below * plane.x;
+      y += below * plane.y;
+      z += below * plane.z;
+    }
+  }
+  out[at] = x;
+  out[at + 1] = y;
+  out[at + 2] = z;
 }

@@ -139,6 +139,24 @@ class ClosestBackend {
   virtual void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                        float* points, int* moved) = 0;
 
+  /// The strain limit's skin planes (StrainLimitBackend::limit): for each point, from its exact
+  /// closest point q on `poses` (`hits`, as resolve() takes them) and with s, N as there, the
+  /// plane (m, c), m a unit vector, that the strain limit keeps the point in front of
+  /// (m . x >= c), so that the limit cannot pull cloth into the body. A point on its own side of
+  /// the skin (s >= 0) gets the way resolve() would move it (N, or D when setAlongNormal(false))
+  /// with c = m . q + offset; a point on the wrong side at most `depth` deep gets m = N and the
+  /// same c (resolve() would move it there in one step; deeper ones are left to the limit, which
+  /// often brings them back to their neighbours, and to the resolution after it). Every other
+  /// point gets (0, 0, 0, 0), no plane: a point that lives inside (setSides), one whose N is
+  /// zero, one deeper than `depth`, and one answered without a search (answered[f * Vd + i] != 0,
+  /// closestOrClearBlock(); null = every point searched).
+  ///   poses  F x 3Vp;  hits  F x Vd;  answered  F x Vd or null;  points  F x 3Vd;
+  ///   planes  F x Vd x 4 floats (m.x, m.y, m.z, c)
+  /// offset, depth >= 0 in scene units. Throws as resolve() does.
+  virtual void skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
+                          const std::int32_t* answered, const float* points, float offset,
+                          float depth, float* planes) = 0;
+
   /// How many points of each frame are on the wrong side of the skin: inside[f] counts the
   /// points of frame f whose signed distance is negative for an outside point (cloth inside
   /// the driver; every point without setSides) or positive for an inside point, by
@@ -202,6 +220,14 @@ class ClosestBackend {
                             DeviceArray& points, int* moved) {
     resolve(frameCount, poses.read<float>(), hits.read<SurfaceHit>(), offset,
             points.modify<float>(), moved);
+  }
+  /// skinPlanes() on arrays; `planes` is sized by the caller (F x Vd x 4 floats).
+  virtual void skinPlanesBlock(int frameCount, DeviceArray& poses, DeviceArray& hits,
+                               DeviceArray* answered, DeviceArray& points, float offset,
+                               float depth, DeviceArray& planes) {
+    skinPlanes(frameCount, poses.read<float>(), hits.read<SurfaceHit>(),
+               answered != nullptr ? answered->read<std::int32_t>() : nullptr, points.read<float>(),
+               offset, depth, planes.write<float>());
   }
 };
 

@@ -78,13 +78,20 @@ StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iteration
                                     const std::vector<float>& weights = {});
 
 /// Brings the edges of each frame into their band: `iterations` Jacobi iterations on each frame
-/// alone (see StrainLimitTables). Frame blocks are frame-major float32:
+/// alone (see StrainLimitTables), each keeping every vertex in front of its skin plane when
+/// `planes` are given. Frame blocks are frame-major float32:
 ///
 ///   positions  F x 3V   vertex v of frame f, axis a at [f * 3V + 3v + a]
+///   planes     F x 4V   vertex v's plane (m, c) at [f * 4V + 4v] (ClosestBackend::skinPlanes),
+///                       or null: none
 ///
-/// upload() once (again to replace the tables), then limit() many times; limit() before
-/// upload() throws Error(kInternal). The result of a frame does not depend on the other frames
-/// of the call, on the chunking or on the threads. Not thread-safe.
+/// After each iteration, a vertex with a plane (m not 0) whose result x has m . x < c moves to
+/// x + (c - m . x) m: in front of the plane, so that the limit cannot pull the cloth into the
+/// body, where it would come out again stretched by the resolution after it. The planes are taken
+/// once, before the iterations (a vertex slides along its plane). upload() once (again to replace
+/// the tables), then limit() many times; limit() before upload() throws Error(kInternal). The
+/// result of a frame does not depend on the other frames of the call, on the chunking or on the
+/// threads. Not thread-safe.
 class StrainLimitBackend {
  public:
   virtual ~StrainLimitBackend() = default;
@@ -92,12 +99,14 @@ class StrainLimitBackend {
   virtual std::string name() const = 0;
   /// Checks the tables (Error(kInternal) when they do not agree) and keeps them.
   virtual void upload(const StrainLimitTables& tables) = 0;
-  /// The iterations on `frameCount` frames of `positions`, in place.
-  virtual void limit(int frameCount, float* positions) = 0;
-  /// The same on a DeviceArray (F x 3V floats): an OpenCL backend works on the array's device
-  /// memory and copies nothing back; this default works on the host copy.
-  virtual void limitBlock(int frameCount, DeviceArray& positions) {
-    limit(frameCount, positions.modify<float>());
+  /// The iterations on `frameCount` frames of `positions`, in place (`planes` may be null).
+  virtual void limit(int frameCount, float* positions, const float* planes) = 0;
+  /// The same on DeviceArrays (F x 3V and F x 4V floats; `planes` may be null): an OpenCL
+  /// backend works on the arrays' device memory and copies nothing back; this default works on
+  /// the host copies.
+  virtual void limitBlock(int frameCount, DeviceArray& positions, DeviceArray* planes) {
+    limit(frameCount, positions.modify<float>(),
+          planes != nullptr ? planes->read<float>() : nullptr);
   }
 };
 

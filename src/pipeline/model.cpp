@@ -293,7 +293,7 @@ double coverageTolerance(const Model& model) {
   return toleranceOf(model.db, model.settings);
 }
 
-void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
+bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                   float clearance, bool keep) {
   const int count = batch.count();
   const std::size_t items = static_cast<std::size_t>(count) * model.vd;
@@ -321,6 +321,7 @@ void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& c
     records[i].closestQueries += model.vd;
     records[i].closestCleared += counts[static_cast<std::size_t>(i)];
   }
+  return certify;
 }
 
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
@@ -380,6 +381,8 @@ const char* arrayName(Array array) {
       return "counts";
     case Array::Moved:
       return "moved";
+    case Array::SkinPlanes:
+      return "skin_planes";
     case Array::Cloth:
       return "cloth";
     case Array::LayersApplied:
@@ -416,6 +419,7 @@ Batch::Batch(Device& device)
       mHits(device.makeArray()),
       mAuditHits(device.makeArray()),
       mAuditAnswered(device.makeArray()),
+      mSkinPlanes(device.makeArray()),
       mCloth(device.makeArray()) {}
 
 DeviceArray& Batch::alignedAll() {

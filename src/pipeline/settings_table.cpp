@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
@@ -402,10 +403,16 @@ void hashBatch(const HashInput& in, Hasher& h) {
     h.addValue(in.output->batchSize);
   }
 }
-/// Off, the strain limit leaves the hash of the bakes before it.
+/// Off, the strain limit leaves the hash of the bakes before it. On with the resolution, the
+/// limit keeps the cloth in front of its skin planes (src/pipeline/stages/strain_limit.cpp): a
+/// mark of that method, so that no bake of the limit before it is taken for one now.
 void hashStrainLimit(const HashInput& in, Hasher& h) {
   if (in.model.settings.strainLimit > 0) {
     h.addValue(in.model.settings.strainLimit);
+    if (in.model.settings.resolve) {
+      constexpr std::int32_t kSkinPlanes = 1;
+      h.addValue(kSkinPlanes);
+    }
   }
 }
 void hashStrainIterations(const HashInput& in, Hasher& h) {

@@ -136,6 +136,7 @@ enum class Array : std::uint8_t {
   AuditAnswered,    ///< count x Vd ints: the audit hits answered without a search
   Counts,           ///< count per-frame counters read back from the device
   Moved,            ///< count: the vertices the resolution moved
+  SkinPlanes,       ///< count x Vd x 4 floats: the strain limit's skin planes
   Cloth,            ///< count x 3Vd, the result: a view of the caller's memory
   LayersApplied,    ///< bool: the layers changed the cloth
 };
@@ -240,7 +241,8 @@ class Batch {
   auto slots() {
     return std::tie(mFrames, mDriver, shot(), mAligned, mRecords, mMotions, mProjections, mNorms,
                     mHostProjections, mSolutions, mWeights, mDriven, mBlendedDriver, mHits,
-                    mAuditHits, mAuditAnswered, mCounts, mMoved, mCloth, mLayersApplied);
+                    mAuditHits, mAuditAnswered, mCounts, mMoved, mSkinPlanes, mCloth,
+                    mLayersApplied);
   }
   template <Array A>
   auto& slot() {
@@ -286,6 +288,7 @@ class Batch {
   DeviceArray mAuditAnswered;
   std::vector<int> mCounts;
   std::vector<int> mMoved;
+  DeviceArray mSkinPlanes;
   DeviceArray mCloth;
   bool mLayersApplied = false;
 };
@@ -347,9 +350,10 @@ double coverageTolerance(const Model& model);
 /// the settings turn the certificate off or some vertex lives inside, Model::sides); the records
 /// count the queries and those answered without a search. With `keep`, the points the previous call
 /// answered without a search keep their hits: only for the same poses, a clearance no larger, and
-/// points that did not move since (the resolution does not move them).
+/// points that did not move since (the resolution does not move them). Returns whether the
+/// certificate ran, i.e. whether batch.auditAnswered marks the points answered without a search.
 ///   poses count x 3Vp, cloth count x 3Vd
-void auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
+bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                   float clearance, bool keep = false);
 
 /// Counts how many cloth points of each frame of the batch are on the wrong side of the

@@ -2,7 +2,7 @@
 // Penetration resolution on a closed cube, where the distance to the surface and the side are
 // known in closed form: which points move, where they go (at the offset, outside; under the
 // skin for points that live inside), that the others keep their bits, the per-frame counts and
-// wrong-side counts, OpenCL vs host, bad input.
+// wrong-side counts, the strain limit's skin planes, OpenCL vs host, bad input.
 
 #include <gtest/gtest.h>
 
@@ -637,6 +637,78 @@ TEST_F(CorrectionClTest, ExitFadeMakesTheMoveContinuousAcrossTheMiddleOfALimb) {
       }
     }
   }
+}
+
+// The strain limit's skin planes (ClosestBackend::skinPlanes) against the closed form: a point on
+// its side of the skin, or less than `depth` inside, gets the plane through the point the
+// resolution would move it to, with the resolution's direction as its normal; a deeper one, one
+// that lives inside and one marked answered without a search get none.
+TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoint) {
+  const CubeScene scene = makeCubeScene();
+  const int vd = scene.pointCount;
+  const std::vector<SurfaceHit> hits = hostHits(*hostBackend(), scene, scene.points);
+  const double scale = sceneScale(scene.poses.data(), scene.frameCount * scene.mesh.vertexCount(),
+                                  scene.points.data(), scene.frameCount * vd);
+  constexpr float kDepth = 0.4f;
+  std::vector<std::int32_t> answered(hits.size(), 0);
+  for (std::size_t k = 0; k < answered.size(); k += 7) {
+    answered[k] = 1;
+  }
+  std::vector<std::int8_t> sides(static_cast<std::size_t>(vd), kSideOutside);
+  for (std::size_t i = 5; i < sides.size(); i += 11) {
+    sides[i] = kSideInside;
+  }
+  std::vector<std::vector<float>> results;
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(scene.mesh, BindingMask::all(vd));
+    backend->setSides(sides);
+    std::vector<float> planes(4 * hits.size(), -1.0f);
+    backend->skinPlanes(scene.frameCount, scene.poses.data(), hits.data(), answered.data(),
+                        scene.points.data(), kOffset, kDepth, planes.data());
+    backend->setSides({});
+    int wrong = 0;
+    int withPlane = 0;
+    for (int f = 0; f < scene.frameCount; ++f) {
+      for (int i = 0; i < vd; ++i) {
+        const std::size_t k = static_cast<std::size_t>(f) * vd + i;
+        const float* p = &scene.points[3 * k];
+        const float* plane = &planes[4 * k];
+        const Eigen::Vector3d m(plane[0], plane[1], plane[2]);
+        const double s = cubeSignedDistance(p, scene.centres[static_cast<std::size_t>(f)]);
+        const bool expected =
+            answered[k] == 0 && sides[static_cast<std::size_t>(i)] == kSideOutside && s > -kDepth;
+        bool ok;
+        if (expected) {
+          ++withPlane;
+          const Eigen::Vector3d target =
+              cubeResolved(p, scene.centres[static_cast<std::size_t>(f)], kOffset);
+          const Eigen::Vector3d normal =
+              (target - cubeResolved(p, scene.centres[static_cast<std::size_t>(f)], 0.0)) / kOffset;
+          ok = std::fabs(m.dot(target) - plane[3]) <= kResolveRelTol * scale &&
+               (m - normal).norm() <= 1e-5;
+        } else {
+          ok = plane[0] == 0.0f && plane[1] == 0.0f && plane[2] == 0.0f && plane[3] == 0.0f;
+        }
+        if (!ok && ++wrong <= 5) {
+          ADD_FAILURE() << "frame " << f << " point " << i << " (" << p[0] << ", " << p[1] << ", "
+                        << p[2] << "), signed distance " << s << ": plane (" << plane[0] << ", "
+                        << plane[1] << ", " << plane[2] << ", " << plane[3] << "), expected "
+                        << (expected ? "one through the resolved point" : "none");
+        }
+      }
+    }
+    EXPECT_EQ(wrong, 0) << "of " << scene.frameCount * vd << " points";
+    EXPECT_GT(withPlane, vd / 2);
+    EXPECT_LT(withPlane, 2 * vd - vd / 4);
+    results.push_back(planes);
+  }
+  double difference = 0.0;
+  for (std::size_t k = 0; k < results[0].size(); ++k) {
+    difference =
+        std::max(difference, static_cast<double>(std::fabs(results[0][k] - results[1][k])));
+  }
+  EXPECT_LE(difference, kDeviceVsHostRelTol * scale) << "largest |cl - host| of the planes";
 }
 
 TEST_F(CorrectionClTest, ExitFadeRejectsNegativeAndNonFiniteValues) {

@@ -2,8 +2,9 @@
 // The strain limit's backends (src/devices/strain_limit.h: the tables, the host reference
 // src/devices/host/host_strain_limit.cpp and the OpenCL kernel kernels/strain_limit.cl with
 // src/devices/cl/cl_strain_limit.cpp): a stretched strip comes back into the band, edges inside
-// it are left alone, fixed vertices stay, the Chebyshev acceleration gets there sooner, threads
-// and chunks change nothing, and OpenCL agrees with the host on the sleeve sample.
+// it are left alone, fixed vertices stay, vertices keep in front of their skin planes, the
+// Chebyshev acceleration gets there sooner, threads and chunks change nothing, and OpenCL agrees
+// with the host on the sleeve sample, with planes and without.
 
 #include <algorithm>
 #include <cmath>
@@ -95,11 +96,34 @@ double largestDistance(const std::vector<float>& a, const std::vector<float>& b)
 }
 
 std::vector<float> limited(StrainLimitBackend& backend, const StrainLimitTables& tables,
-                           std::vector<float> frames) {
+                           std::vector<float> frames, const std::vector<float>& planes = {}) {
   backend.upload(tables);
   backend.limit(static_cast<int>(frames.size() / (3 * std::size_t(tables.vertexCount))),
-                frames.data());
+                frames.data(), planes.empty() ? nullptr : planes.data());
   return frames;
+}
+
+/// Planes for `frames` (F x 3V) that hold every `every`-th vertex at or above `lift` over the
+/// height it starts at (m = +z, c = z + lift); the others get none.
+std::vector<float> floorPlanes(const std::vector<float>& frames, int every, float lift) {
+  std::vector<float> planes(frames.size() / 3 * 4, 0.0f);
+  for (std::size_t v = 0; v < frames.size() / 3; v += static_cast<std::size_t>(every)) {
+    planes[4 * v + 2] = 1.0f;
+    planes[4 * v + 3] = frames[3 * v + 2] + lift;
+  }
+  return planes;
+}
+
+/// The largest depth of a vertex behind its plane (0 when every one is in front).
+double largestBehind(const std::vector<float>& frames, const std::vector<float>& planes) {
+  double largest = 0.0;
+  for (std::size_t v = 0; v < frames.size() / 3; ++v) {
+    const float* m = &planes[4 * v];
+    const double level = double(m[0]) * frames[3 * v] + double(m[1]) * frames[3 * v + 1] +
+                         double(m[2]) * frames[3 * v + 2];
+    largest = std::max(largest, double(m[3]) - level);
+  }
+  return largest;
 }
 
 /// Every vertex of the rest mesh of the sleeve sample.
@@ -272,6 +296,30 @@ TEST(HostStrainLimit, KeepsFixedVerticesWhereTheyAre) {
   EXPECT_LE(out[3 * (n - 1)], 8.0f * 1.05f + 1e-3f);
 }
 
+// A strip stretched 30% with a bump in its middle: without planes the limit flattens the bump;
+// with a plane under each of the bump's vertices they stay on it while the rest of the strip
+// comes into the band; planes of m = 0 are no planes at all (bitwise).
+TEST(HostStrainLimit, KeepsVerticesInFrontOfTheirPlanes) {
+  const Mesh mesh = strip(8);
+  std::vector<float> frame = stretched(mesh, 1.3f);
+  for (const int v : {4, 13}) {
+    frame[3 * v + 2] = 0.5f;
+  }
+  std::vector<float> planes(frame.size() / 3 * 4, 0.0f);
+  for (const int v : {4, 13}) {
+    planes[4 * v + 2] = 1.0f;
+    planes[4 * v + 3] = 0.5f;
+  }
+  const StrainLimitTables tables = strainLimitTables(mesh, 0.05, 200, 1.5);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
+  const std::vector<float> free = limited(*host, tables, frame);
+  EXPECT_LT(free[3 * 4 + 2], 0.45f) << "without planes the bump flattens";
+  const std::vector<float> held = limited(*host, tables, frame, planes);
+  EXPECT_LE(largestBehind(held, planes), 1e-6);
+  EXPECT_LE(largestStrain(mesh, held.data()), 0.06);
+  EXPECT_EQ(limited(*host, tables, frame, std::vector<float>(planes.size(), 0.0f)), free);
+}
+
 TEST(HostStrainLimit, TheSameOnAnyThreadsAndChunks) {
   const Mesh mesh = sleeveRest();
   const std::vector<float> frames = stretchedSleeveFrames(6);
@@ -286,7 +334,7 @@ TEST(HostStrainLimit, TheSameOnAnyThreadsAndChunks) {
   const std::size_t values = 3 * std::size_t(mesh.vertexCount());
   std::vector<float> single = frames;
   for (std::size_t f = 0; f < 6; ++f) {
-    one->limit(1, single.data() + f * values);
+    one->limit(1, single.data() + f * values, nullptr);
   }
   EXPECT_EQ(single, reference);
   EXPECT_LT(largestStrain(mesh, reference.data()), largestStrain(mesh, frames.data()));
@@ -295,7 +343,7 @@ TEST(HostStrainLimit, TheSameOnAnyThreadsAndChunks) {
 TEST(HostStrainLimit, RefusesCallsBeforeUploadAndBadTables) {
   std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
   float x[3] = {0, 0, 0};
-  testing::expectThrows([&] { host->limit(1, x); }, ErrorCode::kInternal, "before upload");
+  testing::expectThrows([&] { host->limit(1, x, nullptr); }, ErrorCode::kInternal, "before upload");
   StrainLimitTables bad = strainLimitTables(strip(2), 0.05, 3, 1.5);
   bad.other[0] = 99;
   testing::expectThrows([&] { host->upload(bad); }, ErrorCode::kInternal, "inconsistent");
@@ -330,16 +378,46 @@ TEST_F(ClStrainLimit, MatchesTheHostOnTheSleeveSample) {
     DeviceArray block = clDevice->makeArray();
     block.resize<float>(frames.size());
     std::copy(frames.begin(), frames.end(), block.write<float>());
-    cl->limitBlock(8, block);
+    cl->limitBlock(8, block, nullptr);
     const float* blockOut = block.read<float>();
     EXPECT_TRUE(std::equal(onCl.begin(), onCl.end(), blockOut)) << run;
     std::vector<float> single = frames;
     const std::size_t values = 3 * std::size_t(mesh.vertexCount());
     for (std::size_t f = 0; f < 8; ++f) {
-      cl->limit(1, single.data() + f * values);
+      cl->limit(1, single.data() + f * values, nullptr);
     }
     EXPECT_EQ(single, onCl) << run;
   }
+}
+
+TEST_F(ClStrainLimit, MatchesTheHostWithPlanes) {
+  const Mesh mesh = sleeveRest();
+  const std::vector<float> frames = stretchedSleeveFrames(4);
+  const double diagonal = boundsDiagonal(mesh);
+  // Every third vertex held 2 mm above where it starts: active from the first iteration.
+  const std::vector<float> planes = floorPlanes(frames, 3, 0.002f);
+  const StrainLimitTables tables =
+      strainLimitTables(mesh, 0.01, 30, 1.5, chebyshevWeights(30, 0.98, 5));
+  std::unique_ptr<Device> clDevice = makeOpenClDevice(context(), device(), queue());
+  std::unique_ptr<StrainLimitBackend> cl = clDevice->makeStrainLimit(0);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
+  const std::vector<float> onHost = limited(*host, tables, frames, planes);
+  const std::vector<float> onCl = limited(*cl, tables, frames, planes);
+  EXPECT_LE(largestDistance(onCl, onHost), kStrainLimitDeviceVsHostRelTol * diagonal);
+  EXPECT_GT(largestDistance(onHost, limited(*host, tables, frames)),
+            100 * kStrainLimitDeviceVsHostRelTol * diagonal)
+      << "the planes must change the result";
+  EXPECT_LE(largestBehind(onHost, planes), 1e-6 * diagonal);
+  EXPECT_LE(largestBehind(onCl, planes), 1e-6 * diagonal);
+  // On arrays that live on the device: bitwise what the host-memory call gave.
+  DeviceArray block = clDevice->makeArray();
+  block.resize<float>(frames.size());
+  std::copy(frames.begin(), frames.end(), block.write<float>());
+  DeviceArray planeBlock = clDevice->makeArray();
+  planeBlock.resize<float>(planes.size());
+  std::copy(planes.begin(), planes.end(), planeBlock.write<float>());
+  cl->limitBlock(4, block, &planeBlock);
+  EXPECT_TRUE(std::equal(onCl.begin(), onCl.end(), block.read<float>()));
 }
 
 TEST_F(ClStrainLimit, MatchesTheHostOnTheStripAndKeepsFixedVertices) {
@@ -369,7 +447,7 @@ TEST_F(ClStrainLimit, RefusesCallsBeforeUpload) {
   std::unique_ptr<Device> clDevice = makeOpenClDevice(context(), device(), queue());
   std::unique_ptr<StrainLimitBackend> cl = clDevice->makeStrainLimit(0);
   float x[3] = {0, 0, 0};
-  testing::expectThrows([&] { cl->limit(1, x); }, ErrorCode::kInternal, "before upload");
+  testing::expectThrows([&] { cl->limit(1, x, nullptr); }, ErrorCode::kInternal, "before upload");
 }
 
 }  // namespace

@@ -80,6 +80,7 @@ ClClosest::ClClosest(const cl_util::ClTarget& target, const ClosestOptions& opti
     mRebuildKernel = cl::Kernel(mProgram, "dsRebuild");
     mResolveKernel = cl::Kernel(mProgram, "dsResolve");
     mCountInsideKernel = cl::Kernel(mProgram, "dsCountInside");
+    mSkinPlanesKernel = cl::Kernel(mProgram, "dsSkinPlanes");
     mRefitKernel = cl::Kernel(mProgram, "dsBvhRefit");
     mBvhKernel = cl::Kernel(mProgram, "dsBvhClosest");
     mBvhListKernel = cl::Kernel(mProgram, "dsBvhClosestList");

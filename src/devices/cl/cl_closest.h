@@ -57,6 +57,10 @@ class ClClosest final : public ClosestBackend {
   void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                float* points, int* moved) override;
 
+  void skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
+                  const std::int32_t* answered, const float* points, float offset, float depth,
+                  float* planes) override;
+
   void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override;
 
@@ -75,6 +79,10 @@ class ClClosest final : public ClosestBackend {
 
   void resolveBlock(int frameCount, DeviceArray& poses, DeviceArray& hits, float offset,
                     DeviceArray& points, int* moved) override;
+
+  void skinPlanesBlock(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray* answered,
+                       DeviceArray& points, float offset, float depth,
+                       DeviceArray& planes) override;
 
  private:
   // Glue (cl_closest.cpp).
@@ -153,6 +161,15 @@ class ClClosest final : public ClosestBackend {
   void resolveOnDevice(int frameCount, DeviceArray& poses, DeviceArray& hits, float offset,
                        DeviceArray& points, int* moved);
 
+  /// The parameters dsResolve, dsCountInside and dsSkinPlanes share: the sizes, the offset, the
+  /// side table and the direction (the others zero).
+  DsResolveParams signedParams(int frameCount, float offset) const;
+
+  /// dsSkinPlanes over every point of `frameCount` frames (arrays of this context or views).
+  void skinPlanesOnDevice(int frameCount, DeviceArray& poses, DeviceArray& hits,
+                          DeviceArray* answered, DeviceArray& points, float offset, float depth,
+                          DeviceArray& planes);
+
   /// Runs dsResolve or dsCountInside (same first arguments, the side table included; dsResolve's
   /// BVH arguments are set by the caller) over every point of `frameCount` frames and reads back
   /// their per-frame counters into `counts`.
@@ -173,6 +190,7 @@ class ClClosest final : public ClosestBackend {
   cl::Kernel mRebuildKernel;
   cl::Kernel mResolveKernel;
   cl::Kernel mCountInsideKernel;
+  cl::Kernel mSkinPlanesKernel;
   cl::Kernel mRefitKernel;
   cl::Kernel mBvhKernel;
   cl::Kernel mBvhListKernel;

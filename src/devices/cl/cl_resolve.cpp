@@ -1,11 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 // The launches of kernels/resolve.cl (cl_closest.h; the backend's glue is cl_closest.cpp):
-// the penetration resolution and the inside count.
+// the penetration resolution, the strain limit's skin planes and the inside count.
 
 #include "cl_closest.h"
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace drivenshape {
@@ -31,6 +32,64 @@ void ClClosest::resolveBlock(int frameCount, DeviceArray& poses, DeviceArray& hi
   resolveOnDevice(frameCount, onDevice(poses, mViewPoses), onDevice(hits, mViewHits), offset,
                   result, moved);
   finishOutput(result, mViewOut);
+}
+
+void ClClosest::skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
+                           const std::int32_t* answered, const float* points, float offset,
+                           float depth, float* planes) {
+  correction::checkResolve(mSearch, frameCount, poses, hits, offset, points);
+  const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+  mViewPoses.view(poses, static_cast<std::size_t>(frameCount) * poseValues());
+  mViewHits.view(hits, items);
+  mViewPoints.view(points, items * 3);
+  if (answered != nullptr) {
+    mViewAnswered.view(answered, items);
+  }
+  mViewOut.view(planes, items * 4);
+  correction::checkOffset(depth);
+  skinPlanesOnDevice(frameCount, mViewPoses, mViewHits,
+                     answered != nullptr ? &mViewAnswered : nullptr, mViewPoints, offset, depth,
+                     mViewOut);
+  mViewOut.read<float>();
+}
+
+void ClClosest::skinPlanesBlock(int frameCount, DeviceArray& poses, DeviceArray& hits,
+                                DeviceArray* answered, DeviceArray& points, float offset,
+                                float depth, DeviceArray& planes) {
+  mSearch.checkChunk("skin planes", frameCount, true);
+  const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+  correction::checkOffset(offset);
+  correction::checkOffset(depth);
+  checkInputs("skin planes", frameCount, &poses, &points, &hits, items);
+  DeviceArray& out = outputOnDevice(planes, mViewOut, items * 4 * sizeof(float), false);
+  skinPlanesOnDevice(frameCount, onDevice(poses, mViewPoses), onDevice(hits, mViewHits),
+                     answered != nullptr ? &onDevice(*answered, mViewAnswered) : nullptr,
+                     onDevice(points, mViewPoints), offset, depth, out);
+  finishOutput(out, mViewOut);
+}
+
+void ClClosest::skinPlanesOnDevice(int frameCount, DeviceArray& poses, DeviceArray& hits,
+                                   DeviceArray* answered, DeviceArray& points, float offset,
+                                   float depth, DeviceArray& planes) {
+  const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
+  if (items == 0) {
+    return;
+  }
+  DsResolveParams params = signedParams(frameCount, offset);
+  params.depth = depth;
+  params.answered = answered != nullptr ? 1 : 0;
+  cl_util::guard("running the skin-plane kernel", [&] {
+    const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
+    const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);
+    const cl::Buffer& pointBuffer = cl_util::readBuffer(points);
+    // Without marks any buffer stands in for them: the kernel does not read it.
+    const cl::Buffer& answeredBuffer =
+        answered != nullptr ? cl_util::readBuffer(*answered) : mTriangles;
+    cl_util::setArgs(mSkinPlanesKernel, posesBuffer, mTriangles, mEdgeStart, mEdgeTriangles,
+                     mVertexStart, mVertexTriangles, hitBuffer, pointBuffer, answeredBuffer, mSides,
+                     cl_util::writeBuffer(planes), params);
+    cl_util::enqueue1d(mQueue, mSkinPlanesKernel, items, DS_LOCAL_SIZE);
+  });
 }
 
 void ClClosest::countInside(int frameCount, DeviceArray& poses, DeviceArray& hits,
@@ -72,6 +131,18 @@ void ClClosest::resolveOnDevice(int frameCount, DeviceArray& poses, DeviceArray&
   }
 }
 
+DsResolveParams ClClosest::signedParams(int frameCount, float offset) const {
+  DsResolveParams params{};
+  params.frameCount = frameCount;
+  params.pointCount = mSearch.pointCount();
+  params.vertexCount = mSearch.vertexCount();
+  params.triangleCount = mSearch.triangleCount();
+  params.offset = offset;
+  params.sided = mSided ? 1 : 0;
+  params.alongNormal = mAlongNormal ? 1 : 0;
+  return params;
+}
+
 /// Runs dsResolve or dsCountInside (same first arguments, the side table included; dsResolve's
 /// BVH arguments are set by the caller) over every point of `frameCount` frames and reads back
 /// their per-frame counters into `counts`.
@@ -80,16 +151,9 @@ void ClClosest::launchSigned(cl::Kernel& kernel, int frameCount, DeviceArray& po
                              float fade, int* counts, const char* what) {
   const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
   const std::size_t countBytes = static_cast<std::size_t>(frameCount) * sizeof(cl_int);
-  DsResolveParams params{};
-  params.frameCount = frameCount;
-  params.pointCount = mSearch.pointCount();
-  params.vertexCount = mSearch.vertexCount();
-  params.triangleCount = mSearch.triangleCount();
-  params.offset = offset;
-  params.sided = mSided ? 1 : 0;
+  DsResolveParams params = signedParams(frameCount, offset);
   params.fade = fade;
   params.nodeCount = static_cast<cl_int>(mBvh.nodes.size());
-  params.alongNormal = mAlongNormal ? 1 : 0;
   cl_util::guard(what, [&] {
     const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
     const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);

@@ -58,7 +58,7 @@ class ClStrainLimit final : public StrainLimitBackend {
     mUploaded = true;
   }
 
-  void limit(int frameCount, float* positions) override {
+  void limit(int frameCount, float* positions, const float* planes) override {
     strain_limit_checks::checkCall(mUploaded, frameCount);
     if (frameCount == 0 || mIterations == 0) {
       return;
@@ -67,25 +67,34 @@ class ClStrainLimit final : public StrainLimitBackend {
     cl::Buffer& buffer =
         cl_util::guard("allocating the strain-limit position buffer",
                        [&]() -> cl::Buffer& { return mPositions.reserve(mContext, bytes); });
+    const cl::Buffer* planeBuffer = nullptr;
     cl_util::guard("uploading a chunk for the strain limit", [&] {
       cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, positions);
+      if (planes != nullptr) {
+        const std::size_t planeBytes = bytes / 3 * 4;
+        cl::Buffer& planeTarget = mPlanes.reserve(mContext, planeBytes);
+        cl_util::upload(mQueue, mTransfers, planeTarget, CL_TRUE, 0, planeBytes, planes);
+        planeBuffer = &planeTarget;
+      }
     });
-    iterate(frameCount, buffer);
+    iterate(frameCount, buffer, planeBuffer);
     cl_util::guard("reading back the strain-limited positions", [&] {
       cl_util::download(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, positions);
     });
   }
 
-  void limitBlock(int frameCount, DeviceArray& positions) override {
-    if (!cl_util::onContext(mContext, positions)) {
-      StrainLimitBackend::limitBlock(frameCount, positions);
+  void limitBlock(int frameCount, DeviceArray& positions, DeviceArray* planes) override {
+    if (!cl_util::onContext(mContext, positions) ||
+        (planes != nullptr && !cl_util::onContext(mContext, *planes))) {
+      StrainLimitBackend::limitBlock(frameCount, positions, planes);
       return;
     }
     strain_limit_checks::checkCall(mUploaded, frameCount);
     if (frameCount == 0 || mIterations == 0) {
       return;
     }
-    iterate(frameCount, cl_util::modifyBuffer(positions));
+    iterate(frameCount, cl_util::modifyBuffer(positions),
+            planes != nullptr ? &cl_util::readBuffer(*planes) : nullptr);
   }
 
  private:
@@ -94,14 +103,18 @@ class ClStrainLimit final : public StrainLimitBackend {
            sizeof(float);
   }
 
-  /// The iterations on `positions` (F x 3V floats on the device), in place.
-  void iterate(int frameCount, cl::Buffer& positions) {
+  /// The iterations on `positions` (F x 3V floats on the device), in place, with `planes` (F x 4V
+  /// floats on the device, or null).
+  void iterate(int frameCount, cl::Buffer& positions, const cl::Buffer* planes) {
     const std::size_t bytes = frameBytes(frameCount);
     cl_util::guard("running dsStrainLimit on a chunk of frames", [&] {
       cl::Buffer& scratch = mScratch.reserve(mContext, bytes);
       DsStrainLimitParams params{};
       params.vertexCount = mVertexCount;
       params.frameCount = frameCount;
+      params.planes = planes != nullptr ? 1 : 0;
+      // Without planes any buffer stands in for them: the kernel does not read it.
+      const cl::Buffer& planeArg = planes != nullptr ? *planes : mStep;
       const cl::NDRange global(
           cl_util::roundUp(static_cast<std::size_t>(mVertexCount), DS_LOCAL_SIZE),
           static_cast<std::size_t>(frameCount));
@@ -110,7 +123,7 @@ class ClStrainLimit final : public StrainLimitBackend {
       for (int i = 0; i < mIterations; ++i) {
         params.omega = mOmega[static_cast<std::size_t>(i)];
         cl_util::setArgs(mKernel, *from, *to, mStart, mOther, mLower, mUpper, mShare, mStep,
-                         params);
+                         planeArg, params);
         mQueue.enqueueNDRangeKernel(mKernel, cl::NullRange, global, cl::NDRange(DS_LOCAL_SIZE, 1));
         std::swap(from, to);
       }
@@ -135,6 +148,7 @@ class ClStrainLimit final : public StrainLimitBackend {
   cl::Buffer mStart, mOther, mLower, mUpper, mShare, mStep;
   cl_util::GrowingBuffer mPositions{CL_MEM_READ_WRITE};  // F x 3V (limit() on host memory)
   cl_util::GrowingBuffer mScratch{CL_MEM_READ_WRITE};    // F x 3V, the other half of the ping-pong
+  cl_util::GrowingBuffer mPlanes{CL_MEM_READ_ONLY};      // F x 4V (limit() on host memory)
 };
 
 }  // namespace

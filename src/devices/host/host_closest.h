@@ -56,6 +56,10 @@ class HostClosest final : public ClosestBackend {
   void resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                float* points, int* moved) override;
 
+  void skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
+                  const std::int32_t* answered, const float* points, float offset, float depth,
+                  float* planes) override;
+
   void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override;
 

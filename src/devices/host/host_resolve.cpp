@@ -15,6 +15,37 @@
 #include "triangle_distance.h"
 
 namespace drivenshape {
+namespace {
+
+/// A point seen from its exact closest point q on one pose: the unnormalised pseudo-normal N at
+/// q, its length, and the point's signed distance (InsideAudit's sign).
+struct SkinPoint {
+  Eigen::Vector3d p;
+  Eigen::Vector3d q;
+  Eigen::Vector3d normal;
+  double length = 0.0;
+  double signedDistance = 0.0;
+};
+
+SkinPoint skinPoint(const float* pose, const std::int32_t* triangles,
+                    const correction::FeatureView& features, const SurfaceHit& hit,
+                    const float* points, std::size_t item) {
+  SkinPoint at;
+  const std::int32_t* tri = triangles + 3 * static_cast<std::size_t>(hit.triangle);
+  const Eigen::Vector3d a = correction::loadPoint(pose, tri[0]);
+  const double u = hit.u;
+  const double v = hit.v;
+  at.q = a + u * (correction::loadPoint(pose, tri[1]) - a) +
+         v * (correction::loadPoint(pose, tri[2]) - a);
+  at.p = correction::loadPoint(points, static_cast<long>(item));
+  at.normal = correction::pseudoNormal(pose, triangles, features, hit.triangle, u, v);
+  at.length = at.normal.norm();
+  const double distance = (at.p - at.q).norm();
+  at.signedDistance = (at.p - at.q).dot(at.normal) < 0.0 ? -distance : distance;
+  return at;
+}
+
+}  // namespace
 
 void HostClosest::resolve(int frameCount, const float* poses, const SurfaceHit* hits, float offset,
                           float* points, int* moved) {
@@ -29,20 +60,14 @@ void HostClosest::resolve(int frameCount, const float* poses, const SurfaceHit* 
     int count = 0;
     for (int i = 0; i < pointCount; ++i) {
       const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
-      const SurfaceHit& hit = hits[item];
-      const std::int32_t* tri = triangles + 3 * static_cast<std::size_t>(hit.triangle);
-      const Eigen::Vector3d a = correction::loadPoint(pose, tri[0]);
-      const double u = hit.u;
-      const double v = hit.v;
-      const Eigen::Vector3d q = a + u * (correction::loadPoint(pose, tri[1]) - a) +
-                                v * (correction::loadPoint(pose, tri[2]) - a);
-      const Eigen::Vector3d p = correction::loadPoint(points, static_cast<long>(item));
+      const SkinPoint at = skinPoint(pose, triangles, features, hits[item], points, item);
+      const Eigen::Vector3d& p = at.p;
+      const Eigen::Vector3d& q = at.q;
+      const Eigen::Vector3d& normal = at.normal;
       const Eigen::Vector3d offsetVector = p - q;
-      const Eigen::Vector3d normal =
-          correction::pseudoNormal(pose, triangles, features, hit.triangle, u, v);
       const double distance = offsetVector.norm();
-      const double signedDistance = offsetVector.dot(normal) < 0.0 ? -distance : distance;
-      const double length = normal.norm();
+      const double signedDistance = at.signedDistance;
+      const double length = at.length;
       // Inside points mirror outside ones: the offset surface under the skin is at -offset.
       const bool inside = !mSides.empty() && mSides[static_cast<std::size_t>(i)] == kSideInside;
       const double target = inside ? -static_cast<double>(offset) : static_cast<double>(offset);
@@ -66,6 +91,42 @@ void HostClosest::resolve(int frameCount, const float* poses, const SurfaceHit* 
     }
     if (moved != nullptr) {
       moved[f] = count;
+    }
+  });
+}
+
+void HostClosest::skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
+                             const std::int32_t* answered, const float* points, float offset,
+                             float depth, float* planes) {
+  correction::checkResolve(mSearch, frameCount, poses, hits, offset, points);
+  correction::checkOffset(depth);
+  const int pointCount = mSearch.pointCount();
+  const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
+  const std::int32_t* triangles = mSearch.triangles().data();
+  const correction::FeatureView features = correction::viewOf(mFeatures);
+  parallelFor(frameCount, mSearch.threads(), [&](int f) {
+    const float* pose = poses + static_cast<std::size_t>(f) * poseStride;
+    for (int i = 0; i < pointCount; ++i) {
+      const std::size_t item = static_cast<std::size_t>(f) * pointCount + i;
+      float* plane = planes + 4 * item;
+      std::fill_n(plane, 4, 0.0f);
+      const bool inside = !mSides.empty() && mSides[static_cast<std::size_t>(i)] == kSideInside;
+      if (inside || (answered != nullptr && answered[item] != 0)) {
+        continue;
+      }
+      const SkinPoint at = skinPoint(pose, triangles, features, hits[item], points, item);
+      if (!(at.length > 0.0) || at.signedDistance < -static_cast<double>(depth)) {
+        continue;
+      }
+      const Eigen::Vector3d n = at.normal / at.length;
+      const Eigen::Vector3d m =
+          at.signedDistance < 0.0 || mAlongNormal
+              ? n
+              : correction::nearestWayOut(at.p - at.q, at.signedDistance, n, offset);
+      for (int k = 0; k < 3; ++k) {
+        plane[k] = static_cast<float>(m[k]);
+      }
+      plane[3] = static_cast<float>(m.dot(at.q) + offset);
     }
   });
 }

@@ -30,7 +30,7 @@ class HostStrainLimit final : public StrainLimitBackend {
     mUploaded = true;
   }
 
-  void limit(int frameCount, float* positions) override {
+  void limit(int frameCount, float* positions, const float* planes) override {
     strain_limit_checks::checkCall(mUploaded, frameCount);
     if (mTables.iterations == 0) {
       return;
@@ -40,8 +40,11 @@ class HostStrainLimit final : public StrainLimitBackend {
       float* frame = positions + static_cast<std::size_t>(f) * values;
       std::vector<double> now(frame, frame + values);
       std::vector<double> next(values);  // x_{k-1} before iteration k, then x_{k+1}
+      const float* framePlanes =
+          planes != nullptr ? planes + static_cast<std::size_t>(f) * 4 * mTables.vertexCount
+                            : nullptr;
       for (int i = 0; i < mTables.iterations; ++i) {
-        iterate(now.data(), next.data(), mTables.omega[static_cast<std::size_t>(i)]);
+        iterate(now.data(), next.data(), mTables.omega[static_cast<std::size_t>(i)], framePlanes);
         std::swap(now, next);
       }
       for (std::size_t i = 0; i < values; ++i) {
@@ -52,8 +55,9 @@ class HostStrainLimit final : public StrainLimitBackend {
 
  private:
   /// One iteration of one frame: every vertex of `in` (3V values, x_k) into `out`, which holds
-  /// x_{k-1} where `omega` is not 1 (StrainLimitTables).
-  void iterate(const double* in, double* out, double omega) const {
+  /// x_{k-1} where `omega` is not 1 (StrainLimitTables), kept in front of its plane (4V values,
+  /// or null).
+  void iterate(const double* in, double* out, double omega, const float* planes) const {
     const StrainLimitTables& t = mTables;
     for (std::size_t v = 0; v < static_cast<std::size_t>(t.vertexCount); ++v) {
       const double* p = in + 3 * v;
@@ -87,6 +91,20 @@ class HostStrainLimit final : public StrainLimitBackend {
       for (int a = 0; a < 3; ++a) {
         const double jacobi = moves ? p[a] + step * sum[a] : p[a];
         o[a] = omega == 1.0 ? jacobi : omega * (jacobi - o[a]) + o[a];
+      }
+      if (planes != nullptr) {
+        keepInFront(planes + 4 * v, o);
+      }
+    }
+  }
+
+  /// Moves x onto the plane (m, c) when it lies behind it (m . x < c); no plane when m is 0.
+  static void keepInFront(const float* plane, double* x) {
+    const double below =
+        static_cast<double>(plane[3]) - (plane[0] * x[0] + plane[1] * x[1] + plane[2] * x[2]);
+    if (below > 0.0) {
+      for (int a = 0; a < 3; ++a) {
+        x[a] += below * plane[a];
       }
     }
   }
