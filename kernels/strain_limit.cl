@@ -98,3 +98,29 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrai
   out[at + 1] = y;
   out[at + 2] = z;
 }
+
+// Which vertices stayed within reach of where the limit started them (contract:
+// StrainLimitBackend::limit's `stayed`; host reference: HostStrainLimit::limit): a vertex's mark
+// becomes 0 unless it was non-zero and |end - start| < params.reach, in float (the host reference
+// works in double; callers leave a margin for the rounding). Same mapping as dsStrainLimit.
+//
+//   start, end   F x 3V floats: the positions before the first iteration and after the last
+//   stayed       F x V ints, updated in place
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrainStayed(
+    __global const float* start, __global const float* end, __global int* stayed,
+    const DsStrainLimitParams params) {
+  const int v = (int)get_global_id(0);
+  const int f = (int)get_global_id(1);
+  if (v >= params.vertexCount || f >= params.frameCount) {
+    return;
+  }
+  const size_t item = (size_t)f * (size_t)params.vertexCount + (size_t)v;
+  if (stayed[item] == 0) {
+    return;
+  }
+  const size_t at = 3 * item;
+  const float dx = end[at] - start[at];
+  const float dy = end[at + 1] - start[at + 1];
+  const float dz = end[at + 2] - start[at + 2];
+  stayed[item] = sqrt(dx * dx + dy * dy + dz * dz) < params.reach ? 1 : 0;
+}

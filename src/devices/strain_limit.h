@@ -92,6 +92,12 @@ StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iteration
 /// the tables), then limit() many times; limit() before upload() throws Error(kInternal). The
 /// result of a frame does not depend on the other frames of the call, on the chunking or on the
 /// threads. Not thread-safe.
+///
+///   stayed     F x V ints, or null: on return a vertex's mark is 0 unless it was non-zero and
+///              the vertex ended less than `reach` from where it started. A caller that knew each
+///              marked vertex at least C clear of the skin knows it at least C - reach clear now
+///              (distance to a surface changes no faster than the point moves), which lets the
+///              resolution after the limit keep the clearance certificate's answers.
 class StrainLimitBackend {
  public:
   virtual ~StrainLimitBackend() = default;
@@ -99,14 +105,18 @@ class StrainLimitBackend {
   virtual std::string name() const = 0;
   /// Checks the tables (Error(kInternal) when they do not agree) and keeps them.
   virtual void upload(const StrainLimitTables& tables) = 0;
-  /// The iterations on `frameCount` frames of `positions`, in place (`planes` may be null).
-  virtual void limit(int frameCount, float* positions, const float* planes) = 0;
-  /// The same on DeviceArrays (F x 3V and F x 4V floats; `planes` may be null): an OpenCL
-  /// backend works on the arrays' device memory and copies nothing back; this default works on
-  /// the host copies.
-  virtual void limitBlock(int frameCount, DeviceArray& positions, DeviceArray* planes) {
+  /// The iterations on `frameCount` frames of `positions`, in place (`planes` and `stayed` may
+  /// be null; `reach` is read with `stayed`).
+  virtual void limit(int frameCount, float* positions, const float* planes, std::int32_t* stayed,
+                     float reach) = 0;
+  /// The same on DeviceArrays (F x 3V floats, F x 4V floats, F x V ints; `planes` and `stayed`
+  /// may be null): an OpenCL backend works on the arrays' device memory and copies nothing back;
+  /// this default works on the host copies.
+  virtual void limitBlock(int frameCount, DeviceArray& positions, DeviceArray* planes,
+                          DeviceArray* stayed, float reach) {
     limit(frameCount, positions.modify<float>(),
-          planes != nullptr ? planes->read<float>() : nullptr);
+          planes != nullptr ? planes->read<float>() : nullptr,
+          stayed != nullptr ? stayed->modify<std::int32_t>() : nullptr, reach);
   }
 };
 

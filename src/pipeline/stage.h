@@ -362,6 +362,11 @@ bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& c
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                  int FrameRecord::*field, float clearance = 0.0f, bool keep = false);
 
+/// Whether the strain limit runs with skin planes (a limit and the resolution on): it then
+/// leaves batch.auditHits and batch.auditAnswered for the resolution to keep the clearance
+/// certificate's answers of the points that moved little in it (strain_limit.cpp).
+bool limitsWithSkinPlanes(const Model& model);
+
 /// Adds "inside_vertices" (Model::insideVertices) to the report's settings when any driven
 /// vertex lives inside; nothing for cloth.
 void describeSides(Model& model, nlohmann::json& settings);

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <random>
@@ -99,7 +100,7 @@ std::vector<float> limited(StrainLimitBackend& backend, const StrainLimitTables&
                            std::vector<float> frames, const std::vector<float>& planes = {}) {
   backend.upload(tables);
   backend.limit(static_cast<int>(frames.size() / (3 * std::size_t(tables.vertexCount))),
-                frames.data(), planes.empty() ? nullptr : planes.data());
+                frames.data(), planes.empty() ? nullptr : planes.data(), nullptr, 0.0f);
   return frames;
 }
 
@@ -334,7 +335,7 @@ TEST(HostStrainLimit, TheSameOnAnyThreadsAndChunks) {
   const std::size_t values = 3 * std::size_t(mesh.vertexCount());
   std::vector<float> single = frames;
   for (std::size_t f = 0; f < 6; ++f) {
-    one->limit(1, single.data() + f * values, nullptr);
+    one->limit(1, single.data() + f * values, nullptr, nullptr, 0.0f);
   }
   EXPECT_EQ(single, reference);
   EXPECT_LT(largestStrain(mesh, reference.data()), largestStrain(mesh, frames.data()));
@@ -343,7 +344,8 @@ TEST(HostStrainLimit, TheSameOnAnyThreadsAndChunks) {
 TEST(HostStrainLimit, RefusesCallsBeforeUploadAndBadTables) {
   std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
   float x[3] = {0, 0, 0};
-  testing::expectThrows([&] { host->limit(1, x, nullptr); }, ErrorCode::kInternal, "before upload");
+  testing::expectThrows([&] { host->limit(1, x, nullptr, nullptr, 0.0f); }, ErrorCode::kInternal,
+                        "before upload");
   StrainLimitTables bad = strainLimitTables(strip(2), 0.05, 3, 1.5);
   bad.other[0] = 99;
   testing::expectThrows([&] { host->upload(bad); }, ErrorCode::kInternal, "inconsistent");
@@ -378,13 +380,13 @@ TEST_F(ClStrainLimit, MatchesTheHostOnTheSleeveSample) {
     DeviceArray block = clDevice->makeArray();
     block.resize<float>(frames.size());
     std::copy(frames.begin(), frames.end(), block.write<float>());
-    cl->limitBlock(8, block, nullptr);
+    cl->limitBlock(8, block, nullptr, nullptr, 0.0f);
     const float* blockOut = block.read<float>();
     EXPECT_TRUE(std::equal(onCl.begin(), onCl.end(), blockOut)) << run;
     std::vector<float> single = frames;
     const std::size_t values = 3 * std::size_t(mesh.vertexCount());
     for (std::size_t f = 0; f < 8; ++f) {
-      cl->limit(1, single.data() + f * values, nullptr);
+      cl->limit(1, single.data() + f * values, nullptr, nullptr, 0.0f);
     }
     EXPECT_EQ(single, onCl) << run;
   }
@@ -416,8 +418,45 @@ TEST_F(ClStrainLimit, MatchesTheHostWithPlanes) {
   DeviceArray planeBlock = clDevice->makeArray();
   planeBlock.resize<float>(planes.size());
   std::copy(planes.begin(), planes.end(), planeBlock.write<float>());
-  cl->limitBlock(4, block, &planeBlock);
+  cl->limitBlock(4, block, &planeBlock, nullptr, 0.0f);
   EXPECT_TRUE(std::equal(onCl.begin(), onCl.end(), block.read<float>()));
+
+  // The marks of the vertices that stayed within reach, against the distance each moved: a
+  // reach that splits the vertices, every third mark 0 beforehand (it stays 0).
+  std::vector<double> moved(frames.size() / 3);
+  for (std::size_t v = 0; v < moved.size(); ++v) {
+    const double dx = double(onHost[3 * v]) - frames[3 * v];
+    const double dy = double(onHost[3 * v + 1]) - frames[3 * v + 1];
+    const double dz = double(onHost[3 * v + 2]) - frames[3 * v + 2];
+    moved[v] = std::sqrt(dx * dx + dy * dy + dz * dz);
+  }
+  std::vector<double> sorted = moved;
+  std::sort(sorted.begin(), sorted.end());
+  const float reach = static_cast<float>(sorted[sorted.size() / 2]);
+  std::vector<std::int32_t> before(moved.size(), 1);
+  for (std::size_t v = 0; v < before.size(); v += 3) {
+    before[v] = 0;
+  }
+  for (StrainLimitBackend* backend : {host.get(), cl.get()}) {
+    SCOPED_TRACE(backend->name());
+    std::vector<float> positions = frames;
+    std::vector<std::int32_t> marks = before;
+    backend->upload(tables);
+    backend->limit(4, positions.data(), planes.data(), marks.data(), reach);
+    int kept = 0;
+    int wrong = 0;
+    for (std::size_t v = 0; v < marks.size(); ++v) {
+      if (std::abs(moved[v] - reach) <= 1e-6 * diagonal) {
+        continue;  // a rounding question between float and double
+      }
+      const int expected = before[v] != 0 && moved[v] < reach ? 1 : 0;
+      kept += marks[v];
+      wrong += marks[v] != expected ? 1 : 0;
+    }
+    EXPECT_EQ(wrong, 0) << "of " << marks.size() << " marks";
+    EXPECT_GT(kept, int(marks.size()) / 5);
+    EXPECT_LT(kept, int(marks.size()) / 2);
+  }
 }
 
 TEST_F(ClStrainLimit, MatchesTheHostOnTheStripAndKeepsFixedVertices) {
@@ -447,7 +486,8 @@ TEST_F(ClStrainLimit, RefusesCallsBeforeUpload) {
   std::unique_ptr<Device> clDevice = makeOpenClDevice(context(), device(), queue());
   std::unique_ptr<StrainLimitBackend> cl = clDevice->makeStrainLimit(0);
   float x[3] = {0, 0, 0};
-  testing::expectThrows([&] { cl->limit(1, x, nullptr); }, ErrorCode::kInternal, "before upload");
+  testing::expectThrows([&] { cl->limit(1, x, nullptr, nullptr, 0.0f); }, ErrorCode::kInternal,
+                        "before upload");
 }
 
 }  // namespace

@@ -35,8 +35,10 @@ class ClStrainLimit final : public StrainLimitBackend {
                            [&] { return mDevice.getInfo<CL_DEVICE_NAME>(); });
     mProgram = cl_util::buildProgram(
         target, {{kernels::kStrainLimitSourceName, kernels::kStrainLimitSource}});
-    cl_util::guard("creating the strain-limit kernel",
-                   [&] { mKernel = cl::Kernel(mProgram, "dsStrainLimit"); });
+    cl_util::guard("creating the strain-limit kernels", [&] {
+      mKernel = cl::Kernel(mProgram, "dsStrainLimit");
+      mStayedKernel = cl::Kernel(mProgram, "dsStrainStayed");
+    });
   }
 
   std::string name() const override { return mName; }
@@ -58,7 +60,8 @@ class ClStrainLimit final : public StrainLimitBackend {
     mUploaded = true;
   }
 
-  void limit(int frameCount, float* positions, const float* planes) override {
+  void limit(int frameCount, float* positions, const float* planes, std::int32_t* stayed,
+             float reach) override {
     strain_limit_checks::checkCall(mUploaded, frameCount);
     if (frameCount == 0 || mIterations == 0) {
       return;
@@ -77,16 +80,29 @@ class ClStrainLimit final : public StrainLimitBackend {
         planeBuffer = &planeTarget;
       }
     });
-    iterate(frameCount, buffer, planeBuffer);
+    const std::size_t markBytes = bytes / 3 / sizeof(float) * sizeof(std::int32_t);
+    cl::Buffer* markBuffer = nullptr;
+    if (stayed != nullptr) {
+      cl_util::guard("uploading the strain limit's marks", [&] {
+        markBuffer = &mMarks.reserve(mContext, markBytes);
+        cl_util::upload(mQueue, mTransfers, *markBuffer, CL_TRUE, 0, markBytes, stayed);
+      });
+    }
+    iterate(frameCount, buffer, planeBuffer, markBuffer, reach);
     cl_util::guard("reading back the strain-limited positions", [&] {
       cl_util::download(mQueue, mTransfers, buffer, CL_TRUE, 0, bytes, positions);
+      if (stayed != nullptr) {
+        cl_util::download(mQueue, mTransfers, *markBuffer, CL_TRUE, 0, markBytes, stayed);
+      }
     });
   }
 
-  void limitBlock(int frameCount, DeviceArray& positions, DeviceArray* planes) override {
+  void limitBlock(int frameCount, DeviceArray& positions, DeviceArray* planes, DeviceArray* stayed,
+                  float reach) override {
     if (!cl_util::onContext(mContext, positions) ||
-        (planes != nullptr && !cl_util::onContext(mContext, *planes))) {
-      StrainLimitBackend::limitBlock(frameCount, positions, planes);
+        (planes != nullptr && !cl_util::onContext(mContext, *planes)) ||
+        (stayed != nullptr && !cl_util::onContext(mContext, *stayed))) {
+      StrainLimitBackend::limitBlock(frameCount, positions, planes, stayed, reach);
       return;
     }
     strain_limit_checks::checkCall(mUploaded, frameCount);
@@ -94,7 +110,8 @@ class ClStrainLimit final : public StrainLimitBackend {
       return;
     }
     iterate(frameCount, cl_util::modifyBuffer(positions),
-            planes != nullptr ? &cl_util::readBuffer(*planes) : nullptr);
+            planes != nullptr ? &cl_util::readBuffer(*planes) : nullptr,
+            stayed != nullptr ? &cl_util::modifyBuffer(*stayed) : nullptr, reach);
   }
 
  private:
@@ -104,8 +121,9 @@ class ClStrainLimit final : public StrainLimitBackend {
   }
 
   /// The iterations on `positions` (F x 3V floats on the device), in place, with `planes` (F x 4V
-  /// floats on the device, or null).
-  void iterate(int frameCount, cl::Buffer& positions, const cl::Buffer* planes) {
+  /// floats on the device, or null) and the marks `stayed` (F x V ints, or null) updated after.
+  void iterate(int frameCount, cl::Buffer& positions, const cl::Buffer* planes, cl::Buffer* stayed,
+               float reach) {
     const std::size_t bytes = frameBytes(frameCount);
     cl_util::guard("running dsStrainLimit on a chunk of frames", [&] {
       cl::Buffer& scratch = mScratch.reserve(mContext, bytes);
@@ -118,6 +136,11 @@ class ClStrainLimit final : public StrainLimitBackend {
       const cl::NDRange global(
           cl_util::roundUp(static_cast<std::size_t>(mVertexCount), DS_LOCAL_SIZE),
           static_cast<std::size_t>(frameCount));
+      // The marks need where every vertex started: a copy, taken only when asked for.
+      cl::Buffer& start = stayed != nullptr ? mStartPositions.reserve(mContext, bytes) : scratch;
+      if (stayed != nullptr) {
+        mQueue.enqueueCopyBuffer(positions, start, 0, 0, bytes);
+      }
       const cl::Buffer* from = &positions;
       const cl::Buffer* to = &scratch;
       for (int i = 0; i < mIterations; ++i) {
@@ -130,6 +153,12 @@ class ClStrainLimit final : public StrainLimitBackend {
       if (from != &positions) {
         mQueue.enqueueCopyBuffer(*from, positions, 0, 0, bytes);
       }
+      if (stayed != nullptr) {
+        params.reach = reach;
+        cl_util::setArgs(mStayedKernel, start, positions, *stayed, params);
+        mQueue.enqueueNDRangeKernel(mStayedKernel, cl::NullRange, global,
+                                    cl::NDRange(DS_LOCAL_SIZE, 1));
+      }
     });
   }
 
@@ -140,6 +169,7 @@ class ClStrainLimit final : public StrainLimitBackend {
   std::string mName;
   cl::Program mProgram;
   cl::Kernel mKernel;
+  cl::Kernel mStayedKernel;
 
   bool mUploaded = false;
   int mVertexCount = 0;
@@ -149,6 +179,8 @@ class ClStrainLimit final : public StrainLimitBackend {
   cl_util::GrowingBuffer mPositions{CL_MEM_READ_WRITE};  // F x 3V (limit() on host memory)
   cl_util::GrowingBuffer mScratch{CL_MEM_READ_WRITE};    // F x 3V, the other half of the ping-pong
   cl_util::GrowingBuffer mPlanes{CL_MEM_READ_ONLY};      // F x 4V (limit() on host memory)
+  cl_util::GrowingBuffer mMarks{CL_MEM_READ_WRITE};      // F x V (limit() on host memory)
+  cl_util::GrowingBuffer mStartPositions{CL_MEM_READ_WRITE};  // F x 3V, before (marks)
 };
 
 }  // namespace

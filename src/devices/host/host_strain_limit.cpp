@@ -3,6 +3,7 @@
 // double, each frame kept in double between iterations and rounded to float once at the end;
 // frames in parallel on host threads (each frame alone, so the thread count changes nothing).
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -30,7 +31,8 @@ class HostStrainLimit final : public StrainLimitBackend {
     mUploaded = true;
   }
 
-  void limit(int frameCount, float* positions, const float* planes) override {
+  void limit(int frameCount, float* positions, const float* planes, std::int32_t* stayed,
+             float reach) override {
     strain_limit_checks::checkCall(mUploaded, frameCount);
     if (mTables.iterations == 0) {
       return;
@@ -47,8 +49,16 @@ class HostStrainLimit final : public StrainLimitBackend {
         iterate(now.data(), next.data(), mTables.omega[static_cast<std::size_t>(i)], framePlanes);
         std::swap(now, next);
       }
-      for (std::size_t i = 0; i < values; ++i) {
-        frame[i] = static_cast<float>(now[i]);
+      std::int32_t* frameStayed =
+          stayed != nullptr ? stayed + static_cast<std::size_t>(f) * mTables.vertexCount : nullptr;
+      for (std::size_t v = 0; v < values / 3; ++v) {
+        float* x = frame + 3 * v;
+        const float end[3] = {static_cast<float>(now[3 * v]), static_cast<float>(now[3 * v + 1]),
+                              static_cast<float>(now[3 * v + 2])};
+        if (frameStayed != nullptr && frameStayed[v] != 0) {
+          frameStayed[v] = travel(x, end) < static_cast<double>(reach) ? 1 : 0;
+        }
+        std::copy(end, end + 3, x);
       }
     });
   }
@@ -96,6 +106,16 @@ class HostStrainLimit final : public StrainLimitBackend {
         keepInFront(planes + 4 * v, o);
       }
     }
+  }
+
+  /// |end - start| of one vertex, in double.
+  static double travel(const float* start, const float* end) {
+    double sum = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double d = static_cast<double>(end[a]) - start[a];
+      sum += d * d;
+    }
+    return std::sqrt(sum);
   }
 
   /// Moves x onto the plane (m, c) when it lies behind it (m . x < c); no plane when m is 0.

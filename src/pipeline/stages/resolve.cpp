@@ -14,8 +14,13 @@ namespace {
 
 class ResolveStage final : public Stage {
  public:
-  explicit ResolveStage(Model& model) : mModel(model) {
-    declare({Array::Shot, Array::Cloth}, kAuditArrays | Arrays{Array::Cloth, Array::Moved});
+  explicit ResolveStage(Model& model) : mModel(model), mKeep(limitsWithSkinPlanes(model)) {
+    // After a limit with skin planes, the certificate's answers of the points that moved little
+    // in it are kept (StrainLimitStage): only the others are checked and searched again.
+    declare(Arrays{Array::Shot, Array::Cloth}
+                .with(Array::AuditHits, mKeep)
+                .with(Array::AuditAnswered, mKeep),
+            kAuditArrays | Arrays{Array::Cloth, Array::Moved});
     model.sides();
     model.unmaskedClosest().setExitFade(static_cast<float>(model.settings.exitFade));
     model.unmaskedClosest().setAlongNormal(model.settings.resolveDirection ==
@@ -41,9 +46,9 @@ class ResolveStage final : public Stage {
     DeviceArray& shot = batch.in<Array::Shot>();
     DeviceArray& cloth = batch.out<Array::Cloth>();
     if (mModel.settings.audit) {
-      countInside(mModel, batch, shot, cloth, &FrameRecord::insideCorrected, offset);
+      countInside(mModel, batch, shot, cloth, &FrameRecord::insideCorrected, offset, mKeep);
     } else {
-      auditClosest(mModel, batch, shot, cloth, offset);
+      auditClosest(mModel, batch, shot, cloth, offset, mKeep);
     }
     std::vector<int>& moved = batch.out<Array::Moved>();
     moved.assign(batch.count(), 0);
@@ -57,6 +62,7 @@ class ResolveStage final : public Stage {
 
  private:
   Model& mModel;
+  bool mKeep = false;  ///< keep the strain limit's certificate answers
 };
 
 }  // namespace

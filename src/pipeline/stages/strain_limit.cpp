@@ -71,7 +71,7 @@ std::vector<float> movingVertices(Model& model) {
 
 class StrainLimitStage final : public Stage {
  public:
-  explicit StrainLimitStage(Model& model) : mModel(model), mPlanes(model.settings.resolve) {
+  explicit StrainLimitStage(Model& model) : mModel(model), mPlanes(limitsWithSkinPlanes(model)) {
     if (mPlanes) {
       declare({Array::Shot, Array::Cloth}, kAuditArrays | Arrays{Array::SkinPlanes, Array::Cloth});
       model.sides();
@@ -90,20 +90,24 @@ class StrainLimitStage final : public Stage {
   void run(Batch& batch) override {
     DeviceArray& cloth = batch.out<Array::Cloth>();
     if (!mPlanes) {
-      mBackend->limitBlock(batch.count(), cloth, nullptr);
+      mBackend->limitBlock(batch.count(), cloth, nullptr, nullptr, 0.0f);
       return;
     }
     const int count = batch.count();
     const float offset = static_cast<float>(mModel.settings.skinOffset);
     DeviceArray& shot = batch.in<Array::Shot>();
     const bool answered = auditClosest(mModel, batch, shot, cloth, kPlaneReach * offset);
+    DeviceArray* marks = answered ? &batch.out<Array::AuditAnswered>() : nullptr;
     DeviceArray& planes = batch.out<Array::SkinPlanes>();
     planes.resize<float>(static_cast<std::size_t>(count) * mModel.vd * 4);
-    mModel.unmaskedClosest().skinPlanesBlock(
-        count, shot, batch.out<Array::AuditHits>(),
-        answered ? &batch.out<Array::AuditAnswered>() : nullptr, cloth, offset,
-        static_cast<float>(kPlaneDepth * offset), planes);
-    mBackend->limitBlock(count, cloth, &planes);
+    mModel.unmaskedClosest().skinPlanesBlock(count, shot, batch.out<Array::AuditHits>(), marks,
+                                             cloth, offset,
+                                             static_cast<float>(kPlaneDepth * offset), planes);
+    // A point the certificate proved kPlaneReach offsets clear that moves less than
+    // kPlaneReach - 1 offsets is still an offset clear: the resolution keeps its answer
+    // (ResolveStage). The margin covers the device's float arithmetic of the distance moved.
+    const float keptReach = static_cast<float>((kPlaneReach - 1.0) * offset * (1.0 - 1e-4));
+    mBackend->limitBlock(count, cloth, &planes, marks, keptReach);
   }
 
  private:
@@ -113,6 +117,10 @@ class StrainLimitStage final : public Stage {
 };
 
 }  // namespace
+
+bool limitsWithSkinPlanes(const Model& model) {
+  return model.settings.strainLimit > 0 && model.settings.resolve;
+}
 
 std::unique_ptr<Stage> makeStrainLimitStage(Model& model) {
   if (!(model.settings.strainLimit > 0)) {
