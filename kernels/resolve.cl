@@ -226,11 +226,13 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
 // HostClosest::skinPlanes in src/devices/host/host_resolve.cpp). Point i of frame f gets the
 // plane (m, c), m unit, that the strain limit keeps it in front of (m . x >= c): on its own side
 // of the skin, m is the way dsResolve would move it (the pseudo-normal, or the nearest way out)
-// and c = m . q + offset; on the wrong side at most params.depth deep, m is the unit
-// pseudo-normal. Every other point gets (0, 0, 0, 0): a point that lives inside, one the
-// clearance certificate answered without a search (answered[item] != 0, read when
-// params.answered is 1), one deeper than params.depth, or one whose pseudo-normal vanishes.
-// Same mapping and first arguments as dsResolve, with `points` read only.
+// and c = m . q + offset; on the wrong side at depth d, m is the unit pseudo-normal and
+// c = m . q + offset - D (1 - w) / w with D = params.depth and w = clamp((1.5 D - d) / (0.5 D),
+// 0, 1): the offset up to D deep, then sinking away continuously until no plane at 1.5 D. Every
+// other point gets (0, 0, 0, 0): a point that lives inside, one the clearance certificate
+// answered without a search (answered[item] != 0, read when params.answered is 1), one 1.5 D
+// deep or deeper, or one whose pseudo-normal vanishes. Same mapping and first arguments as
+// dsResolve, with `points` read only.
 //
 //   answered   F x Vd int (any buffer when params.answered is 0)
 //   planes     F x Vd float4, written
@@ -257,11 +259,14 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsSkinP
     const ds_real s = dsSignedDistance(pose, triangles, edgeStart, edgeTriangles, vertexStart,
                                        vertexTriangles, hits[item], p, &q, &normal);
     const ds_real length = sqrt(dot(normal, normal));
-    if (length > 0 && s >= -(ds_real)params.depth) {
+    const ds_real depth = (ds_real)params.depth;
+    if (length > 0 && s > -(ds_real)1.5 * depth) {
       const ds_real3 n = normal / length;
       const ds_real3 m =
           s < 0 || params.alongNormal != 0 ? n : dsNearestWayOut(p - q, s, n, params.offset);
-      plane = (float4)((float)m.x, (float)m.y, (float)m.z, (float)(dot(m, q) + params.offset));
+      const ds_real w = s < -depth ? (1.5 * depth + s) / (0.5 * depth) : 1;
+      plane = (float4)((float)m.x, (float)m.y, (float)m.z,
+                       (float)(dot(m, q) + params.offset - depth * (1 - w) / w));
     }
   }
   planes[item] = plane;

@@ -144,11 +144,14 @@ class ClosestBackend {
   /// plane (m, c), m a unit vector, that the strain limit keeps the point in front of
   /// (m . x >= c), so that the limit cannot pull cloth into the body. A point on its own side of
   /// the skin (s >= 0) gets the way resolve() would move it (N, or D when setAlongNormal(false))
-  /// with c = m . q + offset; a point on the wrong side at most `depth` deep gets m = N and the
-  /// same c (resolve() would move it there in one step; deeper ones are left to the limit, which
-  /// often brings them back to their neighbours, and to the resolution after it). Every other
-  /// point gets (0, 0, 0, 0), no plane: a point that lives inside (setSides), one whose N is
-  /// zero, one deeper than `depth`, and one answered without a search (answered[f * Vd + i] != 0,
+  /// with c = m . q + offset; a point on the wrong side at depth d = -s gets m = N and the same c
+  /// up to `depth` deep (resolve() would move it there in one step), then a plane that sinks
+  /// away continuously, c = m . q + offset - depth (1 - w) / w with w = (1.5 depth - d) /
+  /// (0.5 depth), until there is none at 1.5 `depth` (deeper ones are left to the limit, which
+  /// often brings them back to their neighbours, and to the resolution after it; a plane that
+  /// switched off at once would make such a vertex jump between frames). Every other point gets
+  /// (0, 0, 0, 0), no plane: a point that lives inside (setSides), one whose N is zero, one at
+  /// least 1.5 `depth` deep, and one answered without a search (answered[f * Vd + i] != 0,
   /// closestOrClearBlock(); null = every point searched).
   ///   poses  F x 3Vp;  hits  F x Vd;  answered  F x Vd or null;  points  F x 3Vd;
   ///   planes  F x Vd x 4 floats (m.x, m.y, m.z, c)

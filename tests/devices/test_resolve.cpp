@@ -641,7 +641,8 @@ TEST_F(CorrectionClTest, ExitFadeMakesTheMoveContinuousAcrossTheMiddleOfALimb) {
 
 // The strain limit's skin planes (ClosestBackend::skinPlanes) against the closed form: a point on
 // its side of the skin, or less than `depth` inside, gets the plane through the point the
-// resolution would move it to, with the resolution's direction as its normal; a deeper one, one
+// resolution would move it to, with the resolution's direction as its normal; one between
+// `depth` and 1.5 `depth` inside the same plane sunk by depth (1 - w) / w; a deeper one, one
 // that lives inside and one marked answered without a search get none.
 TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoint) {
   const CubeScene scene = makeCubeScene();
@@ -669,6 +670,7 @@ TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoi
     backend->setSides({});
     int wrong = 0;
     int withPlane = 0;
+    int sunk = 0;
     for (int f = 0; f < scene.frameCount; ++f) {
       for (int i = 0; i < vd; ++i) {
         const std::size_t k = static_cast<std::size_t>(f) * vd + i;
@@ -676,8 +678,9 @@ TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoi
         const float* plane = &planes[4 * k];
         const Eigen::Vector3d m(plane[0], plane[1], plane[2]);
         const double s = cubeSignedDistance(p, scene.centres[static_cast<std::size_t>(f)]);
-        const bool expected =
-            answered[k] == 0 && sides[static_cast<std::size_t>(i)] == kSideOutside && s > -kDepth;
+        const bool expected = answered[k] == 0 &&
+                              sides[static_cast<std::size_t>(i)] == kSideOutside &&
+                              s > -1.5 * kDepth;
         bool ok;
         if (expected) {
           ++withPlane;
@@ -685,8 +688,12 @@ TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoi
               cubeResolved(p, scene.centres[static_cast<std::size_t>(f)], kOffset);
           const Eigen::Vector3d normal =
               (target - cubeResolved(p, scene.centres[static_cast<std::size_t>(f)], 0.0)) / kOffset;
-          ok = std::fabs(m.dot(target) - plane[3]) <= kResolveRelTol * scale &&
+          const double w = s < -kDepth ? (1.5 * kDepth + s) / (0.5 * kDepth) : 1.0;
+          // The sunk level moves 2 / w^2 as fast as the depth: the distance's tolerance, carried.
+          const double level = m.dot(target) - kDepth * (1.0 - w) / w;
+          ok = std::fabs(level - plane[3]) <= kResolveRelTol * scale * (1.0 + 2.0 / (w * w)) &&
                (m - normal).norm() <= 1e-5;
+          sunk += w < 1.0 ? 1 : 0;
         } else {
           ok = plane[0] == 0.0f && plane[1] == 0.0f && plane[2] == 0.0f && plane[3] == 0.0f;
         }
@@ -701,6 +708,7 @@ TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoi
     EXPECT_EQ(wrong, 0) << "of " << scene.frameCount * vd << " points";
     EXPECT_GT(withPlane, vd / 2);
     EXPECT_LT(withPlane, 2 * vd - vd / 4);
+    EXPECT_GT(sunk, 20) << "points between depth and 1.5 depth";
     results.push_back(planes);
   }
   double difference = 0.0;

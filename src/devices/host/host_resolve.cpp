@@ -115,18 +115,19 @@ void HostClosest::skinPlanes(int frameCount, const float* poses, const SurfaceHi
         continue;
       }
       const SkinPoint at = skinPoint(pose, triangles, features, hits[item], points, item);
-      if (!(at.length > 0.0) || at.signedDistance < -static_cast<double>(depth)) {
+      const double s = at.signedDistance;
+      const double full = depth;  // the depth of the full plane
+      if (!(at.length > 0.0) || !(s > -1.5 * full)) {
         continue;
       }
+      const double w = s < -full ? (1.5 * full + s) / (0.5 * full) : 1.0;
       const Eigen::Vector3d n = at.normal / at.length;
       const Eigen::Vector3d m =
-          at.signedDistance < 0.0 || mAlongNormal
-              ? n
-              : correction::nearestWayOut(at.p - at.q, at.signedDistance, n, offset);
+          s < 0.0 || mAlongNormal ? n : correction::nearestWayOut(at.p - at.q, s, n, offset);
       for (int k = 0; k < 3; ++k) {
         plane[k] = static_cast<float>(m[k]);
       }
-      plane[3] = static_cast<float>(m.dot(at.q) + offset);
+      plane[3] = static_cast<float>(m.dot(at.q) + offset - full * (1.0 - w) / w);
     }
   });
 }

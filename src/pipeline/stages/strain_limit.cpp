@@ -44,13 +44,15 @@ constexpr int kChebyshevFrom = 5;
 /// 1 and 3 cm gave the same bakes on the sleeve's travel clip.
 constexpr double kPlaneReach = 5.0;
 
-/// How deep inside the body, in skin offsets, a vertex still gets a plane (and so comes out
-/// within the limit). Deeper ones are left to the limit, which pulls them back towards their
-/// neighbours, and then to the resolution: moved out first, a vertex 10 cm deep in the trousers'
-/// crotch stays on the far side of the leg the resolution chose, and jumps when that side
-/// changes. Chosen on the validation clips (docs/validation.md, "Strain"): 7.5 offsets (1.5 cm)
-/// met every bar of issue 43 on 9 of the 16 validation clips, against 6 at 0.5 cm, 7 at 1 cm
-/// and 8 at 2.5 cm.
+/// How deep inside the body, in skin offsets, a vertex still gets its full plane (and so comes out
+/// within the limit); deeper, the plane sinks away until there is none at 1.5 times this
+/// (ClosestBackend::skinPlanes). Deeper ones are left to the limit, which pulls them back
+/// towards their neighbours, and then to the resolution: moved out first, a vertex 10 cm deep in
+/// the trousers' crotch stays on the far side of the leg the resolution chose, and jumps when
+/// that side changes. Chosen on the validation clips (docs/validation.md, "Strain"): cut off at
+/// once, 7.5 offsets (1.5 cm) met every bar of issue 43 on 9 of the 16 validation clips, against
+/// 6 at 0.5 cm, 7 at 1 cm and 8 at 2.5 cm; the fade beyond it took the largest jump of one clip
+/// back down by 15 mm.
 constexpr double kPlaneDepth = 7.5;
 
 /// The strain limit's vertex weights: a vertex that lives under the skin (a muscle or fat
