@@ -774,7 +774,8 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
           "after the correction and before the penetration resolution, each frame's cloth "
           "edges are brought back within this fraction of their rest lengths (0.01: 99% to "
           "101%, the validation table's choice) by iterations of edge projections, so the cloth "
-          "does not stretch like rubber")
+          "does not stretch like rubber; with the resolution on, the cloth is kept out of the "
+          "body while it iterates")
       .hash(&hashStrainLimit)
       .addon("collision", nullptr, "Strain Limit")
       .report("strain_limit");
