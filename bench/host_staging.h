@@ -53,8 +53,9 @@ class HostStagingClosest final : public ClosestBackend {
     mInner->resolve(f, poses, hits, offset, points, moved);
   }
   void skinPlanes(int f, const float* poses, const SurfaceHit* hits, const std::int32_t* answered,
-                  const float* points, float offset, float depth, float* planes) override {
-    mInner->skinPlanes(f, poses, hits, answered, points, offset, depth, planes);
+                  const float* points, float offset, float depth, float reach,
+                  float* planes) override {
+    mInner->skinPlanes(f, poses, hits, answered, points, offset, depth, reach, planes);
   }
   void countInside(int f, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override {

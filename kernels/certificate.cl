@@ -173,12 +173,13 @@ inline int dsCertOpen(ds_real3 p, __global const float* box, const DsCertCone co
 // dsCertCheck: one item per (frame f, point i), item id f * Vd + i, 1-D, local size
 // DS_LOCAL_SIZE. The walk of src/devices/certificate.cpp: `limit` starts at the smallest
 // distance from p to its seed triangle and to the triangles of the leaf a greedy descent reaches,
-// plus the margin, and shrinks to the farthest point of any box seen (an upper bound too); nodes
-// farther than `limit` are skipped, nodes whose cone covers them too, the others opened nearer
-// child first; a leaf's triangles within `limit` must pass the plane test one by one. If all do
-// (and the witness w, a triangle within U of p, passes it too), the point is cleared: its hit
-// becomes (w, 1/3, 1/3) and cleared[f] counts it; otherwise it is appended to `search` (its item
-// id; `searchCount` counts them, the host zeroes it).
+// plus the margin and twice params.reach (the answer holds within reach of p), and shrinks to the
+// farthest point of any box seen (an upper bound too); nodes farther than `limit` are skipped,
+// nodes whose cone covers them too, the others opened nearer child first; a leaf's triangles within
+// `limit` must pass the plane test one by one. If all do (and the witness w, a triangle within U of
+// p, passes it too), the point is cleared: its hit becomes (w, 1/3, 1/3) and cleared[f] counts it;
+// otherwise it is appended to `search` (its item id; `searchCount` counts them, the host zeroes
+// it).
 //
 //   triangles      T x 3 int
 //   nodeTriangle   N int                a triangle under each node (certificate.h)
@@ -212,6 +213,8 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
   const ds_real3 p = dsLoad3(points, item);
   const ds_real margin = (ds_real)params.margin;
   const ds_real target = (ds_real)params.clearance + margin;
+  // Triangles within U + 2 reach of p can be the closest of a point within reach of p.
+  const ds_real reachMargin = margin + 2 * (ds_real)params.reach;
   // The upper bound U: the smallest distance to the seed triangle and to the triangles of the
   // leaf that a greedy descent (nearer box first) reaches; the nearest is the first witness.
   int witness = seeds[point].triangle;
@@ -235,11 +238,11 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
       witness = tri.w;
     }
   }
-  ds_real limit = sqrt(core2) + margin;
+  ds_real limit = sqrt(core2) + reachMargin;
   ds_real distance;
   int pass = 1;
-  node = dsCertOpen(p, frameBoxes, frameCones[0], nodeTriangle[0], target, margin, &limit, &core2,
-                    &witness, &distance)
+  node = dsCertOpen(p, frameBoxes, frameCones[0], nodeTriangle[0], target, reachMargin, &limit,
+                    &core2, &witness, &distance)
              ? 0
              : -1;
   int stack[DS_BVH_MAX_DEPTH + 1];
@@ -270,8 +273,8 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
       int open[2];
       for (int side = 0; side < 2; ++side) {
         open[side] = dsCertOpen(p, frameBoxes + (size_t)child[side] * 6, frameCones[child[side]],
-                                nodeTriangle[child[side]], target, margin, &limit, &core2, &witness,
-                                &distances[side]);
+                                nodeTriangle[child[side]], target, reachMargin, &limit, &core2,
+                                &witness, &distances[side]);
       }
       const int nearSide = distances[0] <= distances[1] ? 0 : 1;
       const ds_real limit2 = limit * limit;

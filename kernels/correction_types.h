@@ -62,6 +62,7 @@ typedef struct DsResolveParams {
   ds_int alongNormal;    // dsResolve: 1 moves along the pseudo-normal, 0 the nearest way
   float depth;           // dsSkinPlanes: how deep on the wrong side a point still gets a plane
   ds_int answered;       // dsSkinPlanes: 1 reads `answered` (points not searched get no plane)
+  float reach;           // dsSkinPlanes: points at this signed distance or more get no plane
 } DsResolveParams;
 
 // One node of a bounding-volume hierarchy over driver triangles (kernels/bvh.cl, built by
@@ -202,7 +203,7 @@ typedef struct DsCertParams {
   ds_int pad0;
   float clearance;  // scene units, >= 0
   float margin;     // DS_CERT_MARGIN_* x S
-  float pad1;
+  float reach;      // dsCertCheck: the answer must hold within this of the point (>= 0)
   float pad2;
 } DsCertParams;
 
@@ -231,7 +232,7 @@ typedef float3 ds_real3;
 static_assert(sizeof(DsSurfaceHit) == 16, "DsSurfaceHit layout");
 static_assert(sizeof(DsClosestParams) == 32, "DsClosestParams layout");
 static_assert(sizeof(DsTransferParams) == 16, "DsTransferParams layout");
-static_assert(sizeof(DsResolveParams) == 44, "DsResolveParams layout");
+static_assert(sizeof(DsResolveParams) == 48, "DsResolveParams layout");
 static_assert(sizeof(DsBvhNode) == 16, "DsBvhNode layout");
 static_assert(sizeof(DsBvhRefitParams) == 32, "DsBvhRefitParams layout");
 static_assert(sizeof(DsBvhQueryParams) == 32, "DsBvhQueryParams layout");

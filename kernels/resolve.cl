@@ -230,9 +230,9 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsResol
 // c = m . q + offset - D (1 - w) / w with D = params.depth and w = clamp((1.5 D - d) / (0.5 D),
 // 0, 1): the offset up to D deep, then sinking away continuously until no plane at 1.5 D. Every
 // other point gets (0, 0, 0, 0): a point that lives inside, one the clearance certificate
-// answered without a search (answered[item] != 0, read when params.answered is 1), one 1.5 D
-// deep or deeper, or one whose pseudo-normal vanishes. Same mapping and first arguments as
-// dsResolve, with `points` read only.
+// answered without a search (answered[item] != 0, read when params.answered is 1), one at signed
+// distance params.reach or more, one 1.5 D deep or deeper, or one whose pseudo-normal vanishes.
+// Same mapping and first arguments as dsResolve, with `points` read only.
 //
 //   answered   F x Vd int (any buffer when params.answered is 0)
 //   planes     F x Vd float4, written
@@ -260,7 +260,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsSkinP
                                        vertexTriangles, hits[item], p, &q, &normal);
     const ds_real length = sqrt(dot(normal, normal));
     const ds_real depth = (ds_real)params.depth;
-    if (length > 0 && s > -(ds_real)1.5 * depth) {
+    if (length > 0 && s > -(ds_real)1.5 * depth && s < (ds_real)params.reach) {
       const ds_real3 n = normal / length;
       const ds_real3 m =
           s < 0 || params.alongNormal != 0 ? n : dsNearestWayOut(p - q, s, n, params.offset);

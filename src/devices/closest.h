@@ -151,14 +151,18 @@ class ClosestBackend {
   /// often brings them back to their neighbours, and to the resolution after it; a plane that
   /// switched off at once would make such a vertex jump between frames). Every other point gets
   /// (0, 0, 0, 0), no plane: a point that lives inside (setSides), one whose N is zero, one at
-  /// least 1.5 `depth` deep, and one answered without a search (answered[f * Vd + i] != 0,
-  /// closestOrClearBlock(); null = every point searched).
+  /// least 1.5 `depth` deep, one answered without a search (answered[f * Vd + i] != 0,
+  /// closestOrClearBlock(); null = every point searched), and one at signed distance `reach` or
+  /// more. Given the clearance of the closestOrClearBlock() call that made the hits as `reach`,
+  /// the planes are those of the full search: a point it answered is at least that clearance
+  /// away, so whether the certificate answered a point (which depends on its seeds, and so on
+  /// the chunking) changes no plane.
   ///   poses  F x 3Vp;  hits  F x Vd;  answered  F x Vd or null;  points  F x 3Vd;
   ///   planes  F x Vd x 4 floats (m.x, m.y, m.z, c)
-  /// offset, depth >= 0 in scene units. Throws as resolve() does.
+  /// offset, depth, reach >= 0 in scene units. Throws as resolve() does.
   virtual void skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
                           const std::int32_t* answered, const float* points, float offset,
-                          float depth, float* planes) = 0;
+                          float depth, float reach, float* planes) = 0;
 
   /// How many points of each frame are on the wrong side of the skin: inside[f] counts the
   /// points of frame f whose signed distance is negative for an outside point (cloth inside
@@ -191,14 +195,26 @@ class ClosestBackend {
   ///
   /// `answered` (F x Vd ints, or null) marks on return the items answered without a search.
   /// With `keep`, it is read first: items marked non-zero keep their hit in `hits`, which the
-  /// caller vouches came from an earlier call on the same poses, with a clearance >= this one,
-  /// that answered them, their points unchanged since (e.g. a recount after resolveBlock(),
-  /// which does not move them). cleared[f] counts the items of frame f answered without a
-  /// search, kept ones included. `clearance` >= 0 in scene units; cleared F (may be null).
+  /// caller vouches came from an earlier call on the same poses that answered them: with a
+  /// clearance >= this one, their points unchanged since (e.g. a recount after resolveBlock(),
+  /// which does not move them), or with a `reach` and clearance - reach >= this one, their
+  /// points moved less than that reach since. cleared[f] counts the items of frame f answered
+  /// without a search, kept ones included. `clearance` >= 0 in scene units; cleared F (may be
+  /// null).
+  ///
+  /// `reach` >= 0 (scene units): a point is answered only when its answer also holds for every
+  /// point within `reach` of it: at signed distance >= clearance - reach, with the same verdicts
+  /// from the same witness, for offsets <= clearance - reach (the walk checks every triangle
+  /// within U + 2 reach of the point instead of U: those hold the closest triangle of any point
+  /// within reach, and the features its pseudo-normal is made of). So a caller may keep the
+  /// answer of a point that has since moved less than `reach` (StrainLimitBackend's `stayed`
+  /// marks). A distance bound alone would not do: where the driver is open or limbs cross, a
+  /// point can change sides without coming near the surface.
   /// This default searches every point.
   virtual void closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
                                    float /*clearance*/, DeviceArray& hits, int* cleared,
-                                   DeviceArray* answered = nullptr, bool /*keep*/ = false) {
+                                   DeviceArray* answered = nullptr, bool /*keep*/ = false,
+                                   float /*reach*/ = 0.0f) {
     closestBlock(frameCount, poses, points, hits);
     if (cleared != nullptr) {
       std::fill(cleared, cleared + frameCount, 0);
@@ -227,10 +243,10 @@ class ClosestBackend {
   /// skinPlanes() on arrays; `planes` is sized by the caller (F x Vd x 4 floats).
   virtual void skinPlanesBlock(int frameCount, DeviceArray& poses, DeviceArray& hits,
                                DeviceArray* answered, DeviceArray& points, float offset,
-                               float depth, DeviceArray& planes) {
+                               float depth, float reach, DeviceArray& planes) {
     skinPlanes(frameCount, poses.read<float>(), hits.read<SurfaceHit>(),
                answered != nullptr ? answered->read<std::int32_t>() : nullptr, points.read<float>(),
-               offset, depth, planes.write<float>());
+               offset, depth, reach, planes.write<float>());
   }
 };
 

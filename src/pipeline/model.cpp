@@ -294,7 +294,7 @@ double coverageTolerance(const Model& model) {
 }
 
 bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
-                  float clearance, bool keep) {
+                  float clearance, bool keep, float reach) {
   const int count = batch.count();
   const std::size_t items = static_cast<std::size_t>(count) * model.vd;
   // The certificate proves points outside by the clearance: it is used only when every driven
@@ -312,7 +312,7 @@ bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& c
   counts.assign(static_cast<std::size_t>(count), 0);
   if (certify) {
     model.unmaskedClosest().closestOrClearBlock(count, poses, cloth, clearance, hits, counts.data(),
-                                                &answered, keep);
+                                                &answered, keep, reach);
   } else {
     model.unmaskedClosest().closestBlock(count, poses, cloth, hits);
   }

@@ -405,12 +405,13 @@ void hashBatch(const HashInput& in, Hasher& h) {
 }
 /// Off, the strain limit leaves the hash of the bakes before it. On with the resolution, the
 /// limit keeps the cloth in front of its skin planes (src/pipeline/stages/strain_limit.cpp): a
-/// mark of that method, so that no bake of the limit before it is taken for one now.
+/// mark of that method, so that no bake of the limit before it is taken for one now (2: the planes
+/// reach 2 skin offsets, where 1 gave them to every vertex the certificate searched).
 void hashStrainLimit(const HashInput& in, Hasher& h) {
   if (in.model.settings.strainLimit > 0) {
     h.addValue(in.model.settings.strainLimit);
     if (in.model.settings.resolve) {
-      constexpr std::int32_t kSkinPlanes = 1;
+      constexpr std::int32_t kSkinPlanes = 2;
       h.addValue(kSkinPlanes);
     }
   }

@@ -350,11 +350,13 @@ double coverageTolerance(const Model& model);
 /// the settings turn the certificate off or some vertex lives inside, Model::sides); the records
 /// count the queries and those answered without a search. With `keep`, the points the previous call
 /// answered without a search keep their hits: only for the same poses, a clearance no larger, and
-/// points that did not move since (the resolution does not move them). Returns whether the
-/// certificate ran, i.e. whether batch.auditAnswered marks the points answered without a search.
+/// points that did not move since (the resolution does not move them), or that moved less than
+/// the `reach` of the call that answered them, whose clearance less that reach is no smaller
+/// (ClosestBackend::closestOrClearBlock). Returns whether the certificate ran, i.e. whether
+/// batch.auditAnswered marks the points answered without a search.
 ///   poses count x 3Vp, cloth count x 3Vd
 bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
-                  float clearance, bool keep = false);
+                  float clearance, bool keep = false, float reach = 0.0f);
 
 /// Counts how many cloth points of each frame of the batch are on the wrong side of the
 /// driver's skin (inside, for cloth; Model::sides), from auditClosest() with `clearance` and `keep`

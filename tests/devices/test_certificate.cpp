@@ -36,9 +36,10 @@ namespace {
 
 constexpr float kSkinOffset = 0.002f;
 
-/// closestOrClearBlock of every frame of `scene` (surface already set).
+/// closestOrClearBlock of every frame of `scene` (surface already set), with `reach`.
 std::vector<SurfaceHit> certifiedHits(ClosestBackend& backend, const PosedScene& scene,
-                                      float clearance, std::vector<int>& cleared) {
+                                      float clearance, std::vector<int>& cleared,
+                                      float reach = 0.0f) {
   DeviceArray poses;
   DeviceArray points;
   DeviceArray hits;
@@ -47,7 +48,8 @@ std::vector<SurfaceHit> certifiedHits(ClosestBackend& backend, const PosedScene&
   const std::size_t items = static_cast<std::size_t>(scene.frameCount) * scene.pointCount;
   hits.resize<SurfaceHit>(items);
   cleared.assign(static_cast<std::size_t>(scene.frameCount), -1);
-  backend.closestOrClearBlock(scene.frameCount, poses, points, clearance, hits, cleared.data());
+  backend.closestOrClearBlock(scene.frameCount, poses, points, clearance, hits, cleared.data(),
+                              nullptr, false, reach);
   const SurfaceHit* out = hits.read<SurfaceHit>();
   return std::vector<SurfaceHit>(out, out + items);
 }
@@ -372,6 +374,105 @@ TEST_F(CorrectionClTest, CertificateInFloatArithmeticAndWithAMask) {
     const std::vector<SurfaceHit> certified = certifiedHits(*backend, scene, kSkinOffset, cleared);
     EXPECT_EQ(cleared, std::vector<int>(static_cast<std::size_t>(scene.frameCount), 0));
     EXPECT_EQ(std::memcmp(certified.data(), exact.data(), exact.size() * sizeof(SurfaceHit)), 0);
+  }
+}
+
+/// `scene` with every point moved by `distance` in a random direction of its own.
+PosedScene movedPoints(const PosedScene& scene, double distance, std::uint32_t seed) {
+  PosedScene moved = scene;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (std::size_t k = 0; k < moved.points.size(); k += 3) {
+    const Eigen::Vector3d way = Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized();
+    for (int a = 0; a < 3; ++a) {
+      moved.points[k + static_cast<std::size_t>(a)] += static_cast<float>(distance * way[a]);
+    }
+  }
+  return moved;
+}
+
+/// A floor facing +z (z = 0, x and y in [-10, 10]) and a wall at x = 8 facing +x, away from the
+/// point (0, 0, 6): that point is 6 in front of the floor, and 8 behind the wall. Moved 3.9
+/// along +x it is 4.1 behind the wall and nearest to it: inside, by the pseudo-normal's sign (an
+/// open driver, as where limbs cross), without coming nearer than 4.1 to the surface.
+PosedScene floorAndWallBehind() {
+  const std::vector<float> xyz = {-10, -10, 0,  10, -10, 0,  10, 10, 0,  -10, 10,  0,
+                                  8,   -10, -1, 8,  10,  -1, 8,  10, 10, 8,   -10, 10};
+  PosedScene scene;
+  scene.mesh = makeMesh(xyz, {{0, 1, 2, 3}, {4, 5, 6, 7}});
+  scene.frameCount = 1;
+  scene.poses = xyz;
+  scene.pointCount = 1;
+  scene.points = {0.0f, 0.0f, 6.0f};
+  return scene;
+}
+
+TEST_F(CorrectionClTest, CertificateWithAReachHoldsWherePointsMoveWithinIt) {
+  // An answer given with a reach r must hold for the point anywhere within r of where it was
+  // answered: at clearance - r, with the same verdicts from its witness as from the exact hit of
+  // the moved point (the strain limit's resolution keeps such answers). Without the reach, a
+  // distance bound alone would not do: on the floor-and-wall scene the point is answered, yet
+  // moved 3.9 it is inside.
+  const float kClearance = 5.0f;
+  const float kReach = 3.9f;
+  const PosedScene wall = floorAndWallBehind();
+  const PosedScene wallMoved = [&] {
+    PosedScene moved = wall;
+    moved.points[0] += kReach;
+    return moved;
+  }();
+  for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+    SCOPED_TRACE(backend->name());
+    backend->setSurface(wall.mesh, BindingMask::all(1));
+    std::vector<int> cleared;
+    certifiedHits(*backend, wall, kClearance, cleared);
+    EXPECT_EQ(cleared[0], 1) << "without a reach the point is answered";
+    EXPECT_EQ(insideCounts(*backend, wallMoved,
+                           closestHits(*backend, wall.mesh, BindingMask::all(1), 1,
+                                       wallMoved.poses.data(), wallMoved.points.data()))[0],
+              1)
+        << "moved, the point is inside";
+    certifiedHits(*backend, wall, kClearance, cleared, kReach);
+    EXPECT_EQ(cleared[0], 0) << "with the reach the wall is within the walk";
+  }
+
+  // The sleeve (2 mm offset, answers at 5 offsets kept within 4) and the crossing tubes: every
+  // point moved by just under the reach in its own random direction.
+  struct Case {
+    const char* name;
+    PosedScene scene;
+    float clearance;
+    float reach;
+  };
+  const Case cases[] = {
+      {"sleeve", sleeveScene(8), 5 * kSkinOffset, 4 * kSkinOffset * 0.999f},
+      {"crossing tubes", crossingTubes(21, testSeed()), 5 * kSkinOffset, 4 * kSkinOffset * 0.999f}};
+  for (const Case& c : cases) {
+    const BindingMask all = BindingMask::all(c.scene.pointCount);
+    const PosedScene moved = movedPoints(c.scene, c.reach, testSeed());
+    for (ClosestBackend* backend : {hostBackend(), clBackend()}) {
+      SCOPED_TRACE(std::string(c.name) + ", " + backend->name());
+      backend->setSurface(c.scene.mesh, all);
+      std::vector<int> cleared;
+      const std::vector<SurfaceHit> answered =
+          certifiedHits(*backend, c.scene, c.clearance, cleared, c.reach);
+      const std::vector<SurfaceHit> exact = closestHits(*backend, moved.mesh, all, moved.frameCount,
+                                                        moved.poses.data(), moved.points.data());
+      // The moved points keep the witnesses of those answered; the others take their exact hits.
+      std::vector<SurfaceHit> kept = exact;
+      for (std::size_t k = 0; k < kept.size(); ++k) {
+        if (answered[k].u == DS_CERT_THIRD && answered[k].v == DS_CERT_THIRD) {
+          kept[k] = answered[k];
+        }
+      }
+      backend->setSurface(c.scene.mesh, all);
+      const Outcome outcome =
+          expectVerdicts(*backend, moved, c.clearance - c.reach, exact, kept, cleared);
+      report((std::string(c.name) + " moved within the reach, " + backend->name()).c_str(),
+             outcome);
+      // Enough witnesses to check (tight cloth: a quarter of the sleeve is 1 cm clear).
+      EXPECT_GT(outcome.cleared, outcome.queries / 5) << "the reach still answers points";
+    }
   }
 }
 

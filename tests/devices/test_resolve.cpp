@@ -26,6 +26,8 @@ namespace drivenshape::testing {
 namespace {
 
 constexpr float kOffset = 0.1f;
+/// How far outside the skin the skin planes reach (SkinPlanesPassThrough... below).
+constexpr float kPlaneReach = 0.3f;
 
 /// Signed distance from p to the surface of the axis-aligned cube [c - 1, c + 1]^3 (negative
 /// inside), in closed form.
@@ -63,13 +65,13 @@ Eigen::Vector3d cubeResolved(const float* p, const Eigen::Vector3d& centre, doub
 }
 
 /// Whether p is clear (by 1e-3) of where the closed forms above change case: the surface, the
-/// offset surfaces outside and under the skin, the planes through the cube's edges (outside)
-/// and the cube's medial axis (inside, where two faces are equally near).
+/// offset surfaces outside and under the skin, the reach of the skin planes, the planes through the
+/// cube's edges (outside) and the cube's medial axis (inside, where two faces are equally near).
 bool clearOfFeatures(const float* p, const Eigen::Vector3d& centre) {
   constexpr double kClear = 1e-3;
   const double d = cubeSignedDistance(p, centre);
   if (std::fabs(d) <= kClear || std::fabs(d - kOffset) <= kClear ||
-      std::fabs(d + kOffset) <= kClear) {
+      std::fabs(d + kOffset) <= kClear || std::fabs(d - kPlaneReach) <= kClear) {
     return false;
   }
   const Eigen::Vector3d r = (Eigen::Vector3d(p[0], p[1], p[2]) - centre).cwiseAbs();
@@ -643,7 +645,8 @@ TEST_F(CorrectionClTest, ExitFadeMakesTheMoveContinuousAcrossTheMiddleOfALimb) {
 // its side of the skin, or less than `depth` inside, gets the plane through the point the
 // resolution would move it to, with the resolution's direction as its normal; one between
 // `depth` and 1.5 `depth` inside the same plane sunk by depth (1 - w) / w; a deeper one, one
-// that lives inside and one marked answered without a search get none.
+// `reach` or farther outside, one that lives inside and one marked answered without a search get
+// none.
 TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoint) {
   const CubeScene scene = makeCubeScene();
   const int vd = scene.pointCount;
@@ -666,11 +669,12 @@ TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoi
     backend->setSides(sides);
     std::vector<float> planes(4 * hits.size(), -1.0f);
     backend->skinPlanes(scene.frameCount, scene.poses.data(), hits.data(), answered.data(),
-                        scene.points.data(), kOffset, kDepth, planes.data());
+                        scene.points.data(), kOffset, kDepth, kPlaneReach, planes.data());
     backend->setSides({});
     int wrong = 0;
     int withPlane = 0;
     int sunk = 0;
+    int beyond = 0;
     for (int f = 0; f < scene.frameCount; ++f) {
       for (int i = 0; i < vd; ++i) {
         const std::size_t k = static_cast<std::size_t>(f) * vd + i;
@@ -678,9 +682,10 @@ TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoi
         const float* plane = &planes[4 * k];
         const Eigen::Vector3d m(plane[0], plane[1], plane[2]);
         const double s = cubeSignedDistance(p, scene.centres[static_cast<std::size_t>(f)]);
+        beyond += s >= kPlaneReach ? 1 : 0;
         const bool expected = answered[k] == 0 &&
                               sides[static_cast<std::size_t>(i)] == kSideOutside &&
-                              s > -1.5 * kDepth;
+                              s > -1.5 * kDepth && s < kPlaneReach;
         bool ok;
         if (expected) {
           ++withPlane;
@@ -709,6 +714,7 @@ TEST_F(CorrectionClTest, SkinPlanesPassThroughWhereTheResolutionWouldMoveEachPoi
     EXPECT_GT(withPlane, vd / 2);
     EXPECT_LT(withPlane, 2 * vd - vd / 4);
     EXPECT_GT(sunk, 20) << "points between depth and 1.5 depth";
+    EXPECT_GT(beyond, 100) << "points beyond the planes' reach";
     results.push_back(planes);
   }
   double difference = 0.0;

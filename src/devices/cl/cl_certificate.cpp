@@ -14,14 +14,15 @@ namespace drivenshape {
 
 void ClClosest::closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
                                     float clearance, DeviceArray& hits, int* cleared,
-                                    DeviceArray* answered, bool keep) {
+                                    DeviceArray* answered, bool keep, float reach) {
   if (!mUseBvh || !mCertifiable) {
     ClosestBackend::closestOrClearBlock(frameCount, poses, points, clearance, hits, cleared,
-                                        answered, keep);
+                                        answered, keep, reach);
     return;
   }
   mSearch.checkChunk("closest triangle", frameCount, true);
   correction::checkOffset(clearance);
+  correction::checkOffset(reach);
   const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
   checkInputs("closest triangle", frameCount, &poses, &points, nullptr, 0);
   const bool kept = keep && answered != nullptr;
@@ -33,7 +34,7 @@ void ClClosest::closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceAr
       marks = &outputOnDevice(*answered, mViewAnswered, items * sizeof(std::int32_t), kept);
     }
     clearOrSearch(frameCount, onDevice(poses, mViewPoses), onDevice(points, mViewPoints), clearance,
-                  out, marks, kept, counts.data());
+                  reach, out, marks, kept, counts.data());
     finishOutput(out, mViewHits);
     if (marks != nullptr) {
       finishOutput(*marks, mViewAnswered);
@@ -71,8 +72,8 @@ cl::Buffer& ClClosest::refitCones(int frameCount, DeviceArray& poses, const cl::
 /// boxes and cones of every frame, the check of every point, then one BVH search over the
 /// points left. `answered` (F x Vd, or null: scratch) as for closestOrClearBlock; cleared F.
 void ClClosest::clearOrSearch(int frameCount, DeviceArray& poses, DeviceArray& points,
-                              float clearance, DeviceArray& hits, DeviceArray* answered, bool keep,
-                              int* cleared) {
+                              float clearance, float reach, DeviceArray& hits,
+                              DeviceArray* answered, bool keep, int* cleared) {
   const int pointCount = mSearch.pointCount();
   const std::size_t items = static_cast<std::size_t>(frameCount) * pointCount;
   const DsBvhQueryParams query = queryParams(frameCount);
@@ -84,6 +85,7 @@ void ClClosest::clearOrSearch(int frameCount, DeviceArray& poses, DeviceArray& p
   params.nodeCount = query.nodeCount;
   params.keep = keep ? 1 : 0;
   params.clearance = clearance;
+  params.reach = reach;
   params.margin = static_cast<float>((mDouble ? DS_CERT_MARGIN_DOUBLE : DS_CERT_MARGIN_SINGLE) *
                                      mSearch.sceneScale());
   int searchCount = 0;

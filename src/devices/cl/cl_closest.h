@@ -59,7 +59,7 @@ class ClClosest final : public ClosestBackend {
 
   void skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
                   const std::int32_t* answered, const float* points, float offset, float depth,
-                  float* planes) override;
+                  float reach, float* planes) override;
 
   void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override;
@@ -68,8 +68,8 @@ class ClClosest final : public ClosestBackend {
                     DeviceArray& hits) override;
 
   void closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points, float clearance,
-                           DeviceArray& hits, int* cleared, DeviceArray* answered,
-                           bool keep) override;
+                           DeviceArray& hits, int* cleared, DeviceArray* answered, bool keep,
+                           float reach) override;
 
   void transferBlock(int frameCount, DeviceArray& hits, DeviceArray& fromPoses,
                      DeviceArray& toPoses, DeviceArray& points, DeviceArray& out) override;
@@ -81,7 +81,7 @@ class ClClosest final : public ClosestBackend {
                     DeviceArray& points, int* moved) override;
 
   void skinPlanesBlock(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray* answered,
-                       DeviceArray& points, float offset, float depth,
+                       DeviceArray& points, float offset, float depth, float reach,
                        DeviceArray& planes) override;
 
  private:
@@ -155,7 +155,8 @@ class ClClosest final : public ClosestBackend {
   /// boxes and cones of every frame, the check of every point, then one BVH search over the
   /// points left. `answered` (F x Vd, or null: scratch) as for closestOrClearBlock; cleared F.
   void clearOrSearch(int frameCount, DeviceArray& poses, DeviceArray& points, float clearance,
-                     DeviceArray& hits, DeviceArray* answered, bool keep, int* cleared);
+                     float reach, DeviceArray& hits, DeviceArray* answered, bool keep,
+                     int* cleared);
 
   // kernels/resolve.cl (cl_resolve.cpp).
   void resolveOnDevice(int frameCount, DeviceArray& poses, DeviceArray& hits, float offset,
@@ -168,7 +169,7 @@ class ClClosest final : public ClosestBackend {
   /// dsSkinPlanes over every point of `frameCount` frames (arrays of this context or views).
   void skinPlanesOnDevice(int frameCount, DeviceArray& poses, DeviceArray& hits,
                           DeviceArray* answered, DeviceArray& points, float offset, float depth,
-                          DeviceArray& planes);
+                          float reach, DeviceArray& planes);
 
   /// Runs dsResolve or dsCountInside (same first arguments, the side table included; dsResolve's
   /// BVH arguments are set by the caller) over every point of `frameCount` frames and reads back

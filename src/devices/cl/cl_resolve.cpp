@@ -36,7 +36,7 @@ void ClClosest::resolveBlock(int frameCount, DeviceArray& poses, DeviceArray& hi
 
 void ClClosest::skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
                            const std::int32_t* answered, const float* points, float offset,
-                           float depth, float* planes) {
+                           float depth, float reach, float* planes) {
   correction::checkResolve(mSearch, frameCount, poses, hits, offset, points);
   const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
   mViewPoses.view(poses, static_cast<std::size_t>(frameCount) * poseValues());
@@ -47,30 +47,32 @@ void ClClosest::skinPlanes(int frameCount, const float* poses, const SurfaceHit*
   }
   mViewOut.view(planes, items * 4);
   correction::checkOffset(depth);
+  correction::checkOffset(reach);
   skinPlanesOnDevice(frameCount, mViewPoses, mViewHits,
                      answered != nullptr ? &mViewAnswered : nullptr, mViewPoints, offset, depth,
-                     mViewOut);
+                     reach, mViewOut);
   mViewOut.read<float>();
 }
 
 void ClClosest::skinPlanesBlock(int frameCount, DeviceArray& poses, DeviceArray& hits,
                                 DeviceArray* answered, DeviceArray& points, float offset,
-                                float depth, DeviceArray& planes) {
+                                float depth, float reach, DeviceArray& planes) {
   mSearch.checkChunk("skin planes", frameCount, true);
   const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
   correction::checkOffset(offset);
   correction::checkOffset(depth);
+  correction::checkOffset(reach);
   checkInputs("skin planes", frameCount, &poses, &points, &hits, items);
   DeviceArray& out = outputOnDevice(planes, mViewOut, items * 4 * sizeof(float), false);
   skinPlanesOnDevice(frameCount, onDevice(poses, mViewPoses), onDevice(hits, mViewHits),
                      answered != nullptr ? &onDevice(*answered, mViewAnswered) : nullptr,
-                     onDevice(points, mViewPoints), offset, depth, out);
+                     onDevice(points, mViewPoints), offset, depth, reach, out);
   finishOutput(out, mViewOut);
 }
 
 void ClClosest::skinPlanesOnDevice(int frameCount, DeviceArray& poses, DeviceArray& hits,
                                    DeviceArray* answered, DeviceArray& points, float offset,
-                                   float depth, DeviceArray& planes) {
+                                   float depth, float reach, DeviceArray& planes) {
   const std::size_t items = static_cast<std::size_t>(frameCount) * mSearch.pointCount();
   if (items == 0) {
     return;
@@ -78,6 +80,7 @@ void ClClosest::skinPlanesOnDevice(int frameCount, DeviceArray& poses, DeviceArr
   DsResolveParams params = signedParams(frameCount, offset);
   params.depth = depth;
   params.answered = answered != nullptr ? 1 : 0;
+  params.reach = reach;
   cl_util::guard("running the skin-plane kernel", [&] {
     const cl::Buffer& posesBuffer = cl_util::readBuffer(poses);
     const cl::Buffer& hitBuffer = cl_util::readBuffer(hits);

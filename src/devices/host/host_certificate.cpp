@@ -214,7 +214,8 @@ struct CertWalk {
   const std::vector<float>& boxes;    ///< N x 6
   const std::vector<DsCertCone>& cones;
   double margin;
-  double target;  ///< clearance + margin
+  double target;       ///< clearance + margin
+  double reachMargin;  ///< margin + 2 reach: the limit's margin (the answer holds within reach)
 
   Eigen::Vector3d corner(int t, int k) const {
     return loadPoint(pose,
@@ -309,11 +310,11 @@ int openChildren(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& i
 /// lower the bound and move the witness.
 bool walkClears(const CertWalk& w, const Eigen::Vector3d& p, double& core2, int& witness,
                 std::vector<std::pair<int, double>>& stack) {
-  double limit = std::sqrt(core2) + w.margin;
+  double limit = std::sqrt(core2) + w.reachMargin;
   double distance = 0.0;
   bool pass = true;
-  int node = openNode(p, w.boxes.data(), w.cones[0], w.nodeTriangles[0], w.target, w.margin, limit,
-                      core2, witness, distance)
+  int node = openNode(p, w.boxes.data(), w.cones[0], w.nodeTriangles[0], w.target, w.reachMargin,
+                      limit, core2, witness, distance)
                  ? 0
                  : -1;
   stack.clear();
@@ -385,8 +386,8 @@ void HostCertificate::remember(const SurfaceHit* lastFrame) {
 }
 
 void HostCertificate::clear(int frameCount, const float* poses, const float* points,
-                            float clearance, SurfaceHit* hits, std::uint8_t* active, int* cleared,
-                            int threads) {
+                            float clearance, float reach, SurfaceHit* hits, std::uint8_t* active,
+                            int* cleared, int threads) {
   const std::size_t items = static_cast<std::size_t>(frameCount) * mPointCount;
   if (!mEnabled || items == 0) {
     return;
@@ -398,13 +399,15 @@ void HostCertificate::clear(int frameCount, const float* poses, const float* poi
   // The kernel's parameters are floats.
   const double margin = static_cast<double>(static_cast<float>(mMargin));
   const double target = static_cast<double>(clearance) + margin;
+  const double reachMargin = margin + 2.0 * static_cast<double>(reach);
   parallelFor(frameCount, threads, [&](int f) {
     const float* pose = poses + static_cast<std::size_t>(f) * poseValues;
     std::vector<float> boxes;
     std::vector<DsCertCone> cones;
     refit(mBvh, pose, boxes, cones);
-    const CertWalk walk{mBvh,  mTriangles.data(), mNodeTriangles.data(), pose, boxes, cones, margin,
-                        target};
+    const CertWalk walk{
+        mBvh,   mTriangles.data(), mNodeTriangles.data(), pose, boxes, cones, margin,
+        target, reachMargin};
     std::vector<std::pair<int, double>> stack;
     int count = 0;
     for (int i = 0; i < mPointCount; ++i) {
@@ -431,9 +434,10 @@ namespace drivenshape {
 
 void HostClosest::closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points,
                                       float clearance, DeviceArray& hits, int* cleared,
-                                      DeviceArray* answered, bool keep) {
+                                      DeviceArray* answered, bool keep, float reach) {
   mSearch.checkChunk("closest triangle", frameCount, true);
   correction::checkOffset(clearance);
+  correction::checkOffset(reach);
   const float* posesIn = poses.read<float>();
   const float* pointsIn = points.read<float>();
   correction::checkFinite("closest triangle", "driver vertex", frameCount, mSearch.vertexCount(),
@@ -455,8 +459,8 @@ void HostClosest::closestOrClearBlock(int frameCount, DeviceArray& poses, Device
       }
     }
   }
-  mCertificate.clear(frameCount, posesIn, pointsIn, clearance, out, mActive.data(), mCleared.data(),
-                     mSearch.threads());
+  mCertificate.clear(frameCount, posesIn, pointsIn, clearance, reach, out, mActive.data(),
+                     mCleared.data(), mSearch.threads());
   if (cleared != nullptr) {
     std::copy(mCleared.begin(), mCleared.end(), cleared);
   }

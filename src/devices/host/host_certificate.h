@@ -23,11 +23,13 @@ class HostCertificate {
   void setSurface(const Mesh& driver, const BindingMask& mask, double sceneScale);
 
   /// Clears what it can of a chunk's items k = f * Vd + i with active[k] != 0: when point i
-  /// of frame f is proven at signed distance >= clearance, active[k] becomes 0, hits[k] a
-  /// witness and cleared[f] grows by one; other items are left as they are. The first call
+  /// of frame f is proven at signed distance >= clearance, and every point within `reach` of it
+  /// at signed distance >= clearance - reach with the same witness
+  /// (ClosestBackend::closestOrClearBlock), active[k] becomes 0, hits[k] a witness and cleared[f]
+  /// grows by one; other items are left as they are. The first call
   /// takes its seeds from the first frame (seedTriangles); later ones from remember().
   ///   poses F x 3Vp;  points F x 3Vd;  hits, active F x Vd;  cleared F
-  void clear(int frameCount, const float* poses, const float* points, float clearance,
+  void clear(int frameCount, const float* poses, const float* points, float clearance, float reach,
              SurfaceHit* hits, std::uint8_t* active, int* cleared, int threads);
 
   /// The seeds of the next call: the hits of a chunk's last frame (Vd).

@@ -44,8 +44,8 @@ class HostClosest final : public ClosestBackend {
   void closest(int frameCount, const float* poses, const float* points, SurfaceHit* hits) override;
 
   void closestOrClearBlock(int frameCount, DeviceArray& poses, DeviceArray& points, float clearance,
-                           DeviceArray& hits, int* cleared, DeviceArray* answered,
-                           bool keep) override;
+                           DeviceArray& hits, int* cleared, DeviceArray* answered, bool keep,
+                           float reach) override;
 
   void transfer(int frameCount, const SurfaceHit* hits, const float* fromPoses,
                 const float* toPoses, const float* points, float* out) override;
@@ -58,7 +58,7 @@ class HostClosest final : public ClosestBackend {
 
   void skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
                   const std::int32_t* answered, const float* points, float offset, float depth,
-                  float* planes) override;
+                  float reach, float* planes) override;
 
   void countInside(int frameCount, DeviceArray& poses, DeviceArray& hits, DeviceArray& points,
                    int* inside) override;

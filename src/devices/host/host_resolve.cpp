@@ -97,9 +97,10 @@ void HostClosest::resolve(int frameCount, const float* poses, const SurfaceHit* 
 
 void HostClosest::skinPlanes(int frameCount, const float* poses, const SurfaceHit* hits,
                              const std::int32_t* answered, const float* points, float offset,
-                             float depth, float* planes) {
+                             float depth, float reach, float* planes) {
   correction::checkResolve(mSearch, frameCount, poses, hits, offset, points);
   correction::checkOffset(depth);
+  correction::checkOffset(reach);
   const int pointCount = mSearch.pointCount();
   const std::size_t poseStride = 3 * static_cast<std::size_t>(mSearch.vertexCount());
   const std::int32_t* triangles = mSearch.triangles().data();
@@ -117,7 +118,7 @@ void HostClosest::skinPlanes(int frameCount, const float* poses, const SurfaceHi
       const SkinPoint at = skinPoint(pose, triangles, features, hits[item], points, item);
       const double s = at.signedDistance;
       const double full = depth;  // the depth of the full plane
-      if (!(at.length > 0.0) || !(s > -1.5 * full)) {
+      if (!(at.length > 0.0) || !(s > -1.5 * full) || !(s < static_cast<double>(reach))) {
         continue;
       }
       const double w = s < -full ? (1.5 * full + s) / (0.5 * full) : 1.0;

@@ -37,12 +37,16 @@ constexpr double kStrainRelaxation = 1.5;
 constexpr double kChebyshevRadius = 0.98;
 constexpr int kChebyshevFrom = 5;
 
-/// The skin planes' reach, in skin offsets (EvaluatorSettings::skinOffset): a vertex proven
-/// farther than this from the skin before the limit gets no plane (the clearance certificate
-/// answers it without a search). 5 offsets, 1 cm at the default offset: the limit at a 1% band
-/// moves few vertices farther than that towards the body, and the same validation runs with
-/// 1 and 3 cm gave the same bakes on the sleeve's travel clip.
-constexpr double kPlaneReach = 5.0;
+/// The skin planes' reach, in skin offsets (EvaluatorSettings::skinOffset): a vertex at this
+/// signed distance from the skin or farther before the limit gets no plane (the clearance
+/// certificate answers most of them without a search; the planes do not depend on which). 2
+/// offsets, 4 mm at the default offset: the validation clips met the same bars with 2, 3 and 5
+/// (docs/validation.md, "Strain"), and fewer vertices to search make the limit cheaper.
+constexpr double kPlaneReach = 2.0;
+
+/// How far a vertex may move in the limit, in skin offsets, and keep the answer the certificate
+/// gave it before (ResolveStage): kPlaneReach - 1 leaves it at least an offset clear.
+constexpr double kKeptReach = kPlaneReach - 1.0;
 
 /// How deep inside the body, in skin offsets, a vertex still gets its full plane (and so comes out
 /// within the limit); deeper, the plane sinks away until there is none at 1.5 times this
@@ -98,18 +102,21 @@ class StrainLimitStage final : public Stage {
     const int count = batch.count();
     const float offset = static_cast<float>(mModel.settings.skinOffset);
     DeviceArray& shot = batch.in<Array::Shot>();
-    const bool answered = auditClosest(mModel, batch, shot, cloth, kPlaneReach * offset);
+    // A point the certificate answers here at kPlaneReach offsets, for every point within
+    // kKeptReach offsets of it, is still an offset clear, on its side, after the limit moved it
+    // less than that: the resolution keeps its answer (ResolveStage). The limit's marks take a
+    // reach a little shorter, for the device's float arithmetic of the distance moved.
+    const float reach = static_cast<float>(kKeptReach * offset);
+    const float clearance = static_cast<float>(kPlaneReach * offset);
+    const bool answered =
+        auditClosest(mModel, batch, shot, cloth, clearance, /*keep=*/false, reach);
     DeviceArray* marks = answered ? &batch.out<Array::AuditAnswered>() : nullptr;
     DeviceArray& planes = batch.out<Array::SkinPlanes>();
     planes.resize<float>(static_cast<std::size_t>(count) * mModel.vd * 4);
-    mModel.unmaskedClosest().skinPlanesBlock(count, shot, batch.out<Array::AuditHits>(), marks,
-                                             cloth, offset,
-                                             static_cast<float>(kPlaneDepth * offset), planes);
-    // A point the certificate proved kPlaneReach offsets clear that moves less than
-    // kPlaneReach - 1 offsets is still an offset clear: the resolution keeps its answer
-    // (ResolveStage). The margin covers the device's float arithmetic of the distance moved.
-    const float keptReach = static_cast<float>((kPlaneReach - 1.0) * offset * (1.0 - 1e-4));
-    mBackend->limitBlock(count, cloth, &planes, marks, keptReach);
+    mModel.unmaskedClosest().skinPlanesBlock(
+        count, shot, batch.out<Array::AuditHits>(), marks, cloth, offset,
+        static_cast<float>(kPlaneDepth * offset), clearance, planes);
+    mBackend->limitBlock(count, cloth, &planes, marks, reach * (1.0f - 1e-4f));
   }
 
  private:
