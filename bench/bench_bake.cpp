@@ -64,8 +64,8 @@ double peakRssMiB() {
 }
 
 /// The evaluator's stages in the columns of the table (stages that did not run show 0).
-const char* const kStages[] = {"align",  "project", "weights", "blend", "correct",
-                               "strain", "resolve", "layers",  "audit"};
+const char* const kStages[] = {"align",  "project", "weights", "blend",  "correct",
+                               "strain", "resolve", "settle",  "layers", "audit"};
 
 /// The closest-point queries of the resolution and the audit over the bake, and the fraction
 /// the clearance certificate answered without a search (0 when there were none).
@@ -117,9 +117,9 @@ nlohmann::json transfersPerBatch(const std::string& name, const ds::TransferCoun
 }
 
 void printHeader() {
-  std::printf("%-24s %6s %6s %6s %6s %6s %7s %6s %7s %6s %6s %6s %6s %6s %8s %9s %7s %8s\n",
+  std::printf("%-24s %6s %6s %6s %6s %6s %7s %6s %7s %6s %6s %6s %6s %6s %6s %8s %9s %7s %8s\n",
               "path (s per stage)", "read", "align", "proj", "QP", "blend", "correct", "strain",
-              "resolve", "layers", "audit", "write", "wait", "setup", "total", "frames/s",
+              "resolve", "settle", "layers", "audit", "write", "wait", "setup", "total", "frames/s",
               "RSS MiB", "cleared");
 }
 
@@ -133,12 +133,13 @@ void printRow(const std::string& name, const ds::BakeResult& r, double rssMiB) {
   }
   std::printf(
       "%-24s %6.3f %6.3f %6.3f %6.3f %6.3f %7.3f %6.3f %7.3f %6.3f %6.3f %6.3f %6.3f %6.3f "
-      "%8.3f %9.1f %7.0f %8s\n",
+      "%6.3f %8.3f %9.1f %7.0f %8s\n",
       name.substr(0, 24).c_str(), r.times.read, r.times.stage("align"), r.times.stage("project"),
       r.times.stage("weights"), r.times.stage("blend"), r.times.stage("correct"),
-      r.times.stage("strain"), r.times.stage("resolve"), r.times.stage("layers"),
-      r.times.stage("audit"), r.times.write, r.times.readWait + r.times.writeWait, r.times.setup,
-      r.times.total, r.baked / r.times.total, rssMiB, cleared);
+      r.times.stage("strain"), r.times.stage("resolve"), r.times.stage("settle"),
+      r.times.stage("layers"), r.times.stage("audit"), r.times.write,
+      r.times.readWait + r.times.writeWait, r.times.setup, r.times.total, r.baked / r.times.total,
+      rssMiB, cleared);
 }
 
 /// Bakes `options` with the clearance certificate off into `folder`, prints its row and

@@ -25,6 +25,17 @@
 
 #pragma OPENCL FP_CONTRACT OFF
 
+// Moves (x, y, z) onto the plane (m, c) = plane when it lies behind it (m . x < c): to
+// x + (c - m . x) m. No plane when m is 0.
+inline void dsKeepInFront(float* x, float* y, float* z, const float4 plane) {
+  const float below = plane.w - (plane.x * *x + plane.y * *y + plane.z * *z);
+  if (below > 0.0f) {
+    *x += below * plane.x;
+    *y += below * plane.y;
+    *z += below * plane.z;
+  }
+}
+
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrainLimit(
     __global const float* in, __global float* out, __global const int* start,
     __global const int* other, __global const float* lower, __global const float* upper,
@@ -86,13 +97,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrai
     z = omega * (jz - oz) + oz;
   }
   if (params.planes != 0) {
-    const float4 plane = planes[(size_t)f * (size_t)params.vertexCount + (size_t)v];
-    const float below = plane.w - (plane.x * x + plane.y * y + plane.z * z);
-    if (below > 0.0f) {
-      x += below * plane.x;
-      y += below * plane.y;
-      z += below * plane.z;
-    }
+    dsKeepInFront(&x, &y, &z, planes[(size_t)f * (size_t)params.vertexCount + (size_t)v]);
   }
   out[at] = x;
   out[at + 1] = y;
@@ -123,4 +128,27 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrai
   const float dy = end[at + 1] - start[at + 1];
   const float dz = end[at + 2] - start[at + 2];
   stayed[item] = sqrt(dx * dx + dy * dy + dz * dz) < params.reach ? 1 : 0;
+}
+
+// The planes' step alone (contract: StrainLimitBackend::keepInFront; host reference:
+// HostStrainLimit::keepInFront): each vertex in front of its plane, as after an iteration of
+// dsStrainLimit. Same mapping as dsStrainLimit; `positions` updated in place.
+//
+//   positions   F x 3V floats
+//   planes      F x V float4
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrainInFront(
+    __global float* positions, __global const float4* planes, const DsStrainLimitParams params) {
+  const int v = (int)get_global_id(0);
+  const int f = (int)get_global_id(1);
+  if (v >= params.vertexCount || f >= params.frameCount) {
+    return;
+  }
+  const size_t at = (size_t)f * (size_t)(3 * params.vertexCount) + (size_t)(3 * v);
+  float x = positions[at];
+  float y = positions[at + 1];
+  float z = positions[at + 2];
+  dsKeepInFront(&x, &y, &z, planes[(size_t)f * (size_t)params.vertexCount + (size_t)v]);
+  positions[at] = x;
+  positions[at + 1] = y;
+  positions[at + 2] = z;
 }

@@ -154,6 +154,13 @@ void checkTables(const StrainLimitTables& t) {
   }
 }
 
+void checkInFront(int frameCount, int vertexCount) {
+  if (frameCount < 0 || vertexCount < 0) {
+    DS_THROW(kInternal, "StrainLimitBackend::keepInFront called with ", frameCount, " frames of ",
+             vertexCount, " vertices");
+  }
+}
+
 void checkCall(bool uploaded, int frameCount) {
   if (!uploaded) {
     DS_THROW(kInternal, "StrainLimitBackend::limit called before upload()");

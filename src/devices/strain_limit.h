@@ -118,6 +118,17 @@ class StrainLimitBackend {
           planes != nullptr ? planes->read<float>() : nullptr,
           stayed != nullptr ? stayed->modify<std::int32_t>() : nullptr, reach);
   }
+  /// The planes' step alone, with no iteration and no tables (no upload() needed): every vertex
+  /// of `frameCount` frames of `vertexCount` vertices in `positions` (F x 3V) behind its plane in
+  /// `planes` (F x 4V) moves onto it, as after an iteration of limit(); the others stay bitwise.
+  /// Throws Error(kInternal) for a negative count.
+  virtual void keepInFront(int frameCount, int vertexCount, float* positions,
+                           const float* planes) = 0;
+  /// keepInFront() on DeviceArrays; this default works on the host copies.
+  virtual void keepInFrontBlock(int frameCount, int vertexCount, DeviceArray& positions,
+                                DeviceArray& planes) {
+    keepInFront(frameCount, vertexCount, positions.modify<float>(), planes.read<float>());
+  }
 };
 
 /// The host reference (plain C++, double arithmetic, frames in parallel on `threads` host
@@ -130,6 +141,8 @@ namespace strain_limit_checks {
 void checkTables(const StrainLimitTables& tables);
 /// Throws Error(kInternal) for limit() before upload() or with a negative frame count.
 void checkCall(bool uploaded, int frameCount);
+/// Throws Error(kInternal) for keepInFront() with a negative frame or vertex count.
+void checkInFront(int frameCount, int vertexCount);
 
 }  // namespace strain_limit_checks
 

@@ -11,5 +11,6 @@ DS_STAGE(Correct)      // onto the shot's driver: rebuild or bind-and-transfer (
 DS_STAGE(BlendAudit)   // inside count of the world blend, before correction (blend_audit.cpp)
 DS_STAGE(StrainLimit)  // edges back into a band around their rest lengths (strain_limit.cpp)
 DS_STAGE(Resolve)      // cloth out of the body to the skin offset (resolve.cpp)
+DS_STAGE(Settle)       // with the strain limit: shallow cloth left inside just out (settle.cpp)
 DS_STAGE(Layers)       // mix with another cache, wind (layers.cpp)
 DS_STAGE(Audit)        // inside counts, binding switches, jumps (audit.cpp)

@@ -127,6 +127,14 @@ double largestBehind(const std::vector<float>& frames, const std::vector<float>&
   return largest;
 }
 
+/// A copy of `values` in an array of `device`.
+DeviceArray onDevice(Device& device, const std::vector<float>& values) {
+  DeviceArray array = device.makeArray();
+  array.resize<float>(values.size());
+  std::copy(values.begin(), values.end(), array.write<float>());
+  return array;
+}
+
 /// Every vertex of the rest mesh of the sleeve sample.
 Mesh sleeveRest() {
   return readObj(testing::dataDir() + "/sleeve/driven_rest.obj");
@@ -412,12 +420,8 @@ TEST_F(ClStrainLimit, MatchesTheHostWithPlanes) {
   EXPECT_LE(largestBehind(onHost, planes), 1e-6 * diagonal);
   EXPECT_LE(largestBehind(onCl, planes), 1e-6 * diagonal);
   // On arrays that live on the device: bitwise what the host-memory call gave.
-  DeviceArray block = clDevice->makeArray();
-  block.resize<float>(frames.size());
-  std::copy(frames.begin(), frames.end(), block.write<float>());
-  DeviceArray planeBlock = clDevice->makeArray();
-  planeBlock.resize<float>(planes.size());
-  std::copy(planes.begin(), planes.end(), planeBlock.write<float>());
+  DeviceArray block = onDevice(*clDevice, frames);
+  DeviceArray planeBlock = onDevice(*clDevice, planes);
   cl->limitBlock(4, block, &planeBlock, nullptr, 0.0f);
   EXPECT_TRUE(std::equal(onCl.begin(), onCl.end(), block.read<float>()));
 
@@ -457,6 +461,58 @@ TEST_F(ClStrainLimit, MatchesTheHostWithPlanes) {
     EXPECT_GT(kept, int(marks.size()) / 5);
     EXPECT_LT(kept, int(marks.size()) / 2);
   }
+}
+
+// The planes' step alone (StrainLimitBackend::keepInFront, the settle stage's): a vertex behind
+// its plane lands on it, every other vertex stays bitwise; on the host, on OpenCL and on arrays
+// that live on the device. Every third vertex of the sleeve frames gets a floor 1 mm above it
+// (behind: it moves up onto it), every fifth one 1 mm below it (in front: it stays).
+TEST_F(ClStrainLimit, KeepInFrontMovesOnlyTheVerticesBehindTheirPlanes) {
+  const Mesh mesh = sleeveRest();
+  const int vertexCount = mesh.vertexCount();
+  const std::vector<float> frames = stretchedSleeveFrames(3);
+  const double diagonal = boundsDiagonal(mesh);
+  std::vector<float> planes = floorPlanes(frames, 3, 0.001f);
+  const std::vector<float> below = floorPlanes(frames, 5, -0.001f);
+  for (std::size_t v = 0; v < frames.size() / 3; v += 5) {
+    if (v % 3 != 0) {
+      std::copy(&below[4 * v], &below[4 * v] + 4, &planes[4 * v]);
+    }
+  }
+  std::unique_ptr<Device> clDevice = makeOpenClDevice(context(), device(), queue());
+  std::unique_ptr<StrainLimitBackend> cl = clDevice->makeStrainLimit(0);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit();
+  std::vector<std::vector<float>> results;
+  for (StrainLimitBackend* backend : {host.get(), cl.get()}) {
+    SCOPED_TRACE(backend->name());
+    std::vector<float> positions = frames;
+    backend->keepInFront(3, vertexCount, positions.data(), planes.data());
+    int moved = 0;
+    int wrong = 0;
+    for (std::size_t v = 0; v < frames.size() / 3; ++v) {
+      const bool behind = v % 3 == 0;
+      const float* x = &positions[3 * v];
+      const float* start = &frames[3 * v];
+      const bool ok = behind ? x[0] == start[0] && x[1] == start[1] &&
+                                   std::abs(double(x[2]) - planes[4 * v + 3]) <= 1e-6 * diagonal
+                             : std::equal(x, x + 3, start);
+      moved += behind;
+      wrong += ok ? 0 : 1;
+    }
+    EXPECT_EQ(wrong, 0) << "of " << frames.size() / 3 << " vertices";
+    EXPECT_GT(moved, 100);
+    results.push_back(positions);
+  }
+  EXPECT_LE(largestDistance(results[0], results[1]), kStrainLimitDeviceVsHostRelTol * diagonal);
+  // On arrays that live on the device: bitwise what the host-memory call gave.
+  DeviceArray block = onDevice(*clDevice, frames);
+  DeviceArray planeBlock = onDevice(*clDevice, planes);
+  cl->keepInFrontBlock(3, vertexCount, block, planeBlock);
+  EXPECT_TRUE(std::equal(results[1].begin(), results[1].end(), block.read<float>()));
+  float x[3] = {0, 0, 0};
+  testing::expectThrows([&] { host->keepInFront(-1, 1, x, x); }, ErrorCode::kInternal,
+                        "keepInFront");
+  testing::expectThrows([&] { cl->keepInFront(1, -1, x, x); }, ErrorCode::kInternal, "keepInFront");
 }
 
 TEST_F(ClStrainLimit, MatchesTheHostOnTheStripAndKeepsFixedVertices) {

@@ -38,6 +38,7 @@ class ClStrainLimit final : public StrainLimitBackend {
     cl_util::guard("creating the strain-limit kernels", [&] {
       mKernel = cl::Kernel(mProgram, "dsStrainLimit");
       mStayedKernel = cl::Kernel(mProgram, "dsStrainStayed");
+      mInFrontKernel = cl::Kernel(mProgram, "dsStrainInFront");
     });
   }
 
@@ -114,7 +115,55 @@ class ClStrainLimit final : public StrainLimitBackend {
             stayed != nullptr ? &cl_util::modifyBuffer(*stayed) : nullptr, reach);
   }
 
+  void keepInFront(int frameCount, int vertexCount, float* positions,
+                   const float* planes) override {
+    strain_limit_checks::checkInFront(frameCount, vertexCount);
+    const std::size_t items = static_cast<std::size_t>(frameCount) * vertexCount;
+    if (items == 0) {
+      return;
+    }
+    cl_util::guard("keeping a chunk in front of its planes", [&] {
+      cl::Buffer& buffer = mPositions.reserve(mContext, items * 3 * sizeof(float));
+      cl::Buffer& planeBuffer = mPlanes.reserve(mContext, items * 4 * sizeof(float));
+      cl_util::upload(mQueue, mTransfers, buffer, CL_TRUE, 0, items * 3 * sizeof(float), positions);
+      cl_util::upload(mQueue, mTransfers, planeBuffer, CL_TRUE, 0, items * 4 * sizeof(float),
+                      planes);
+      inFront(frameCount, vertexCount, buffer, planeBuffer);
+      cl_util::download(mQueue, mTransfers, buffer, CL_TRUE, 0, items * 3 * sizeof(float),
+                        positions);
+    });
+  }
+
+  void keepInFrontBlock(int frameCount, int vertexCount, DeviceArray& positions,
+                        DeviceArray& planes) override {
+    if (!cl_util::onContext(mContext, positions) || !cl_util::onContext(mContext, planes)) {
+      StrainLimitBackend::keepInFrontBlock(frameCount, vertexCount, positions, planes);
+      return;
+    }
+    strain_limit_checks::checkInFront(frameCount, vertexCount);
+    if (static_cast<std::size_t>(frameCount) * vertexCount == 0) {
+      return;
+    }
+    cl_util::guard("keeping a chunk in front of its planes", [&] {
+      inFront(frameCount, vertexCount, cl_util::modifyBuffer(positions),
+              cl_util::readBuffer(planes));
+    });
+  }
+
  private:
+  /// dsStrainInFront on `frameCount` frames of `vertexCount` vertices on the device.
+  void inFront(int frameCount, int vertexCount, cl::Buffer& positions, const cl::Buffer& planes) {
+    DsStrainLimitParams params{};
+    params.vertexCount = vertexCount;
+    params.frameCount = frameCount;
+    cl_util::setArgs(mInFrontKernel, positions, planes, params);
+    mQueue.enqueueNDRangeKernel(
+        mInFrontKernel, cl::NullRange,
+        cl::NDRange(cl_util::roundUp(static_cast<std::size_t>(vertexCount), DS_LOCAL_SIZE),
+                    static_cast<std::size_t>(frameCount)),
+        cl::NDRange(DS_LOCAL_SIZE, 1));
+  }
+
   std::size_t frameBytes(int frameCount) const {
     return static_cast<std::size_t>(frameCount) * 3 * static_cast<std::size_t>(mVertexCount) *
            sizeof(float);
@@ -170,6 +219,7 @@ class ClStrainLimit final : public StrainLimitBackend {
   cl::Program mProgram;
   cl::Kernel mKernel;
   cl::Kernel mStayedKernel;
+  cl::Kernel mInFrontKernel;
 
   bool mUploaded = false;
   int mVertexCount = 0;

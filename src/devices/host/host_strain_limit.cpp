@@ -63,6 +63,23 @@ class HostStrainLimit final : public StrainLimitBackend {
     });
   }
 
+  void keepInFront(int frameCount, int vertexCount, float* positions,
+                   const float* planes) override {
+    strain_limit_checks::checkInFront(frameCount, vertexCount);
+    const std::size_t count = static_cast<std::size_t>(vertexCount);
+    parallelFor(frameCount, mThreads, [&](int f) {
+      const std::size_t first = static_cast<std::size_t>(f) * count;
+      for (std::size_t v = first; v < first + count; ++v) {
+        float* x = positions + 3 * v;
+        double at[3] = {x[0], x[1], x[2]};
+        inFront(planes + 4 * v, at);
+        for (int a = 0; a < 3; ++a) {
+          x[a] = static_cast<float>(at[a]);
+        }
+      }
+    });
+  }
+
  private:
   /// One iteration of one frame: every vertex of `in` (3V values, x_k) into `out`, which holds
   /// x_{k-1} where `omega` is not 1 (StrainLimitTables), kept in front of its plane (4V values,
@@ -103,7 +120,7 @@ class HostStrainLimit final : public StrainLimitBackend {
         o[a] = omega == 1.0 ? jacobi : omega * (jacobi - o[a]) + o[a];
       }
       if (planes != nullptr) {
-        keepInFront(planes + 4 * v, o);
+        inFront(planes + 4 * v, o);
       }
     }
   }
@@ -119,7 +136,7 @@ class HostStrainLimit final : public StrainLimitBackend {
   }
 
   /// Moves x onto the plane (m, c) when it lies behind it (m . x < c); no plane when m is 0.
-  static void keepInFront(const float* plane, double* x) {
+  static void inFront(const float* plane, double* x) {
     const double below =
         static_cast<double>(plane[3]) - (plane[0] * x[0] + plane[1] * x[1] + plane[2] * x[2]);
     if (below > 0.0) {
