@@ -324,6 +324,18 @@ bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& c
   return certify;
 }
 
+DeviceArray* findSkinPlanes(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
+                            float clearance, float offset, float depth, bool keep, float reach) {
+  DeviceArray* marks = auditClosest(model, batch, poses, cloth, clearance, keep, reach)
+                           ? &batch.out<Array::AuditAnswered>()
+                           : nullptr;
+  DeviceArray& planes = batch.out<Array::SkinPlanes>();
+  planes.resize<float>(static_cast<std::size_t>(batch.count()) * model.vd * 4);
+  model.unmaskedClosest().skinPlanesBlock(batch.count(), poses, batch.out<Array::AuditHits>(),
+                                          marks, cloth, offset, depth, clearance, planes);
+  return marks;
+}
+
 void countInside(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                  int FrameRecord::*field, float clearance, bool keep) {
   auditClosest(model, batch, poses, cloth, clearance, keep);

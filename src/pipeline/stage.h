@@ -358,6 +358,16 @@ double coverageTolerance(const Model& model);
 bool auditClosest(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
                   float clearance, bool keep = false, float reach = 0.0f);
 
+/// The skin planes of the batch's cloth on `poses` into batch.skinPlanes: closest points from
+/// auditClosest() with `clearance` (`keep` and `reach` as there), then a plane at `offset` in front
+/// of its closest point for every vertex nearer the skin than `clearance` or up to `depth` inside,
+/// sinking away to none at 1.5 `depth` (ClosestBackend::skinPlanes). The planes' reach is the
+/// certificate's clearance, so they are those of the full search whichever points it answered.
+/// Returns batch.auditAnswered when the certificate ran (the points it answered), else null.
+DeviceArray* findSkinPlanes(Model& model, Batch& batch, DeviceArray& poses, DeviceArray& cloth,
+                            float clearance, float offset, float depth, bool keep = false,
+                            float reach = 0.0f);
+
 /// Counts how many cloth points of each frame of the batch are on the wrong side of the
 /// driver's skin (inside, for cloth; Model::sides), from auditClosest() with `clearance` and `keep`
 /// (left in batch.auditHits): poses count x 3Vp, cloth count x 3Vd, into (records[f].*field).

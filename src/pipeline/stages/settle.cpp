@@ -11,7 +11,6 @@
 // resolution's exit fade's to hold: moved again, a vertex deep in the trousers' crotch jumps
 // when its nearest exit changes side. The audit after counts what is left.
 
-#include <cstddef>
 #include <memory>
 
 #include "../stage.h"
@@ -50,14 +49,9 @@ class SettleStage final : public Stage {
     DeviceArray& cloth = batch.out<Array::Cloth>();
     // The resolution's answers hold here: it left every vertex they answered where it was, and
     // they proved it the skin offset clear, more than this.
-    const bool answered = auditClosest(mModel, batch, shot, cloth, settled, /*keep=*/true);
-    DeviceArray& planes = batch.out<Array::SkinPlanes>();
-    planes.resize<float>(static_cast<std::size_t>(count) * mModel.vd * 4);
-    mModel.unmaskedClosest().skinPlanesBlock(
-        count, shot, batch.out<Array::AuditHits>(),
-        answered ? &batch.out<Array::AuditAnswered>() : nullptr, cloth, settled,
-        static_cast<float>(kSettleDepth * offset), settled, planes);
-    mBackend->keepInFrontBlock(count, mModel.vd, cloth, planes);
+    findSkinPlanes(mModel, batch, shot, cloth, settled, settled,
+                   static_cast<float>(kSettleDepth * offset), /*keep=*/true);
+    mBackend->keepInFrontBlock(count, mModel.vd, cloth, batch.out<Array::SkinPlanes>());
   }
 
  private:

@@ -108,15 +108,11 @@ class StrainLimitStage final : public Stage {
     // reach a little shorter, for the device's float arithmetic of the distance moved.
     const float reach = static_cast<float>(kKeptReach * offset);
     const float clearance = static_cast<float>(kPlaneReach * offset);
-    const bool answered =
-        auditClosest(mModel, batch, shot, cloth, clearance, /*keep=*/false, reach);
-    DeviceArray* marks = answered ? &batch.out<Array::AuditAnswered>() : nullptr;
-    DeviceArray& planes = batch.out<Array::SkinPlanes>();
-    planes.resize<float>(static_cast<std::size_t>(count) * mModel.vd * 4);
-    mModel.unmaskedClosest().skinPlanesBlock(
-        count, shot, batch.out<Array::AuditHits>(), marks, cloth, offset,
-        static_cast<float>(kPlaneDepth * offset), clearance, planes);
-    mBackend->limitBlock(count, cloth, &planes, marks, reach * (1.0f - 1e-4f));
+    DeviceArray* marks =
+        findSkinPlanes(mModel, batch, shot, cloth, clearance, offset,
+                       static_cast<float>(kPlaneDepth * offset), /*keep=*/false, reach);
+    mBackend->limitBlock(count, cloth, &batch.out<Array::SkinPlanes>(), marks,
+                         reach * (1.0f - 1e-4f));
   }
 
  private:
