@@ -2,8 +2,7 @@
 // The clearance certificate (contract: ClosestBackend::closestOrClearBlock in
 // src/devices/closest.h; host reference: src/devices/host/host_certificate.cpp;
 // the scheme and why a cleared point is safe: src/devices/certificate.cpp). Requires
-// closest.cl (dsLoad3, dsTriangleDistance2, dsCandidateDistance2) and bvh.cl (dsBoxDistance2)
-// before it.
+// closest.cl (dsLoad3, dsCandidateDistance2) and bvh.cl (DS_BVH_MAX_DEPTH) before it.
 //
 //   poses          F x 3Vp float        vertex v of frame f at [f * 3Vp + 3v]
 //   nodes          N DsBvhNode          the tree over every triangle (one search class)
@@ -170,16 +169,125 @@ inline int dsCertOpen(ds_real3 p, __global const float* box, const DsCertCone co
   return !(isfinite(spread) && front >= 0 && front * front >= spread * spread * far2);
 }
 
+// The walk of dsCertCheck from the root for p: 0 as soon as a triangle within `limit` does not
+// have p the target in front of it, else 1. U (core2 = U^2, limit = U + reachMargin) and the
+// witness come in from the seed and fall on the way: with the boxes opened (dsCertOpen) and with
+// the triangles' distances of the first leaf reached, before anything is plane-tested. The walk
+// goes nearer child first, so that leaf is the one a greedy descent from the root would reach,
+// unless the nearer child is covered by its cone: then, with `measureCovered`, the walk still
+// descends it (nearer child only, nothing to plane-test) for that leaf and goes on from the
+// stack; without, it goes on and sets *skipped.
+inline int dsCertWalk(ds_real3 p, __global const float* pose, __global const DsBvhNode* nodes,
+                      __global const int4* leafTriangles, __global const int* nodeTriangle,
+                      __global const float* frameBoxes, __global const DsCertCone* frameCones,
+                      ds_real target, ds_real reachMargin, int measureCovered, ds_real* limit,
+                      ds_real* core2, int* witness, int* skipped) {
+  ds_real u;
+  ds_real v;
+  ds_real distance;
+  int pass = 1;
+  int node = dsCertOpen(p, frameBoxes, frameCones[0], nodeTriangle[0], target, reachMargin, limit,
+                        core2, witness, &distance)
+                 ? 0
+                 : -1;
+  // One push per level, and one more where the walk descends a covered node to measure it.
+  int stack[DS_BVH_MAX_DEPTH + 2];
+  ds_real stackDistance[DS_BVH_MAX_DEPTH + 2];
+  int sp = 0;
+  int measure = 1;
+  int covered = 0;
+  while (node >= 0 && pass) {
+    const DsBvhNode current = nodes[node];
+    int next = -1;
+    if (current.count > 0) {
+      for (int k = current.first; k < current.first + current.count && measure; ++k) {
+        const int4 tri = leafTriangles[k];
+        const ds_real d2 = dsTriangleDistance2(p, dsLoad3(pose, tri.x), dsLoad3(pose, tri.y),
+                                               dsLoad3(pose, tri.z), &u, &v);
+        if (d2 < *core2) {
+          *core2 = d2;
+          *witness = tri.w;
+          *limit = fmin(*limit, sqrt(d2) + reachMargin);
+        }
+      }
+      measure = 0;
+      for (int k = current.first; k < current.first + current.count && pass && !covered; ++k) {
+        const int4 tri = leafTriangles[k];
+        const ds_real3 a = dsLoad3(pose, tri.x);
+        const ds_real3 b = dsLoad3(pose, tri.y);
+        const ds_real3 c = dsLoad3(pose, tri.z);
+        const ds_real3 e =
+            fmax(fmax(fmin(a, fmin(b, c)) - p, p - fmax(a, fmax(b, c))), (ds_real3)(0, 0, 0));
+        const ds_real d2 = dot(e, e);
+        if (d2 > *limit * *limit) {
+          continue;
+        }
+        pass = dsCertInFront(p, a, b, c, target);
+      }
+      covered = 0;
+    } else {
+      // Both children (the limit may shrink on the way), then the open ones within the final
+      // limit, the nearer first.
+      const int child[2] = {current.left, current.right};
+      ds_real distances[2];
+      int open[2];
+      for (int side = 0; side < 2; ++side) {
+        open[side] = dsCertOpen(p, frameBoxes + (size_t)child[side] * 6, frameCones[child[side]],
+                                nodeTriangle[child[side]], target, reachMargin, limit, core2,
+                                witness, &distances[side]);
+      }
+      const int nearSide = distances[0] <= distances[1] ? 0 : 1;
+      const ds_real limit2 = *limit * *limit;
+      if (covered) {
+        next = child[nearSide];
+      } else {
+        if (open[nearSide] && distances[nearSide] <= limit2) {
+          next = child[nearSide];
+        }
+        if (open[1 - nearSide] && distances[1 - nearSide] <= limit2) {
+          if (next < 0) {
+            next = child[1 - nearSide];
+          } else {
+            stack[sp] = child[1 - nearSide];
+            stackDistance[sp] = distances[1 - nearSide];
+            ++sp;
+          }
+        }
+        if (measure && !open[nearSide] && distances[nearSide] <= limit2) {
+          *skipped = 1;
+          if (measureCovered) {
+            if (next >= 0) {
+              stack[sp] = next;
+              stackDistance[sp] = distances[next == child[0] ? 0 : 1];
+              ++sp;
+            }
+            next = child[nearSide];
+            covered = 1;
+          }
+        }
+      }
+    }
+    while (next < 0 && sp > 0) {
+      --sp;
+      if (stackDistance[sp] <= *limit * *limit) {
+        next = stack[sp];
+      }
+    }
+    node = next;
+  }
+  return pass;
+}
+
 // dsCertCheck: one item per (frame f, point i), item id f * Vd + i, 1-D, local size
-// DS_LOCAL_SIZE. The walk of src/devices/certificate.cpp: `limit` starts at the smallest
-// distance from p to its seed triangle and to the triangles of the leaf a greedy descent reaches,
-// plus the margin and twice params.reach (the answer holds within reach of p), and shrinks to the
-// farthest point of any box seen (an upper bound too); nodes farther than `limit` are skipped,
-// nodes whose cone covers them too, the others opened nearer child first; a leaf's triangles within
-// `limit` must pass the plane test one by one. If all do (and the witness w, a triangle within U of
-// p, passes it too), the point is cleared: its hit becomes (w, 1/3, 1/3) and cleared[f] counts it;
-// otherwise it is appended to `search` (its item id; `searchCount` counts them, the host zeroes
-// it).
+// DS_LOCAL_SIZE. The walk of src/devices/certificate.cpp: `limit` starts at the distance from p
+// to its seed triangle plus the margin and twice params.reach (the answer holds within reach of
+// p), and shrinks to the farthest point of any box seen (an upper bound too) and to the nearest
+// triangle of the first leaf reached (measured before its plane tests); nodes farther than
+// `limit` are skipped, nodes whose cone covers them too, the others opened nearer child first; a
+// leaf's triangles within `limit` must pass the plane test one by one. If all do (and the
+// witness w, a triangle within U of p, passes it too), the point is cleared: its hit becomes (w,
+// 1/3, 1/3) and cleared[f] counts it; otherwise it is appended to `search` (its item id;
+// `searchCount` counts them, the host zeroes it).
 //
 //   triangles      T x 3 int
 //   nodeTriangle   N int                a triangle under each node (certificate.h)
@@ -215,89 +323,20 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
   const ds_real target = (ds_real)params.clearance + margin;
   // Triangles within U + 2 reach of p can be the closest of a point within reach of p.
   const ds_real reachMargin = margin + 2 * (ds_real)params.reach;
-  // The upper bound U: the smallest distance to the seed triangle and to the triangles of the
-  // leaf that a greedy descent (nearer box first) reaches; the nearest is the first witness.
+  // The upper bound U starts at the distance to the seed triangle, the first witness. The walk
+  // turns aside into covered nodes for the first leaf's distances only when it failed without:
+  // most points pass without those distances, and the others pass more often with them.
   int witness = seeds[point].triangle;
   ds_real u;
   ds_real v;
   ds_real core2 = dsCandidateDistance2(p, pose, triangles, witness, &u, &v);
-  int node = 0;
-  for (DsBvhNode current = nodes[0]; current.count == 0; current = nodes[node]) {
-    node = dsBoxDistance2(p, frameBoxes + (size_t)current.left * 6) <=
-                   dsBoxDistance2(p, frameBoxes + (size_t)current.right * 6)
-               ? current.left
-               : current.right;
-  }
-  const DsBvhNode probe = nodes[node];
-  for (int k = probe.first; k < probe.first + probe.count; ++k) {
-    const int4 tri = leafTriangles[k];
-    const ds_real d2 = dsTriangleDistance2(p, dsLoad3(pose, tri.x), dsLoad3(pose, tri.y),
-                                           dsLoad3(pose, tri.z), &u, &v);
-    if (d2 < core2) {
-      core2 = d2;
-      witness = tri.w;
-    }
-  }
   ds_real limit = sqrt(core2) + reachMargin;
-  ds_real distance;
-  int pass = 1;
-  node = dsCertOpen(p, frameBoxes, frameCones[0], nodeTriangle[0], target, reachMargin, &limit,
-                    &core2, &witness, &distance)
-             ? 0
-             : -1;
-  int stack[DS_BVH_MAX_DEPTH + 1];
-  ds_real stackDistance[DS_BVH_MAX_DEPTH + 1];
-  int sp = 0;
-  while (node >= 0 && pass) {
-    const DsBvhNode current = nodes[node];
-    int next = -1;
-    if (current.count > 0) {
-      for (int k = current.first; k < current.first + current.count && pass; ++k) {
-        const int4 tri = leafTriangles[k];
-        const ds_real3 a = dsLoad3(pose, tri.x);
-        const ds_real3 b = dsLoad3(pose, tri.y);
-        const ds_real3 c = dsLoad3(pose, tri.z);
-        const ds_real3 e =
-            fmax(fmax(fmin(a, fmin(b, c)) - p, p - fmax(a, fmax(b, c))), (ds_real3)(0, 0, 0));
-        const ds_real d2 = dot(e, e);
-        if (d2 > limit * limit) {
-          continue;
-        }
-        pass = dsCertInFront(p, a, b, c, target);
-      }
-    } else {
-      // Both children (the limit may shrink on the way), then the open ones within the final
-      // limit, the nearer first.
-      const int child[2] = {current.left, current.right};
-      ds_real distances[2];
-      int open[2];
-      for (int side = 0; side < 2; ++side) {
-        open[side] = dsCertOpen(p, frameBoxes + (size_t)child[side] * 6, frameCones[child[side]],
-                                nodeTriangle[child[side]], target, reachMargin, &limit, &core2,
-                                &witness, &distances[side]);
-      }
-      const int nearSide = distances[0] <= distances[1] ? 0 : 1;
-      const ds_real limit2 = limit * limit;
-      if (open[nearSide] && distances[nearSide] <= limit2) {
-        next = child[nearSide];
-      }
-      if (open[1 - nearSide] && distances[1 - nearSide] <= limit2) {
-        if (next < 0) {
-          next = child[1 - nearSide];
-        } else {
-          stack[sp] = child[1 - nearSide];
-          stackDistance[sp] = distances[1 - nearSide];
-          ++sp;
-        }
-      }
-    }
-    while (next < 0 && sp > 0) {
-      --sp;
-      if (stackDistance[sp] <= limit * limit) {
-        next = stack[sp];
-      }
-    }
-    node = next;
+  int skipped = 0;
+  int pass = dsCertWalk(p, pose, nodes, leafTriangles, nodeTriangle, frameBoxes, frameCones, target,
+                        reachMargin, 0, &limit, &core2, &witness, &skipped);
+  if (!pass && skipped) {
+    pass = dsCertWalk(p, pose, nodes, leafTriangles, nodeTriangle, frameBoxes, frameCones, target,
+                      reachMargin, 1, &limit, &core2, &witness, &skipped);
   }
   pass = pass && dsCertInFront(p, dsLoad3(pose, triangles[3 * witness]),
                                dsLoad3(pose, triangles[3 * witness + 1]),

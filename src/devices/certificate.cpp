@@ -22,10 +22,10 @@
 //      and the children's boxes; spread INFINITY when a triangle is not well shaped,
 //      DS_CERT_SIN2_*).
 //   2. Check (dsCertCheck, one item per frame and point p): limit = U + m with U an upper bound
-//      of the closest distance D*: the smallest distance from p to its seed triangle (the
-//      previous block's hit, as for the search) and to the triangles of the leaf that a greedy
-//      descent (nearer box first) reaches, lowered during the walk to the farthest point from p
-//      of any box seen (every box holds a triangle); target = clearance + m,
+//      of the closest distance D*: the distance from p to its seed triangle (the previous
+//      block's hit, as for the search), lowered during the walk to the farthest point from p of
+//      any box seen (every box holds a triangle) and to the nearest triangle of the first leaf
+//      reached (measured before its plane tests); target = clearance + m,
 //      m = DS_CERT_MARGIN_* x S. Walk the tree from the root, nearer child first:
 //        - a node whose box is farther than `limit` is skipped;
 //        - a node whose cone proves front_n(p) = a_n . p - o_n - e_n * (the box's farthest
@@ -33,15 +33,21 @@
 //        - otherwise its children are visited, or, at a leaf, every triangle t whose own box is
 //          within `limit` must pass the plane test: well shaped and
 //          h_t = (p - x_t) . n_t >= target (x_t a vertex of t).
+//      Nearer child first, the first leaf is the one a greedy descent from the root reaches,
+//      unless a nearer child on the way is covered; a point that fails after passing one walks
+//      again (from its lowered U), descending it for that leaf without plane tests: most points
+//      pass without the leaf's distances, and that second walk clears more of the others.
 //      If nothing failed, p is cleared: its hit becomes the witness (w, 1/3, 1/3), the centroid
-//      of w, a triangle within U of p (the nearest measured, or one under the box whose farthest
-//      point last lowered U: it is within `limit`, so it passes; the test is repeated).
+//      of w, a triangle within U of p (the seed, the nearest of the first leaf, or one under
+//      the box whose farthest point last lowered U: it is within `limit`, so it passes; the
+//      test is repeated).
 //      Otherwise p is searched exactly (dsBvhClosestList). The witness, a triangle near p, seeds
 //      the next block.
 //
 // Why a cleared point is safe. For a triangle t under node n, any x in t lies in n's box, and
 // h_t = n_t . (p - x) = a_n . (p - x) + (n_t - a_n) . (p - x) >= a_n . p - o_n - e_n |p - x|
-// >= front_n(p): a node skipped for its cone holds only triangles with h_t >= target. A node
+// >= front_n(p): a node skipped for its cone holds only triangles with h_t >= target (the
+// second walk descends such a node only to measure distances, which lower U soundly). A node
 // skipped for its box holds only triangles farther than `limit` (the limit only shrinks). So
 // every triangle within the final `limit` of p has h_t >= target: it is well shaped and p lies at
 // least clearance + m in front of its plane. The exact search's answer t* (distance D* <= U, or
@@ -67,11 +73,11 @@
 // are rounded up when stored in float). The axes need not be exact: the bound holds for any a_n
 // with e_n measured against a_n as stored.
 //
-// Cost. Per frame: one more refit pass (the cones). Per point: a greedy descent and at most
-// 1 + leaf-size triangle distances for U, then a walk that stops where the cones prove the
-// surface behind the point, typically at nodes a few triangles across for cloth a triangle or
-// two off the body, measuring no other distance: about as many node tests as the search's box
-// tests, without its triangle distances (docs/performance.md has the figures). Points near the
+// Cost. Per frame: one more refit pass (the cones). Per point: one triangle distance for U,
+// then a walk that stops where the cones prove the surface behind the point, typically at nodes
+// a few triangles across for cloth a triangle or two off the body, measuring no other distance:
+// about as many node tests as the search's box tests, without its triangle distances
+// (docs/performance.md has the figures). Points near the
 // surface, inside, near crossings or slivers fail and pay the walk and the search.
 //
 // The recount. resolve() leaves every point cleared for it where it is, on the same poses, so

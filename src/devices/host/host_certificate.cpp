@@ -162,17 +162,6 @@ void refit(const BvhTables& bvh, const float* pose, std::vector<float>& boxes,
   }
 }
 
-/// dsBoxDistance2: squared distance from p to the box (zero inside).
-double boxDistance2(const Eigen::Vector3d& p, const float* box) {
-  double sum = 0.0;
-  for (int a = 0; a < 3; ++a) {
-    const double e = std::max(
-        std::max(static_cast<double>(box[a]) - p[a], p[a] - static_cast<double>(box[3 + a])), 0.0);
-    sum += e * e;
-  }
-  return sum;
-}
-
 /// dsCertOpen: whether the node (box, cone, a triangle under it) must be opened for p; lowers
 /// U (core2 = U^2, limit = U + margin) and moves the witness to `triangle` when the box's
 /// farthest point bounds the distance better; distance gets the box's squared distance.
@@ -228,33 +217,32 @@ struct CertWalk {
   }
 };
 
-/// The first upper bound U^2 of p's distance to the surface: the smallest squared distance to
-/// the seed triangle and to the triangles of the leaf that a greedy descent (nearer box first)
-/// reaches. `witness`, the seed on entry, becomes the nearest of them.
-double upperBound2(const CertWalk& w, const Eigen::Vector3d& p, int& witness) {
+/// The first upper bound U^2 of p's distance to the surface: the squared distance to the seed
+/// triangle, `witness`.
+double upperBound2(const CertWalk& w, const Eigen::Vector3d& p, int witness) {
   double u = 0.0;
   double v = 0.0;
-  double core2 =
-      triangleDistance2(p, w.corner(witness, 0), w.corner(witness, 1), w.corner(witness, 2), u, v);
-  int node = 0;
-  while (w.node(node).count == 0) {
-    const DsBvhNode& current = w.node(node);
-    node = boxDistance2(p, &w.boxes[6 * static_cast<std::size_t>(current.left)]) <=
-                   boxDistance2(p, &w.boxes[6 * static_cast<std::size_t>(current.right)])
-               ? current.left
-               : current.right;
-  }
-  const DsBvhNode& probe = w.node(node);
-  for (int k = probe.first; k < probe.first + probe.count; ++k) {
+  return triangleDistance2(p, w.corner(witness, 0), w.corner(witness, 1), w.corner(witness, 2), u,
+                           v);
+}
+
+/// The first leaf of the walk (nearer child first: the leaf of a greedy descent from the root):
+/// its triangles' distances lower U (core2 = U^2, limit = U + reach margin) and move the witness
+/// to the nearest, before any of them is plane-tested.
+void measureLeaf(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& leaf, double& limit,
+                 double& core2, int& witness) {
+  double u = 0.0;
+  double v = 0.0;
+  for (int k = leaf.first; k < leaf.first + leaf.count; ++k) {
     const std::int32_t* slot = w.slot(k);
     const double d2 = triangleDistance2(p, loadPoint(w.pose, slot[0]), loadPoint(w.pose, slot[1]),
                                         loadPoint(w.pose, slot[2]), u, v);
     if (d2 < core2) {
       core2 = d2;
       witness = slot[3];
+      limit = std::min(limit, std::sqrt(d2) + w.reachMargin);
     }
   }
-  return core2;
 }
 
 /// A leaf of the walk: whether p is the target in front of each of its triangles whose box
@@ -277,20 +265,38 @@ bool leafInFront(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& l
   return pass;
 }
 
+/// What one walk of dsCertCheck carries and lowers: U (core2 = U^2, limit = U + reach margin)
+/// and the witness, and where it stands on the first leaf, whose triangles' distances lower U
+/// before anything is plane-tested (measureLeaf).
+struct WalkState {
+  double limit = 0.0;
+  double core2 = 0.0;
+  int witness = -1;
+  bool measureCovered = false;  ///< descend a covered nearer child for the first leaf
+  bool measure = true;          ///< no leaf reached yet
+  bool covered = false;         ///< in a covered node, descending for the first leaf only
+  bool skipped = false;         ///< a covered nearer child passed by before the first leaf
+};
+
 /// An inner node of the walk: opens both children for p (openNode) and returns the nearer
-/// open one within `limit` (-1 when none), pushing the farther onto `stack` when both are.
-int openChildren(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& inner, double& limit,
-                 double& core2, int& witness, std::vector<std::pair<int, double>>& stack) {
+/// open one within `limit` (-1 when none), pushing the farther onto `stack` when both are. The
+/// first leaf: in a covered node, the nearer child; a covered nearer child before the first leaf
+/// is descended (the other pushed) with measureCovered, else only noted (skipped).
+int openChildren(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& inner, WalkState& s,
+                 std::vector<std::pair<int, double>>& stack) {
   const int child[2] = {inner.left, inner.right};
   double distances[2];
   bool opened[2];
   for (int side = 0; side < 2; ++side) {
     const std::size_t c = static_cast<std::size_t>(child[side]);
-    opened[side] = openNode(p, &w.boxes[6 * c], w.cones[c], w.nodeTriangles[c], w.target, w.margin,
-                            limit, core2, witness, distances[side]);
+    opened[side] = openNode(p, &w.boxes[6 * c], w.cones[c], w.nodeTriangles[c], w.target,
+                            w.reachMargin, s.limit, s.core2, s.witness, distances[side]);
   }
   const int nearSide = distances[0] <= distances[1] ? 0 : 1;
-  const double limit2 = limit * limit;
+  if (s.covered) {
+    return child[nearSide];
+  }
+  const double limit2 = s.limit * s.limit;
   int next = -1;
   if (opened[nearSide] && distances[nearSide] <= limit2) {
     next = child[nearSide];
@@ -302,19 +308,30 @@ int openChildren(const CertWalk& w, const Eigen::Vector3d& p, const DsBvhNode& i
       stack.emplace_back(child[1 - nearSide], distances[1 - nearSide]);
     }
   }
+  if (s.measure && !opened[nearSide] && distances[nearSide] <= limit2) {
+    s.skipped = true;
+    if (s.measureCovered) {
+      if (next >= 0) {
+        stack.emplace_back(next, distances[next == child[0] ? 0 : 1]);
+      }
+      next = child[nearSide];
+      s.covered = true;
+    }
+  }
   return next;
 }
 
-/// dsCertCheck's walk from the root, with the bound U^2 = core2 of upperBound2: false as soon
-/// as a triangle within reach does not have p the target in front of it. Opening nodes can
-/// lower the bound and move the witness.
-bool walkClears(const CertWalk& w, const Eigen::Vector3d& p, double& core2, int& witness,
+/// dsCertWalk from the root: false as soon as a triangle within reach does not have p the
+/// target in front of it. Opening nodes and the first leaf can lower the bound and move the
+/// witness.
+bool walkClears(const CertWalk& w, const Eigen::Vector3d& p, WalkState& s,
                 std::vector<std::pair<int, double>>& stack) {
-  double limit = std::sqrt(core2) + w.reachMargin;
   double distance = 0.0;
   bool pass = true;
+  s.measure = true;
+  s.covered = false;
   int node = openNode(p, w.boxes.data(), w.cones[0], w.nodeTriangles[0], w.target, w.reachMargin,
-                      limit, core2, witness, distance)
+                      s.limit, s.core2, s.witness, distance)
                  ? 0
                  : -1;
   stack.clear();
@@ -322,12 +339,17 @@ bool walkClears(const CertWalk& w, const Eigen::Vector3d& p, double& core2, int&
     const DsBvhNode& current = w.node(node);
     int next = -1;
     if (current.count > 0) {
-      pass = leafInFront(w, p, current, limit);
+      if (s.measure) {
+        measureLeaf(w, p, current, s.limit, s.core2, s.witness);
+        s.measure = false;
+      }
+      pass = s.covered || leafInFront(w, p, current, s.limit);
+      s.covered = false;
     } else {
-      next = openChildren(w, p, current, limit, core2, witness, stack);
+      next = openChildren(w, p, current, s, stack);
     }
     while (next < 0 && !stack.empty()) {
-      if (stack.back().second <= limit * limit) {
+      if (stack.back().second <= s.limit * s.limit) {
         next = stack.back().first;
       }
       stack.pop_back();
@@ -338,14 +360,22 @@ bool walkClears(const CertWalk& w, const Eigen::Vector3d& p, double& core2, int&
 }
 
 /// The certificate of point p, starting from triangle `seed`: true when p is proven the target
-/// in front of the surface, with `hit` the witness triangle at its centroid.
+/// in front of the surface, with `hit` the witness triangle at its centroid. The walk descends
+/// covered nodes for the first leaf only when it failed without (dsCertCheck).
 bool certifyPoint(const CertWalk& w, const Eigen::Vector3d& p, int seed,
                   std::vector<std::pair<int, double>>& stack, SurfaceHit& hit) {
-  int witness = seed;
-  double core2 = upperBound2(w, p, witness);
-  const bool pass =
-      walkClears(w, p, core2, witness, stack) &&
-      inFront(p, w.corner(witness, 0), w.corner(witness, 1), w.corner(witness, 2), w.target);
+  WalkState s;
+  s.witness = seed;
+  s.core2 = upperBound2(w, p, seed);
+  s.limit = std::sqrt(s.core2) + w.reachMargin;
+  bool cleared = walkClears(w, p, s, stack);
+  if (!cleared && s.skipped) {
+    s.measureCovered = true;
+    cleared = walkClears(w, p, s, stack);
+  }
+  const int witness = s.witness;
+  const bool pass = cleared && inFront(p, w.corner(witness, 0), w.corner(witness, 1),
+                                       w.corner(witness, 2), w.target);
   if (!pass) {
     return false;
   }
