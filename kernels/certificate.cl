@@ -286,8 +286,8 @@ inline int dsCertWalk(ds_real3 p, __global const float* pose, __global const DsB
 // `limit` are skipped, nodes whose cone covers them too, the others opened nearer child first; a
 // leaf's triangles within `limit` must pass the plane test one by one. If all do (and the
 // witness w, a triangle within U of p, passes it too), the point is cleared: its hit becomes (w,
-// 1/3, 1/3) and cleared[f] counts it; otherwise it is appended to `search` (its item id;
-// `searchCount` counts them, the host zeroes it).
+// 1/3, 1/3) and its answered mark 1 (dsCertCount counts them); otherwise it is appended to
+// `search` (its item id; `searchCount` counts them, the host zeroes it).
 //
 //   triangles      T x 3 int
 //   nodeTriangle   N int                a triangle under each node (certificate.h)
@@ -296,15 +296,13 @@ inline int dsCertWalk(ds_real3 p, __global const float* pose, __global const DsB
 //   hits           F x Vd DsSurfaceHit  witnesses written for cleared items only
 //   answered       F x Vd int           1 for an item cleared (or kept), 0 for one to search;
 //                                       read first with params.keep
-//   cleared        F int                incremented atomically
 //   search         F x Vd int           appended atomically (order unspecified)
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertCheck(
     __global const float* poses, __global const int* triangles, __global const DsBvhNode* nodes,
     __global const int4* leafTriangles, __global const int* nodeTriangle,
     __global const float* boxes, __global const DsCertCone* cones, __global const float* points,
     __global const DsSurfaceHit* seeds, __global DsSurfaceHit* hits, __global int* answered,
-    __global int* cleared, __global int* search, __global int* searchCount,
-    const DsCertParams params) {
+    __global int* search, __global int* searchCount, const DsCertParams params) {
   const int item = (int)get_global_id(0);
   if (item >= params.frameCount * params.pointCount) {
     return;
@@ -312,7 +310,6 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
   const int frame = item / params.pointCount;
   const int point = item - frame * params.pointCount;
   if (params.keep && answered[item] != 0) {
-    atomic_inc(&cleared[frame]);
     return;
   }
   __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
@@ -356,5 +353,32 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
   const ds_real3 offset = p - centroid;
   hit.distance2 = (float)dot(offset, offset);
   hits[item] = hit;
-  atomic_inc(&cleared[frame]);
+}
+
+// dsCertCount: cleared[f] = how many of frame f's items dsCertCheck answered (answered[f * Vd +
+// i] != 0), after it. One work-group per frame: 2-D range (DS_LOCAL_SIZE, F), local size
+// (DS_LOCAL_SIZE, 1). (dsCertCheck counted them itself with an atomic increment per answered
+// item, every item of a frame on one counter: on a CPU device the two cores' increments fought
+// over its cache line, 40% of dsCertCheck's time where the strain limit's answers are kept.)
+__kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertCount(
+    __global const int* answered, __global int* cleared, const int pointCount) {
+  __local int partial[DS_LOCAL_SIZE];
+  const int lane = (int)get_local_id(0);
+  const int frame = (int)get_global_id(1);
+  __global const int* marks = answered + (size_t)frame * (size_t)pointCount;
+  int sum = 0;
+  for (int i = lane; i < pointCount; i += DS_LOCAL_SIZE) {
+    sum += marks[i] != 0 ? 1 : 0;
+  }
+  partial[lane] = sum;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (int width = DS_LOCAL_SIZE / 2; width > 0; width /= 2) {
+    if (lane < width) {
+      partial[lane] += partial[lane + width];
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  if (lane == 0) {
+    cleared[frame] = partial[0];
+  }
 }

@@ -103,12 +103,15 @@ void ClClosest::clearOrSearch(int frameCount, DeviceArray& poses, DeviceArray& p
     cl::Buffer& clearedBuffer = mCounts.reserve(mContext, countBytes);
     cl::Buffer& searchBuffer = mSearchList.reserve(mContext, items * sizeof(cl_int));
     cl::Buffer& searchCountBuffer = mSearchCount.reserve(mContext, sizeof(cl_int));
-    mQueue.enqueueFillBuffer(clearedBuffer, cl_int(0), 0, countBytes);
     mQueue.enqueueFillBuffer(searchCountBuffer, cl_int(0), 0, sizeof(cl_int));
     cl_util::setArgs(mCertCheckKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles,
                      mNodeTriangle, boxBuffer, coneBuffer, pointsBuffer, mSeeds, hitBuffer,
-                     answeredBuffer, clearedBuffer, searchBuffer, searchCountBuffer, params);
+                     answeredBuffer, searchBuffer, searchCountBuffer, params);
     cl_util::enqueue1d(mQueue, mCertCheckKernel, items, DS_LOCAL_SIZE);
+    cl_util::setArgs(mCertCountKernel, answeredBuffer, clearedBuffer, cl_int(pointCount));
+    mQueue.enqueueNDRangeKernel(mCertCountKernel, cl::NullRange,
+                                cl::NDRange(DS_LOCAL_SIZE, static_cast<std::size_t>(frameCount)),
+                                cl::NDRange(DS_LOCAL_SIZE, 1));
     cl_util::download(mQueue, mTransfers, searchCountBuffer, CL_TRUE, 0, sizeof(cl_int),
                       &searchCount);
     if (searchCount > 0) {

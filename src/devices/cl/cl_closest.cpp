@@ -86,6 +86,7 @@ ClClosest::ClClosest(const cl_util::ClTarget& target, const ClosestOptions& opti
     mBvhListKernel = cl::Kernel(mProgram, "dsBvhClosestList");
     mConeKernel = cl::Kernel(mProgram, "dsCertRefitCones");
     mCertCheckKernel = cl::Kernel(mProgram, "dsCertCheck");
+    mCertCountKernel = cl::Kernel(mProgram, "dsCertCount");
     mName = mDevice.getInfo<CL_DEVICE_NAME>();
   });
 }

@@ -197,6 +197,7 @@ class ClClosest final : public ClosestBackend {
   cl::Kernel mBvhListKernel;
   cl::Kernel mConeKernel;
   cl::Kernel mCertCheckKernel;
+  cl::Kernel mCertCountKernel;
   correction::CandidateSearch mSearch;
   correction::CandidateTable mCandidates;
   cl::Buffer mTriangles;
