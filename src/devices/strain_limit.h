@@ -46,7 +46,7 @@ namespace drivenshape {
 /// on to x_{k+1} = omega_k (x^ - x_{k-1}) + x_{k-1}, so each step carries the momentum of the
 /// last two. Jacobi alone shrinks a smooth stretch, the kind the binding and the blend leave on
 /// the whole garment, by little per iteration (each vertex sees only its neighbours); the
-/// acceleration brings the band within reach of 30 iterations. omega_k = 1 is the plain step
+/// acceleration brings the band within reach of 24 iterations. omega_k = 1 is the plain step
 /// (x_{k+1} = x^, bitwise), as omega_0 must be: there is no x_{-1}. A vertex that no edge can
 /// move (share 0 on every entry) never moves: x^ = x_k = x_{k-1}.
 struct StrainLimitTables {

@@ -417,9 +417,13 @@ void hashStrainLimit(const HashInput& in, Hasher& h) {
     }
   }
 }
+/// With the limit, its iterations and a mark of their acceleration (the first Chebyshev-
+/// accelerated iteration, src/pipeline/stages/strain_limit.cpp: 2; none in the hash meant 5).
 void hashStrainIterations(const HashInput& in, Hasher& h) {
   if (in.model.settings.strainLimit > 0) {
     h.addValue(in.model.settings.strainIterations);
+    constexpr std::int32_t kAcceleratedFrom = 2;
+    h.addValue(kAcceleratedFrom);
   }
 }
 std::uint64_t hashLayers(const HashInput& in, std::uint64_t value) {

@@ -673,7 +673,7 @@ TEST(EvalCommand, StrainLimitLowersTheBakesStrainAndKeepsTheClothOutside) {
   }
   EXPECT_EQ(limited["mean_inside"].get<double>(), 0.0);
   EXPECT_EQ(limitedReport["settings"]["strain_limit"].get<double>(), 0.05);
-  EXPECT_EQ(limitedReport["settings"]["strain_iterations"].get<int>(), 30);
+  EXPECT_EQ(limitedReport["settings"]["strain_iterations"].get<int>(), 24);
   EXPECT_EQ(plainReport["settings"]["strain_limit"].get<double>(), 0.0);
   const nlohmann::json& stages = limitedReport["settings"]["stages"];
   EXPECT_NE(std::find(stages.begin(), stages.end(), "strain"), stages.end()) << stages.dump();

@@ -250,7 +250,7 @@ SETTINGS = ({'key': 'weight_mode',
                'description': 'Strain limit: Chebyshev-accelerated Jacobi iterations per frame, '
                               'each one pass over the edges (more: edges closer to the band) '
                               '(iterations)',
-               'default': 30,
+               'default': 24,
                'min': 1,
                'max': 10000},
   'panel': 'collision',

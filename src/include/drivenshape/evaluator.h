@@ -112,7 +112,7 @@ struct EvaluatorSettings {
   /// under the skin stays. The resolution still runs after it. Off by default: the validation
   /// table (docs/validation.md, "Strain") recommends 0.01 but shows where it costs.
   double strainLimit = 0.0;
-  int strainIterations = 30;
+  int strainIterations = 24;
   /// Region-local weights: one QP per region, mixed with its partition of unity; empty = one
   /// QP on every driver row.
   std::optional<RegionSet> regions;
