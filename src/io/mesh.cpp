@@ -167,9 +167,13 @@ double boundsDiagonal(const Mesh& mesh) {
   return computeBounds(mesh.positions.data(), mesh.vertexCount()).diagonal();
 }
 
-std::vector<MeshEdge> meshEdges(const Mesh& mesh) {
-  std::vector<MeshEdge> edges;
-  edges.reserve(mesh.faceVertices.size());
+namespace {
+
+/// Every polygon's sides (each corner with the next, the last with the first) as (a, b) with
+/// a < b, once per face that has it, sorted; a side naming one vertex twice is none.
+std::vector<MeshEdge> polygonSides(const Mesh& mesh) {
+  std::vector<MeshEdge> sides;
+  sides.reserve(mesh.faceVertices.size());
   for (std::size_t f = 0; f + 1 < mesh.faceStart.size(); ++f) {
     const auto begin = static_cast<std::size_t>(mesh.faceStart[f]);
     const auto end = static_cast<std::size_t>(mesh.faceStart[f + 1]);
@@ -177,13 +181,39 @@ std::vector<MeshEdge> meshEdges(const Mesh& mesh) {
       const int a = mesh.faceVertices[c];
       const int b = mesh.faceVertices[c + 1 < end ? c + 1 : begin];
       if (a != b) {
-        edges.push_back({std::min(a, b), std::max(a, b)});
+        sides.push_back({std::min(a, b), std::max(a, b)});
       }
     }
   }
-  std::sort(edges.begin(), edges.end());
+  std::sort(sides.begin(), sides.end());
+  return sides;
+}
+
+}  // namespace
+
+std::vector<MeshEdge> meshEdges(const Mesh& mesh) {
+  std::vector<MeshEdge> edges = polygonSides(mesh);
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   return edges;
+}
+
+std::vector<int> borderVertices(const Mesh& mesh) {
+  const std::vector<MeshEdge> sides = polygonSides(mesh);
+  std::vector<int> border;
+  for (std::size_t k = 0; k < sides.size();) {
+    std::size_t next = k + 1;
+    while (next < sides.size() && sides[next] == sides[k]) {
+      ++next;
+    }
+    if (next == k + 1) {
+      border.push_back(sides[k][0]);
+      border.push_back(sides[k][1]);
+    }
+    k = next;
+  }
+  std::sort(border.begin(), border.end());
+  border.erase(std::unique(border.begin(), border.end()), border.end());
+  return border;
 }
 
 std::vector<double> edgeLengthRatios(const Mesh& mesh, const float* xyz) {

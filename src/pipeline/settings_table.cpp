@@ -403,14 +403,16 @@ void hashBatch(const HashInput& in, Hasher& h) {
     h.addValue(in.output->batchSize);
   }
 }
-/// Off, the strain limit leaves the hash of the bakes before it. On with the resolution, the
-/// limit keeps the cloth in front of its skin planes (src/pipeline/stages/strain_limit.cpp): a
-/// mark of that method, so that no bake of the limit before it is taken for one now (2: the planes
-/// reach 2 skin offsets, where 1 gave them to every vertex the certificate searched; 3: the settle
-/// stage after the resolution).
+/// Off, the strain limit leaves the hash of the bakes before it. On, marks of its method
+/// (src/pipeline/stages/strain_limit.cpp), so that no bake of the limit before it is taken for
+/// one now: the garment's open borders held (1); with the resolution, the cloth kept in front of
+/// its skin planes (2: the planes reach 2 skin offsets, where 1 gave them to every vertex the
+/// certificate searched; 3: the settle stage after the resolution).
 void hashStrainLimit(const HashInput& in, Hasher& h) {
   if (in.model.settings.strainLimit > 0) {
     h.addValue(in.model.settings.strainLimit);
+    constexpr std::int32_t kHeldBorders = 1;
+    h.addValue(kHeldBorders);
     if (in.model.settings.resolve) {
       constexpr std::int32_t kSkinPlanes = 3;
       h.addValue(kSkinPlanes);
@@ -779,8 +781,9 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
       .help(
           "after the correction and before the penetration resolution, each frame's cloth "
           "edges are brought back within this fraction of their rest lengths (0.01: 99% to "
-          "101%, the validation table's choice) by iterations of edge projections, so the cloth "
-          "does not stretch like rubber; with the resolution on, the cloth is kept out of the "
+          "101%, the validation table's choice) by iterations of edge projections, the "
+          "garment's open borders (hems, cuffs) held where they are, so the cloth does not "
+          "stretch like rubber; with the resolution on, the cloth is kept out of the "
           "body while it iterates, and what the resolution leaves shallowly inside comes just "
           "out after it (with an exit fade of 0.2 beside it, the validation's best)")
       .hash(&hashStrainLimit)

@@ -2,6 +2,7 @@
 // countMeshDefects and checkDriverMesh (src/io/mesh_check.cpp) on tiny meshes whose counts are
 // derived by hand in the comments, and on the bundled sample meshes.
 
+#include <drivenshape/mesh.h>
 #include <drivenshape/mesh_check.h>
 
 #include <gtest/gtest.h>
@@ -228,11 +229,39 @@ TEST(MeshCheck, CheckDriverMeshRefusesOrWarns) {
 
 // The bundled sleeve is closed, manifold and consistent; its cloth is open (88 border edges).
 TEST(MeshCheck, SampleDriverIsTrustedAndTheClothIsOpen) {
-  const MeshDefects driver = countMeshDefects(readObj(dataDir() + "/sleeve/driver_rest.obj"));
+  const Mesh driverMesh = readObj(dataDir() + "/sleeve/driver_rest.obj");
+  const MeshDefects driver = countMeshDefects(driverMesh);
   EXPECT_EQ(driver.faces, 2176);
   expectCounts(driver, 0, 0, 0, 0);
-  const MeshDefects cloth = countMeshDefects(readObj(dataDir() + "/sleeve/driven_rest.obj"));
+  EXPECT_TRUE(borderVertices(driverMesh).empty());
+  const Mesh clothMesh = readObj(dataDir() + "/sleeve/driven_rest.obj");
+  const MeshDefects cloth = countMeshDefects(clothMesh);
   expectCounts(cloth, 0, 88, 0, 0);
+  // A tube: two rings, each with as many vertices as open edges.
+  EXPECT_EQ(borderVertices(clothMesh).size(), 88u);
+}
+
+// borderVertices: the ends of the sides one face has, each once, sorted; counted by hand.
+TEST(MeshCheck, BorderVerticesAreTheEndsOfTheOpenEdges) {
+  // Closed: none.
+  EXPECT_TRUE(borderVertices(meshOf(kTetraPoints, tetraFaces())).empty());
+  // Without face 4 (1 2 3): its three edges are open.
+  std::vector<std::vector<int>> open = tetraFaces();
+  open.pop_back();
+  EXPECT_EQ(borderVertices(meshOf(kTetraPoints, open)), (std::vector<int>{1, 2, 3}));
+  // A fin (0 1 4): edge 0-1 has three faces (not a border), 1-4 and 4-0 one.
+  std::vector<std::vector<int>> fin = tetraFaces();
+  fin.push_back({0, 1, 4});
+  EXPECT_EQ(borderVertices(meshOf(kTetraPoints, fin)), (std::vector<int>{0, 1, 4}));
+  // A 2 x 2 grid of quads (vertices 0-8 row by row): every vertex but the centre, 4.
+  std::vector<Eigen::Vector3f> grid;
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 0; x < 3; ++x) {
+      grid.emplace_back(static_cast<float>(x), static_cast<float>(y), 0.0f);
+    }
+  }
+  EXPECT_EQ(borderVertices(meshOf(grid, {{0, 1, 4, 3}, {1, 2, 5, 4}, {3, 4, 7, 6}, {4, 5, 8, 7}})),
+            (std::vector<int>{0, 1, 2, 3, 5, 6, 7, 8}));
 }
 
 }  // namespace

@@ -21,6 +21,7 @@
 #include <drivenshape/evaluate.h>
 #include <drivenshape/evaluator.h>
 #include <drivenshape/mesh.h>
+#include <drivenshape/mesh_check.h>
 #include <drivenshape/point_cache.h>
 
 #include "cli_test_util.h"
@@ -374,6 +375,46 @@ TEST_F(EvaluatorTest, StrainLimitRunsBetweenTheCorrectionAndTheResolution) {
   }
   std::printf("  host vs OpenCL with the strain limit: %.3g of the diagonal\n", worst);
   EXPECT_LE(worst, testing::kDeviceVsHostRelTol + testing::kStrainLimitDeviceVsHostRelTol);
+}
+
+// The strain limit holds the garment's open borders (the sleeve's cuff and shoulder rings) where
+// the pipeline put them and moves the rest: without the resolution (no skin planes), the limited
+// bake's border vertices are the bytes of the bake without the limit on every frame, and most
+// other vertices move.
+TEST_F(EvaluatorTest, StrainLimitHoldsTheOpenBorders) {
+  const Database db = loadDatabase(file("sleeve.dsdb"));
+  const std::vector<int> frames = shotFrames();
+  const std::vector<float> driver = readFrames(*openPointCache(sample("test.driver.pc2")), frames);
+  const std::vector<int> border = borderVertices(db.drivenMesh);
+  const MeshDefects defects = countMeshDefects(db.drivenMesh);
+  // The sleeve is a tube: its two open rings have as many vertices as open edges.
+  ASSERT_EQ(static_cast<int>(border.size()), defects.openEdges);
+  ASSERT_GT(border.size(), 0u);
+  std::unique_ptr<Device> device = makeOpenClDevice(context(), this->device(), queue());
+  EvaluatorSettings settings;
+  settings.resolve = false;
+  const std::vector<float> plain = Evaluator(db, settings, *device).evaluate(frames, driver).cloth;
+  settings.strainLimit = 0.01;
+  const std::vector<float> limited =
+      Evaluator(db, settings, *device).evaluate(frames, driver).cloth;
+  ASSERT_EQ(plain.size(), limited.size());
+  const int vd = db.drivenVertexCount();
+  std::vector<bool> held(static_cast<std::size_t>(vd), false);
+  for (const int v : border) {
+    held[static_cast<std::size_t>(v)] = true;
+  }
+  int heldMoved = 0;
+  int freeMoved = 0;
+  for (std::size_t i = 0; i < plain.size(); i += 3) {
+    const bool moved = std::memcmp(&plain[i], &limited[i], 3 * sizeof(float)) != 0;
+    const auto v = static_cast<std::size_t>(i / 3) % static_cast<std::size_t>(vd);
+    (held[v] ? heldMoved : freeMoved) += moved ? 1 : 0;
+  }
+  const std::size_t freePositions = frames.size() * (static_cast<std::size_t>(vd) - border.size());
+  std::printf("  %zu border vertices held; %d of %zu other positions moved\n", border.size(),
+              freeMoved, freePositions);
+  EXPECT_EQ(heldMoved, 0);
+  EXPECT_GT(freeMoved, static_cast<int>(freePositions / 2));
 }
 
 TEST_F(EvaluatorTest, MessagesNameSettingsAndTheFrameAtFault) {

@@ -228,7 +228,8 @@ SETTINGS = ({'key': 'weight_mode',
                'description': 'After the correction and before the penetration resolution, each '
                               "frame's cloth edges are brought back within this fraction of their "
                               "rest lengths (0.01: 99% to 101%, the validation table's choice) by "
-                              'iterations of edge projections, so the cloth does not stretch like '
+                              "iterations of edge projections, the garment's open borders (hems, "
+                              'cuffs) held where they are, so the cloth does not stretch like '
                               'rubber; with the resolution on, the cloth is kept out of the body '
                               'while it iterates, and what the resolution leaves shallowly inside '
                               'comes just out after it (with an exit fade of 0.2 beside it, the '

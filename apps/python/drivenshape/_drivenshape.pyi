@@ -299,7 +299,7 @@ class EvaluatorSettings:
     exit_fade=0.15: penetration resolution: a vertex deep inside the body whose two nearest exits differ by at most this factor times its depth moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
     regions=None: region-local weights: one QP per region (driver groups) mixed over the matching driven groups with a smooth falloff (a JSON file: readRegions; Python: load_regions); none = one QP on every driver row
     max_weight_change=0.0: temporal stability: no shape's weight changes by more than this between consecutive frames (|w_t - w_{t-1}|), frames solved in order within each batch
-    strain_limit=0.0: after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%, the validation table's choice) by iterations of edge projections, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (with an exit fade of 0.2 beside it, the validation's best)
+    strain_limit=0.0: after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%, the validation table's choice) by iterations of edge projections, the garment's open borders (hems, cuffs) held where they are, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (with an exit fade of 0.2 beside it, the validation's best)
     strain_iterations=24: strain limit: Chebyshev-accelerated Jacobi iterations per frame, each one pass over the edges (more: edges closer to the band)
     layers=None: layers after the correction and the resolution: a mix with another cache, wind (command line: the --mix and --wind-* options, see Layer options; Python: load_layers); none by default
     audit=True: the per-frame audit: cloth vertices inside the driver before and after the correction, binding switches, the largest frame-to-frame jump (costs time)
@@ -444,7 +444,7 @@ class EvaluatorSettings:
     @property
     def strain_limit(self) -> float:
         """
-        after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%, the validation table's choice) by iterations of edge projections, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (with an exit fade of 0.2 beside it, the validation's best)
+        after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%, the validation table's choice) by iterations of edge projections, the garment's open borders (hems, cuffs) held where they are, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (with an exit fade of 0.2 beside it, the validation's best)
         """
     @strain_limit.setter
     def strain_limit(self, value: float) -> None:

@@ -108,9 +108,10 @@ struct EvaluatorSettings {
   /// Strain limit (0 = off): after the correction and before the penetration resolution, each
   /// frame's cloth edges are brought back into the band [(1 - s) L, (1 + s) L] around their rest
   /// lengths L (s = strainLimit) by `strainIterations` Chebyshev-accelerated Jacobi iterations
-  /// of edge projections (docs/method.md, "Strain limit"). Every cloth vertex may move; a layer
-  /// under the skin stays. The resolution still runs after it. Off by default: the validation
-  /// table (docs/validation.md, "Strain") recommends 0.01 but shows where it costs.
+  /// of edge projections (docs/method.md, "Strain limit"). The garment's open borders (a hem, a
+  /// cuff) and a layer under the skin stay; every other cloth vertex may move. The resolution still
+  /// runs after it. Off by default: the validation table (docs/validation.md, "Strain") recommends
+  /// 0.01 but shows where it costs.
   double strainLimit = 0.0;
   int strainIterations = 24;
   /// Region-local weights: one QP per region, mixed with its partition of unity; empty = one

@@ -63,6 +63,12 @@ using MeshEdge = std::array<int, 2>;
 /// (`f 1 1 2`) is no edge. Linear in the corners, plus a sort.
 std::vector<MeshEdge> meshEdges(const Mesh& mesh);
 
+/// The vertices on the mesh's open borders: both ends of every side of meshEdges that exactly
+/// one face has (a garment's hems, cuffs and waistband), sorted, each once. A closed mesh has
+/// none; a side that two faces share, or more, is not a border. Linear in the corners, plus a
+/// sort.
+std::vector<int> borderVertices(const Mesh& mesh);
+
 /// |edge| / |rest edge| for every edge of meshEdges with a rest length, in their order: how
 /// much each edge of positions `xyz` (3V floats, the mesh's vertex order) is longer than at
 /// rest.

@@ -2,12 +2,12 @@
 // Strain limit (docs/method.md, "Strain limit"): after the correction and before the penetration
 // resolution, each frame's cloth edges are brought back into the band [(1 - s) L, (1 + s) L]
 // around their rest lengths L by Chebyshev-accelerated Jacobi iterations of edge projections
-// (StrainLimitBackend, src/devices/strain_limit.h), every frame alone. Every cloth vertex may
-// move; a layer under the skin (a muscle) stays as it is. With the resolution on, each cloth
-// vertex near the skin is kept in front of its skin plane through the iterations
-// (ClosestBackend::skinPlanes): the limit slides the cloth along the body instead of pulling it
-// in, and a vertex shallowly inside comes out within the limit, its edges following it. The
-// resolution after it puts back out of the body whatever is still in.
+// (StrainLimitBackend, src/devices/strain_limit.h), every frame alone. The garment's open
+// borders and a layer under the skin (a muscle) stay as they are; every other vertex may move.
+// With the resolution on, each cloth vertex near the skin is kept in front of its skin plane
+// through the iterations (ClosestBackend::skinPlanes): the limit slides the cloth along the body
+// instead of pulling it in, and a vertex shallowly inside comes out within the limit, its edges
+// following it. The resolution after it puts back out of the body whatever is still in.
 
 #include <cstddef>
 #include <cstdint>
@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <drivenshape/binding.h>
+#include <drivenshape/mesh.h>
 
 #include "../stage.h"
 #include "strain_limit.h"
@@ -62,18 +63,31 @@ constexpr double kKeptReach = kPlaneReach - 1.0;
 /// back down by 15 mm.
 constexpr double kPlaneDepth = 7.5;
 
-/// The strain limit's vertex weights: a vertex that lives under the skin (a muscle or fat
-/// layer, Model::sides) stays where the pipeline put it, since such a layer stretches and
-/// shrinks with the skin by design; every cloth vertex may move. Empty (every vertex 1) when no
-/// vertex lives inside: every cloth database.
+/// The strain limit's vertex weights: 0 holds a vertex where the pipeline put it, 1 lets it move.
+/// Held: the garment's open borders (borderVertices: a hem, a cuff, a waistband), where the cloth
+/// swings freest and fastest; moved, a border vertex spreads its edges' stretch along the border,
+/// which changes the largest frame-to-frame jump by a fraction of a millimetre either way (held,
+/// the validation clips' largest jumps are the defaults' to the 0.1 mm; moved, five of 18 rose
+/// by 0.1-0.4 mm: docs/validation.md, "Held borders"). Their edges still pull the vertices next
+/// to them. Held too: a vertex that lives under the skin (a muscle or fat layer, Model::sides),
+/// since such a layer stretches and shrinks with the skin by design. Every other cloth vertex
+/// may move. Empty (every vertex 1) when none is held.
 std::vector<float> movingVertices(Model& model) {
-  if (model.insideVertices() == 0) {
+  const std::vector<int> border = borderVertices(model.db.drivenMesh);
+  if (border.empty() && model.insideVertices() == 0) {
     return {};
   }
-  const std::vector<std::int8_t>& sides = model.sides();
-  std::vector<float> weights(sides.size());
-  for (std::size_t v = 0; v < sides.size(); ++v) {
-    weights[v] = sides[v] == kSideInside ? 0.0f : 1.0f;
+  std::vector<float> weights(static_cast<std::size_t>(model.vd), 1.0f);
+  for (const int v : border) {
+    weights[static_cast<std::size_t>(v)] = 0.0f;
+  }
+  if (model.insideVertices() > 0) {
+    const std::vector<std::int8_t>& sides = model.sides();
+    for (std::size_t v = 0; v < sides.size(); ++v) {
+      if (sides[v] == kSideInside) {
+        weights[v] = 0.0f;
+      }
+    }
   }
   return weights;
 }
