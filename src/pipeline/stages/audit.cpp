@@ -17,7 +17,8 @@ class AuditStage final : public Stage {
   explicit AuditStage(Model& model)
       : mModel(model),
         mSwitches(model.settings.correct && !model.local),
-        mLayers(!model.settings.layers.empty()) {
+        mLayers(!model.settings.layers.empty()),
+        mSettles(limitsWithSkinPlanes(model)) {
     // The resolution's hits are kept for the points it proved clear (countAfter).
     const bool resolve = model.settings.resolve;
     declare(Arrays{Array::Shot, Array::Cloth, Array::Records}
@@ -90,9 +91,10 @@ class AuditStage final : public Stage {
   }
 
  private:
-  /// Wrong-side counts after the resolution and layers; reuses the resolution's count when
-  /// nothing moved since, and, when only the resolution moved points, the resolution's answers
-  /// for the points it proved clear (it left them where they were).
+  /// Wrong-side counts after the resolution, the settle stage and layers; reuses the resolution's
+  /// count when nothing moved since, and, when only the resolution and the settle stage moved
+  /// points, their answers for the points they proved clear (they left them where they were).
+  /// The settle stage counts no moves: after it the cloth is always counted again.
   void countAfter(Batch& batch) {
     const bool resolve = mModel.settings.resolve;
     const bool layersApplied = mLayers && batch.in<Array::LayersApplied>();
@@ -100,7 +102,7 @@ class AuditStage final : public Stage {
       const std::vector<int>& moved = batch.in<Array::Moved>();
       return std::any_of(moved.begin(), moved.end(), [](int m) { return m > 0; });
     };
-    const bool anyMoved = (resolve && resolveMoved()) || layersApplied;
+    const bool anyMoved = (resolve && resolveMoved()) || layersApplied || mSettles;
     if (!resolve || anyMoved) {
       countInside(mModel, batch, batch.in<Array::Shot>(), batch.in<Array::Cloth>(),
                   &FrameRecord::insideAfter, 0.0f, resolve && !layersApplied);
@@ -120,6 +122,7 @@ class AuditStage final : public Stage {
   Model& mModel;
   const bool mSwitches;                ///< binding switches: the correction's hits (world blending)
   const bool mLayers;                  ///< layers run before (they may have changed the cloth)
+  const bool mSettles;                 ///< the settle stage runs before (SettleStage)
   std::vector<float> mPreviousOutput;  ///< the previous frame's cloth, 3Vd
   std::vector<SurfaceHit> mPreviousHits;  ///< its binding hits (world blending), Vd
 };
