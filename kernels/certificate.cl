@@ -358,8 +358,8 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
 // dsCertCount: cleared[f] = how many of frame f's items dsCertCheck answered (answered[f * Vd +
 // i] != 0), after it. One work-group per frame: 2-D range (DS_LOCAL_SIZE, F), local size
 // (DS_LOCAL_SIZE, 1). (dsCertCheck counted them itself with an atomic increment per answered
-// item, every item of a frame on one counter: on a CPU device the two cores' increments fought
-// over its cache line, 40% of dsCertCheck's time where the strain limit's answers are kept.)
+// item, every item of a frame on one counter: 2-4% of its time on PoCL's two cores, and a
+// counter that every thread of a GPU's frame would queue on.)
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertCount(
     __global const int* answered, __global int* cleared, const int pointCount) {
   __local int partial[DS_LOCAL_SIZE];

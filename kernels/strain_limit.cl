@@ -10,7 +10,8 @@
 // (relaxation / n, n its edges that can move it, fixed per vertex so that the result is
 // continuous in the positions), and is copied unchanged when there are none: x^. Where
 // params.omega is not 1 (Chebyshev acceleration), `out` holds the iteration before `in` and the
-// vertex writes omega * (x^ - out) + out. A vertex reads `in` and its own three floats of `out`,
+// vertex writes omega * (x^ - out) + out, except a vertex with step 0 (no edge can move it),
+// which writes x^. A vertex reads `in` and its own three floats of `out`,
 // writes only those: no atomics, no order between items. Where params.planes is 1, the vertex
 // then keeps in front of its skin plane (m, c) = planes[f * V + v] (ClosestBackend::skinPlanes;
 // none where m is 0): a result x with m . x < c moves to x + (c - m . x) m.
@@ -88,7 +89,8 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrai
   float x = jx;
   float y = jy;
   float z = jz;
-  if (omega != 1.0f) {
+  // A vertex no edge can move (step 0) takes no momentum: only its plane moves it.
+  if (omega != 1.0f && h != 0.0f) {
     const float ox = out[at];
     const float oy = out[at + 1];
     const float oz = out[at + 2];

@@ -73,12 +73,13 @@
 // are rounded up when stored in float). The axes need not be exact: the bound holds for any a_n
 // with e_n measured against a_n as stored.
 //
-// Cost. Per frame: one more refit pass (the cones). Per point: one triangle distance for U,
-// then a walk that stops where the cones prove the surface behind the point, typically at nodes
-// a few triangles across for cloth a triangle or two off the body, measuring no other distance:
-// about as many node tests as the search's box tests, without its triangle distances
-// (docs/performance.md has the figures). Points near the
-// surface, inside, near crossings or slivers fail and pay the walk and the search.
+// Cost. Per frame: one more refit pass (the cones). Per point: one triangle distance for U and
+// those of the first leaf, then a walk that stops where the cones prove the surface behind the
+// point, typically at nodes a few triangles across for cloth a triangle or two off the body,
+// measuring no other distance: about as many node tests as the search's box tests, without its
+// triangle distances (docs/performance.md has the figures). Points near the surface, inside,
+// near crossings or slivers fail and pay the walk (twice where it passed a covered node before
+// its first leaf) and the search.
 //
 // The recount. resolve() leaves every point cleared for it where it is, on the same poses, so
 // its witness still answers a count (clearance 0 <= offset): the audit's recount after the

@@ -48,7 +48,8 @@ namespace drivenshape {
 /// the whole garment, by little per iteration (each vertex sees only its neighbours); the
 /// acceleration brings the band within reach of 24 iterations. omega_k = 1 is the plain step
 /// (x_{k+1} = x^, bitwise), as omega_0 must be: there is no x_{-1}. A vertex that no edge can
-/// move (share 0 on every entry) never moves: x^ = x_k = x_{k-1}.
+/// move (share 0 on every entry, step 0) takes no momentum, x_{k+1} = x^ = x_k: only its skin
+/// plane moves it, onto the plane and no further.
 struct StrainLimitTables {
   int vertexCount = 0;
   int iterations = 0;

@@ -405,13 +405,14 @@ void hashBatch(const HashInput& in, Hasher& h) {
 }
 /// Off, the strain limit leaves the hash of the bakes before it. On, marks of its method
 /// (src/pipeline/stages/strain_limit.cpp), so that no bake of the limit before it is taken for
-/// one now: the garment's open borders held (1); with the resolution, the cloth kept in front of
+/// one now: the garment's open borders held (2: with no momentum from their skin planes' push,
+/// where 1 let them drift by up to 0.005 mm); with the resolution, the cloth kept in front of
 /// its skin planes (2: the planes reach 2 skin offsets, where 1 gave them to every vertex the
 /// certificate searched; 3: the settle stage after the resolution).
 void hashStrainLimit(const HashInput& in, Hasher& h) {
   if (in.model.settings.strainLimit > 0) {
     h.addValue(in.model.settings.strainLimit);
-    constexpr std::int32_t kHeldBorders = 1;
+    constexpr std::int32_t kHeldBorders = 2;
     h.addValue(kHeldBorders);
     if (in.model.settings.resolve) {
       constexpr std::int32_t kSkinPlanes = 3;

@@ -115,9 +115,11 @@ class HostStrainLimit final : public StrainLimitBackend {
       }
       double* o = out + 3 * v;
       const double step = t.step[v];
+      // A vertex no edge can move (step 0) takes no momentum: only its plane moves it.
+      const bool accelerated = omega != 1.0 && step != 0.0;
       for (int a = 0; a < 3; ++a) {
         const double jacobi = moves ? p[a] + step * sum[a] : p[a];
-        o[a] = omega == 1.0 ? jacobi : omega * (jacobi - o[a]) + o[a];
+        o[a] = accelerated ? omega * (jacobi - o[a]) + o[a] : jacobi;
       }
       if (planes != nullptr) {
         inFront(planes + 4 * v, o);
