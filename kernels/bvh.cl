@@ -67,15 +67,16 @@ inline ds_real dsBoxDistance2(ds_real3 p, __global const float* box) {
 //   hits       F x Vd DsSurfaceHit
 //
 // dsBvhClosestList: the same search for the items listed in search[0 .. searchCount - 1] (item
-// ids f * Vd + i, any order; one work item per entry), e.g. the points the clearance
-// certificate (certificate.cl) could not clear.
+// ids f * Vd + i, any order; one work item per entry): the points the clearance certificate
+// (certificate.cl) could not clear, each seeded with the triangle it left in hits[item], its
+// walk's witness (the answer does not depend on the seed: src/database/bvh.cpp).
 
 // The search of item `item` (frame f, point i); the kernels below write its answer.
 inline DsSurfaceHit dsBvhSearch(int item, __global const float* poses,
                                 __global const int* triangles, __global const DsBvhNode* nodes,
                                 __global const int4* leafTriangles, __global const float* boxes,
                                 __global const float* points, __global const int* pointRoot,
-                                __global const DsSurfaceHit* seeds, const DsBvhQueryParams params) {
+                                const int seed, const DsBvhQueryParams params) {
   const int frame = item / params.pointCount;
   const int point = item - frame * params.pointCount;
   __global const float* pose = poses + (size_t)frame * (size_t)(3 * params.vertexCount);
@@ -89,7 +90,6 @@ inline DsSurfaceHit dsBvhSearch(int item, __global const float* poses,
 
   ds_real u;
   ds_real v;
-  const int seed = seeds[point].triangle;
   int bestTriangle = seed;
   ds_real best = dsCandidateDistance2(p, pose, triangles, seed, &u, &v);
   ds_real band = best + tieRelative * best + tieAbsolute;
@@ -274,20 +274,21 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhCl
   if (item >= params.frameCount * params.pointCount) {
     return;
   }
+  const int point = item % params.pointCount;
   hits[item] = dsBvhSearch(item, poses, triangles, nodes, leafTriangles, boxes, points, pointRoot,
-                           seeds, params);
+                           seeds[point].triangle, params);
 }
 
 __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsBvhClosestList(
     __global const float* poses, __global const int* triangles, __global const DsBvhNode* nodes,
     __global const int4* leafTriangles, __global const float* boxes, __global const float* points,
-    __global const int* pointRoot, __global const DsSurfaceHit* seeds, __global DsSurfaceHit* hits,
-    const DsBvhQueryParams params, __global const int* search, const int searchCount) {
+    __global const int* pointRoot, __global DsSurfaceHit* hits, const DsBvhQueryParams params,
+    __global const int* search, const int searchCount) {
   const int id = (int)get_global_id(0);
   if (id >= searchCount) {
     return;
   }
   const int item = search[id];
   hits[item] = dsBvhSearch(item, poses, triangles, nodes, leafTriangles, boxes, points, pointRoot,
-                           seeds, params);
+                           hits[item].triangle, params);
 }

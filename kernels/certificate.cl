@@ -293,7 +293,10 @@ inline int dsCertWalk(ds_real3 p, __global const float* pose, __global const DsB
 //   nodeTriangle   N int                a triangle under each node (certificate.h)
 //   points         F x 3Vd float
 //   seeds          Vd DsSurfaceHit      .triangle: the previous block's last hits (bvh.cl)
-//   hits           F x Vd DsSurfaceHit  witnesses written for cleared items only
+//   hits           F x Vd DsSurfaceHit  with params.keep read first: each item's answer of the
+//                                       call before, its seed; written: a cleared item's
+//                                       witness, and an item to search's witness triangle (the
+//                                       search's seed, dsBvhClosestList)
 //   answered       F x Vd int           1 for an item cleared (or kept), 0 for one to search;
 //                                       read first with params.keep
 //   search         F x Vd int           appended atomically (order unspecified)
@@ -320,10 +323,12 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
   const ds_real target = (ds_real)params.clearance + margin;
   // Triangles within U + 2 reach of p can be the closest of a point within reach of p.
   const ds_real reachMargin = margin + 2 * (ds_real)params.reach;
-  // The upper bound U starts at the distance to the seed triangle, the first witness. The walk
-  // turns aside into covered nodes for the first leaf's distances only when it failed without:
-  // most points pass without those distances, and the others pass more often with them.
-  int witness = seeds[point].triangle;
+  // The upper bound U starts at the distance to the seed triangle, the first witness: with
+  // params.keep the item's own answer before it moved (close), else the point's hit on the
+  // previous block's last frame. The walk turns aside into covered nodes for the first leaf's
+  // distances only when it failed without: most points pass without those distances, and the
+  // others pass more often with them.
+  int witness = params.keep ? hits[item].triangle : seeds[point].triangle;
   ds_real u;
   ds_real v;
   ds_real core2 = dsCandidateDistance2(p, pose, triangles, witness, &u, &v);
@@ -340,6 +345,7 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsCertC
                                dsLoad3(pose, triangles[3 * witness + 2]), target);
   answered[item] = pass;
   if (!pass) {
+    hits[item].triangle = witness;
     search[atomic_inc(searchCount)] = item;
     return;
   }

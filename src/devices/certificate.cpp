@@ -23,10 +23,11 @@
 //      DS_CERT_SIN2_*).
 //   2. Check (dsCertCheck, one item per frame and point p): limit = U + m with U an upper bound
 //      of the closest distance D*: the distance from p to its seed triangle (the previous
-//      block's hit, as for the search), lowered during the walk to the farthest point from p of
-//      any box seen (every box holds a triangle) and to the nearest triangle of the first leaf
-//      reached (measured before its plane tests); target = clearance + m,
-//      m = DS_CERT_MARGIN_* x S. Walk the tree from the root, nearer child first:
+//      block's hit, as for the search; with `keep`, the item's own hit of the call before,
+//      made before the stage between moved p a little), lowered during the walk to the
+//      farthest point from p of any box seen (every box holds a triangle) and to the nearest
+//      triangle of the first leaf reached (measured before its plane tests); target =
+//      clearance + m, m = DS_CERT_MARGIN_* x S. Walk the tree from the root, nearer child first:
 //        - a node whose box is farther than `limit` is skipped;
 //        - a node whose cone proves front_n(p) = a_n . p - o_n - e_n * (the box's farthest
 //          point from p) >= target is skipped ("covered");
@@ -41,8 +42,8 @@
 //      of w, a triangle within U of p (the seed, the nearest of the first leaf, or one under
 //      the box whose farthest point last lowered U: it is within `limit`, so it passes; the
 //      test is repeated).
-//      Otherwise p is searched exactly (dsBvhClosestList). The witness, a triangle near p, seeds
-//      the next block.
+//      Otherwise p is searched exactly (dsBvhClosestList), from its witness, a triangle near
+//      p, as the seed. The last frame's hits seed the next block.
 //
 // Why a cleared point is safe. For a triangle t under node n, any x in t lies in n's box, and
 // h_t = n_t . (p - x) = a_n . (p - x) + (n_t - a_n) . (p - x) >= a_n . p - o_n - e_n |p - x|

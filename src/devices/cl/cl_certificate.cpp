@@ -116,7 +116,7 @@ void ClClosest::clearOrSearch(int frameCount, DeviceArray& poses, DeviceArray& p
                       &searchCount);
     if (searchCount > 0) {
       cl_util::setArgs(mBvhListKernel, posesBuffer, mTriangles, mNodes, mLeafTriangles, boxBuffer,
-                       pointsBuffer, mPointRoot, mSeeds, hitBuffer, query, searchBuffer,
+                       pointsBuffer, mPointRoot, hitBuffer, query, searchBuffer,
                        cl_int(searchCount));
       cl_util::enqueue1d(mQueue, mBvhListKernel, static_cast<std::size_t>(searchCount),
                          DS_LOCAL_SIZE);

@@ -416,8 +416,8 @@ void HostCertificate::remember(const SurfaceHit* lastFrame) {
 }
 
 void HostCertificate::clear(int frameCount, const float* poses, const float* points,
-                            float clearance, float reach, SurfaceHit* hits, std::uint8_t* active,
-                            int* cleared, int threads) {
+                            float clearance, float reach, bool seedFromHits, SurfaceHit* hits,
+                            std::uint8_t* active, int* cleared, int threads) {
   const std::size_t items = static_cast<std::size_t>(frameCount) * mPointCount;
   if (!mEnabled || items == 0) {
     return;
@@ -447,7 +447,8 @@ void HostCertificate::clear(int frameCount, const float* poses, const float* poi
       }
       const Eigen::Vector3d p = loadPoint(points, static_cast<long>(item));
       SurfaceHit hit;
-      if (!certifyPoint(walk, p, mSeeds[static_cast<std::size_t>(i)], stack, hit)) {
+      const int seed = seedFromHits ? hits[item].triangle : mSeeds[static_cast<std::size_t>(i)];
+      if (!certifyPoint(walk, p, seed, stack, hit)) {
         continue;
       }
       hits[item] = hit;
@@ -489,7 +490,7 @@ void HostClosest::closestOrClearBlock(int frameCount, DeviceArray& poses, Device
       }
     }
   }
-  mCertificate.clear(frameCount, posesIn, pointsIn, clearance, reach, out, mActive.data(),
+  mCertificate.clear(frameCount, posesIn, pointsIn, clearance, reach, kept, out, mActive.data(),
                      mCleared.data(), mSearch.threads());
   if (cleared != nullptr) {
     std::copy(mCleared.begin(), mCleared.end(), cleared);

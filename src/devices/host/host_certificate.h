@@ -26,11 +26,13 @@ class HostCertificate {
   /// of frame f is proven at signed distance >= clearance, and every point within `reach` of it
   /// at signed distance >= clearance - reach with the same witness
   /// (ClosestBackend::closestOrClearBlock), active[k] becomes 0, hits[k] a witness and cleared[f]
-  /// grows by one; other items are left as they are. The first call
-  /// takes its seeds from the first frame (seedTriangles); later ones from remember().
+  /// grows by one; other items are left as they are. With `seedFromHits` (the hits hold each
+  /// item's answer of the call before, as dsCertCheck's params.keep) an item's walk starts from
+  /// its own hit's triangle; otherwise the first call takes its seeds from the first frame
+  /// (seedTriangles), later ones from remember().
   ///   poses F x 3Vp;  points F x 3Vd;  hits, active F x Vd;  cleared F
   void clear(int frameCount, const float* poses, const float* points, float clearance, float reach,
-             SurfaceHit* hits, std::uint8_t* active, int* cleared, int threads);
+             bool seedFromHits, SurfaceHit* hits, std::uint8_t* active, int* cleared, int threads);
 
   /// The seeds of the next call: the hits of a chunk's last frame (Vd).
   void remember(const SurfaceHit* lastFrame);
