@@ -162,11 +162,13 @@ inline int dsCertOpen(ds_real3 p, __global const float* box, const DsCertCone co
     *limit = sqrt(far2) + margin;
     *witness = triangle;
   }
-  // Covered when front >= spread * sqrt(far2), compared squared.
+  // Covered when front >= spread * min(far, limit), compared squared: only the triangles within
+  // the limit must pass, and such a triangle's nearest point x has |p - x| <= both.
   const ds_real front = (ds_real)cone.axis[0] * p.x + (ds_real)cone.axis[1] * p.y +
                         (ds_real)cone.axis[2] * p.z - (ds_real)cone.offset - target;
   const ds_real spread = (ds_real)cone.spread;
-  return !(isfinite(spread) && front >= 0 && front * front >= spread * spread * far2);
+  const ds_real reach2 = fmin(far2, *limit * *limit);
+  return !(isfinite(spread) && front >= 0 && front * front >= spread * spread * reach2);
 }
 
 // The walk of dsCertCheck from the root for p: 0 as soon as a triangle within `limit` does not

@@ -29,8 +29,8 @@
 //      triangle of the first leaf reached (measured before its plane tests); target =
 //      clearance + m, m = DS_CERT_MARGIN_* x S. Walk the tree from the root, nearer child first:
 //        - a node whose box is farther than `limit` is skipped;
-//        - a node whose cone proves front_n(p) = a_n . p - o_n - e_n * (the box's farthest
-//          point from p) >= target is skipped ("covered");
+//        - a node whose cone proves front_n(p) = a_n . p - o_n - e_n * min(the box's farthest
+//          point from p, limit) >= target is skipped ("covered");
 //        - otherwise its children are visited, or, at a leaf, every triangle t whose own box is
 //          within `limit` must pass the plane test: well shaped and
 //          h_t = (p - x_t) . n_t >= target (x_t a vertex of t).
@@ -46,8 +46,10 @@
 //      p, as the seed. The last frame's hits seed the next block.
 //
 // Why a cleared point is safe. For a triangle t under node n, any x in t lies in n's box, and
-// h_t = n_t . (p - x) = a_n . (p - x) + (n_t - a_n) . (p - x) >= a_n . p - o_n - e_n |p - x|
-// >= front_n(p): a node skipped for its cone holds only triangles with h_t >= target (the
+// h_t = n_t . (p - x) = a_n . (p - x) + (n_t - a_n) . (p - x) >= a_n . p - o_n - e_n |p - x|.
+// Take x the point of t nearest p: for a t within `limit` of p, |p - x| is at most both the
+// box's farthest point from p and `limit`, so h_t >= front_n(p): a node skipped for its cone
+// holds only triangles with h_t >= target or farther than `limit` (the limit only shrinks; the
 // second walk descends such a node only to measure distances, which lower U soundly). A node
 // skipped for its box holds only triangles farther than `limit` (the limit only shrinks). So
 // every triangle within the final `limit` of p has h_t >= target: it is well shaped and p lies at

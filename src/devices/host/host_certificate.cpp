@@ -189,8 +189,11 @@ bool openNode(const Eigen::Vector3d& p, const float* box, const DsCertCone& cone
   const double front =
       static_cast<double>(cone.axis[0]) * p.x() + static_cast<double>(cone.axis[1]) * p.y() +
       static_cast<double>(cone.axis[2]) * p.z() - static_cast<double>(cone.offset) - target;
+  // Only the triangles within the limit must pass: |p - x| <= min(far, limit) for their
+  // nearest point x.
   const double spread = cone.spread;
-  return !(std::isfinite(spread) && front >= 0.0 && front * front >= spread * spread * far2);
+  const double reach2 = std::min(far2, limit * limit);
+  return !(std::isfinite(spread) && front >= 0.0 && front * front >= spread * spread * reach2);
 }
 
 /// What the walks of one frame read: the tree with its boxes and cones refitted on the pose,
