@@ -42,18 +42,19 @@ typedef struct {
 
 // Arguments of dsStrainLimit, passed by value.
 typedef struct {
-  int vertexCount;  // V
-  int frameCount;   // F in this chunk
-  float omega;      // this iteration's Chebyshev weight (1: the plain Jacobi step)
-  int planes;       // 1: keep each vertex in front of its skin plane (dsStrainLimit's `planes`)
-  float reach;      // dsStrainStayed: a vertex that moved this far or farther loses its mark
+  int vertexCount;    // V
+  int frameCount;     // F in this chunk
+  float omega;        // this iteration's Chebyshev weight (1: the plain Jacobi step)
+  int planes;         // 1: keep each vertex in front of its skin plane (dsStrainLimit's `planes`)
+  float reach;        // dsStrainStayed: a vertex that moved this far or farther loses its mark
+  float compression;  // dsStrainLimit: the gain of a correction that lengthens an edge
 } DsStrainLimitParams;
 
 #ifdef __cplusplus
 static_assert(sizeof(int) == 4, "OpenCL int is 32 bits; the shared structs assume the same");
 static_assert(sizeof(DsProjectParams) == 20, "DsProjectParams layout differs from the device");
 static_assert(sizeof(DsBlendParams) == 16, "DsBlendParams layout differs from the device");
-static_assert(sizeof(DsStrainLimitParams) == 20,
+static_assert(sizeof(DsStrainLimitParams) == 24,
               "DsStrainLimitParams layout differs from the device");
 #endif
 

@@ -6,7 +6,8 @@
 //
 // Vertex p takes, for each incident edge (entries start[v] .. start[v + 1] - 1, in a fixed order)
 // whose length l to its other end q is outside [lower, upper] (and not 0), the correction
-// share * (l - t) / l * (q - p), t the band's nearer end; it moves by step[v] times their sum
+// share * (l - t) / l * (q - p), t the band's nearer end, times params.compression when the edge
+// is too short; it moves by step[v] times their sum
 // (relaxation / n, n its edges that can move it, fixed per vertex so that the result is
 // continuous in the positions), and is copied unchanged when there are none: x^. Where
 // params.omega is not 1 (Chebyshev acceleration), `out` holds the iteration before `in` and the
@@ -68,14 +69,16 @@ __kernel __attribute__((reqd_work_group_size(DS_LOCAL_SIZE, 1, 1))) void dsStrai
     const float dz = in[q + 2] - pz;
     const float length = sqrt(dx * dx + dy * dy + dz * dz);
     float target;
+    float gain = 1.0f;
     if (length > upper[k]) {
       target = upper[k];
     } else if (length < lower[k] && length > 0.0f) {
       target = lower[k];
+      gain = params.compression;
     } else {
       continue;
     }
-    const float scale = w * (length - target) / length;
+    const float scale = gain * w * (length - target) / length;
     sx += scale * dx;
     sy += scale * dy;
     sz += scale * dz;

@@ -50,11 +50,13 @@ std::vector<float> chebyshevWeights(int iterations, double rho, int from) {
 
 StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iterations,
                                     double relaxation, std::vector<float> omega,
-                                    const std::vector<float>& weights) {
+                                    const std::vector<float>& weights, double compression) {
   const int vertexCount = mesh.vertexCount();
-  if (!(band >= 0.0 && band < 1.0) || iterations < 0 || !(relaxation > 0.0 && relaxation < 2.0)) {
+  if (!(band >= 0.0 && band < 1.0) || iterations < 0 || !(relaxation > 0.0 && relaxation < 2.0) ||
+      !(compression > 0.0 && compression <= 1.0)) {
     DS_THROW(kInternal, "strainLimitTables: band ", band, " (0 to below 1), iterations ",
-             iterations, " (>= 0), relaxation ", relaxation, " (between 0 and 2)");
+             iterations, " (>= 0), relaxation ", relaxation, " (between 0 and 2), compression ",
+             compression, " (above 0, at most 1)");
   }
   if (!weights.empty() && weights.size() != static_cast<std::size_t>(vertexCount)) {
     DS_THROW(kInternal, "strainLimitTables: ", weights.size(), " weights for ", vertexCount,
@@ -79,6 +81,7 @@ StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iteration
   tables.vertexCount = vertexCount;
   tables.iterations = iterations;
   tables.omega = std::move(omega);
+  tables.compression = static_cast<float>(compression);
   // Two passes over the edges (sorted, each once): count each vertex's entries, then fill them,
   // so every vertex lists its edges in meshEdges() order.
   std::vector<MeshEdge> edges;
@@ -136,7 +139,8 @@ void checkTables(const StrainLimitTables& t) {
             t.share.size() == entries && t.start.front() == 0 &&
             static_cast<std::size_t>(t.start.back()) == entries &&
             t.omega.size() == static_cast<std::size_t>(std::max(t.iterations, 0)) &&
-            (t.omega.empty() || t.omega.front() == 1.0f);
+            (t.omega.empty() || t.omega.front() == 1.0f) && t.compression > 0.0f &&
+            t.compression <= 1.0f;
   for (std::size_t k = 0; ok && k < t.omega.size(); ++k) {
     ok = t.omega[k] >= 1.0f && t.omega[k] < 2.0f;
   }

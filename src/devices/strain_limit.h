@@ -29,12 +29,14 @@ namespace drivenshape {
 ///   upper     per entry: (1 + s) L
 ///   share     per entry: this vertex's share of the edge's correction, w_v / (w_v + w_other)
 ///             with w the vertices' weights (0: the vertex does not move)
+///   compression  the gain of a correction that lengthens an edge (below its band), 0 to 1
 ///   step      per vertex: relaxation / n, n its entries with a share (0 when it has none)
 ///   omega     per iteration: the Chebyshev weight of that iteration (1: a plain Jacobi step)
 ///
 /// Each iteration, every vertex p takes, for each incident edge whose length l is outside
 /// [lower, upper] (and not 0), the correction share * (l - t) / l * (q - p) towards (or away
-/// from) its other end q, t the band's nearer end; it moves by step times their sum (none: it
+/// from) its other end q, t the band's nearer end, times `compression` when the edge is too
+/// short; it moves by step times their sum (none: it
 /// stays bitwise). n counts every edge that can move the vertex, not only those outside the band
 /// now: a count that changed with the positions would make the result jump where an edge crosses
 /// an end of its band (on a quad mesh a vertex stretched one way moves by relaxation / 4 of its
@@ -60,6 +62,10 @@ struct StrainLimitTables {
   std::vector<float> share;
   std::vector<float> step;
   std::vector<float> omega;
+  /// Pushing a short edge's ends apart along it turns any sideways offset of one end into more of
+  /// it (the edge buckles); the acceleration amplifies that. A gain below 1 on those corrections
+  /// keeps the iterations' answer from amplifying small differences of their input.
+  float compression = 1.0f;
 };
 
 /// The Chebyshev weights of `iterations` iterations: 1 before iteration `from` (>= 1), then
@@ -71,12 +77,14 @@ std::vector<float> chebyshevWeights(int iterations, double rho, int from);
 /// The tables for `mesh` (its positions are the rest lengths): its edges (meshEdges(); those of
 /// zero rest length are left out: they have no strain), the band [(1 - band) L, (1 + band) L],
 /// `omega` (one Chebyshev weight per iteration, chebyshevWeights(); empty = plain Jacobi,
-/// `iterations` ones) and `weights` (V values >= 0, 0 = fixed; empty = every vertex 1). Throws
-/// Error(kInternal) on a band outside [0, 1), iterations < 0, a relaxation outside (0, 2), an
-/// omega of another length or weights of another length or below 0.
+/// `iterations` ones), `weights` (V values >= 0, 0 = fixed; empty = every vertex 1) and
+/// `compression` (StrainLimitTables::compression). Throws Error(kInternal) on a band outside
+/// [0, 1), iterations < 0, a relaxation outside (0, 2), an omega of another length, weights of
+/// another length or below 0, or a compression outside (0, 1].
 StrainLimitTables strainLimitTables(const Mesh& mesh, double band, int iterations,
                                     double relaxation, std::vector<float> omega = {},
-                                    const std::vector<float>& weights = {});
+                                    const std::vector<float>& weights = {},
+                                    double compression = 1.0);
 
 /// Brings the edges of each frame into their band: `iterations` Jacobi iterations on each frame
 /// alone (see StrainLimitTables), each keeping every vertex in front of its skin plane when

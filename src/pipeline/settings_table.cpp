@@ -414,6 +414,10 @@ void hashStrainLimit(const HashInput& in, Hasher& h) {
     h.addValue(in.model.settings.strainLimit);
     constexpr std::int32_t kHeldBorders = 2;
     h.addValue(kHeldBorders);
+    // The gain of the corrections that lengthen a short edge (src/pipeline/stages/
+    // strain_limit.cpp: 0.5; none in the hash meant 1).
+    constexpr std::int32_t kHalfCompression = 1;
+    h.addValue(kHalfCompression);
     if (in.model.settings.resolve) {
       constexpr std::int32_t kSkinPlanes = 3;
       h.addValue(kSkinPlanes);

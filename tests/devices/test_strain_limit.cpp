@@ -257,6 +257,35 @@ TEST(HostStrainLimit, BringsAStripStretched30PercentBackIntoTheBand) {
   }
 }
 
+TEST(HostStrainLimit, CompressionGainScalesOnlyTheCorrectionsThatLengthenAnEdge) {
+  // One plain iteration: on a strip compressed to 80% every vertex moves half as far with the
+  // gain at 0.5 as at 1 (a gain of 0.5 is exact in binary); on one stretched to 120% it moves as
+  // far (the corrections that shorten an edge keep their gain).
+  const Mesh mesh = strip(8);
+  std::unique_ptr<StrainLimitBackend> host = makeHostStrainLimit(1);
+  for (const float stretch : {0.8f, 1.2f}) {
+    const std::vector<float> frame = stretched(mesh, stretch);
+    const std::vector<float> full =
+        limited(*host, strainLimitTables(mesh, 0.05, 1, 1.5, {}, {}, 1.0), frame);
+    const std::vector<float> half =
+        limited(*host, strainLimitTables(mesh, 0.05, 1, 1.5, {}, {}, 0.5), frame);
+    double moved = 0.0;
+    for (std::size_t i = 0; i < frame.size(); ++i) {
+      const double fullMove = double(full[i]) - frame[i];
+      const double halfMove = double(half[i]) - frame[i];
+      moved = std::max(moved, std::fabs(fullMove));
+      const double expected = stretch < 1.0f ? 0.5 * fullMove : fullMove;
+      // Each result is rounded to float once: half an ulp of coordinates below 8 each, 9.5e-7.
+      EXPECT_NEAR(halfMove, expected, 1e-6) << "stretch " << stretch << ", value " << i;
+    }
+    EXPECT_GT(moved, 1e-3) << "stretch " << stretch;
+  }
+  testing::expectThrows([&] { strainLimitTables(mesh, 0.05, 1, 1.5, {}, {}, 0.0); },
+                        ErrorCode::kInternal, "compression");
+  testing::expectThrows([&] { strainLimitTables(mesh, 0.05, 1, 1.5, {}, {}, 1.5); },
+                        ErrorCode::kInternal, "compression");
+}
+
 TEST(HostStrainLimit, LeavesEdgesInsideTheBandBitwise) {
   // Two strips in one mesh: one stretched 30%, one only 3% (inside a 5% band). The second's
   // vertices never have an edge outside the band: they stay bitwise where they were.
@@ -564,6 +593,17 @@ TEST_F(ClStrainLimit, MatchesTheHostOnTheStripAndKeepsFixedVertices) {
   // Inside the band: bitwise untouched on the device too.
   const std::vector<float> gentle = stretched(mesh, 1.03f);
   EXPECT_EQ(limited(*cl, tables, gentle), gentle);
+  // Compressed, with the corrections that lengthen an edge at half gain: as the host.
+  const std::vector<float> squeezed = stretched(mesh, 0.8f);
+  const StrainLimitTables halfGain = strainLimitTables(mesh, 0.05, 30, 1.5, {}, weights, 0.5);
+  const std::vector<float> halfOnCl = limited(*cl, halfGain, squeezed);
+  EXPECT_LE(largestDistance(halfOnCl, limited(*host, halfGain, squeezed)),
+            kStrainLimitDeviceVsHostRelTol * boundsDiagonal(mesh));
+  EXPECT_GT(largestDistance(
+                halfOnCl,
+                limited(*cl, strainLimitTables(mesh, 0.05, 30, 1.5, {}, weights, 1.0), squeezed)),
+            1e-4)
+      << "the gain changes the device's result";
   expectFixedVertexOntoItsPlane(*cl);
 }
 

@@ -50,6 +50,7 @@ class ClStrainLimit final : public StrainLimitBackend {
     mVertexCount = tables.vertexCount;
     mIterations = tables.iterations;
     mOmega = tables.omega;
+    mCompression = tables.compression;
     cl_util::guard("uploading the strain-limit tables", [&] {
       mStart = cl_util::readOnlyBuffer(mContext, tables.start);
       mOther = cl_util::readOnlyBuffer(mContext, tables.other);
@@ -180,6 +181,7 @@ class ClStrainLimit final : public StrainLimitBackend {
       params.vertexCount = mVertexCount;
       params.frameCount = frameCount;
       params.planes = planes != nullptr ? 1 : 0;
+      params.compression = mCompression;
       // Without planes any buffer stands in for them: the kernel does not read it.
       const cl::Buffer& planeArg = planes != nullptr ? *planes : mStep;
       const cl::NDRange global(
@@ -225,6 +227,7 @@ class ClStrainLimit final : public StrainLimitBackend {
   int mVertexCount = 0;
   int mIterations = 0;
   std::vector<float> mOmega;  // one per iteration
+  float mCompression = 1.0f;
   cl::Buffer mStart, mOther, mLower, mUpper, mShare, mStep;
   cl_util::GrowingBuffer mPositions{CL_MEM_READ_WRITE};  // F x 3V (limit() on host memory)
   cl_util::GrowingBuffer mScratch{CL_MEM_READ_WRITE};    // F x 3V, the other half of the ping-pong

@@ -100,14 +100,16 @@ class HostStrainLimit final : public StrainLimitBackend {
         const double d[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
         const double length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         double target = 0.0;
+        double gain = 1.0;
         if (length > t.upper[entry]) {
           target = t.upper[entry];
         } else if (length < t.lower[entry] && length > 0.0) {
           target = t.lower[entry];
+          gain = t.compression;
         } else {
           continue;
         }
-        const double scale = share * (length - target) / length;
+        const double scale = gain * share * (length - target) / length;
         for (int a = 0; a < 3; ++a) {
           sum[a] += scale * d[a];
         }

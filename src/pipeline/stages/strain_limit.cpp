@@ -41,6 +41,16 @@ constexpr double kStrainRelaxation = 1.5;
 constexpr double kChebyshevRadius = 0.98;
 constexpr int kChebyshevFrom = 2;
 
+/// The gain of the corrections that lengthen a short edge (StrainLimitTables::compression).
+/// Pushing a compressed edge's ends apart along it amplifies any sideways offset between them
+/// (the edge buckles), and the acceleration amplifies that mode further: at 1 the sample's
+/// bake moved by 1.65e-4 of its diagonal when the shot was moved rigidly through the world
+/// (its float rounding, 9e-6 without the limit, amplified 18 times; test_bake_fidelity bounds it
+/// at 1e-4), 1.1e-4 at 0.7, 9.1e-5 at 0.6 and 6.5e-5 at 0.5. Widening the band on that side
+/// instead lost strain bars (docs/validation.md, "The limit's conditioning"); at 0.5 with an
+/// exit fade of 0.25 every bar of the validation table holds.
+constexpr double kStrainCompression = 0.5;
+
 /// The skin planes' reach, in skin offsets (EvaluatorSettings::skinOffset): a vertex at this
 /// signed distance from the skin or farther before the limit gets no plane (the clearance
 /// certificate answers most of them without a search; the planes do not depend on which). 2
@@ -105,7 +115,8 @@ class StrainLimitStage final : public Stage {
     const int iterations = model.settings.strainIterations;
     mBackend->upload(strainLimitTables(
         model.db.drivenMesh, model.settings.strainLimit, iterations, kStrainRelaxation,
-        chebyshevWeights(iterations, kChebyshevRadius, kChebyshevFrom), movingVertices(model)));
+        chebyshevWeights(iterations, kChebyshevRadius, kChebyshevFrom), movingVertices(model),
+        kStrainCompression));
   }
 
   const char* name() const override { return "strain"; }
