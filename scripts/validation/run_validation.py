@@ -47,7 +47,7 @@ MODES = {
     "talk": ["--weights", "qp", "--align", "none", "--blend", "world", "--no-resolve",
              "--strain-limit", "0"],
     "bind": ["--weights", "bind", "--no-resolve", "--strain-limit", "0"],
-    "qp": ["--weights", "qp", "--strain-limit", "0"],
+    "qp": ["--weights", "qp", "--strain-limit", "0", "--exit-fade", "0.15"],
     "defaults": [],
 }
 

@@ -721,7 +721,8 @@ void correctionRows(std::vector<SettingRow>& rows) {
           "penetration resolution: a vertex deep inside the body whose two nearest exits "
           "differ by at most this factor times its depth moves only part of the way, none "
           "where they tie, so cloth caught in a limb or a bent joint does not jump across it "
-          "between frames")
+          "between frames (0.25 with the strain limit, 0.15 without it: the validation's "
+          "best)")
       .usedWhen(&resolves, "with the penetration resolution (resolve)", WhenUnused::kWarn)
       .hash(&hashExitFade)
       .report("exit_fade")
@@ -786,11 +787,11 @@ void batchAndLayerRows(std::vector<SettingRow>& rows) {
       .help(
           "after the correction and before the penetration resolution, each frame's cloth "
           "edges are brought back within this fraction of their rest lengths (0.01: 99% to "
-          "101%, the validation table's choice) by iterations of edge projections, the "
-          "garment's open borders (hems, cuffs) held where they are, so the cloth does not "
-          "stretch like rubber; with the resolution on, the cloth is kept out of the "
-          "body while it iterates, and what the resolution leaves shallowly inside comes just "
-          "out after it (with an exit fade of 0.2 beside it, the validation's best)")
+          "101%) by iterations of edge projections, the garment's open borders (hems, cuffs) "
+          "held where they are, so the cloth does not stretch like rubber; with the "
+          "resolution on, the cloth is kept out of the body while it iterates, and what the "
+          "resolution leaves shallowly inside comes just out after it (turned off, give "
+          "--exit-fade 0.15 with it: the validation's best without the limit)")
       .hash(&hashStrainLimit)
       .addon("collision", nullptr, "Strain Limit")
       .report("strain_limit");

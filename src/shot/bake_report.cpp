@@ -42,8 +42,8 @@ nlohmann::json secondsJson(const StageTimes& times) {
   nlohmann::json seconds{
       {"read", times.read},          {"setup", times.setup},          {"write", times.write},
       {"read_wait", times.readWait}, {"write_wait", times.writeWait}, {"total", times.total}};
-  for (const char* stage :
-       {"align", "project", "weights", "blend", "correct", "resolve", "layers", "audit"}) {
+  for (const char* stage : {"align", "project", "weights", "blend", "correct", "strain", "resolve",
+                            "settle", "layers", "audit"}) {
     seconds[stage] = 0.0;
   }
   for (const auto& [stage, value] : times.stages) {

@@ -312,7 +312,7 @@ TEST(Cli, BakeVerboseNamesEverySettingEachFrameAndTheStages) {
     }
   }
   // The one setting given is marked with the documented default (docs/commands.md).
-  EXPECT_NE(r.err.find("exit fade               0.1  (default 0.15)\n"), std::string::npos)
+  EXPECT_NE(r.err.find("exit fade               0.1  (default 0.25)\n"), std::string::npos)
       << r.err;
   for (int frame = 1; frame <= 3; ++frame) {
     EXPECT_NE(r.err.find("frame " + std::to_string(frame) + " baked in "), std::string::npos)

@@ -156,6 +156,15 @@ std::vector<float> clothOnlyResolution(const Mesh& driverMesh, const Shot& shot,
   return hostResolution(driverMesh, shot, std::move(cloth), {}, 0.0f, true);
 }
 
+/// The defaults without the strain limit: the resolution's sides alone (the limit with sides is
+/// checked by MuscleUnderTheSkinBakesToTheInsetTruthWithTheDefaults and the bands test's limited
+/// bake).
+EvaluatorSettings withoutStrainLimit() {
+  EvaluatorSettings settings;
+  settings.strainLimit = 0.0;
+  return settings;
+}
+
 /// The vertex positions (frame-major) where the default resolution jumps, on the host reference
 /// path: `db`'s bake of the shot without the resolution, resolved as the bake resolves it (its
 /// sides, exit fade and direction; checked against `resolved`, the host bake with it, bit for
@@ -163,7 +172,7 @@ std::vector<float> clothOnlyResolution(const Mesh& driverMesh, const Shot& shot,
 /// whose answer moves by more than 10 x step is at a jump (a tie between two exits).
 std::vector<bool> resolutionJumps(const Database& db, const Shot& shot,
                                   const std::vector<float>& resolved, double step) {
-  EvaluatorSettings rawSettings;
+  EvaluatorSettings rawSettings = withoutStrainLimit();
   rawSettings.resolve = false;
   const Backends host = hostBackends();
   const std::vector<float> raw =
@@ -285,9 +294,9 @@ TEST_F(SidesTest, ClothAndMuscleBandsEachStayOnTheirSideOfTheSkin) {
   const Backends cl = clBackends();
   const double offset = EvaluatorSettings().skinOffset;
 
-  Evaluator mixedEvaluator(mixed, EvaluatorSettings(), cl.view());
+  Evaluator mixedEvaluator(mixed, withoutStrainLimit(), cl.view());
   const Evaluation result = mixedEvaluator.evaluate(shot.frames, shot.driver);
-  Evaluator clothEvaluator(cloth, EvaluatorSettings(), cl.view());
+  Evaluator clothEvaluator(cloth, withoutStrainLimit(), cl.view());
   const Evaluation clothResult = clothEvaluator.evaluate(shot.frames, shot.driver);
   EXPECT_EQ(reportedInsideVertices(mixedEvaluator), muscle);
   EXPECT_EQ(reportedInsideVertices(clothEvaluator), 0);
@@ -367,7 +376,7 @@ TEST_F(SidesTest, ClothAndMuscleBandsEachStayOnTheirSideOfTheSkin) {
   EXPECT_EQ(different, 0) << "cloth-band vertices differ from the all-cloth bake";
 
   // The cloth-only resolution pushes the muscle band out through the skin.
-  EvaluatorSettings rawSettings;
+  EvaluatorSettings rawSettings = withoutStrainLimit();
   rawSettings.resolve = false;
   const Evaluation raw =
       Evaluator(mixed, rawSettings, cl.view()).evaluate(shot.frames, shot.driver);
@@ -391,7 +400,7 @@ TEST_F(SidesTest, ClothAndMuscleBandsEachStayOnTheirSideOfTheSkin) {
   // than 10x that (elsewhere by at most about 3x: offset / depth = 2 turned, 1 along). There the
   // two devices' answers must be equally far from the skin.
   const Backends host = hostBackends();
-  Evaluator hostEvaluator(mixed, EvaluatorSettings(), host.view());
+  Evaluator hostEvaluator(mixed, withoutStrainLimit(), host.view());
   const Evaluation hostResult = hostEvaluator.evaluate(shot.frames, shot.driver);
   EXPECT_EQ(reportedInsideVertices(hostEvaluator), muscle);
   EXPECT_EQ(hostEvaluator.settingsHash(), mixedEvaluator.settingsHash());

@@ -118,6 +118,10 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTable) {
     // 0.2 moves cloth the nearest way out by default, which changes the output (and so the
     // hash) of every bake with the resolution; along the normal, the hash is main's.
     settings.resolveDirection = ResolveDirection::kNormal;
+    // 0.3 limits strain and fades the exit at 0.25 by default (issue 43); off and at 0.15, the
+    // hash is main's.
+    settings.strainLimit = 0.0;
+    settings.exitFade = 0.15;
     p.change(settings);
     const Evaluator evaluator(db, settings, *host);
     const std::string hash = hashToHex(evaluator.settingsHashOfVersion(kPinnedVersion));
@@ -165,8 +169,10 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTableWithThePoseModel) {
   before.poseModel.verdictLevel = 0.0;
   before.poseModel.verdictMargin = 0.0;
   std::unique_ptr<Device> host = makeHostDevice();
-  EvaluatorSettings normal;  // 0.1's resolution (see above)
+  EvaluatorSettings normal;  // 0.1's resolution, no strain limit, fade 0.15 (see above)
   normal.resolveDirection = ResolveDirection::kNormal;
+  normal.strainLimit = 0.0;
+  normal.exitFade = 0.15;
   const Evaluator evaluator(before, normal, *host);
   ASSERT_EQ(evaluator.settings().weightMode, WeightMode::kModel);
   const OutputHashFields bakeDefaults{1024, 8, 64};

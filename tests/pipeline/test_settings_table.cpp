@@ -42,7 +42,7 @@ TEST(SettingsTable, RowsAreUniqueAndHaveWhatTheToolsRead) {
         << setting.key;
     EXPECT_NO_THROW(checkSettingValue(setting, defaultSettingValue(setting))) << setting.key;
   }
-  EXPECT_EQ(formatSettingValue(defaultSettingValue(findSetting("exit_fade"))), "0.15");
+  EXPECT_EQ(formatSettingValue(defaultSettingValue(findSetting("exit_fade"))), "0.25");
   EXPECT_EQ(std::get<double>(defaultSettingValue(findSetting("skin_offset"))),
             EvaluatorSettings().skinOffset);
   EXPECT_EQ(std::get<int>(defaultSettingValue(findSetting("batch"))), BakeOptions().batchFrames);

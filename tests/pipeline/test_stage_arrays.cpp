@@ -99,8 +99,23 @@ void wind(EvaluatorSettings& s) {
 std::vector<Case> cases() {
   const Database& db = sampleDatabase();
   const auto reads = [](const StagePlan& stage, Array array) { return stage.reads.has(array); };
+  // The cases below start from the defaults without the strain limit (the test turns it off
+  // before each case's change): each adds one feature's stages.
   return {
       {"defaults",
+       [](EvaluatorSettings& s) { s = EvaluatorSettings{}; },
+       {"weights", "blend", "correct", "strain", "resolve", "settle", "audit"},
+       [&](const std::vector<StagePlan>& plan) {
+         // The resolution keeps the strain stage's answers; the settle stage the resolution's.
+         EXPECT_TRUE(reads(plan[4], Array::AuditAnswered) && reads(plan[5], Array::AuditHits));
+       }},
+      {"strain limit without the resolution",
+       [](EvaluatorSettings& s) {
+         s = EvaluatorSettings{};
+         s.resolve = false;
+       },
+       {"weights", "blend", "correct", "strain", "audit"}},
+      {"no strain limit",
        [](EvaluatorSettings&) {},
        {"weights", "blend", "correct", "resolve", "audit"},
        [&](const std::vector<StagePlan>& plan) {
@@ -213,6 +228,7 @@ TEST(StageArrays, TheBuiltInStagesAreWiredAndRunWithinTheirDeclarations) {
   for (const Case& c : cases()) {
     SCOPED_TRACE(c.name);
     EvaluatorSettings settings;
+    settings.strainLimit = 0.0;
     c.change(settings);
     Model model(db, settings, *host);
     const Executor executor(model);  // checks the wiring

@@ -315,11 +315,11 @@ def test_settings_keywords_and_enum_strings():
     assert settings.binding_mask is None and settings.regions is None and settings.layers.empty
     custom = ds.EvaluatorSettings(weight_mode="nearest", align="rigid-all", blend="world",
                                   skin_offset=0.001, max_weight_change=0.1, audit=False,
-                                  threads=1, align_group="arm", exit_fade=0.25,
+                                  threads=1, align_group="arm", exit_fade=0.3,
                                   coverage_tolerance=0.004)
     assert (custom.weight_mode, custom.align, custom.blend) == ("nearest", "rigid-all", "world")
     assert custom.skin_offset == 0.001 and custom.threads == 1 and not custom.audit
-    assert custom.exit_fade == 0.25 and settings.exit_fade == 0.15
+    assert custom.exit_fade == 0.3 and settings.exit_fade == 0.25
     # Issue 27: coverage_tolerance was an attribute but neither a keyword nor in the repr.
     assert custom.coverage_tolerance == 0.004 and settings.coverage_tolerance == 0
     assert "coverage_tolerance=0.004" in repr(custom)

@@ -55,7 +55,7 @@ def test_table_rows_are_complete(table):
             assert row["maximum"] is None or row["default"] <= row["maximum"], key
         if row["type"] == "choice":
             assert row["default"] in row["choices"], key
-    assert table["exit_fade"]["default"] == 0.15 and table["exit_fade"]["flag"] == "--exit-fade"
+    assert table["exit_fade"]["default"] == 0.25 and table["exit_fade"]["flag"] == "--exit-fade"
     assert table["exit_fade"]["hashed"] and not table["audit"]["hashed"]
 
 

@@ -490,8 +490,10 @@ def test_strain_plot_and_figures(pose):
     text = pose["page"].read_text(encoding="utf-8")
     assert f"simulation (truth) {100 * shot['truth']['strain_mean']:.3g}; binding baseline " \
            f"{100 * shot['baseline']['strain_mean']:.3g}" in text
-    # The sample's bake stretches: its edges over 10% are many times the simulation's.
-    assert shot["bake"]["strain_share_over_10pct"] > 3 * shot["truth"]["strain_share_over_10pct"]
+    # The sample's bake holds its length (the strain limit is on by default): issue 43's bars, a
+    # mean |strain| within 1.5 x the simulation's, edges over 10% at most twice its share.
+    assert shot["bake"]["strain_mean"] <= 1.5 * shot["truth"]["strain_mean"]
+    assert shot["bake"]["strain_share_over_10pct"] <= 2 * shot["truth"]["strain_share_over_10pct"]
 
 
 def vertex_strain(rest, frames, edges):

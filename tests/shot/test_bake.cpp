@@ -70,6 +70,7 @@ TEST_F(BakeTest, OpenClBlendMatchesHostReferenceOnEveryFrame) {
   options.frames = driver->frames();
   options.batchFrames = 16;
   options.evaluator.correct = false;
+  options.evaluator.strainLimit = 0.0;  // the blend alone (test_evaluator compares the limit)
   options.outputPattern = dir.file("host.####.exr");
   const Backends host = hostBackends();
   const BakeResult hostResult = bake(db, *driver, host.view(), options);
@@ -166,12 +167,14 @@ TEST_F(BakeTest, QpBeatsNearestShapeBaselineAgainstSimulatedTruth) {
 
 TEST_F(BakeTest, DatabaseFramesReproduceTheirDrivenShape) {
   // Baking the database's own driver poses must give weight 1 on that shape and its driven
-  // shape back: the reference data is the truth here.
+  // shape back: the reference data is the truth here. Without the strain limit, which brings the
+  // simulation's own stretch (1-2%) into its 1% band and so moves the shape by a few mm.
   const Database& db = sampleDatabase();
   const auto driver = openPointCache(sample("train.driver.pc2"));
   TempDir dir;
   BakeOptions options;
   options.frames = {db.frames[0], db.frames[7], db.frames[29]};
+  options.evaluator.strainLimit = 0.0;
   options.outputPattern = dir.file("db.####.exr");
   options.reportPath = dir.file("report.json");
   const Backends cl = clBackends();

@@ -296,10 +296,10 @@ class EvaluatorSettings:
     resolve=True: the penetration resolution: cloth inside the driver or closer than the skin offset moves out to the offset
     skin_offset=0.002: penetration resolution: cloth closer to the driver than this distance (or inside it) moves out to it (0.002 = 2 mm in metre scenes)
     resolve_direction='nearest': penetration resolution: nearest (a vertex within the offset on its own side of the skin moves along the line from its closest point on the driver, the shortest way; one on the wrong side along the driver's pseudo-normal) or normal (every vertex along the pseudo-normal, as 0.1 did: where the closest point crosses from a face onto an edge the cloth jumps by up to half the angle between the two faces)
-    exit_fade=0.15: penetration resolution: a vertex deep inside the body whose two nearest exits differ by at most this factor times its depth moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
+    exit_fade=0.25: penetration resolution: a vertex deep inside the body whose two nearest exits differ by at most this factor times its depth moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames (0.25 with the strain limit, 0.15 without it: the validation's best)
     regions=None: region-local weights: one QP per region (driver groups) mixed over the matching driven groups with a smooth falloff (a JSON file: readRegions; Python: load_regions); none = one QP on every driver row
     max_weight_change=0.0: temporal stability: no shape's weight changes by more than this between consecutive frames (|w_t - w_{t-1}|), frames solved in order within each batch
-    strain_limit=0.0: after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%, the validation table's choice) by iterations of edge projections, the garment's open borders (hems, cuffs) held where they are, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (with an exit fade of 0.2 beside it, the validation's best)
+    strain_limit=0.01: after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%) by iterations of edge projections, the garment's open borders (hems, cuffs) held where they are, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (turned off, give --exit-fade 0.15 with it: the validation's best without the limit)
     strain_iterations=24: strain limit: Chebyshev-accelerated Jacobi iterations per frame, each one pass over the edges (more: edges closer to the band)
     layers=None: layers after the correction and the resolution: a mix with another cache, wind (command line: the --mix and --wind-* options, see Layer options; Python: load_layers); none by default
     audit=True: the per-frame audit: cloth vertices inside the driver before and after the correction, binding switches, the largest frame-to-frame jump (costs time)
@@ -307,7 +307,7 @@ class EvaluatorSettings:
     threads=0: host threads for the weights, the alignment, the closest-point search and EXR writing
     clearance_certificate=True: search closest points only where they can matter (the cloth and every count are bitwise the same either way; off only to measure or check the full search)
     """
-    def __init__(self, *, weight_mode: typing.Literal['qp', 'nearest', 'bind', 'model', 'auto'] = 'auto', correct: bool = True, binding_mask: BindingMask | None = None, align: typing.Literal['none', 'rigid', 'rigid-all'] = 'rigid', align_group: str = '', blend: typing.Literal['world', 'local'] = 'local', resolve: bool = True, skin_offset: float = 0.002, resolve_direction: typing.Literal['nearest', 'normal'] = 'nearest', exit_fade: float = 0.15, regions: RegionSet | None = None, max_weight_change: float = 0.0, strain_limit: float = 0.0, strain_iterations: int = 24, layers: LayerSettings | None = None, audit: bool = True, coverage_tolerance: float = 0.0, threads: int = 0, clearance_certificate: bool = True) -> None:
+    def __init__(self, *, weight_mode: typing.Literal['qp', 'nearest', 'bind', 'model', 'auto'] = 'auto', correct: bool = True, binding_mask: BindingMask | None = None, align: typing.Literal['none', 'rigid', 'rigid-all'] = 'rigid', align_group: str = '', blend: typing.Literal['world', 'local'] = 'local', resolve: bool = True, skin_offset: float = 0.002, resolve_direction: typing.Literal['nearest', 'normal'] = 'nearest', exit_fade: float = 0.25, regions: RegionSet | None = None, max_weight_change: float = 0.0, strain_limit: float = 0.01, strain_iterations: int = 24, layers: LayerSettings | None = None, audit: bool = True, coverage_tolerance: float = 0.0, threads: int = 0, clearance_certificate: bool = True) -> None:
         """
         Keyword arguments only, one per evaluator setting (see the class's docstring); the others keep their defaults.
         """
@@ -380,7 +380,7 @@ class EvaluatorSettings:
     @property
     def exit_fade(self) -> float:
         """
-        penetration resolution: a vertex deep inside the body whose two nearest exits differ by at most this factor times its depth moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames
+        penetration resolution: a vertex deep inside the body whose two nearest exits differ by at most this factor times its depth moves only part of the way, none where they tie, so cloth caught in a limb or a bent joint does not jump across it between frames (0.25 with the strain limit, 0.15 without it: the validation's best)
         """
     @exit_fade.setter
     def exit_fade(self, value: float) -> None:
@@ -444,7 +444,7 @@ class EvaluatorSettings:
     @property
     def strain_limit(self) -> float:
         """
-        after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%, the validation table's choice) by iterations of edge projections, the garment's open borders (hems, cuffs) held where they are, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (with an exit fade of 0.2 beside it, the validation's best)
+        after the correction and before the penetration resolution, each frame's cloth edges are brought back within this fraction of their rest lengths (0.01: 99% to 101%) by iterations of edge projections, the garment's open borders (hems, cuffs) held where they are, so the cloth does not stretch like rubber; with the resolution on, the cloth is kept out of the body while it iterates, and what the resolution leaves shallowly inside comes just out after it (turned off, give --exit-fade 0.15 with it: the validation's best without the limit)
         """
     @strain_limit.setter
     def strain_limit(self, value: float) -> None:
