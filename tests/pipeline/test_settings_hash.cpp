@@ -118,7 +118,7 @@ TEST(SettingsHash, IsTheHashOfMainBeforeTheSettingsTable) {
     // 0.2 moves cloth the nearest way out by default, which changes the output (and so the
     // hash) of every bake with the resolution; along the normal, the hash is main's.
     settings.resolveDirection = ResolveDirection::kNormal;
-    // 0.3 limits strain and fades the exit at 0.25 by default (issue 43); off and at 0.15, the
+    // The defaults limit strain and fade the exit at 0.25 since issue 43; off and at 0.15, the
     // hash is main's.
     settings.strainLimit = 0.0;
     settings.exitFade = 0.15;
