@@ -221,6 +221,9 @@ namespace {
 /// by a resume up to 0.2.0 (`"skipped": true`, nothing else) a record without a prediction.
 FrameRecord mergedRecord(const nlohmann::json& entry, const std::string& where) {
   if (entry.is_object() && entry.contains("skipped") && entry.at("skipped") == true) {
+    if (!entry.contains("frame")) {
+      DS_THROW(kInput, where, " is a kept frame without a \"frame\" number");
+    }
     FrameRecord record;
     record.frame = jsonInt(entry.at("frame"), where + " frame");
     record.skipped = true;
