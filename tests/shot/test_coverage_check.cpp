@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // The coverage check of `drivenshape eval --report` (src/shot/coverage_check.cpp): average ranks
 // and Spearman's correlation against a brute-force reference (ties included), the bake report
-// reader on hand-written reports, and the matching of predictions to measured errors.
+// reader on hand-written reports, the merge of chunk reports on bad ones, and the matching of
+// predictions to measured errors.
 
 #include <gtest/gtest.h>
 
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include <drivenshape/bake.h>
 #include <drivenshape/coverage_check.h>
 #include <drivenshape/error.h>
 
@@ -180,6 +182,25 @@ TEST(BakeReportCoverage, BadReportsNameTheFileAndTheProblem) {
           "coverage": {"flagged": true}}]})",
       "coverage.tolerance is \"2%\"");
   bad(R"({"database": {"driven_vertices": 0}, "frames": []})", "database.driven_vertices");
+}
+
+TEST(MergeBakeReports, BadReportsNameTheSourceAndTheEntry) {
+  auto bad = [](const std::string& text, const std::string& fragment) {
+    for (const std::string& want : {fragment, std::string("part2.json")}) {
+      expectThrows(
+          [&] {
+            mergeBakeReports({"{\"frames\": []}", text}, {"part1.json", "part2.json"});
+          },
+          ErrorCode::kInput, want);
+    }
+  };
+  bad("not json", "not valid JSON");
+  bad(R"({"frames": 3})", "no \"frames\" list");
+  bad(R"({"frames": [{"skipped": true}]})", "frames[0] is a kept frame without a \"frame\"");
+  bad(R"({"frames": [7]})", "frames[0] is 7");
+  bad(R"({"frames": [{"frame": 2}]})", "frames[0] has no relative_residual");
+  bad(R"({"settings_hash": "x", "frames": []})", "its settings_hash differs from that of part1");
+  bad(R"({"frames": [], "seconds": [1]})", "seconds is [1]");
 }
 
 // ---- Predictions against measured errors ----
