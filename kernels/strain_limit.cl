@@ -7,15 +7,15 @@
 // Vertex p takes, for each incident edge (entries start[v] .. start[v + 1] - 1, in a fixed order)
 // whose length l to its other end q is outside [lower, upper] (and not 0), the correction
 // share * (l - t) / l * (q - p), t the band's nearer end, times params.compression when the edge
-// is too short; it moves by step[v] times their sum
-// (relaxation / n, n its edges that can move it, fixed per vertex so that the result is
-// continuous in the positions), and is copied unchanged when there are none: x^. Where
-// params.omega is not 1 (Chebyshev acceleration), `out` holds the iteration before `in` and the
-// vertex writes omega * (x^ - out) + out, except a vertex with step 0 (no edge can move it),
-// which writes x^. A vertex reads `in` and its own three floats of `out`,
-// writes only those: no atomics, no order between items. Where params.planes is 1, the vertex
-// then keeps in front of its skin plane (m, c) = planes[f * V + v] (ClosestBackend::skinPlanes;
-// none where m is 0): a result x with m . x < c moves to x + (c - m . x) m.
+// is too short; it moves by step[v] times their sum (relaxation / n, n its edges that can move
+// it, fixed per vertex so that the result is continuous in the positions), and is copied
+// unchanged when there are none: x^. Where params.omega is not 1 (Chebyshev acceleration), `out`
+// holds the iteration before `in` and the vertex writes omega * (x^ - out) + out, except a vertex
+// with step 0 (no edge can move it), which writes x^. A vertex reads `in` and its own three
+// floats of `out`, writes only those: no atomics, no order between items. Where params.planes is
+// 1, the vertex then keeps in front of its skin plane (m, c) = planes[f * V + v]
+// (ClosestBackend::skinPlanes; none where m is 0): a result x with m . x < c moves to
+// x + (c - m . x) m.
 //
 // Mapping: 2-D range, local size (DS_LOCAL_SIZE, 1); item (v, f) is vertex v of frame f.
 //

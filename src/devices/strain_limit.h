@@ -29,19 +29,19 @@ namespace drivenshape {
 ///   upper     per entry: (1 + s) L
 ///   share     per entry: this vertex's share of the edge's correction, w_v / (w_v + w_other)
 ///             with w the vertices' weights (0: the vertex does not move)
-///   compression  the gain of a correction that lengthens an edge (below its band), 0 to 1
 ///   step      per vertex: relaxation / n, n its entries with a share (0 when it has none)
 ///   omega     per iteration: the Chebyshev weight of that iteration (1: a plain Jacobi step)
+///   compression  one gain for the corrections that lengthen an edge (below its band), 0 to 1
 ///
 /// Each iteration, every vertex p takes, for each incident edge whose length l is outside
 /// [lower, upper] (and not 0), the correction share * (l - t) / l * (q - p) towards (or away
 /// from) its other end q, t the band's nearer end, times `compression` when the edge is too
-/// short; it moves by step times their sum (none: it
-/// stays bitwise). n counts every edge that can move the vertex, not only those outside the band
-/// now: a count that changed with the positions would make the result jump where an edge crosses
-/// an end of its band (on a quad mesh a vertex stretched one way moves by relaxation / 4 of its
-/// two corrections). Every vertex reads the positions of the iteration before (Jacobi), so the
-/// result is the same in any order, on any number of threads.
+/// short; it moves by step times their sum (none: it stays bitwise). n counts every edge that
+/// can move the vertex, not only those outside the band now: a count that changed with the
+/// positions would make the result jump where an edge crosses an end of its band (on a quad mesh
+/// a vertex stretched one way moves by relaxation / 4 of its two corrections). Every vertex reads
+/// the positions of the iteration before (Jacobi), so the result is the same in any order, on any
+/// number of threads.
 ///
 /// Chebyshev acceleration (Wang 2015, "A Chebyshev semi-iterative approach for accelerating
 /// projective and positional dynamics"): iteration k takes the Jacobi result x^ of x_k and moves
